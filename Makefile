@@ -1,0 +1,65 @@
+# dq_fk_ros front door. `make demo` and `make test` work on a fresh machine from nothing.
+# Every target is idempotent: with nothing changed, setup does nothing and prints nothing.
+
+PYTHON ?= python3.11
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMPS := $(VENV)/.stamps
+LOGS := $(VENV)/logs
+STEP := scripts/step
+PIP := $(PY) -m pip install --disable-pip-version-check
+
+# Every ROS process started from here stays on loopback, on a domain of its own.
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+DEMO_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 80) + 20 )))
+DEMO_SECONDS ?= 3
+
+.PHONY: help setup demo test lint clean
+
+help:
+	@echo 'make setup  create .venv with ROS 2 Jazzy (PyPI), tf2_msgs and dq_fk_ros'
+	@echo 'make demo   setup, then run dq_fk_node with the default robot (RL15)'
+	@echo 'make test   setup, then run linters, unit and integration tests'
+	@echo 'make clean  remove .venv and build leftovers'
+
+setup: $(STAMPS)/project
+	@:
+
+$(STAMPS)/python:
+	@$(STEP) "find $(PYTHON) (the ROS 2 Jazzy wheels are built for CPython 3.11)" $(LOGS)/python.log \
+	  $(PYTHON) -c 'import sys; assert sys.version_info[:2] == (3, 11), sys.version'
+	@$(STEP) "create virtual environment $(VENV)" $(LOGS)/venv.log $(PYTHON) -m venv $(VENV)
+	@mkdir -p $(STAMPS) && touch $@
+
+$(STAMPS)/runtime: requirements/runtime.txt $(STAMPS)/python
+	@echo 'setup: installing ROS 2 Jazzy runtime wheels, numpy, PyYAML'
+	@$(STEP) "install requirements/runtime.txt" $(LOGS)/runtime.log $(PIP) -r requirements/runtime.txt
+	@touch $@
+
+$(STAMPS)/dev: requirements/dev.txt $(STAMPS)/runtime
+	@echo 'setup: installing test and lint tools'
+	@$(STEP) "install requirements/dev.txt" $(LOGS)/dev.log $(PIP) -r requirements/dev.txt
+	@touch $@
+
+$(STAMPS)/tf2_msgs: vendor/tf2_msgs/CMakeLists.txt vendor/tf2_msgs/package.xml \
+                    vendor/tf2_msgs/msg/TFMessage.msg requirements/tf2_msgs-build.txt \
+                    scripts/ensure_tf2_msgs.sh $(STAMPS)/runtime
+	@echo 'setup: providing tf2_msgs (building the vendored TFMessage if missing)'
+	@$(STEP) "provide tf2_msgs (scripts/ensure_tf2_msgs.sh)" $(LOGS)/tf2_msgs.log \
+	  scripts/ensure_tf2_msgs.sh $(VENV)
+	@touch $@
+
+$(STAMPS)/project: setup.py setup.cfg package.xml $(STAMPS)/dev $(STAMPS)/tf2_msgs
+	@echo 'setup: installing dq_fk_ros (editable)'
+	@$(STEP) "install dq_fk_ros in editable mode" $(LOGS)/project.log \
+	  $(PIP) --no-deps --no-build-isolation -e .
+	@touch $@
+
+demo: setup
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.demo --seconds $(DEMO_SECONDS)
+
+test: setup
+	@scripts/run_tests $(PY)
+
+clean:
+	rm -rf $(VENV) build install log .pytest_cache

@@ -1,0 +1,30 @@
+"""Install dq_fk_ros as an ament_python package (colcon) or editable into a venv (pip)."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'dq_fk_ros'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+    ],
+    install_requires=['setuptools', 'numpy', 'PyYAML'],
+    zip_safe=True,
+    maintainer='dq_fk_ros developers',
+    maintainer_email='dq_fk_ros@example.com',
+    description='Dual-quaternion forward kinematics from a YAML DH table, published to ROS 2.',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'dq_fk_node = dq_fk_ros.node:main',
+        ],
+    },
+)
