@@ -1,0 +1,439 @@
+"""
+Denavit-Hartenberg chains in dual quaternions: every link frame, batches, Jacobians.
+
+Conventions (per chain):
+
+* ``standard`` (distal, Spong; the papers'): ``T_i = Rz(theta) Tz(d) Tx(a) Rx(alpha)``, the
+  closed form of eq. (3) of 002_*.txt, eqs. (13)-(15) of 000_*.txt.
+* ``modified`` (proximal, Craig): ``T_i = Rx(alpha) Tx(a) Rz(theta) Tz(d)``.
+
+Lengths are metres, angles radians. A row's variable parameter is ``scale * q + offset``,
+where ``q`` is a joint variable and ``offset`` is the row's ``theta`` (revolute) or ``d``
+(prismatic) value. Frames are numbered as in the papers: frame 0 is the base of the chain
+(``base`` transform from the fixed/world frame), frame ``i`` is the child of row ``i``,
+and an optional fixed ``tool`` transform follows frame ``n``.
+
+Dual quaternions are 8-vectors (w, x, y, z, w', x', y', z'); see
+:mod:`dq_fk_ros.dual_quaternion`.
+"""
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from dq_fk_ros.dual_quaternion import (
+    canonical, dq_multiply_array, dq_translation_array, DualQuaternion, quat_conjugate,
+    quat_to_matrix)
+
+CONVENTIONS = ('standard', 'modified')
+JOINT_TYPES = ('revolute', 'prismatic', 'cylindrical', 'fixed')
+
+
+@dataclass(frozen=True)
+class DHJoint:
+    """
+    One DH row: a (m), alpha (rad), d (m), theta (rad), and which of them move.
+
+    ``joint_type``: ``revolute`` (theta = scale*q + theta), ``prismatic``
+    (d = scale*q + d), ``cylindrical`` (both: two joint variables, theta's then d's, the
+    RRC robot's third joint in 002_*.txt) or ``fixed`` (no variable).
+    ``name`` names the joint variable (cylindrical rows get ``name`` and ``name + '_d'``
+    unless ``d_name`` is given). ``follows`` makes the row read another joint's variable
+    instead of having its own (a mimic joint: ``scale`` is the multiplier).
+    ``limits``: ``(lower, upper)`` of the row's own variable, in joint units.
+    """
+
+    a: float = 0.0
+    alpha: float = 0.0
+    d: float = 0.0
+    theta: float = 0.0
+    joint_type: str = 'revolute'
+    scale: float = 1.0
+    name: str = ''
+    d_name: str = ''
+    follows: str = ''
+    limits: tuple = None
+
+    def __post_init__(self):
+        """Reject unknown joint types and non-finite numbers."""
+        if self.joint_type not in JOINT_TYPES:
+            raise ValueError(f'joint_type {self.joint_type!r} is not one of {JOINT_TYPES}')
+        for field in ('a', 'alpha', 'd', 'theta', 'scale'):
+            value = getattr(self, field)
+            if not math.isfinite(value):
+                raise ValueError(f'DH parameter {field} must be finite, got {value!r}')
+        if self.follows and self.joint_type not in ('revolute', 'prismatic'):
+            raise ValueError('only revolute and prismatic rows can follow another joint')
+
+
+def _row_standard(ca, sa, a, theta, d):
+    """Closed form of the standard DH operator, eq. (3) of 002_*.txt (ca, sa of alpha/2)."""
+    ct = math.cos(0.5 * theta)
+    st = math.sin(0.5 * theta)
+    ha = 0.5 * a
+    hd = 0.5 * d
+    return (ca * ct, sa * ct, sa * st, ca * st,
+            -ha * sa * ct - hd * ca * st, ha * ca * ct - hd * sa * st,
+            ha * ca * st + hd * sa * ct, -ha * sa * st + hd * ca * ct)
+
+
+def _row_modified(ca, sa, a, theta, d):
+    """Closed form of the modified DH operator ``h_x(alpha, a) h_z(theta, d)``."""
+    ct = math.cos(0.5 * theta)
+    st = math.sin(0.5 * theta)
+    ha = 0.5 * a
+    hd = 0.5 * d
+    return (ca * ct, sa * ct, -sa * st, ca * st,
+            -hd * ca * st - ha * sa * ct, -hd * sa * st + ha * ca * ct,
+            -hd * sa * ct - ha * ca * st, hd * ca * ct - ha * sa * st)
+
+
+def _mul(a, b):
+    """Eq. (12) of 000_*.txt on two 8-tuples of floats (the scalar fast path)."""
+    aw, ax, ay, az, bw_, bx_, by_, bz_ = a
+    cw, cx, cy, cz, dw, dx, dy, dz = b
+    return (
+        aw * cw - ax * cx - ay * cy - az * cz,
+        aw * cx + ax * cw + ay * cz - az * cy,
+        aw * cy - ax * cz + ay * cw + az * cx,
+        aw * cz + ax * cy - ay * cx + az * cw,
+        aw * dw - ax * dx - ay * dy - az * dz + bw_ * cw - bx_ * cx - by_ * cy - bz_ * cz,
+        aw * dx + ax * dw + ay * dz - az * dy + bw_ * cx + bx_ * cw + by_ * cz - bz_ * cy,
+        aw * dy - ax * dz + ay * dw + az * dx + bw_ * cy - bx_ * cz + by_ * cw + bz_ * cx,
+        aw * dz + ax * dy - ay * dx + az * dw + bw_ * cz + bx_ * cy - by_ * cx + bz_ * cw,
+    )
+
+
+class KinematicChain:
+    """
+    A serial chain of :class:`DHJoint` rows with a fixed base and an optional tool.
+
+    ``joint_names`` lists the joint variables in the order ``q`` is given.
+    ``forward_all(q)`` returns the absolute pose of every frame (0..n, then the tool) in the
+    fixed frame in one pass of cumulative products (eq. (16) of 000_*.txt).
+    """
+
+    def __init__(self, joints, convention='standard', base=None, tool=None):
+        """
+        Build a chain.
+
+        :param joints: sequence of :class:`DHJoint`, from the base outwards.
+        :param convention: ``'standard'`` (Spong, distal) or ``'modified'`` (Craig, proximal).
+        :param base: :class:`DualQuaternion` fixed frame -> frame 0 (default identity).
+        :param tool: :class:`DualQuaternion` frame n -> tool frame, or None for no tool.
+        """
+        if convention not in CONVENTIONS:
+            raise ValueError(f'convention {convention!r} is not one of {CONVENTIONS}')
+        self.joints = tuple(joints)
+        if not self.joints:
+            raise ValueError('a kinematic chain needs at least one DH row')
+        self.convention = convention
+        self.base = (base or DualQuaternion.identity()).normalized()
+        self.tool = tool.normalized() if tool is not None else None
+        self._row = _row_standard if convention == 'standard' else _row_modified
+        self._base_t = tuple(self.base.coeffs.tolist())
+        self._tool_t = tuple(self.tool.coeffs.tolist()) if tool is not None else None
+        self._build_variable_map()
+
+    # -- structure ---------------------------------------------------------------------
+    def _build_variable_map(self):
+        names, limits = [], []
+        theta_idx, d_idx = [], []
+
+        def add(name, lim):
+            if name in names:
+                raise ValueError(f'joint variable name {name!r} is used twice')
+            names.append(name)
+            limits.append(tuple(lim) if lim is not None else (-math.inf, math.inf))
+            return len(names) - 1
+
+        for i, j in enumerate(self.joints):
+            t_i = d_i = -1
+            if j.follows:
+                continue
+            default = j.name or f'joint_{i + 1}'
+            if j.joint_type == 'revolute':
+                t_i = add(default, j.limits)
+            elif j.joint_type == 'prismatic':
+                d_i = add(default, j.limits)
+            elif j.joint_type == 'cylindrical':
+                lim = j.limits if j.limits is not None else (None, None)
+                t_i = add(default, lim[0])
+                d_i = add(j.d_name or default + '_d', lim[1])
+            theta_idx.append((i, t_i))
+            d_idx.append((i, d_i))
+        # rows that follow another joint read that joint's variable
+        theta_map = dict(theta_idx)
+        d_map = dict(d_idx)
+        for i, j in enumerate(self.joints):
+            if not j.follows:
+                continue
+            if j.follows not in names:
+                raise ValueError(f'row {i + 1} follows unknown joint {j.follows!r}; '
+                                 f'joints are {names}')
+            k = names.index(j.follows)
+            theta_map[i] = k if j.joint_type == 'revolute' else -1
+            d_map[i] = k if j.joint_type == 'prismatic' else -1
+        n = len(self.joints)
+        self.joint_names = tuple(names)
+        self.limits = np.array(limits, dtype=float).reshape(-1, 2)
+        self._theta_index = np.array([theta_map[i] for i in range(n)], dtype=int)
+        self._d_index = np.array([d_map[i] for i in range(n)], dtype=int)
+        self._a = np.array([j.a for j in self.joints])
+        self._alpha = np.array([j.alpha for j in self.joints])
+        self._d0 = np.array([j.d for j in self.joints])
+        self._theta0 = np.array([j.theta for j in self.joints])
+        self._scale = np.array([j.scale for j in self.joints])
+        # the scalar path: one tuple per row
+        self._rows = tuple(
+            (math.cos(0.5 * j.alpha), math.sin(0.5 * j.alpha), j.a, j.theta, j.d, j.scale,
+             int(self._theta_index[i]), int(self._d_index[i]))
+            for i, j in enumerate(self.joints))
+
+    @property
+    def dof(self):
+        """Number of joint variables (the length of ``q``)."""
+        return len(self.joint_names)
+
+    @property
+    def n_frames(self):
+        """Number of frames ``forward_all`` returns: frame 0..n, plus the tool if any."""
+        return len(self.joints) + 1 + (self.tool is not None)
+
+    def row_parameters(self, q):
+        """The DH table at ``q``: arrays ``(theta, d)`` of every row, radians and metres."""
+        q = self._check_q(q)
+        qe = np.append(q, 0.0)
+        theta = self._theta0 + np.where(self._theta_index >= 0,
+                                        self._scale * qe[self._theta_index], 0.0)
+        d = self._d0 + np.where(self._d_index >= 0, self._scale * qe[self._d_index], 0.0)
+        return theta, d
+
+    def _check_q(self, q):
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.dof,):
+            raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
+                             f'got shape {q.shape}')
+        return q
+
+    # -- single configuration (plain floats: no per-call numpy overhead) ---------------
+    def _relative_tuples(self, q):
+        row = self._row
+        out = []
+        for ca, sa, a, theta, d, scale, ti, di in self._rows:
+            if ti >= 0:
+                theta = theta + scale * q[ti]
+            if di >= 0:
+                d = d + scale * q[di]
+            out.append(row(ca, sa, a, theta, d))
+        return out
+
+    def _absolute_tuples(self, q):
+        if len(q) != self.dof:
+            raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
+                             f'got {len(q)}')
+        acc = self._base_t
+        frames = [acc]
+        for h in self._relative_tuples([float(v) for v in q]):
+            acc = _mul(acc, h)
+            frames.append(acc)
+        if self._tool_t is not None:
+            frames.append(_mul(acc, self._tool_t))
+        return frames
+
+    def relative_all(self, q):
+        """Relative transform of every row, frame i-1 -> frame i, as an ``(n, 8)`` array."""
+        return np.array(self._relative_tuples(self._check_q(q).tolist()))
+
+    def forward_all(self, q):
+        """
+        Absolute pose of every frame in the fixed frame, ``(n_frames, 8)``, ``w >= 0``.
+
+        Rows: frame 0 (the base transform), frames 1..n, then the tool if any.
+        """
+        return canonical(np.array(self._absolute_tuples(q)))
+
+    def forward(self, q):
+        """The end-effector pose (the tool if any, else frame n) as a :class:`DualQuaternion`."""
+        return DualQuaternion(canonical(np.array(self._absolute_tuples(q)[-1])))
+
+    # -- batches -----------------------------------------------------------------------
+    def _row_params_batch(self, q):
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.dof:
+            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
+                             f'got shape {q.shape}')
+        qe = np.concatenate([q, np.zeros((q.shape[0], 1))], axis=1)
+        theta = self._theta0 + np.where(self._theta_index >= 0,
+                                        self._scale * qe[:, self._theta_index], 0.0)
+        d = self._d0 + np.where(self._d_index >= 0, self._scale * qe[:, self._d_index], 0.0)
+        return theta, d
+
+    def relative_all_batch(self, q):
+        """Relative transforms of every row for N configurations: ``(N, n, 8)``."""
+        theta, d = self._row_params_batch(q)
+        half_t = 0.5 * theta
+        ct, st = np.cos(half_t), np.sin(half_t)
+        ca, sa = np.cos(0.5 * self._alpha), np.sin(0.5 * self._alpha)
+        ha, hd = 0.5 * self._a, 0.5 * d
+        if self.convention == 'standard':
+            comps = (ca * ct, sa * ct, sa * st, ca * st,
+                     -ha * sa * ct - hd * ca * st, ha * ca * ct - hd * sa * st,
+                     ha * ca * st + hd * sa * ct, -ha * sa * st + hd * ca * ct)
+        else:
+            comps = (ca * ct, sa * ct, -sa * st, ca * st,
+                     -hd * ca * st - ha * sa * ct, -hd * sa * st + ha * ca * ct,
+                     -hd * sa * ct - ha * ca * st, hd * ca * ct - ha * sa * st)
+        return np.stack(comps, axis=-1)
+
+    def forward_all_batch(self, q):
+        """Absolute poses of every frame for N configurations: ``(N, n_frames, 8)``."""
+        rel = self.relative_all_batch(q)
+        n_cfg, n_rows = rel.shape[:2]
+        out = np.empty((n_cfg, self.n_frames, 8))
+        acc = np.broadcast_to(self.base.coeffs, (n_cfg, 8))
+        out[:, 0] = acc
+        for i in range(n_rows):
+            acc = dq_multiply_array(acc, rel[:, i])
+            out[:, i + 1] = acc
+        if self.tool is not None:
+            out[:, -1] = dq_multiply_array(acc, self.tool.coeffs)
+        return canonical(out)
+
+    def forward_batch(self, q):
+        """End-effector poses (tool if any) for N configurations: ``(N, 8)``, ``w >= 0``."""
+        rel = self.relative_all_batch(q)
+        acc = _batch_chain_product(self.base.coeffs, rel)
+        if self.tool is not None:
+            acc = _batch_mul_right_const(acc, self.tool.coeffs)
+        return canonical(np.stack(acc, axis=-1))
+
+    # -- differential kinematics -------------------------------------------------------
+    def _joint_axes(self, q):
+        """
+        Per joint variable: the pose whose z axis is its joint axis, and the end pose.
+
+        Standard DH moves row i about/along z of frame i-1; modified DH about/along z of
+        frame i. Rows following another joint add their contribution to that joint.
+        """
+        frames = self._absolute_tuples(q)
+        n = len(self.joints)
+        end = frames[-1]
+        axes = []  # (variable index, kind, scale, axis frame)
+        for i in range(n):
+            frame = frames[i] if self.convention == 'standard' else frames[i + 1]
+            if self._theta_index[i] >= 0:
+                axes.append((int(self._theta_index[i]), 'rot', self._scale[i], frame))
+            if self._d_index[i] >= 0:
+                axes.append((int(self._d_index[i]), 'trans', self._scale[i], frame))
+        return axes, end
+
+    def jacobian_dq(self, q):
+        """
+        The 8 x dof dual-quaternion Jacobian ``d vec(h_end) / d q`` (Adorno; 003_*.txt).
+
+        Column j is ``(1/2) xi_j h_end`` with ``xi_j`` the joint's unit screw (its z axis as
+        a line, dual part for a prismatic joint) in the fixed frame; ``h_end`` is the
+        canonical end pose returned by :meth:`forward`.
+        """
+        axes, end = self._joint_axes(self._check_q(q).tolist())
+        end = canonical(np.array(end))
+        jac = np.zeros((8, self.dof))
+        k_rot = np.array([0.0, 0, 0, 1, 0, 0, 0, 0])
+        k_trans = np.array([0.0, 0, 0, 0, 0, 0, 0, 1])
+        for var, kind, scale, frame in axes:
+            frame = np.array(frame)
+            inv = np.concatenate([quat_conjugate(frame[:4]), quat_conjugate(frame[4:])])
+            unit = k_rot if kind == 'rot' else k_trans
+            xi = dq_multiply_array(dq_multiply_array(frame, unit), inv)
+            jac[:, var] += 0.5 * scale * dq_multiply_array(xi, end)
+        return jac
+
+    def jacobian_geometric(self, q):
+        """
+        The 6 x dof geometric Jacobian of the end effector in the fixed frame.
+
+        Rows 0-2: linear velocity of the end-effector origin; rows 3-5: angular velocity.
+        """
+        axes, end = self._joint_axes(self._check_q(q).tolist())
+        p_end = dq_translation_array(np.array(end))
+        jac = np.zeros((6, self.dof))
+        for var, kind, scale, frame in axes:
+            frame = np.array(frame)
+            z = quat_to_matrix(frame[:4])[:, 2]
+            if kind == 'rot':
+                p = dq_translation_array(frame)
+                jac[:3, var] += scale * np.cross(z, p_end - p)
+                jac[3:, var] += scale * z
+            else:
+                jac[:3, var] += scale * z
+        return jac
+
+    def twist(self, q, qdot):
+        """End-effector twist ``(v, omega)`` in the fixed frame from joint velocities."""
+        qdot = np.asarray(qdot, dtype=float)
+        if qdot.shape != (self.dof,):
+            raise ValueError(f'expected {self.dof} joint velocities, got shape {qdot.shape}')
+        v = self.jacobian_geometric(q) @ qdot
+        return v[:3], v[3:]
+
+    def pose_rate(self, q, qdot):
+        """Time derivative of the end pose's 8 coefficients, ``J_dq qdot`` (003_*.txt)."""
+        return self.jacobian_dq(q) @ np.asarray(qdot, dtype=float)
+
+
+def _batch_chain_product(base, rel):
+    """
+    Multiply ``base * rel[:, 0] * ... * rel[:, n-1]`` for N chains at once.
+
+    Works on the 8 component columns separately (struct of arrays) so that each step costs
+    a fixed number of vector multiply-adds and no gathering.
+    """
+    n_cfg, n_rows = rel.shape[:2]
+    cols = [rel[:, 0, k] for k in range(8)]
+    acc = tuple(cols) if np.allclose(base, [1, 0, 0, 0, 0, 0, 0, 0]) else \
+        _batch_mul_left_const(base, cols)
+    for i in range(1, n_rows):
+        acc = _batch_mul(acc, [rel[:, i, k] for k in range(8)])
+    return acc
+
+
+def _batch_mul(a, b):
+    """Eq. (12) on struct-of-arrays dual quaternions (8 arrays of shape (N,) each)."""
+    real = quat_multiply_soa(a[:4], b[:4])
+    d1 = quat_multiply_soa(a[:4], b[4:])
+    d2 = quat_multiply_soa(a[4:], b[:4])
+    return real + tuple(x + y for x, y in zip(d1, d2))
+
+
+def _batch_mul_left_const(const, b):
+    return _batch_mul(tuple(float(c) for c in const), b)
+
+
+def _batch_mul_right_const(a, const):
+    return _batch_mul(a, tuple(float(c) for c in const))
+
+
+def quat_multiply_soa(a, b):
+    """Hamilton product on struct-of-arrays quaternions ``(w, x, y, z)`` (4 arrays each)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
+
+
+def homogeneous_from_dq(h):
+    """4x4 matrices ``(..., 4, 4)`` of unit dual quaternions ``(..., 8)``."""
+    h = np.asarray(h, dtype=float)
+    m = np.zeros(h.shape[:-1] + (4, 4))
+    m[..., :3, :3] = quat_to_matrix(h[..., :4])
+    m[..., :3, 3] = dq_translation_array(h)
+    m[..., 3, 3] = 1.0
+    return m
+
+
+__all__ = ['CONVENTIONS', 'DHJoint', 'JOINT_TYPES', 'KinematicChain', 'homogeneous_from_dq',
+           'quat_multiply_soa']

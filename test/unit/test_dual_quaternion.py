@@ -1,0 +1,174 @@
+"""DualQuaternion algebra against the independent 4x4 reference in ``homogeneous.py``."""
+
+from dq_fk_ros.dual_quaternion import (
+    canonical, dq_multiply_array, dq_normalize_array, dq_to_pose_xyzw, DualQuaternion,
+    quat_wxyz_to_xyzw, quat_xyzw_to_wxyz)
+import homogeneous as hm
+import numpy as np
+import pytest
+
+RNG_SEED = 20261121
+
+
+def random_matrix(rng):
+    """A random rigid transform as a 4x4 matrix (Rodrigues of a random axis and angle)."""
+    m = hm.rodrigues(rng.normal(size=3), rng.uniform(-np.pi, np.pi))
+    m[:3, 3] = rng.uniform(-2.0, 2.0, size=3)
+    return m
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(RNG_SEED)
+
+
+def test_matrix_round_trip(rng):
+    for _ in range(1000):
+        m = random_matrix(rng)
+        h = DualQuaternion.from_matrix(m)
+        assert h.is_unit(1e-12)
+        np.testing.assert_allclose(h.to_matrix(), m, atol=1e-12)
+
+
+def test_product_is_matrix_product(rng):
+    for _ in range(1000):
+        a, b = random_matrix(rng), random_matrix(rng)
+        h = DualQuaternion.from_matrix(a) * DualQuaternion.from_matrix(b)
+        np.testing.assert_allclose(h.to_matrix(), a @ b, atol=1e-12)
+
+
+def test_from_pose_is_rotation_then_translation_in_parent(rng):
+    for _ in range(200):
+        axis, angle, t = rng.normal(size=3), rng.uniform(-3, 3), rng.normal(size=3)
+        expected = hm.trans(*t) @ hm.rodrigues(axis, angle)
+        h = DualQuaternion.from_rotation(axis, angle) * DualQuaternion.from_translation([0, 0, 0])
+        h = DualQuaternion.from_pose(h.rotation_wxyz, t)
+        np.testing.assert_allclose(h.to_matrix(), expected, atol=1e-12)
+        np.testing.assert_allclose(h.translation, t, atol=1e-12)
+
+
+def test_inverse_and_conjugate_are_matrix_inverse(rng):
+    for _ in range(500):
+        m = random_matrix(rng)
+        h = DualQuaternion.from_matrix(m)
+        np.testing.assert_allclose(h.inverse().to_matrix(), np.linalg.inv(m), atol=1e-12)
+        np.testing.assert_allclose(h.conjugate().to_matrix(), np.linalg.inv(m), atol=1e-12)
+        assert (h * h.inverse()).isclose(DualQuaternion.identity(), atol=1e-12)
+
+
+def test_inverse_of_non_unit_dual_quaternion(rng):
+    h = DualQuaternion(rng.normal(size=8))
+    assert (h * h.inverse()).isclose(DualQuaternion.identity(), atol=1e-12)
+    assert (h.inverse() * h).isclose(DualQuaternion.identity(), atol=1e-12)
+
+
+def test_transform_point(rng):
+    for _ in range(500):
+        m, p = random_matrix(rng), rng.normal(size=3)
+        expected = (m @ np.append(p, 1.0))[:3]
+        np.testing.assert_allclose(DualQuaternion.from_matrix(m).transform_point(p), expected,
+                                   atol=1e-12)
+
+
+def test_point_transform_by_combined_conjugate_sandwich(rng):
+    """``h (1 + eps p) h~`` with the combined conjugate moves a point (eq. (4) of 002_*.txt)."""
+    m, p = random_matrix(rng), rng.normal(size=3)
+    h = DualQuaternion.from_matrix(m)
+    point = DualQuaternion([1, 0, 0, 0, 0, *p])
+    moved = h * point * h.combined_conjugate()
+    np.testing.assert_allclose(moved.dual[1:], (m @ np.append(p, 1.0))[:3], atol=1e-12)
+
+
+def test_norm_and_normalize(rng):
+    h = DualQuaternion.from_matrix(random_matrix(rng))
+    n_real, n_dual = h.norm()
+    assert abs(n_real - 1.0) < 1e-14 and abs(n_dual) < 1e-14
+    noisy = DualQuaternion(3.0 * h.coeffs + 1e-3 * rng.normal(size=8))
+    assert not noisy.is_unit()
+    fixed = noisy.normalized()
+    assert fixed.is_unit(1e-14)
+    np.testing.assert_allclose(fixed.to_matrix(), h.to_matrix(), atol=2e-3)
+    with pytest.raises(ValueError):
+        dq_normalize_array(np.zeros(8))
+
+
+def test_canonical_sign_keeps_pose(rng):
+    h = DualQuaternion.from_matrix(random_matrix(rng))
+    flipped = -h
+    assert flipped.canonical().coeffs[0] >= 0
+    np.testing.assert_allclose(flipped.canonical().to_matrix(), h.to_matrix(), atol=1e-12)
+    batch = np.stack([h.coeffs, -h.coeffs])
+    assert np.all(canonical(batch)[:, 0] >= 0)
+
+
+def test_quaternion_order_helpers():
+    wxyz = np.array([0.1, 0.2, 0.3, 0.4])
+    np.testing.assert_array_equal(quat_wxyz_to_xyzw(wxyz), [0.2, 0.3, 0.4, 0.1])
+    np.testing.assert_array_equal(quat_xyzw_to_wxyz(quat_wxyz_to_xyzw(wxyz)), wxyz)
+
+
+def test_pose_xyzw_matches_matrix(rng):
+    for _ in range(200):
+        m = random_matrix(rng)
+        pose = dq_to_pose_xyzw(DualQuaternion.from_matrix(m).coeffs)
+        assert pose[6] >= 0
+        np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]), m, atol=1e-12)
+
+
+def test_batch_product_broadcasts(rng):
+    a = np.stack([DualQuaternion.from_matrix(random_matrix(rng)).coeffs for _ in range(5)])
+    b = DualQuaternion.from_matrix(random_matrix(rng)).coeffs
+    out = dq_multiply_array(a, b)
+    for k in range(5):
+        np.testing.assert_allclose(out[k], (DualQuaternion(a[k]) * DualQuaternion(b)).coeffs)
+
+
+def test_screw_parameters_round_trip(rng):
+    for _ in range(300):
+        h = DualQuaternion.from_matrix(random_matrix(rng))
+        assert DualQuaternion.from_screw_parameters(*h.screw_parameters()).isclose(h, 1e-10)
+
+
+def test_sclerp_of_a_screw_about_z_is_the_partial_screw():
+    """Rz(theta) Tz(d) interpolates to Rz(tau theta) Tz(tau d), written as matrices."""
+    theta, d = 2.0, 0.7
+    start = DualQuaternion.identity()
+    end = DualQuaternion.from_matrix(hm.rot_z(theta) @ hm.trans(z=d))
+    for tau in (0.0, 0.25, 0.5, 0.9, 1.0):
+        expected = hm.rot_z(tau * theta) @ hm.trans(z=tau * d)
+        np.testing.assert_allclose(start.sclerp(end, tau).to_matrix(), expected, atol=1e-12)
+
+
+def test_sclerp_between_general_poses(rng):
+    for _ in range(100):
+        m0, axis, angle = random_matrix(rng), rng.normal(size=3), rng.uniform(0.1, 3.0)
+        point, slide = rng.normal(size=3), rng.normal()
+        # a screw about a line through `point` along `axis`, written with matrices
+        u = axis / np.linalg.norm(axis)
+
+        def screw(tau):
+            return (hm.trans(*point) @ hm.rodrigues(u, tau * angle) @ hm.trans(*-point)
+                    @ hm.trans(*(tau * slide * u)))
+        h0 = DualQuaternion.from_matrix(m0)
+        h1 = DualQuaternion.from_matrix(m0 @ screw(1.0))
+        for tau in (0.0, 0.3, 0.5, 1.0):
+            np.testing.assert_allclose(h0.sclerp(h1, tau).to_matrix(), m0 @ screw(tau),
+                                       atol=1e-10)
+
+
+def test_sclerp_pure_translation():
+    start = DualQuaternion.identity()
+    end = DualQuaternion.from_translation([1.0, -2.0, 0.5])
+    np.testing.assert_allclose(start.sclerp(end, 0.5).translation, [0.5, -1.0, 0.25],
+                               atol=1e-15)
+
+
+def test_bad_inputs_are_clear_errors():
+    with pytest.raises(ValueError, match='8 coefficients'):
+        DualQuaternion([1, 2, 3])
+    with pytest.raises(ValueError, match='4x4'):
+        DualQuaternion.from_matrix(np.eye(3))
+    with pytest.raises(ValueError, match='non-zero'):
+        DualQuaternion.from_rotation([0, 0, 0], 1.0)
+    with pytest.raises(ZeroDivisionError):
+        DualQuaternion(np.zeros(8)).inverse()
