@@ -20,11 +20,10 @@ Dual quaternions are 8-vectors (w, x, y, z, w', x', y', z'); see
 from dataclasses import dataclass
 import math
 
-import numpy as np
-
 from dq_fk_ros.dual_quaternion import (
     canonical, dq_multiply_array, dq_translation_array, DualQuaternion, quat_conjugate,
     quat_to_matrix)
+import numpy as np
 
 CONVENTIONS = ('standard', 'modified')
 JOINT_TYPES = ('revolute', 'prismatic', 'cylindrical', 'fixed')
@@ -68,7 +67,7 @@ class DHJoint:
 
 
 def _row_standard(ca, sa, a, theta, d):
-    """Closed form of the standard DH operator, eq. (3) of 002_*.txt (ca, sa of alpha/2)."""
+    """Evaluate the standard DH operator, closed form, eq. (3) of 002_*.txt (ca, sa of alpha/2)."""
     ct = math.cos(0.5 * theta)
     st = math.sin(0.5 * theta)
     ha = 0.5 * a
@@ -79,7 +78,7 @@ def _row_standard(ca, sa, a, theta, d):
 
 
 def _row_modified(ca, sa, a, theta, d):
-    """Closed form of the modified DH operator ``h_x(alpha, a) h_z(theta, d)``."""
+    """Evaluate the modified DH operator, closed form ``h_x(alpha, a) h_z(theta, d)``."""
     ct = math.cos(0.5 * theta)
     st = math.sin(0.5 * theta)
     ha = 0.5 * a
@@ -193,16 +192,16 @@ class KinematicChain:
 
     @property
     def dof(self):
-        """Number of joint variables (the length of ``q``)."""
+        """Count the joint variables (the length of ``q``)."""
         return len(self.joint_names)
 
     @property
     def n_frames(self):
-        """Number of frames ``forward_all`` returns: frame 0..n, plus the tool if any."""
+        """Count the frames ``forward_all`` returns: frame 0..n, plus the tool if any."""
         return len(self.joints) + 1 + (self.tool is not None)
 
     def row_parameters(self, q):
-        """The DH table at ``q``: arrays ``(theta, d)`` of every row, radians and metres."""
+        """Return the DH table at ``q``: arrays ``(theta, d)`` of every row, radians and metres."""
         q = self._check_q(q)
         qe = np.append(q, 0.0)
         theta = self._theta0 + np.where(self._theta_index >= 0,
@@ -255,7 +254,7 @@ class KinematicChain:
         return canonical(np.array(self._absolute_tuples(q)))
 
     def forward(self, q):
-        """The end-effector pose (the tool if any, else frame n) as a :class:`DualQuaternion`."""
+        """Return the end-effector pose (tool if any, else frame n), a :class:`DualQuaternion`."""
         return DualQuaternion(canonical(np.array(self._absolute_tuples(q)[-1])))
 
     # -- batches -----------------------------------------------------------------------
@@ -331,7 +330,7 @@ class KinematicChain:
 
     def jacobian_dq(self, q):
         """
-        The 8 x dof dual-quaternion Jacobian ``d vec(h_end) / d q`` (Adorno; 003_*.txt).
+        Return the 8 x dof dual-quaternion Jacobian ``d vec(h_end) / d q`` (Adorno; 003_*.txt).
 
         Column j is ``(1/2) xi_j h_end`` with ``xi_j`` the joint's unit screw (its z axis as
         a line, dual part for a prismatic joint) in the fixed frame; ``h_end`` is the
@@ -352,7 +351,7 @@ class KinematicChain:
 
     def jacobian_geometric(self, q):
         """
-        The 6 x dof geometric Jacobian of the end effector in the fixed frame.
+        Return the 6 x dof geometric Jacobian of the end effector in the fixed frame.
 
         Rows 0-2: linear velocity of the end-effector origin; rows 3-5: angular velocity.
         """

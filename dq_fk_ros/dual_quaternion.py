@@ -45,7 +45,7 @@ def quat_conjugate(q):
 
 
 def quat_from_axis_angle(axis, angle_rad):
-    """Unit quaternion (w, x, y, z) of a rotation by ``angle_rad`` about ``axis`` (eq. (3))."""
+    """Return the unit quaternion (w, x, y, z) rotating ``angle_rad`` about ``axis``, eq. (3)."""
     axis = np.asarray(axis, dtype=float)
     norm = np.linalg.norm(axis)
     if not norm > 0.0:
@@ -72,7 +72,7 @@ def quat_to_matrix(q):
 
 
 def quat_from_matrix(m):
-    """Unit quaternion (w, x, y, z), ``w >= 0``, of a 3x3 rotation matrix (Shepperd's method)."""
+    """Return the unit quaternion (w, x, y, z), ``w >= 0``, of a 3x3 rotation (Shepperd)."""
     m = np.asarray(m, dtype=float)
     if m.shape != (3, 3):
         raise ValueError(f'rotation matrix must be 3x3, got shape {m.shape}')
@@ -120,7 +120,7 @@ def dq_multiply_array(a, b):
 
 
 def dq_from_pose_array(rotation_wxyz, translation):
-    """Dual quaternions ``(..., 8)`` of poses: ``r + eps (1/2) t r`` (eq. (7) of 000_*.txt)."""
+    """Return dual quaternions ``(..., 8)`` of poses, ``r + eps (1/2) t r`` (eq. (7), 000)."""
     r = np.asarray(rotation_wxyz, dtype=float)
     t = np.asarray(translation, dtype=float)
     t_quat = np.concatenate([np.zeros(t.shape[:-1] + (1,)), t], axis=-1)
@@ -128,7 +128,7 @@ def dq_from_pose_array(rotation_wxyz, translation):
 
 
 def dq_translation_array(h):
-    """Translations ``(..., 3)`` of unit dual quaternions: ``2 d r*`` (eq. (17) of 000_*.txt)."""
+    """Extract translations ``(..., 3)`` of unit dual quaternions, ``2 d r*`` (eq. (17), 000)."""
     h = np.asarray(h, dtype=float)
     return 2.0 * quat_multiply(h[..., 4:], quat_conjugate(h[..., :4]))[..., 1:]
 
@@ -229,7 +229,7 @@ class DualQuaternion:
 
     @property
     def translation(self):
-        """Translation (x, y, z) of a unit dual quaternion, eq. (17) of 000_*.txt."""
+        """Return the position (x, y, z) of a unit pose, eq. (17) of 000_*.txt."""
         return dq_translation_array(self.coeffs)
 
     def to_matrix(self):
@@ -301,11 +301,11 @@ class DualQuaternion:
         return abs(n_real - 1.0) <= tol and abs(n_dual) <= tol
 
     def normalized(self):
-        """The nearest unit dual quaternion (see :func:`dq_normalize_array`)."""
+        """Return the nearest unit dual quaternion (see :func:`dq_normalize_array`)."""
         return DualQuaternion(dq_normalize_array(self.coeffs))
 
     def canonical(self):
-        """The same pose with ``w >= 0`` in the real part."""
+        """Return the same pose with ``w >= 0`` in the real part."""
         return DualQuaternion(canonical(self.coeffs))
 
     def inverse(self):
@@ -356,7 +356,7 @@ class DualQuaternion:
 
     @classmethod
     def from_screw_parameters(cls, theta, dist, axis, moment):
-        """Unit pose of a screw motion (inverse of :meth:`screw_parameters`)."""
+        """Return the unit pose of a screw motion (inverse of :meth:`screw_parameters`)."""
         axis = np.asarray(axis, dtype=float)
         moment = np.asarray(moment, dtype=float)
         c, s = np.cos(0.5 * theta), np.sin(0.5 * theta)

@@ -11,7 +11,7 @@ RNG_SEED = 20261121
 
 
 def random_matrix(rng):
-    """A random rigid transform as a 4x4 matrix (Rodrigues of a random axis and angle)."""
+    """Return a random rigid transform as a 4x4 matrix (Rodrigues of a random axis and angle)."""
     m = hm.rodrigues(rng.normal(size=3), rng.uniform(-np.pi, np.pi))
     m[:3, 3] = rng.uniform(-2.0, 2.0, size=3)
     return m

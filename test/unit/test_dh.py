@@ -1,0 +1,239 @@
+"""KinematicChain against the independent 4x4 reference, on random chains and configurations."""
+
+import math
+
+from dq_fk_ros.dh import DHJoint, homogeneous_from_dq, KinematicChain
+from dq_fk_ros.dual_quaternion import DualQuaternion, quat_to_matrix
+import homogeneous as hm
+import numpy as np
+import pytest
+
+N_CONFIGS = 2000
+
+
+def random_chain(rng, convention, n_rows=6,
+                 types=('revolute', 'prismatic', 'cylindrical', 'fixed')):
+    """Return a random DH table with random row types, offsets and scales, base and tool."""
+    joints = []
+    for i in range(n_rows):
+        joints.append(DHJoint(
+            a=rng.uniform(0, 1), alpha=rng.uniform(-np.pi, np.pi), d=rng.uniform(-1, 1),
+            theta=rng.uniform(-np.pi, np.pi), joint_type=str(rng.choice(types)),
+            scale=float(rng.choice([1.0, -1.0, rng.uniform(0.5, 2)])), name=f'j{i}'))
+    base = random_pose(rng)
+    tool = random_pose(rng)
+    return KinematicChain(joints, convention, base=DualQuaternion.from_matrix(base),
+                          tool=DualQuaternion.from_matrix(tool)), base, tool
+
+
+def random_pose(rng):
+    m = hm.rodrigues(rng.normal(size=3), rng.uniform(-np.pi, np.pi))
+    m[:3, 3] = rng.uniform(-1, 1, size=3)
+    return m
+
+
+def reference_rows(chain, q):
+    """Evaluate the DH table at q from the joints' own fields (not the chain's index map)."""
+    rows, k = [], 0
+    for j in chain.joints:
+        theta, d = j.theta, j.d
+        if j.joint_type in ('revolute', 'cylindrical'):
+            theta += j.scale * q[k]
+            k += 1
+        if j.joint_type in ('prismatic', 'cylindrical'):
+            d += j.scale * q[k]
+            k += 1
+        rows.append((theta, d, j.a, j.alpha))
+    assert k == len(q)
+    return rows
+
+
+@pytest.mark.parametrize('convention', ['standard', 'modified'])
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_forward_all_matches_matrices(convention, seed):
+    rng = np.random.default_rng(seed)
+    chain, base, tool = random_chain(rng, convention)
+    q = rng.uniform(-3, 3, size=(N_CONFIGS, chain.dof))
+    batch = chain.forward_all_batch(q)
+    end_batch = chain.forward_batch(q)
+    assert batch.shape == (N_CONFIGS, len(chain.joints) + 2, 8)
+    for k in range(N_CONFIGS):
+        expected = np.array(hm.chain_frames(reference_rows(chain, q[k]), convention, base, tool))
+        np.testing.assert_allclose(homogeneous_from_dq(batch[k]), expected, atol=1e-12)
+        np.testing.assert_allclose(homogeneous_from_dq(end_batch[k]), expected[-1], atol=1e-12)
+        if k % 10 == 0:  # the scalar path on a tenth of them
+            single = chain.forward_all(q[k])
+            np.testing.assert_allclose(homogeneous_from_dq(single), expected, atol=1e-12)
+            np.testing.assert_allclose(chain.forward(q[k]).to_matrix(), expected[-1],
+                                       atol=1e-12)
+
+
+@pytest.mark.parametrize('convention', ['standard', 'modified'])
+def test_relative_transforms_match_matrices(convention):
+    rng = np.random.default_rng(7)
+    chain, _, _ = random_chain(rng, convention)
+    step = hm.dh_standard if convention == 'standard' else hm.dh_modified
+    qs = rng.uniform(-3, 3, size=(300, chain.dof))
+    rel_batch = chain.relative_all_batch(qs)
+    for k, q in enumerate(qs):
+        expected = [step(*row) for row in reference_rows(chain, q)]
+        np.testing.assert_allclose(homogeneous_from_dq(chain.relative_all(q)), expected,
+                                   atol=1e-12)
+        np.testing.assert_allclose(homogeneous_from_dq(rel_batch[k]), expected, atol=1e-12)
+
+
+def test_outputs_are_unit_with_canonical_sign_over_a_long_chain():
+    rng = np.random.default_rng(11)
+    chain, _, _ = random_chain(rng, 'standard', n_rows=200)
+    q = rng.uniform(-3, 3, size=(50, chain.dof))
+    out = chain.forward_all_batch(q)
+    real, dual = out[..., :4], out[..., 4:]
+    assert np.max(np.abs(np.linalg.norm(real, axis=-1) - 1.0)) < 1e-13
+    assert np.max(np.abs(np.sum(real * dual, axis=-1))) < 1e-13
+    assert np.all(out[..., 0] >= 0.0)
+    assert np.all(chain.forward_all(q[0])[:, 0] >= 0.0)
+
+
+def test_standard_and_modified_tables_of_the_same_robot_agree():
+    """
+    Standard <-> modified conversion, derived from Tx(a) Rx(alpha) = Rx(alpha) Tx(a).
+
+    ``prod_i Rz Tz Tx(a_i) Rx(alpha_i)`` regroups as
+    ``prod_i [Rx(alpha_{i-1}) Tx(a_{i-1}) Rz Tz] Tx(a_n) Rx(alpha_n)``: the modified table
+    takes (a, alpha) from the row before (zero for row 1) and the last row's (a, alpha)
+    becomes a tool transform; standard frame i = modified frame i * Tx(a_i) Rx(alpha_i).
+    """
+    rng = np.random.default_rng(5)
+    standard, _, _ = random_chain(rng, 'standard', types=('revolute', 'prismatic'))
+    std_joints = standard.joints
+    mod_joints = [DHJoint(a=prev.a, alpha=prev.alpha, d=j.d, theta=j.theta,
+                          joint_type=j.joint_type, scale=j.scale, name=j.name)
+                  for prev, j in zip((DHJoint(),) + std_joints[:-1], std_joints)]
+    last = std_joints[-1]
+    tail = DualQuaternion.from_matrix(hm.trans(x=last.a) @ hm.rot_x(last.alpha))
+    modified = KinematicChain(mod_joints, 'modified', base=standard.base,
+                              tool=tail * standard.tool)
+    for q in rng.uniform(-3, 3, size=(500, standard.dof)):
+        s_frames = homogeneous_from_dq(standard.forward_all(q))
+        m_frames = homogeneous_from_dq(modified.forward_all(q))
+        np.testing.assert_allclose(s_frames[-1], m_frames[-1], atol=1e-12)
+        for i, j in enumerate(std_joints, start=1):
+            np.testing.assert_allclose(
+                s_frames[i], m_frames[i] @ hm.trans(x=j.a) @ hm.rot_x(j.alpha), atol=1e-12)
+
+
+def fk_vector(chain, q):
+    return chain.forward(q).coeffs
+
+
+@pytest.mark.parametrize('convention', ['standard', 'modified'])
+def test_dual_quaternion_jacobian_matches_finite_differences(convention):
+    rng = np.random.default_rng(21)
+    chain, _, _ = random_chain(rng, convention)
+    eps = 1e-6
+    for q in rng.uniform(-3, 3, size=(50, chain.dof)):
+        jac = chain.jacobian_dq(q)
+        assert jac.shape == (8, chain.dof)
+        for j in range(chain.dof):
+            dq = np.zeros(chain.dof)
+            dq[j] = eps
+            fd = (fk_vector(chain, q + dq) - fk_vector(chain, q - dq)) / (2 * eps)
+            np.testing.assert_allclose(jac[:, j], fd, atol=1e-7)
+
+
+@pytest.mark.parametrize('convention', ['standard', 'modified'])
+def test_geometric_jacobian_matches_finite_differences(convention):
+    rng = np.random.default_rng(22)
+    chain, _, _ = random_chain(rng, convention)
+    eps = 1e-6
+    for q in rng.uniform(-3, 3, size=(50, chain.dof)):
+        jac = chain.jacobian_geometric(q)
+        for j in range(chain.dof):
+            dq = np.zeros(chain.dof)
+            dq[j] = eps
+            m_plus = chain.forward(q + dq).to_matrix()
+            m_minus = chain.forward(q - dq).to_matrix()
+            m = chain.forward(q).to_matrix()
+            lin = (m_plus[:3, 3] - m_minus[:3, 3]) / (2 * eps)
+            r_dot = (m_plus[:3, :3] - m_minus[:3, :3]) / (2 * eps)
+            skew = r_dot @ m[:3, :3].T
+            ang = np.array([skew[2, 1], skew[0, 2], skew[1, 0]])
+            np.testing.assert_allclose(jac[:3, j], lin, atol=1e-7)
+            np.testing.assert_allclose(jac[3:, j], ang, atol=1e-7)
+
+
+def test_twist_and_pose_rate_along_a_trajectory():
+    """Twist and J_dq qdot against central differences of the pose along q(t)."""
+    rng = np.random.default_rng(23)
+    chain, _, _ = random_chain(rng, 'standard')
+    q0, amp, freq = (rng.uniform(-2, 2, chain.dof), rng.uniform(0.2, 1, chain.dof),
+                     rng.uniform(0.5, 2, chain.dof))
+
+    def q_of(t):
+        return q0 + amp * np.sin(freq * t)
+
+    def qdot_of(t):
+        return amp * freq * np.cos(freq * t)
+    h = 1e-6
+    for t in np.linspace(0.0, 3.0, 31):
+        v, w = chain.twist(q_of(t), qdot_of(t))
+        m_plus = chain.forward(q_of(t + h)).to_matrix()
+        m_minus = chain.forward(q_of(t - h)).to_matrix()
+        m = chain.forward(q_of(t)).to_matrix()
+        np.testing.assert_allclose(v, (m_plus[:3, 3] - m_minus[:3, 3]) / (2 * h), atol=1e-7)
+        skew = (m_plus[:3, :3] - m_minus[:3, :3]) / (2 * h) @ m[:3, :3].T
+        np.testing.assert_allclose(w, [skew[2, 1], skew[0, 2], skew[1, 0]], atol=1e-7)
+        rate = chain.pose_rate(q_of(t), qdot_of(t))
+        fd = (fk_vector(chain, q_of(t + h)) - fk_vector(chain, q_of(t - h))) / (2 * h)
+        np.testing.assert_allclose(rate, fd, atol=1e-7)
+
+
+def test_mimic_row_follows_its_source_joint():
+    joints = [DHJoint(a=0.3, name='shoulder'),
+              DHJoint(a=0.2, follows='shoulder', scale=-0.5, theta=0.1),
+              DHJoint(d=0.1, joint_type='prismatic', name='slide')]
+    chain = KinematicChain(joints)
+    assert chain.joint_names == ('shoulder', 'slide')
+    q = np.array([0.7, 0.05])
+    expected = hm.chain_frames([(0.7, 0, 0.3, 0), (0.1 - 0.35, 0, 0.2, 0),
+                                (0, 0.15, 0, 0)], 'standard')
+    np.testing.assert_allclose(homogeneous_from_dq(chain.forward_all(q)), expected, atol=1e-12)
+    # the mimic row's motion counts towards the source joint's Jacobian column
+    eps = 1e-6
+    fd = (fk_vector(chain, q + [eps, 0]) - fk_vector(chain, q - [eps, 0])) / (2 * eps)
+    np.testing.assert_allclose(chain.jacobian_dq(q)[:, 0], fd, atol=1e-7)
+
+
+def test_joint_names_and_limits():
+    chain = KinematicChain([
+        DHJoint(name='a1', limits=(-1.0, 1.0)),
+        DHJoint(joint_type='cylindrical', name='c', limits=((-2.0, 2.0), (0.0, 0.5))),
+        DHJoint(joint_type='fixed', a=1.0)])
+    assert chain.joint_names == ('a1', 'c', 'c_d')
+    np.testing.assert_array_equal(chain.limits, [[-1, 1], [-2, 2], [0, 0.5]])
+    assert chain.dof == 3 and chain.n_frames == 4
+
+
+def test_clear_errors_for_bad_input():
+    with pytest.raises(ValueError, match='convention'):
+        KinematicChain([DHJoint()], convention='craig')
+    with pytest.raises(ValueError, match='joint_type'):
+        DHJoint(joint_type='spherical')
+    with pytest.raises(ValueError, match='finite'):
+        DHJoint(a=math.nan)
+    with pytest.raises(ValueError, match='used twice'):
+        KinematicChain([DHJoint(name='x'), DHJoint(name='x')])
+    with pytest.raises(ValueError, match='unknown joint'):
+        KinematicChain([DHJoint(name='x'), DHJoint(follows='y')])
+    chain = KinematicChain([DHJoint(), DHJoint()])
+    with pytest.raises(ValueError, match='expected 2 joint values'):
+        chain.forward_all([1.0])
+    with pytest.raises(ValueError, match=r'\(N, 2\)'):
+        chain.forward_all_batch(np.zeros(2))
+
+
+def test_rotation_helper_consistency():
+    """quat_to_matrix agrees with Rodrigues (guards the reference used above)."""
+    q = DualQuaternion.from_rotation([1, 2, 3], 0.8).real
+    np.testing.assert_allclose(quat_to_matrix(q), hm.rodrigues([1, 2, 3], 0.8)[:3, :3],
+                               atol=1e-15)
