@@ -27,6 +27,8 @@ import numpy as np
 
 CONVENTIONS = ('standard', 'modified')
 JOINT_TYPES = ('revolute', 'prismatic', 'cylindrical', 'fixed')
+# configurations per step of the batch paths: small enough for the working set to stay in cache
+BATCH_CHUNK = 4096
 
 
 @dataclass(frozen=True)
@@ -89,7 +91,7 @@ def _row_modified(ca, sa, a, theta, d):
 
 
 def _mul(a, b):
-    """Eq. (12) of 000_*.txt on two 8-tuples of floats (the scalar fast path)."""
+    """Eq. (12) of 000_*.txt on two 8-tuples (floats, or equal-length arrays per component)."""
     aw, ax, ay, az, bw_, bx_, by_, bz_ = a
     cw, cx, cy, cz, dw, dx, dy, dz = b
     return (
@@ -102,6 +104,63 @@ def _mul(a, b):
         aw * dy - ax * dz + ay * dw + az * dx + bw_ * cy - bx_ * cz + by_ * cw + bz_ * cx,
         aw * dz + ax * dy - ay * dx + az * dw + bw_ * cz + bx_ * cy - by_ * cx + bz_ * cw,
     )
+
+
+# Opcodes of the sparse factorisation of a DH row (eqs. (13)-(15) of 000_*.txt): each
+# factor touches a few coefficients only, so it costs a fraction of a full product with the
+# row's eq. (3) operator.
+_ROT_Z, _TRANS_Z, _ROT_X, _TRANS_X, _FRAME = range(5)
+
+
+def _row_program(joint, ti, di, modified):
+    """
+    Compile one DH row into sparse factors, ending with a frame mark.
+
+    Standard: ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``; modified: ``Rx(alpha) Tx(a) Rz(theta)
+    Tz(d)``. Factors that are the identity (zero a, alpha or constant d) are left out.
+    """
+    x_part = []
+    if joint.a:
+        x_part.append((_TRANS_X, 0.5 * joint.a, 0.0, -1))
+    if joint.alpha:
+        x_part.append((_ROT_X, math.cos(0.5 * joint.alpha), math.sin(0.5 * joint.alpha), -1))
+    z_part = [(_ROT_Z, joint.theta, joint.scale, ti)]
+    if di >= 0 or joint.d:
+        z_part.append((_TRANS_Z, joint.d, joint.scale, di))
+    ops = x_part + z_part if modified else z_part + x_part
+    return ops + [(_FRAME, 0.0, 0.0, -1)]
+
+
+def _run_program(program, base, q, cos, sin):
+    """
+    Multiply ``base`` by the compiled factors; return the frames marked along the way.
+
+    Works on floats (``q`` a list, ``cos``/``sin`` from math) and on numpy arrays (``q`` a
+    sequence of columns, one per joint variable, ``cos``/``sin`` from numpy) alike.
+    The real part is ``(aw, ax, ay, az)``, the dual part ``(bw, bx, by, bz)``.
+    """
+    aw, ax, ay, az, bw, bx, by, bz = base
+    frames = [base]
+    for op, p1, p2, var in program:
+        if op == _ROT_Z:  # h (c + s k), half angle of theta = p1 + p2 q
+            half = 0.5 * p1 if var < 0 else 0.5 * (p1 + p2 * q[var])
+            c, s = cos(half), sin(half)
+            aw, ax, ay, az, bw, bx, by, bz = (
+                aw * c - az * s, ax * c + ay * s, ay * c - ax * s, az * c + aw * s,
+                bw * c - bz * s, bx * c + by * s, by * c - bx * s, bz * c + bw * s)
+        elif op == _TRANS_Z:  # h (1 + eps hd k), d = p1 + p2 q
+            hd = 0.5 * p1 if var < 0 else 0.5 * (p1 + p2 * q[var])
+            bw, bx, by, bz = bw - hd * az, bx + hd * ay, by - hd * ax, bz + hd * aw
+        elif op == _ROT_X:  # h (c + s i), constant
+            c, s = p1, p2
+            aw, ax, ay, az, bw, bx, by, bz = (
+                aw * c - ax * s, ax * c + aw * s, ay * c + az * s, az * c - ay * s,
+                bw * c - bx * s, bx * c + bw * s, by * c + bz * s, bz * c - by * s)
+        elif op == _TRANS_X:  # h (1 + eps ha i), constant
+            bw, bx, by, bz = bw - p1 * ax, bx + p1 * aw, by + p1 * az, bz - p1 * ay
+        else:
+            frames.append((aw, ax, ay, az, bw, bx, by, bz))
+    return frames
 
 
 class KinematicChain:
@@ -184,7 +243,11 @@ class KinematicChain:
         self._d0 = np.array([j.d for j in self.joints])
         self._theta0 = np.array([j.theta for j in self.joints])
         self._scale = np.array([j.scale for j in self.joints])
-        # the scalar path: one tuple per row
+        modified = self.convention == 'modified'
+        self._program = tuple(op for i, j in enumerate(self.joints)
+                              for op in _row_program(j, int(self._theta_index[i]),
+                                                     int(self._d_index[i]), modified))
+        # the closed-form operators of eq. (3) of 002_*.txt, for relative_all
         self._rows = tuple(
             (math.cos(0.5 * j.alpha), math.sin(0.5 * j.alpha), j.a, j.theta, j.d, j.scale,
              int(self._theta_index[i]), int(self._d_index[i]))
@@ -229,16 +292,14 @@ class KinematicChain:
         return out
 
     def _absolute_tuples(self, q):
+        """Frames 0..n (and the tool) as 8-tuples of floats; the scalar fast path."""
         if len(q) != self.dof:
             raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
                              f'got {len(q)}')
-        acc = self._base_t
-        frames = [acc]
-        for h in self._relative_tuples([float(v) for v in q]):
-            acc = _mul(acc, h)
-            frames.append(acc)
+        q = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
+        frames = _run_program(self._program, self._base_t, q, math.cos, math.sin)
         if self._tool_t is not None:
-            frames.append(_mul(acc, self._tool_t))
+            frames.append(_mul(frames[-1], self._tool_t))
         return frames
 
     def relative_all(self, q):
@@ -251,7 +312,10 @@ class KinematicChain:
 
         Rows: frame 0 (the base transform), frames 1..n, then the tool if any.
         """
-        return canonical(np.array(self._absolute_tuples(q)))
+        flat = []
+        for f in self._absolute_tuples(q):
+            flat += f if f[0] >= 0.0 else [-v for v in f]
+        return np.array(flat).reshape(-1, 8)
 
     def forward(self, q):
         """Return the end-effector pose (tool if any, else frame n), a :class:`DualQuaternion`."""
@@ -286,27 +350,36 @@ class KinematicChain:
                      -hd * sa * ct - ha * ca * st, hd * ca * ct - ha * sa * st)
         return np.stack(comps, axis=-1)
 
+    def _batches(self, q):
+        """Yield ``(slice, frames)`` per chunk; frames are 8-tuples of arrays (or floats)."""
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.dof:
+            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
+                             f'got shape {q.shape}')
+        for start in range(0, q.shape[0], BATCH_CHUNK):
+            part = slice(start, min(start + BATCH_CHUNK, q.shape[0]))
+            cols = np.ascontiguousarray(q[part].T)
+            frames = _run_program(self._program, self._base_t, cols, np.cos, np.sin)
+            if self._tool_t is not None:
+                frames.append(_mul(frames[-1], self._tool_t))
+            yield part, frames
+
     def forward_all_batch(self, q):
         """Absolute poses of every frame for N configurations: ``(N, n_frames, 8)``."""
-        rel = self.relative_all_batch(q)
-        n_cfg, n_rows = rel.shape[:2]
-        out = np.empty((n_cfg, self.n_frames, 8))
-        acc = np.broadcast_to(self.base.coeffs, (n_cfg, 8))
-        out[:, 0] = acc
-        for i in range(n_rows):
-            acc = dq_multiply_array(acc, rel[:, i])
-            out[:, i + 1] = acc
-        if self.tool is not None:
-            out[:, -1] = dq_multiply_array(acc, self.tool.coeffs)
-        return canonical(out)
+        out = np.empty((len(q), self.n_frames, 8))
+        for part, frames in self._batches(q):
+            for i, frame in enumerate(frames):
+                for k in range(8):
+                    out[part, i, k] = frame[k]
+        return _canonical_inplace(out)
 
     def forward_batch(self, q):
         """End-effector poses (tool if any) for N configurations: ``(N, 8)``, ``w >= 0``."""
-        rel = self.relative_all_batch(q)
-        acc = _batch_chain_product(self.base.coeffs, rel)
-        if self.tool is not None:
-            acc = _batch_mul_right_const(acc, self.tool.coeffs)
-        return canonical(np.stack(acc, axis=-1))
+        out = np.empty((len(q), 8))
+        for part, frames in self._batches(q):
+            for k in range(8):
+                out[part, k] = frames[-1][k]
+        return _canonical_inplace(out)
 
     # -- differential kinematics -------------------------------------------------------
     def _joint_axes(self, q):
@@ -382,46 +455,11 @@ class KinematicChain:
         return self.jacobian_dq(q) @ np.asarray(qdot, dtype=float)
 
 
-def _batch_chain_product(base, rel):
-    """
-    Multiply ``base * rel[:, 0] * ... * rel[:, n-1]`` for N chains at once.
-
-    Works on the 8 component columns separately (struct of arrays) so that each step costs
-    a fixed number of vector multiply-adds and no gathering.
-    """
-    n_cfg, n_rows = rel.shape[:2]
-    cols = [rel[:, 0, k] for k in range(8)]
-    acc = tuple(cols) if np.allclose(base, [1, 0, 0, 0, 0, 0, 0, 0]) else \
-        _batch_mul_left_const(base, cols)
-    for i in range(1, n_rows):
-        acc = _batch_mul(acc, [rel[:, i, k] for k in range(8)])
-    return acc
-
-
-def _batch_mul(a, b):
-    """Eq. (12) on struct-of-arrays dual quaternions (8 arrays of shape (N,) each)."""
-    real = quat_multiply_soa(a[:4], b[:4])
-    d1 = quat_multiply_soa(a[:4], b[4:])
-    d2 = quat_multiply_soa(a[4:], b[:4])
-    return real + tuple(x + y for x, y in zip(d1, d2))
-
-
-def _batch_mul_left_const(const, b):
-    return _batch_mul(tuple(float(c) for c in const), b)
-
-
-def _batch_mul_right_const(a, const):
-    return _batch_mul(a, tuple(float(c) for c in const))
-
-
-def quat_multiply_soa(a, b):
-    """Hamilton product on struct-of-arrays quaternions ``(w, x, y, z)`` (4 arrays each)."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw)
+def _canonical_inplace(h):
+    """Flip, in place, the dual quaternions ``(..., 8)`` whose real part has ``w < 0``."""
+    negative = h[..., 0] < 0.0
+    h[negative] *= -1.0
+    return h
 
 
 def homogeneous_from_dq(h):
@@ -434,5 +472,4 @@ def homogeneous_from_dq(h):
     return m
 
 
-__all__ = ['CONVENTIONS', 'DHJoint', 'JOINT_TYPES', 'KinematicChain', 'homogeneous_from_dq',
-           'quat_multiply_soa']
+__all__ = ['CONVENTIONS', 'DHJoint', 'JOINT_TYPES', 'KinematicChain', 'homogeneous_from_dq']
