@@ -106,29 +106,30 @@ def _mul(a, b):
     )
 
 
-# Opcodes of the sparse factorisation of a DH row (eqs. (13)-(15) of 000_*.txt): each
-# factor touches a few coefficients only, so it costs a fraction of a full product with the
-# row's eq. (3) operator.
-_ROT_Z, _TRANS_Z, _ROT_X, _TRANS_X, _FRAME = range(5)
+# The sparse factorisation of a DH row (eqs. (13)-(15) of 000_*.txt): the z factor
+# Rz(theta) Tz(d) = (c + s k)(1 + eps d/2 k) and the x factor Tx(a) Rx(alpha) =
+# (1 + eps a/2 i)(c + s i) each touch a few coefficients only, so applying them costs a
+# fraction of a full product with the row's eq. (3) operator.
+_Z, _X = 0, 1
 
 
 def _row_program(joint, ti, di, modified):
     """
-    Compile one DH row into sparse factors, ending with a frame mark.
+    Compile one DH row into its z and x factors; the last one marks the row's frame.
 
     Standard: ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``; modified: ``Rx(alpha) Tx(a) Rz(theta)
-    Tz(d)``. Factors that are the identity (zero a, alpha or constant d) are left out.
+    Tz(d)``. Op tuples: ``(_Z, theta, scale, ti, d, di, mark)`` with theta = theta + scale
+    q[ti] and d = d + scale q[di] (index -1: constant); ``(_X, a/2, cos(alpha/2),
+    sin(alpha/2), has_rotation, -, mark)``.
     """
-    x_part = []
-    if joint.a:
-        x_part.append((_TRANS_X, 0.5 * joint.a, 0.0, -1))
-    if joint.alpha:
-        x_part.append((_ROT_X, math.cos(0.5 * joint.alpha), math.sin(0.5 * joint.alpha), -1))
-    z_part = [(_ROT_Z, joint.theta, joint.scale, ti)]
-    if di >= 0 or joint.d:
-        z_part.append((_TRANS_Z, joint.d, joint.scale, di))
-    ops = x_part + z_part if modified else z_part + x_part
-    return ops + [(_FRAME, 0.0, 0.0, -1)]
+    ops = [[_Z, joint.theta, joint.scale, ti, joint.d, di, False]]
+    if joint.a or joint.alpha:
+        ops.append([_X, 0.5 * joint.a, math.cos(0.5 * joint.alpha),
+                    math.sin(0.5 * joint.alpha), bool(joint.alpha), 0, False])
+        if modified:
+            ops.reverse()
+    ops[-1][-1] = True
+    return [tuple(op) for op in ops]
 
 
 def _run_program(program, base, q, cos, sin):
@@ -141,24 +142,24 @@ def _run_program(program, base, q, cos, sin):
     """
     aw, ax, ay, az, bw, bx, by, bz = base
     frames = [base]
-    for op, p1, p2, var in program:
-        if op == _ROT_Z:  # h (c + s k), half angle of theta = p1 + p2 q
-            half = 0.5 * p1 if var < 0 else 0.5 * (p1 + p2 * q[var])
+    for op, p1, p2, p3, p4, p5, mark in program:
+        if op == _Z:  # h (c + s k) (1 + eps hd k)
+            half = 0.5 * p1 if p3 < 0 else 0.5 * (p1 + p2 * q[p3])
             c, s = cos(half), sin(half)
             aw, ax, ay, az, bw, bx, by, bz = (
                 aw * c - az * s, ax * c + ay * s, ay * c - ax * s, az * c + aw * s,
                 bw * c - bz * s, bx * c + by * s, by * c - bx * s, bz * c + bw * s)
-        elif op == _TRANS_Z:  # h (1 + eps hd k), d = p1 + p2 q
-            hd = 0.5 * p1 if var < 0 else 0.5 * (p1 + p2 * q[var])
-            bw, bx, by, bz = bw - hd * az, bx + hd * ay, by - hd * ax, bz + hd * aw
-        elif op == _ROT_X:  # h (c + s i), constant
-            c, s = p1, p2
-            aw, ax, ay, az, bw, bx, by, bz = (
-                aw * c - ax * s, ax * c + aw * s, ay * c + az * s, az * c - ay * s,
-                bw * c - bx * s, bx * c + bw * s, by * c + bz * s, bz * c - by * s)
-        elif op == _TRANS_X:  # h (1 + eps ha i), constant
-            bw, bx, by, bz = bw - p1 * ax, bx + p1 * aw, by + p1 * az, bz - p1 * ay
-        else:
+            if p5 >= 0 or p4:
+                hd = 0.5 * p4 if p5 < 0 else 0.5 * (p4 + p2 * q[p5])
+                bw, bx, by, bz = bw - hd * az, bx + hd * ay, by - hd * ax, bz + hd * aw
+        else:  # h (1 + eps ha i) (c + s i), constant
+            if p1:
+                bw, bx, by, bz = bw - p1 * ax, bx + p1 * aw, by + p1 * az, bz - p1 * ay
+            if p4:
+                aw, ax, ay, az, bw, bx, by, bz = (
+                    aw * p2 - ax * p3, ax * p2 + aw * p3, ay * p2 + az * p3, az * p2 - ay * p3,
+                    bw * p2 - bx * p3, bx * p2 + bw * p3, by * p2 + bz * p3, bz * p2 - by * p3)
+        if mark:
             frames.append((aw, ax, ay, az, bw, bx, by, bz))
     return frames
 
