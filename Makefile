@@ -14,13 +14,16 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 DEMO_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 80) + 20 )))
 DEMO_SECONDS ?= 3
 
-.PHONY: help setup demo test lint clean
+BENCH_VENV ?= .venv-bench
+
+.PHONY: help setup demo test bench clean
 
 help:
 	@echo 'make setup  create .venv with ROS 2 Jazzy (PyPI), tf2_msgs and dq_fk_ros'
 	@echo 'make demo   setup, then run dq_fk_node with the default robot (RL15)'
 	@echo 'make test   setup, then run linters, unit and integration tests'
-	@echo 'make clean  remove .venv and build leftovers'
+	@echo 'make bench  benchmarks: the core against its peers (installed in .venv-bench)'
+	@echo 'make clean  remove .venv, .venv-bench and build leftovers'
 
 setup: $(STAMPS)/project
 	@:
@@ -61,5 +64,18 @@ demo: setup
 test: setup
 	@scripts/run_tests $(PY)
 
+$(BENCH_VENV)/.stamp: requirements/bench.txt setup.py
+	@echo 'bench: installing benchmark peers into $(BENCH_VENV) (requirements/bench.txt)'
+	@$(STEP) "create virtual environment $(BENCH_VENV)" $(BENCH_VENV)-logs/venv.log \
+	  $(PYTHON) -m venv $(BENCH_VENV)
+	@$(STEP) "install requirements/bench.txt" $(BENCH_VENV)-logs/bench.log \
+	  $(BENCH_VENV)/bin/python -m pip install --disable-pip-version-check -r requirements/bench.txt
+	@$(STEP) "install dq_fk_ros into $(BENCH_VENV)" $(BENCH_VENV)-logs/project.log \
+	  $(BENCH_VENV)/bin/python -m pip install --disable-pip-version-check --no-deps -e .
+	@touch $@
+
+bench: $(BENCH_VENV)/.stamp
+	@$(BENCH_VENV)/bin/python benchmarks/bench_core.py
+
 clean:
-	rm -rf $(VENV) build install log .pytest_cache
+	rm -rf $(VENV) $(BENCH_VENV) $(BENCH_VENV)-logs build install log .pytest_cache

@@ -17,6 +17,7 @@ Dual quaternions are 8-vectors (w, x, y, z, w', x', y', z'); see
 :mod:`dq_fk_ros.dual_quaternion`.
 """
 
+from array import array
 from dataclasses import dataclass
 import math
 
@@ -316,11 +317,13 @@ class KinematicChain:
         flat = []
         for f in self._absolute_tuples(q):
             flat += f if f[0] >= 0.0 else [-v for v in f]
-        return np.array(flat).reshape(-1, 8)
+        return np.frombuffer(array('d', flat)).reshape(-1, 8)
 
     def forward(self, q):
         """Return the end-effector pose (tool if any, else frame n), a :class:`DualQuaternion`."""
-        return DualQuaternion(canonical(np.array(self._absolute_tuples(q)[-1])))
+        end = self._absolute_tuples(q)[-1]
+        return DualQuaternion.from_array(np.frombuffer(
+            array('d', end if end[0] >= 0.0 else [-v for v in end])))
 
     # -- batches -----------------------------------------------------------------------
     def _row_params_batch(self, q):

@@ -180,6 +180,13 @@ class DualQuaternion:
 
     # -- construction ------------------------------------------------------------------
     @classmethod
+    def from_array(cls, coeffs):
+        """Wrap a float64 array of shape (8,) without copying or checking it."""
+        h = cls.__new__(cls)
+        h.coeffs = coeffs
+        return h
+
+    @classmethod
     def identity(cls):
         """Return the identity transform."""
         return cls([1.0, 0, 0, 0, 0, 0, 0, 0])
