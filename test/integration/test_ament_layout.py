@@ -18,7 +18,7 @@ import rclpy
 
 PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 COLCON = os.path.join(os.path.dirname(sys.executable), 'colcon')
-NOT_SOURCES = shutil.ignore_patterns('.venv', '.git', 'build', 'install', 'log', '__pycache__',
+NOT_SOURCES = shutil.ignore_patterns('.venv*', '.git', 'build', 'install', 'log', '__pycache__',
                                      '*.egg-info', '.pytest_cache')
 
 pytestmark = pytest.mark.integration
