@@ -1,0 +1,404 @@
+"""
+The robot description: one YAML file per serial chain, validated into a :class:`RobotModel`.
+
+Plain Python (PyYAML + numpy), no ROS. The file format is documented in
+``docs/robot_description.md``; in short::
+
+    robot: rl15
+    convention: standard        # standard (Spong, distal) | modified (Craig, proximal)
+    units: {length: mm, angle: deg}
+    fixed_frame: world
+    base: {frame: base_seg0, xyz: [0, 0, 730], rpy: [0, 0, 0]}
+    chain:
+      - {frame: shoulder_seg1, joint: joint_1, theta: 0, d: 0, a: 200, alpha: 90}
+      ...
+    tool: {frame: tcp, xyz: [0, 0, 100], quaternion: [0, 0, 0, 1]}   # x y z w
+
+Every length and angle in the file is in the file's ``units``; the model holds metres and
+radians only (REP 103). Any mistake raises :class:`RobotDescriptionError` with a single
+line naming the file, the place (row index and frame), the field, what was found and what
+is allowed.
+"""
+
+from dataclasses import dataclass
+import math
+import os
+import re
+
+from dq_fk_ros.dh import CONVENTIONS, DHJoint, KinematicChain
+from dq_fk_ros.dual_quaternion import DualQuaternion, quat_from_matrix
+import numpy as np
+import yaml
+
+LENGTH_UNITS = {'m': 1.0, 'cm': 0.01, 'mm': 0.001}
+ANGLE_UNITS = {'rad': 1.0, 'deg': math.pi / 180.0}
+ROW_TYPES = ('revolute', 'prismatic', 'cylindrical', 'fixed')
+# A ROS frame id: no leading slash, segments of letters, digits and underscores.
+FRAME_ID = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z0-9_]+)*$')
+JOINT_NAME = re.compile(r'^[A-Za-z_][A-Za-z0-9_./-]*$')
+
+TOP_FIELDS = ('robot', 'description', 'convention', 'units', 'fixed_frame', 'base', 'chain',
+              'tool')
+UNIT_FIELDS = ('length', 'angle')
+TRANSFORM_FIELDS = ('frame', 'xyz', 'rpy', 'quaternion')
+ROW_FIELDS = ('frame', 'joint', 'type', 'theta', 'd', 'a', 'alpha', 'scale', 'limits',
+              'max_velocity', 'mimic', 'd_joint', 'd_limits', 'd_max_velocity')
+MIMIC_FIELDS = ('joint', 'multiplier', 'offset')
+
+
+class RobotDescriptionError(ValueError):
+    """A robot description file that cannot be used; the message is one line for the user."""
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """
+    A validated robot: its kinematic chain and the names ROS needs.
+
+    ``frame_names`` are frame 0 (``base.frame``), the row frames and the tool frame if
+    any, in the order of :meth:`KinematicChain.forward_all`. ``parent_frames[i]`` is the
+    parent of ``frame_names[i]`` (frame 0's parent is ``fixed_frame``); ``moving[i]`` says
+    whether that parent -> child transform depends on joint values (else it is static).
+    Lengths are metres, angles radians.
+    """
+
+    name: str
+    source: str
+    fixed_frame: str
+    frame_names: tuple
+    parent_frames: tuple
+    moving: tuple
+    chain: KinematicChain
+    max_velocity: np.ndarray
+
+    @property
+    def joint_names(self):
+        """Joint names in the order the chain takes joint values."""
+        return self.chain.joint_names
+
+    @property
+    def limits(self):
+        """Joint limits ``(dof, 2)``, lower and upper, in rad or m (+-inf: none given)."""
+        return self.chain.limits
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """A SafeLoader that refuses a mapping with the same key twice."""
+
+
+def _construct_mapping(loader, node, deep=False):
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None, None, f'duplicate key {key!r}', key_node.start_mark)
+        seen.add(key)
+    return yaml.SafeLoader.construct_mapping(loader, node, deep)
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
+                                 _construct_mapping)
+
+
+def load_robot_description(path):
+    """Read and validate a robot description file; raise :class:`RobotDescriptionError`."""
+    path = os.fspath(path)
+    try:
+        with open(path, encoding='utf-8') as stream:
+            text = stream.read()
+    except FileNotFoundError:
+        raise RobotDescriptionError(f'{path}: no such file') from None
+    except IsADirectoryError:
+        raise RobotDescriptionError(f'{path}: is a directory, not a robot description file') \
+            from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RobotDescriptionError(f'{path}: cannot be read ({exc})') from None
+    return parse_robot_description(text, path)
+
+
+def parse_robot_description(text, source='<string>'):
+    """Validate the YAML text of a robot description; ``source`` names it in errors."""
+    try:
+        data = yaml.load(text, Loader=_UniqueKeyLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
+        problem = getattr(exc, 'problem', None) or str(exc).splitlines()[0]
+        raise RobotDescriptionError(f'{source}: not valid YAML{where}: {problem}') from None
+    return _Parser(source).robot(data)
+
+
+class _Parser:
+    """Walks the YAML data, converting units and raising one-line errors."""
+
+    def __init__(self, source):
+        self.source = source
+        self.length = 1.0
+        self.angle = 1.0
+
+    def fail(self, where, message):
+        prefix = f'{self.source}: {where}: ' if where else f'{self.source}: '
+        raise RobotDescriptionError(prefix + message)
+
+    # -- generic checks ------------------------------------------------------------------
+    def mapping(self, value, where, allowed, required=()):
+        if not isinstance(value, dict):
+            self.fail(where, f'expected a mapping with fields {", ".join(allowed)}, '
+                      f'got {_describe(value)}')
+        for key in value:
+            if key not in allowed:
+                self.fail(where, f'unknown field {key!r}; allowed fields: '
+                          f'{", ".join(allowed)}')
+        for key in required:
+            if key not in value:
+                self.fail(where, f'missing field {key!r} (required: {", ".join(required)})')
+        return value
+
+    def number(self, value, where, field, unit=1.0):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            self.fail(where, f'field {field!r} must be a number, got {_describe(value)}')
+        if not math.isfinite(value):
+            self.fail(where, f'field {field!r} must be a finite number, got {value!r}')
+        return float(value) * unit
+
+    def vector(self, value, where, field, size, unit=1.0):
+        if not isinstance(value, list) or len(value) != size:
+            self.fail(where, f'field {field!r} must be a list of {size} numbers, '
+                      f'got {_describe(value)}')
+        return [self.number(v, where, f'{field}[{k}]', unit) for k, v in enumerate(value)]
+
+    def name(self, value, where, field, pattern, what):
+        if not isinstance(value, str) or not pattern.match(value):
+            self.fail(where, f'field {field!r} must be {what}, got {_describe(value)}')
+        return value
+
+    def frame(self, value, where, field='frame'):
+        return self.name(value, where, field, FRAME_ID,
+                         'a ROS frame id (letters, digits, underscores, inner slashes; '
+                         'no leading slash)')
+
+    def choice(self, value, where, field, allowed):
+        if value not in allowed:
+            self.fail(where, f'field {field!r} is {value!r}; allowed: {", ".join(allowed)}')
+        return value
+
+    # -- sections ------------------------------------------------------------------------
+    def robot(self, data):
+        data = self.mapping(data, '', TOP_FIELDS, required=('robot', 'base', 'chain'))
+        name = data['robot']
+        if not isinstance(name, str) or not name.strip():
+            self.fail('', f"field 'robot' must be a non-empty name, got {_describe(name)}")
+        if 'description' in data and not isinstance(data['description'], str):
+            self.fail('', "field 'description' must be text")
+        convention = self.choice(data.get('convention', 'standard'), '', 'convention',
+                                 CONVENTIONS)
+        units = self.mapping(data.get('units', {}), 'units', UNIT_FIELDS)
+        self.length = LENGTH_UNITS[self.choice(units.get('length', 'm'), 'units', 'length',
+                                               tuple(LENGTH_UNITS))]
+        self.angle = ANGLE_UNITS[self.choice(units.get('angle', 'rad'), 'units', 'angle',
+                                             tuple(ANGLE_UNITS))]
+        fixed_frame = self.frame(data.get('fixed_frame', 'world'), '', 'fixed_frame')
+        base_frame, base = self.transform(data['base'], 'base')
+        rows = data['chain']
+        if not isinstance(rows, list) or not rows:
+            self.fail('chain', f'expected a non-empty list of DH rows, got {_describe(rows)}')
+        parsed = [self.row(row, k) for k, row in enumerate(rows)]
+        tool_frame, tool = (self.transform(data['tool'], 'tool') if 'tool' in data
+                            else (None, None))
+
+        frames = [base_frame] + [p['frame'] for p in parsed] + ([tool_frame] if tool_frame
+                                                                 else [])
+        seen = {fixed_frame: 'fixed_frame'}
+        places = ['base'] + [f"chain[{k}] (frame {p['frame']!r})" for k, p in
+                             enumerate(parsed)] + ['tool']
+        for frame, place in zip(frames, places):
+            if frame in seen:
+                self.fail(place, f'frame {frame!r} is already used by {seen[frame]}; '
+                          f'frame names must be unique')
+            seen[frame] = place
+
+        joints = self.joints(parsed)
+        try:
+            chain = KinematicChain(joints, convention, base=base, tool=tool)
+        except ValueError as exc:  # anything the core refuses that the checks above missed
+            self.fail('chain', str(exc))
+        velocity = {}
+        for p in parsed:
+            velocity.update(p['velocity'])
+        moving = [False] + [p['type'] != 'fixed' for p in parsed] + ([False] if tool else [])
+        return RobotModel(
+            name=name, source=self.source, fixed_frame=fixed_frame, frame_names=tuple(frames),
+            parent_frames=tuple([fixed_frame] + frames[:-1]), moving=tuple(moving),
+            chain=chain,
+            max_velocity=np.array([velocity.get(n, math.inf) for n in chain.joint_names]))
+
+    def transform(self, value, where):
+        value = self.mapping(value, where, TRANSFORM_FIELDS, required=('frame',))
+        frame = self.frame(value['frame'], where)
+        xyz = self.vector(value.get('xyz', [0, 0, 0]), where, 'xyz', 3, self.length)
+        if 'rpy' in value and 'quaternion' in value:
+            self.fail(where, "give either 'rpy' or 'quaternion', not both")
+        if 'quaternion' in value:
+            xyzw = self.vector(value['quaternion'], where, 'quaternion', 4)
+            if math.sqrt(sum(c * c for c in xyzw)) < 1e-9:
+                self.fail(where, "field 'quaternion' (x, y, z, w) must not be all zeros")
+            rotation = (xyzw[3], xyzw[0], xyzw[1], xyzw[2])
+        else:
+            roll, pitch, yaw = self.vector(value.get('rpy', [0, 0, 0]), where, 'rpy', 3,
+                                           self.angle)
+            rotation = quat_from_matrix(rpy_matrix(roll, pitch, yaw))
+        return frame, DualQuaternion.from_pose(rotation, xyz)
+
+    def row(self, row, k):
+        where = f'chain[{k}]'
+        if isinstance(row, dict) and isinstance(row.get('frame'), str):
+            where = f"chain[{k}] (frame {row['frame']!r})"
+        row = self.mapping(row, where, ROW_FIELDS, required=('frame', 'theta', 'd', 'a',
+                                                             'alpha'))
+        frame = self.frame(row['frame'], where)
+        kind = self.choice(row.get('type', 'revolute'), where, 'type', ROW_TYPES)
+        out = {'frame': frame, 'type': kind, 'where': where, 'velocity': {},
+               'theta': self.number(row['theta'], where, 'theta', self.angle),
+               'd': self.number(row['d'], where, 'd', self.length),
+               'a': self.number(row['a'], where, 'a', self.length),
+               'alpha': self.number(row['alpha'], where, 'alpha', self.angle)}
+        scale = self.number(row.get('scale', 1.0), where, 'scale')
+        if scale == 0.0:
+            self.fail(where, "field 'scale' must not be 0 (it multiplies the joint value)")
+        out['scale'] = scale
+        var_unit = self.length if kind == 'prismatic' else self.angle
+        if kind == 'fixed':
+            for field in ('joint', 'limits', 'max_velocity', 'mimic', 'd_joint', 'd_limits',
+                          'd_max_velocity', 'scale'):
+                if field in row:
+                    self.fail(where, f'field {field!r} does not apply to a fixed row')
+            return out
+        if kind != 'cylindrical':
+            for field in ('d_joint', 'd_limits', 'd_max_velocity'):
+                if field in row:
+                    self.fail(where, f'field {field!r} applies only to a cylindrical row')
+        if 'mimic' in row:
+            if kind == 'cylindrical':
+                self.fail(where, "field 'mimic' does not apply to a cylindrical row")
+            for field in ('joint', 'limits', 'max_velocity', 'scale'):
+                if field in row:
+                    self.fail(where, f"field {field!r} does not go with 'mimic' (the row "
+                              f'moves with its source joint)')
+            mimic = self.mapping(row['mimic'], where + ' mimic', MIMIC_FIELDS,
+                                 required=('joint',))
+            out['follows'] = self.name(mimic['joint'], where + ' mimic', 'joint', JOINT_NAME,
+                                       'a joint name')
+            out['scale'] = self.number(mimic.get('multiplier', 1.0), where + ' mimic',
+                                       'multiplier')
+            offset = self.number(mimic.get('offset', 0.0), where + ' mimic', 'offset',
+                                 var_unit)
+            out['theta' if kind == 'revolute' else 'd'] += offset
+            return out
+        if 'joint' not in row:
+            self.fail(where, f"missing field 'joint' (the JointState name a {kind} row "
+                      f"reads; or give 'mimic')")
+        out['joint'] = self.name(row['joint'], where, 'joint', JOINT_NAME, 'a joint name')
+        out['limits'] = self.limits(row, where, 'limits', var_unit)
+        self.max_velocity(row, where, 'max_velocity', var_unit, out['joint'], out)
+        if kind == 'cylindrical':
+            if 'd_joint' not in row:
+                self.fail(where, "missing field 'd_joint' (a cylindrical row reads two "
+                          "joints: 'joint' for theta, 'd_joint' for d)")
+            out['d_joint'] = self.name(row['d_joint'], where, 'd_joint', JOINT_NAME,
+                                       'a joint name')
+            out['d_limits'] = self.limits(row, where, 'd_limits', self.length)
+            self.max_velocity(row, where, 'd_max_velocity', self.length, out['d_joint'], out)
+        return out
+
+    def limits(self, row, where, field, unit):
+        if field not in row:
+            return None
+        lower, upper = self.vector(row[field], where, field, 2, unit)
+        if lower > upper:
+            self.fail(where, f'field {field!r} has lower {row[field][0]!r} above upper '
+                      f'{row[field][1]!r}; give [lower, upper]')
+        return (lower, upper)
+
+    def max_velocity(self, row, where, field, unit, joint, out):
+        if field not in row:
+            return
+        value = self.number(row[field], where, field, unit)
+        if value <= 0.0:
+            self.fail(where, f'field {field!r} must be a positive speed (per second), '
+                      f'got {row[field]!r}')
+        out['velocity'][joint] = value
+
+    def joints(self, parsed):
+        owners = {}
+        for p in parsed:
+            for key in ('joint', 'd_joint'):
+                if key in p:
+                    if p[key] in owners:
+                        self.fail(p['where'], f'joint {p[key]!r} is already read by '
+                                  f'{owners[p[key]]}; joint names must be unique')
+                    owners[p[key]] = p['where']
+        joints = []
+        for p in parsed:
+            if 'follows' in p and p['follows'] not in owners:
+                self.fail(p['where'] + ' mimic', f"field 'joint' names {p['follows']!r}, "
+                          f'which no row reads; joints: {", ".join(owners) or "none"}')
+            limits = p.get('limits')
+            if p['type'] == 'cylindrical':
+                limits = (limits, p.get('d_limits'))
+            joints.append(DHJoint(
+                a=p['a'], alpha=p['alpha'], d=p['d'], theta=p['theta'], joint_type=p['type'],
+                scale=p['scale'], name=p.get('joint', ''), d_name=p.get('d_joint', ''),
+                follows=p.get('follows', ''), limits=limits))
+        return joints
+
+
+def rpy_matrix(roll, pitch, yaw):
+    """Rotation matrix of URDF's fixed-axis roll, pitch, yaw: ``Rz(yaw) Ry(pitch) Rx(roll)``."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def _describe(value):
+    """Describe a YAML value briefly for an error message."""
+    if value is None:
+        return 'nothing'
+    if isinstance(value, bool):
+        return f'{value!r} (a boolean)'
+    if isinstance(value, (dict, list)):
+        kind = 'a mapping' if isinstance(value, dict) else f'a list of {len(value)}'
+        return kind
+    return f'{value!r} ({type(value).__name__})'
+
+
+def shipped_robot_path(name):
+    """
+    Path of a robot file shipped with the package, e.g. ``shipped_robot_path('rl15')``.
+
+    Looks in the installed share directory (colcon) first, then in the source tree's
+    ``config/`` (an editable install).
+    """
+    filename = name if name.endswith('.yaml') else name + '.yaml'
+    candidates = []
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        candidates.append(os.path.join(get_package_share_directory('dq_fk_ros'), 'config'))
+    except Exception:  # not installed through ament (or ament_index missing): source tree
+        pass
+    candidates.append(os.path.join(os.path.dirname(os.path.dirname(
+        os.path.abspath(__file__))), 'config'))
+    for folder in candidates:
+        path = os.path.join(folder, filename)
+        if os.path.isfile(path):
+            return path
+    raise FileNotFoundError(f'no shipped robot {filename!r} in {" or ".join(candidates)}')
+
+
+def shipped_robots():
+    """Names of the robot files shipped in ``config/``."""
+    folder = os.path.dirname(shipped_robot_path('rl15'))
+    return sorted(f[:-5] for f in os.listdir(folder) if f.endswith('.yaml'))
