@@ -1,0 +1,152 @@
+"""The robot description file: units, structure, and one clear line for every mistake."""
+
+import math
+
+from dq_fk_ros.robot_model import (
+    load_robot_description, parse_robot_description, RobotDescriptionError)
+import homogeneous as hm
+import numpy as np
+import pytest
+
+GOOD = """
+robot: demo
+convention: standard
+units: {length: mm, angle: deg}
+fixed_frame: world
+base: {frame: base0, xyz: [0, 0, 500], rpy: [0, 0, 90]}
+chain:
+  - {frame: link1, joint: j1, theta: 0, d: 100, a: 200, alpha: 90, limits: [-90, 90]}
+  - {frame: link2, joint: j2, type: prismatic, theta: 30, d: 50, a: 0, alpha: 0,
+     limits: [0, 300], max_velocity: 250}
+  - {frame: link3, type: fixed, theta: 0, d: 0, a: 100, alpha: 0}
+  - {frame: link4, theta: 10, d: 0, a: 0, alpha: 0, mimic: {joint: j1, multiplier: -2,
+     offset: 5}}
+tool: {frame: tcp, xyz: [0, 0, 20], quaternion: [0, 0, 0, 1]}
+"""
+
+
+def test_a_good_file_in_mm_and_deg_becomes_metres_and_radians():
+    model = parse_robot_description(GOOD, 'good.yaml')
+    assert model.frame_names == ('base0', 'link1', 'link2', 'link3', 'link4', 'tcp')
+    assert model.parent_frames == ('world', 'base0', 'link1', 'link2', 'link3', 'link4')
+    assert model.moving == (False, True, True, False, True, False)
+    assert model.joint_names == ('j1', 'j2')
+    np.testing.assert_allclose(model.limits, [[-math.pi / 2, math.pi / 2], [0, 0.3]])
+    np.testing.assert_allclose(model.max_velocity, [math.inf, 0.25])
+    q = np.array([0.3, 0.1])
+    deg = math.pi / 180
+    expected = hm.chain_frames(
+        [(0.3, 0.1, 0.2, 90 * deg), (30 * deg, 0.05 + 0.1, 0, 0), (0, 0, 0.1, 0),
+         (10 * deg - 2 * 0.3 + 5 * deg, 0, 0, 0)], 'standard',
+        base=hm.trans(z=0.5) @ hm.rot_z(90 * deg), tool=hm.trans(z=0.02))
+    from dq_fk_ros.dh import homogeneous_from_dq
+    np.testing.assert_allclose(homogeneous_from_dq(model.chain.forward_all(q)), expected,
+                               atol=1e-12)
+
+
+def test_defaults_are_metres_radians_standard_world():
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b}\nchain:\n  - {frame: l1, joint: j, theta: 0, d: 1, '
+        'a: 0, alpha: 0}\n')
+    assert model.fixed_frame == 'world' and model.chain.convention == 'standard'
+    np.testing.assert_allclose(model.chain.forward([0.0]).translation, [0, 0, 1])
+
+
+def test_rpy_is_urdf_fixed_axis_order():
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b, rpy: [0.1, 0.2, 0.3]}\nchain:\n'
+        '  - {frame: l1, type: fixed, theta: 0, d: 0, a: 0, alpha: 0}\n')
+    expected = hm.rot_z(0.3) @ hm.rot_y(0.2) @ hm.rot_x(0.1)
+    np.testing.assert_allclose(model.chain.base.to_matrix(), expected, atol=1e-12)
+
+
+def edit(text, old, new):
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+ROW1 = '{frame: link1, joint: j1, theta: 0, d: 100, a: 200, alpha: 90, limits: [-90, 90]}'
+
+BAD_CASES = [
+    # (what, edited text, words the one-line message must contain)
+    ('missing field', edit(GOOD, 'alpha: 90, limits', 'limits'),
+     ["chain[0] (frame 'link1')", "missing field 'alpha'"]),
+    ('typo in a field name', edit(GOOD, 'alpha: 90, limits', 'alfa: 90, limits'),
+     ["chain[0] (frame 'link1')", "unknown field 'alfa'", 'allowed fields: frame, joint']),
+    ('unknown top-level field', GOOD + 'colour: red\n', ["unknown field 'colour'"]),
+    ('wrong type', edit(GOOD, 'a: 200', 'a: two hundred'),
+     ["chain[0] (frame 'link1')", "field 'a' must be a number", "'two hundred'"]),
+    ('boolean is not a number', edit(GOOD, 'd: 100', 'd: true'), ["field 'd' must be a number"]),
+    ('NaN', edit(GOOD, 'd: 100', 'd: .nan'), ["field 'd' must be a finite number", 'nan']),
+    ('infinity', edit(GOOD, 'a: 200', 'a: .inf'), ["field 'a' must be a finite number"]),
+    ('unknown convention', edit(GOOD, 'convention: standard', 'convention: craig'),
+     ["field 'convention' is 'craig'", 'allowed: standard, modified']),
+    ('unknown joint type', edit(GOOD, 'type: prismatic', 'type: spherical'),
+     ["chain[1] (frame 'link2')", "field 'type' is 'spherical'",
+      'allowed: revolute, prismatic, cylindrical, fixed']),
+    ('unknown length unit', edit(GOOD, 'length: mm', 'length: inch'),
+     ['units', "field 'length' is 'inch'", 'allowed: m, cm, mm']),
+    ('unknown angle unit', edit(GOOD, 'angle: deg', 'angle: grad'),
+     ["field 'angle' is 'grad'", 'allowed: rad, deg']),
+    ('duplicate frame', edit(GOOD, 'frame: link2', 'frame: link1'),
+     ["frame 'link1' is already used by chain[0]", 'unique']),
+    ('frame clashes with the fixed frame', edit(GOOD, 'frame: link2', 'frame: world'),
+     ["frame 'world' is already used by fixed_frame"]),
+    ('duplicate joint', edit(GOOD, 'joint: j2', 'joint: j1'),
+     ["chain[1] (frame 'link2')", "joint 'j1' is already read by chain[0]"]),
+    ('leading slash in a frame id', edit(GOOD, 'frame: link1', 'frame: /link1'),
+     ["field 'frame' must be a ROS frame id", "'/link1'"]),
+    ('negative speed', edit(GOOD, 'max_velocity: 250', 'max_velocity: -1'),
+     ["field 'max_velocity' must be a positive speed"]),
+    ('limits upside down', edit(GOOD, 'limits: [0, 300]', 'limits: [300, 0]'),
+     ["field 'limits' has lower 300 above upper 0"]),
+    ('zero scale', edit(GOOD, ROW1, ROW1[:-1] + ', scale: 0}'), ["field 'scale' must not be 0"]),
+    ('mimic of an unknown joint', edit(GOOD, 'mimic: {joint: j1', 'mimic: {joint: j9'),
+     ["chain[3] (frame 'link4') mimic", "names 'j9', which no row reads"]),
+    ('joint field on a fixed row', edit(GOOD, '{frame: link3, type: fixed,',
+                                        '{frame: link3, type: fixed, joint: j3,'),
+     ["field 'joint' does not apply to a fixed row"]),
+    ('revolute row without a joint', edit(GOOD, 'joint: j1, ', ''),
+     ["chain[0] (frame 'link1')", "missing field 'joint'"]),
+    ('rpy and quaternion together', edit(GOOD, 'xyz: [0, 0, 20],', 'rpy: [0, 0, 0],'),
+     ['tool', "either 'rpy' or 'quaternion'"]),
+    ('short vector', edit(GOOD, 'xyz: [0, 0, 500]', 'xyz: [0, 500]'),
+     ['base', "field 'xyz' must be a list of 3 numbers"]),
+    ('empty chain', 'robot: r\nbase: {frame: b}\nchain: []\n',
+     ['chain', 'expected a non-empty list']),
+    ('not a mapping', '- just\n- a list\n', ['expected a mapping']),
+    ('empty file', '', ['expected a mapping', 'got nothing']),
+    ('missing base', edit(GOOD, 'base: {frame: base0, xyz: [0, 0, 500], rpy: [0, 0, 90]}\n',
+                          ''), ["missing field 'base'"]),
+    ('duplicate YAML key', edit(GOOD, 'convention: standard', 'convention: standard\n'
+                                'convention: modified'),
+     ['not valid YAML', 'line 4', "duplicate key 'convention'"]),
+    ('not YAML', 'robot: [unclosed\n', ['not valid YAML', 'line']),
+]
+
+
+@pytest.mark.parametrize('what, text, words', BAD_CASES, ids=[c[0] for c in BAD_CASES])
+def test_every_mistake_is_one_clear_line(what, text, words, tmp_path):
+    path = tmp_path / 'robot.yaml'
+    path.write_text(text)
+    with pytest.raises(RobotDescriptionError) as info:
+        load_robot_description(path)
+    message = str(info.value)
+    assert '\n' not in message
+    assert message.startswith(f'{path}: ')
+    for word in words:
+        assert word in message, f'{word!r} not in {message!r}'
+
+
+def test_missing_file_and_directory(tmp_path):
+    with pytest.raises(RobotDescriptionError, match='no such file'):
+        load_robot_description(tmp_path / 'nope.yaml')
+    with pytest.raises(RobotDescriptionError, match='is a directory'):
+        load_robot_description(tmp_path)
+
+
+def test_binary_file_is_a_clear_error(tmp_path):
+    path = tmp_path / 'robot.yaml'
+    path.write_bytes(b'\xff\xfe\x00garbage')
+    with pytest.raises(RobotDescriptionError, match='cannot be read|not valid YAML'):
+        load_robot_description(path)
