@@ -207,8 +207,9 @@ class _Parser:
         tool_frame, tool = (self.transform(data['tool'], 'tool') if 'tool' in data
                             else (None, None))
 
-        frames = [base_frame] + [p['frame'] for p in parsed] + ([tool_frame] if tool_frame
-                                                                 else [])
+        frames = [base_frame] + [p['frame'] for p in parsed]
+        if tool_frame:
+            frames.append(tool_frame)
         seen = {fixed_frame: 'fixed_frame'}
         places = ['base'] + [f"chain[{k}] (frame {p['frame']!r})" for k, p in
                              enumerate(parsed)] + ['tool']
@@ -377,7 +378,7 @@ def _describe(value):
 
 def shipped_robot_path(name):
     """
-    Path of a robot file shipped with the package, e.g. ``shipped_robot_path('rl15')``.
+    Find a robot file shipped with the package by name, e.g. ``'rl15'``.
 
     Looks in the installed share directory (colcon) first, then in the source tree's
     ``config/`` (an editable install).
@@ -399,6 +400,6 @@ def shipped_robot_path(name):
 
 
 def shipped_robots():
-    """Names of the robot files shipped in ``config/``."""
+    """List the names of the robot files shipped in ``config/``."""
     folder = os.path.dirname(shipped_robot_path('rl15'))
     return sorted(f[:-5] for f in os.listdir(folder) if f.endswith('.yaml'))

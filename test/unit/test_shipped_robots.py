@@ -111,7 +111,7 @@ def test_ur5e_zero_pose():
 
 
 def test_panda_zero_pose_flange():
-    """Franka's zero pose: flange at x = 0.088, z = 0.333 + 0.316 + 0.384 - 0.107, pointing down."""
+    """Franka's zero pose: flange at x = 0.088, z = 0.333 + 0.316 + 0.384 - 0.107, facing down."""
     model = robot('panda')
     m = model.chain.forward(np.zeros(7)).to_matrix()
     np.testing.assert_allclose(m[:3, 3], [0.088, 0, 0.926], atol=1e-12)
