@@ -56,6 +56,9 @@ $(STAMPS)/project: setup.py setup.cfg package.xml $(STAMPS)/dev $(STAMPS)/tf2_ms
 	@echo 'setup: installing dq_fk_ros (editable)'
 	@$(STEP) "install dq_fk_ros in editable mode" $(LOGS)/project.log \
 	  $(PIP) --no-deps --no-build-isolation -e .
+	@# setup.cfg puts executables where `ros2 run` looks (lib/dq_fk_ros); also put them on
+	@# the venv's PATH
+	@for exe in $(VENV)/lib/dq_fk_ros/*; do ln -sf ../lib/dq_fk_ros/$${exe##*/} $(VENV)/bin/; done
 	@touch $@
 
 demo: setup

@@ -25,6 +25,7 @@ setup(
     entry_points={
         'console_scripts': [
             'dq_fk_node = dq_fk_ros.node:main',
+            'dq_fk = dq_fk_ros.cli:main',
         ],
     },
 )

@@ -1,0 +1,223 @@
+"""
+``dq_fk``: the robot description on the command line, without any ROS process.
+
+``dq_fk validate FILE...``, ``dq_fk fk FILE --joints ...``, ``dq_fk urdf FILE``,
+``dq_fk list``. FILE is a path, or the name of a shipped robot (``rl15``, ``puma560``...).
+"""
+
+import argparse
+import json
+import math
+import os
+import sys
+
+from dq_fk_ros.dual_quaternion import DualQuaternion
+from dq_fk_ros.robot_model import (
+    load_robot_description, RobotDescriptionError, shipped_robot_path, shipped_robots)
+from dq_fk_ros.urdf import matrix_to_rpy, robot_to_urdf
+import numpy as np
+
+
+class UsageError(Exception):
+    """A command-line mistake; the message is one line for the user."""
+
+
+def resolve_robot_file(name):
+    """Return ``name`` if it is a file, else the shipped robot of that name if there is one."""
+    if os.path.exists(name) or os.sep in name or name.endswith('.yaml'):
+        return name
+    try:
+        return shipped_robot_path(name)
+    except FileNotFoundError:
+        return name  # loading it reports "no such file"
+
+
+def parse_joint_values(model, tokens, degrees):
+    """
+    Joint values from ``q1 q2 ...`` (all, in chain order) or ``name=value ...`` (others 0).
+
+    With ``degrees``, values of revolute joints are degrees; prismatic ones are metres.
+    """
+    names = model.joint_names
+    revolute = _revolute_variables(model)
+    if not tokens:
+        tokens = ['0'] * len(names)
+    named = ['=' in t for t in tokens]
+    if any(named) and not all(named):
+        raise UsageError('--joints takes either plain values in chain order or name=value '
+                         'pairs, not a mix')
+    values = {}
+    if all(named):
+        for token in tokens:
+            name, _, text = token.partition('=')
+            if name not in names:
+                raise UsageError(f'--joints: unknown joint {name!r}; joints of '
+                                 f'{model.name}: {", ".join(names)}')
+            values[name] = _number(text, name)
+        values = {n: values.get(n, 0.0) for n in names}  # unnamed joints stay at zero
+    else:
+        if len(tokens) != len(names):
+            raise UsageError(f'--joints: {model.name} has {len(names)} joints '
+                             f'({", ".join(names)}), got {len(tokens)} values')
+        values = {n: _number(t, n) for n, t in zip(names, tokens)}
+    q = np.array([values[n] for n in names])
+    if degrees:
+        q[revolute] = np.radians(q[revolute])
+    return q
+
+
+def _revolute_variables(model):
+    """Boolean mask over the joint variables: True where the variable is an angle."""
+    mask = np.zeros(model.chain.dof, dtype=bool)
+    for j in model.chain.joints:
+        if j.joint_type in ('revolute', 'cylindrical') and not j.follows:
+            mask[model.joint_names.index(j.name)] = True
+    return mask
+
+
+def _number(text, name):
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f'--joints: value of {name} is {text!r}, not a number') from None
+    if not math.isfinite(value):
+        raise UsageError(f'--joints: value of {name} must be finite, got {text!r}')
+    return value
+
+
+def frames_table(model, q):
+    """One dict per frame: name, parent, position (m), quaternion (x, y, z, w), matrix."""
+    poses = model.chain.forward_all(q)
+    rows = []
+    for name, parent, h in zip(model.frame_names, model.parent_frames, poses):
+        dq = DualQuaternion(h)
+        pose = dq.to_pose_xyzw()
+        matrix = dq.to_matrix()
+        rows.append({'frame': name, 'parent': parent, 'position': pose[:3].tolist(),
+                     'quaternion_xyzw': pose[3:].tolist(),
+                     'rpy': list(matrix_to_rpy(matrix[:3, :3])), 'matrix': matrix.tolist()})
+    return rows
+
+
+def cmd_validate(args):
+    failed = 0
+    for name in args.files:
+        path = resolve_robot_file(name)
+        try:
+            model = load_robot_description(path)
+        except RobotDescriptionError as exc:
+            print(exc, file=sys.stderr)
+            failed += 1
+            continue
+        print(f'{path}: ok ({model.name}, {model.chain.convention} DH, '
+              f'{len(model.chain.joints)} rows, {model.chain.dof} joints, '
+              f'{len(model.frame_names)} frames)')
+    return 1 if failed else 0
+
+
+def cmd_fk(args):
+    model = load_robot_description(resolve_robot_file(args.file))
+    q = parse_joint_values(model, args.joints, args.deg)
+    lower, upper = model.limits[:, 0], model.limits[:, 1]
+    for n, v, lo, hi in zip(model.joint_names, q, lower, upper):
+        if v < lo or v > hi:
+            print(f'warning: {n} = {v:.6g} is outside its limits [{lo:.6g}, {hi:.6g}]',
+                  file=sys.stderr)
+    rows = frames_table(model, q)
+    if args.json:
+        for r in rows:
+            if not args.rpy:
+                r.pop('rpy')
+            if not args.matrix:
+                r.pop('matrix')
+        json.dump({'robot': model.name, 'fixed_frame': model.fixed_frame,
+                   'joints': dict(zip(model.joint_names, q.tolist())), 'frames': rows},
+                  sys.stdout, indent=2)
+        print()
+        return 0
+    width = max(len(r['frame']) for r in rows)
+    pwidth = max(len(r['parent']) for r in rows)
+    header = f'{"frame":{width}s}  {"parent":{pwidth}s}  {"x":>10s} {"y":>10s} {"z":>10s}  ' \
+             f'{"qx":>9s} {"qy":>9s} {"qz":>9s} {"qw":>9s}'
+    if args.rpy:
+        header += f'  {"roll":>9s} {"pitch":>9s} {"yaw":>9s}'
+    print(f'# {model.name}: poses in {model.fixed_frame} (m; quaternion x y z w'
+          f'{"; rpy rad" if args.rpy else ""})')
+    print(header)
+    for r in rows:
+        line = (f'{r["frame"]:{width}s}  {r["parent"]:{pwidth}s}  '
+                + ' '.join(f'{_tidy(v):10.6f}' for v in r['position']) + '  '
+                + ' '.join(f'{_tidy(v):9.6f}' for v in r['quaternion_xyzw']))
+        if args.rpy:
+            line += '  ' + ' '.join(f'{_tidy(v):9.6f}' for v in r['rpy'])
+        print(line)
+        if args.matrix:
+            for row in r['matrix']:
+                print('    ' + ' '.join(f'{_tidy(v):10.6f}' for v in row))
+    return 0
+
+
+def _tidy(value):
+    """Round away rounding noise so that the table never shows -0.000000."""
+    return round(value, 9) + 0.0
+
+
+def cmd_urdf(args):
+    model = load_robot_description(resolve_robot_file(args.file))
+    text = robot_to_urdf(model)
+    if args.output in (None, '-'):
+        sys.stdout.write(text)
+    else:
+        with open(args.output, 'w', encoding='utf-8') as stream:
+            stream.write(text)
+        print(f'wrote {args.output} ({model.name}, links named after its frames)',
+              file=sys.stderr)
+    return 0
+
+
+def cmd_list(args):
+    for name in shipped_robots():
+        model = load_robot_description(shipped_robot_path(name))
+        print(f'{name:20s} {model.chain.dof} joints  {shipped_robot_path(name)}')
+    return 0
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog='dq_fk', description='Forward kinematics from a YAML DH robot description '
+        '(dual quaternions). FILE is a path or a shipped robot name (see "dq_fk list").')
+    sub = parser.add_subparsers(dest='command', required=True)
+    p = sub.add_parser('validate', help='check robot description files')
+    p.add_argument('files', nargs='+', metavar='FILE')
+    p.set_defaults(func=cmd_validate)
+    p = sub.add_parser('fk', help='print the pose of every frame')
+    p.add_argument('file', metavar='FILE')
+    p.add_argument('--joints', nargs='*', default=[], metavar='Q',
+                   help='all joint values in chain order, or name=value pairs (joints not '
+                        'named are 0); rad and m, or degrees with --deg')
+    p.add_argument('--deg', action='store_true', help='revolute joint values in degrees')
+    p.add_argument('--rpy', action='store_true', help='also print roll, pitch, yaw (rad)')
+    p.add_argument('--matrix', action='store_true', help='also print the 4x4 matrix')
+    p.add_argument('--json', action='store_true', help='print JSON instead of a table')
+    p.set_defaults(func=cmd_fk)
+    p = sub.add_parser('urdf', help='write a URDF whose links are the published frames')
+    p.add_argument('file', metavar='FILE')
+    p.add_argument('-o', '--output', help='output file (default: standard output)')
+    p.set_defaults(func=cmd_urdf)
+    p = sub.add_parser('list', help='list the shipped robots')
+    p.set_defaults(func=cmd_list)
+    return parser
+
+
+def main(argv=None):
+    """Run the ``dq_fk`` command; exit code 0 on success, 1 on a user error."""
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except (RobotDescriptionError, UsageError, ValueError, OSError) as exc:
+        print(f'dq_fk: {exc}', file=sys.stderr)
+        return 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,83 @@
+"""The ``dq_fk`` command line, run in-process through its ``main``."""
+
+import json
+
+from dq_fk_ros.cli import main
+import pytest
+
+
+def run(capsys, *argv):
+    rc = main(list(argv))
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def test_fk_table_shows_the_rl15_end_effector(capsys):
+    rc, out, _ = run(capsys, 'fk', 'rl15')
+    assert rc == 0
+    last = out.strip().splitlines()[-1].split()
+    assert last[:2] == ['eeCarry_seg6', 'wrist_seg5']
+    assert [float(v) for v in last[2:9]] == pytest.approx(
+        [1.025, 0.0, 1.445, 0.707107, 0.0, 0.707107, 0.0], abs=1e-6)
+
+
+def test_fk_json_with_named_joints_in_degrees(capsys):
+    rc, out, _ = run(capsys, 'fk', 'rl15', '--json', '--deg', '--joints', 'joint_1=90',
+                     '--matrix')
+    assert rc == 0
+    data = json.loads(out)
+    assert data['joints']['joint_1'] == pytest.approx(1.5707963267948966)
+    ee = data['frames'][-1]
+    # joint 1 turns the arm by 90 deg about the vertical: x -> y
+    assert ee['position'] == pytest.approx([0.0, 1.025, 1.445], abs=1e-12)
+    assert len(ee['matrix']) == 4 and 'rpy' not in ee
+
+
+def test_fk_positional_values_in_radians(capsys):
+    rc, out, _ = run(capsys, 'fk', 'config/rrc.yaml', '--json', '--joints', '0', '0', '0',
+                     '0.1')
+    assert rc == 0
+    assert json.loads(out)['frames'][-1]['position'] == pytest.approx([0.7, 0, -0.1])
+
+
+@pytest.mark.parametrize('argv, words', [
+    (['fk', 'rl15', '--joints', '1', '2'], ['has 6 joints', 'got 2 values']),
+    (['fk', 'rl15', '--joints', 'elbow=1'], ["unknown joint 'elbow'", 'joint_1']),
+    (['fk', 'rl15', '--joints', 'joint_1=1', '2'], ['not a mix']),
+    (['fk', 'rl15', '--joints', 'joint_1=abc'], ["value of joint_1 is 'abc'"]),
+    (['fk', 'rl15', '--joints', 'joint_1=nan'], ['must be finite']),
+    (['fk', 'no_such_robot'], ['no_such_robot: no such file']),
+])
+def test_fk_user_errors_are_one_line_and_exit_1(capsys, argv, words):
+    rc, out, err = run(capsys, *argv)
+    assert rc == 1 and out == ''
+    assert err.count('\n') == 1 and err.startswith('dq_fk: ')
+    for word in words:
+        assert word in err
+
+
+def test_out_of_limits_warns(capsys):
+    rc, _, err = run(capsys, 'fk', 'puma560', '--deg', '--joints', 'q2=300')
+    assert rc == 0 and 'q2 = 5.23599 is outside its limits' in err
+
+
+def test_validate_reports_every_bad_file_and_fails(capsys, tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('robot: x\nbase: {frame: b}\nchain:\n  - {frame: l, joint: j, theta: 0, '
+                   'd: 0, a: 0, alfa: 0}\n')
+    rc, out, err = run(capsys, 'validate', 'rl15', str(bad))
+    assert rc == 1
+    assert 'rl15.yaml: ok (rl15, standard DH, 6 rows, 6 joints, 7 frames)' in out
+    assert f"{bad}: chain[0] (frame 'l'): unknown field 'alfa'" in err
+
+
+def test_list_names_the_shipped_robots(capsys):
+    rc, out, _ = run(capsys, 'list')
+    assert rc == 0 and 'rl15' in out and 'panda' in out
+
+
+def test_urdf_to_file(capsys, tmp_path):
+    target = tmp_path / 'rl15.urdf'
+    rc, _, err = run(capsys, 'urdf', 'rl15', '-o', str(target))
+    assert rc == 0 and 'wrote' in err
+    assert target.read_text().startswith('<?xml')

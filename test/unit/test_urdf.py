@@ -1,0 +1,107 @@
+"""The URDF export: well-formed, a tree over the published frames, and the same kinematics."""
+
+import math
+import xml.etree.ElementTree as ET
+
+from dq_fk_ros.dh import homogeneous_from_dq
+from dq_fk_ros.robot_model import (
+    load_robot_description, parse_robot_description, shipped_robot_path, shipped_robots)
+from dq_fk_ros.urdf import robot_to_urdf
+import homogeneous as hm
+import numpy as np
+import pytest
+
+
+def urdf_origin(element):
+    """4x4 of a URDF <origin xyz rpy>: Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll)."""
+    if element is None:
+        return np.eye(4)
+    x, y, z = (float(v) for v in element.get('xyz', '0 0 0').split())
+    roll, pitch, yaw = (float(v) for v in element.get('rpy', '0 0 0').split())
+    return hm.trans(x, y, z) @ hm.rot_z(yaw) @ hm.rot_y(pitch) @ hm.rot_x(roll)
+
+
+def urdf_link_poses(text, joint_values):
+    """Compose every link's pose from the URDF's joints, as a URDF consumer would."""
+    root = ET.fromstring(text)
+    joints = {j.get('name'): j for j in root.findall('joint')}
+    children = {j.find('child').get('link') for j in joints.values()}
+    links = [link.get('name') for link in root.findall('link')]
+    roots = [name for name in links if name not in children]
+    assert len(roots) == 1, roots
+    poses = {roots[0]: np.eye(4)}
+    pending = list(joints.values())
+    while pending:
+        progressed = False
+        for joint in list(pending):
+            parent = joint.find('parent').get('link')
+            if parent not in poses:
+                continue
+            kind = joint.get('type')
+            motion = np.eye(4)
+            if kind != 'fixed':
+                mimic = joint.find('mimic')
+                if mimic is not None:
+                    value = (float(mimic.get('multiplier', 1)) * joint_values[mimic.get('joint')]
+                             + float(mimic.get('offset', 0)))
+                else:
+                    value = joint_values[joint.get('name')]
+                axis = np.array([float(v) for v in joint.find('axis').get('xyz').split()])
+                if kind in ('revolute', 'continuous'):
+                    motion = hm.rodrigues(axis, value)
+                else:
+                    motion = hm.trans(*(value * axis))
+            poses[joint.find('child').get('link')] = (
+                poses[parent] @ urdf_origin(joint.find('origin')) @ motion)
+            pending.remove(joint)
+            progressed = True
+        assert progressed, 'URDF joints do not form a tree'
+    return poses, roots[0]
+
+
+@pytest.mark.parametrize('name', shipped_robots())
+def test_urdf_kinematics_equal_the_dh_chain(name):
+    model = load_robot_description(shipped_robot_path(name))
+    text = robot_to_urdf(model)
+    rng = np.random.default_rng(8)
+    for q in rng.uniform(-2, 2, size=(30, model.chain.dof)):
+        poses, root = urdf_link_poses(text, dict(zip(model.joint_names, q)))
+        assert root == model.fixed_frame
+        expected = homogeneous_from_dq(model.chain.forward_all(q))
+        for frame, m in zip(model.frame_names, expected):
+            np.testing.assert_allclose(poses[frame], m, atol=1e-12)
+
+
+def test_urdf_is_well_formed_with_limits_and_visuals():
+    model = load_robot_description(shipped_robot_path('puma560'))
+    root = ET.fromstring(robot_to_urdf(model))
+    assert root.tag == 'robot' and root.get('name') == 'puma560'
+    q2 = [j for j in root.findall('joint') if j.get('name') == 'q2'][0]
+    assert q2.get('type') == 'revolute'
+    limit = q2.find('limit')
+    assert float(limit.get('lower')) == pytest.approx(math.radians(-45))
+    assert float(limit.get('upper')) == pytest.approx(math.radians(225))
+    assert root.findall('link/visual'), 'segments should be drawn'
+
+
+def test_mimic_and_negative_scale_rows():
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b}\nchain:\n'
+        '  - {frame: l1, joint: j1, theta: 0.2, d: 0.1, a: 0.3, alpha: 0.4, scale: -1}\n'
+        '  - {frame: l2, theta: 0.1, d: 0, a: 0.2, alpha: 0, mimic: {joint: j1, '
+        'multiplier: 0.5}}\n'
+        '  - {frame: l3, type: prismatic, joint: j3, theta: 0.3, d: 0.2, a: 0.1, alpha: 1}\n',
+        'inline.yaml')
+    text = robot_to_urdf(model)
+    for q in np.random.default_rng(1).uniform(-1, 1, size=(20, 2)):
+        poses, _ = urdf_link_poses(text, dict(zip(model.joint_names, q)))
+        for frame, m in zip(model.frame_names, homogeneous_from_dq(model.chain.forward_all(q))):
+            np.testing.assert_allclose(poses[frame], m, atol=1e-12)
+
+
+def test_scale_other_than_one_is_refused_clearly():
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b}\nchain:\n'
+        '  - {frame: l1, joint: j1, theta: 0, d: 0, a: 0.3, alpha: 0, scale: 2}\n', 'x.yaml')
+    with pytest.raises(ValueError, match="frame 'l1'.*scale 2.0"):
+        robot_to_urdf(model)
