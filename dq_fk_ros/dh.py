@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import math
 
 from dq_fk_ros.dual_quaternion import (
-    canonical, dq_multiply_array, dq_translation_array, DualQuaternion, quat_conjugate,
-    quat_to_matrix)
+    canonical, dq_multiply_array, dq_translation_array, DualQuaternion, pose_xyzw_from_coeffs,
+    quat_conjugate, quat_to_matrix)
 import numpy as np
 
 CONVENTIONS = ('standard', 'modified')
@@ -303,6 +303,18 @@ class KinematicChain:
         if self._tool_t is not None:
             frames.append(_mul(frames[-1], self._tool_t))
         return frames
+
+    def frame_poses(self, q):
+        """
+        Poses for publishing, as plain tuples ``(x, y, z, qx, qy, qz, qw)`` (``qw >= 0``).
+
+        Returns ``(absolute, relative)``: every frame in the fixed frame (as
+        :meth:`forward_all`), and every row's transform frame i-1 -> frame i.
+        """
+        absolute = [pose_xyzw_from_coeffs(h) for h in self._absolute_tuples(q)]
+        qs = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
+        relative = [pose_xyzw_from_coeffs(h) for h in self._relative_tuples(qs)]
+        return absolute, relative
 
     def relative_all(self, q):
         """Relative transform of every row, frame i-1 -> frame i, as an ``(n, 8)`` array."""

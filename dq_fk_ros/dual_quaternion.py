@@ -145,6 +145,23 @@ def dq_to_pose_xyzw(h):
     return np.concatenate([dq_translation_array(h), quat_wxyz_to_xyzw(h[..., :4])], axis=-1)
 
 
+def pose_xyzw_from_coeffs(h):
+    """
+    Pose ``(x, y, z, qx, qy, qz, qw)`` of 8 plain floats, ``qw >= 0``; no numpy.
+
+    The position is the vector part of ``2 d r*`` (eq. (17) of 000_*.txt); the scalar fast
+    path of :func:`dq_to_pose_xyzw` for one dual quaternion.
+    """
+    w, x, y, z, dw, dx, dy, dz = h
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+        dw, dx, dy, dz = -dw, -dx, -dy, -dz
+    return (2.0 * (dx * w - dw * x - dy * z + dz * y),
+            2.0 * (dy * w - dw * y + dx * z - dz * x),
+            2.0 * (dz * w - dw * z - dx * y + dy * x),
+            x, y, z, w)
+
+
 def dq_normalize_array(h):
     """
     Project ``(..., 8)`` arrays onto unit dual quaternions.

@@ -1,26 +1,264 @@
 """
-The dq_fk_node executable: JointState in, link-frame poses out.
+The dq_fk_node executable: ``sensor_msgs/JointState`` in, every link frame out.
 
-This is the ROS 2 glue only; kinematics live in :mod:`dq_fk_ros.dh`.
+Thin glue: :mod:`dq_fk_ros.joint_states` decides what a message means,
+:mod:`dq_fk_ros.dh` computes the frames, :mod:`dq_fk_ros.ros_conversions` fills the
+messages. See the README for topics and parameters.
 """
 
+import sys
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from dq_fk_ros.joint_states import (
+    INCOMPLETE, JointStateMerger, OUT_OF_LIMITS_POLICIES, PUBLISH, REJECTED)
+from dq_fk_ros.robot_model import (
+    load_robot_description, RobotDescriptionError, shipped_robot_path)
+from dq_fk_ros.ros_conversions import FrameMessages, joint_state_fields
+from geometry_msgs.msg import PoseStamped, TwistStamped
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
+
+RELIABILITY = {'best_effort': ReliabilityPolicy.BEST_EFFORT,
+               'reliable': ReliabilityPolicy.RELIABLE}
+WARN_EVERY_S = 5.0
 
 
 class DqFkNode(Node):
-    """Subscribe to ``joint_states``; publishing of link frames is added by the node issue."""
+    """Publish TF, a PoseStamped per frame and end-effector twists from joint states."""
 
-    def __init__(self):
-        super().__init__('dq_fk_node')
+    def __init__(self, **kwargs):
+        """Declare parameters, load the robot (may raise RobotDescriptionError), wire up."""
+        super().__init__('dq_fk_node', **kwargs)
+        self._declare_parameters()
+        get = self.get_parameter
+        self._publish_tf = get('publish_tf').value
+        self._publish_poses = get('publish_poses').value
+        self._publish_twist = get('publish_twist').value
+        self._use_joint_state_stamp = get('use_joint_state_stamp').value
+        self._max_rate_hz = get('max_publish_rate_hz').value
+        self._out_of_limits = get('out_of_limits').value
+        self._frame_prefix = get('frame_prefix').value
+        self._check_choice('out_of_limits', self._out_of_limits, OUT_OF_LIMITS_POLICIES)
+        reliability = get('joint_states_reliability').value
+        self._check_choice('joint_states_reliability', reliability, tuple(RELIABILITY))
+        if self._max_rate_hz < 0:
+            raise RobotDescriptionError('parameter max_publish_rate_hz must be >= 0 '
+                                        '(0: publish every update)')
+        model = load_robot_description(self._description_path(
+            get('robot_description_file').value))
+
+        self._tf_pub = self.create_publisher(
+            TFMessage, '/tf', QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+        self._tf_static_pub = self.create_publisher(
+            TFMessage, '/tf_static',
+            QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._pose_pubs = []
+        self._twist_pubs = []
+        self._merger = None
+        self._last_publish_ns = None
+        self._last_update_ns = None
+        self._apply_model(model)
+
+        depth = get('qos_depth').value
         self._joint_state_sub = self.create_subscription(
-            JointState, 'joint_states', self._on_joint_state, 10)
-        self.get_logger().info('dq_fk_node started')
+            JointState, 'joint_states', self._on_joint_state,
+            QoSProfile(depth=depth, reliability=RELIABILITY[reliability]))
+        self._diag_timer = self.create_timer(1.0, self._publish_diagnostics)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.get_logger().info(
+            f'dq_fk_node: {model.name} from {model.source}: {len(model.frame_names)} frames '
+            f'under {model.fixed_frame!r}, joints {", ".join(model.joint_names)}')
 
+    # -- parameters ----------------------------------------------------------------------
+    def _declare_parameters(self):
+        def declare(name, default, description, read_only=False):
+            self.declare_parameter(name, default, ParameterDescriptor(
+                description=description, read_only=read_only))
+        declare('robot_description_file', '',
+                'YAML DH robot description; empty: the shipped RL15 (config/rl15.yaml). '
+                'Setting it at run time reloads the robot if the file is valid.')
+        declare('frame_prefix', '', 'prepended to every frame id except the fixed frame')
+        declare('publish_tf', True, 'publish /tf and /tf_static')
+        declare('publish_poses', True, 'publish ~/pose/<frame> (PoseStamped in the fixed frame)')
+        declare('publish_twist', True,
+                'publish ~/twist/<frame> for the end effector (and tool) when every joint '
+                'has a velocity')
+        declare('use_joint_state_stamp', True,
+                'stamp outputs with the JointState stamp (a zero stamp: the node clock); '
+                'false: always the node clock')
+        declare('max_publish_rate_hz', 0.0, 'at most this many updates per second; 0: all')
+        declare('out_of_limits', 'warn',
+                'joint values outside their limits: warn | clamp | reject')
+        declare('qos_depth', 100, 'depth of the joint_states subscription', read_only=True)
+        declare('joint_states_reliability', 'best_effort',
+                'best_effort (matches reliable and best-effort publishers) | reliable',
+                read_only=True)
+
+    def _check_choice(self, name, value, allowed):
+        if value not in allowed:
+            raise RobotDescriptionError(f'parameter {name} is {value!r}; allowed: '
+                                        f'{", ".join(allowed)}')
+
+    @staticmethod
+    def _description_path(value):
+        return value or shipped_robot_path('rl15')
+
+    def _on_set_parameters(self, params):
+        """Validate every change first; apply them only if all are valid."""
+        new = {p.name: p.value for p in params}
+        model = None
+        try:
+            if 'robot_description_file' in new:
+                model = load_robot_description(self._description_path(
+                    new['robot_description_file']))
+            if 'out_of_limits' in new:
+                self._check_choice('out_of_limits', new['out_of_limits'],
+                                   OUT_OF_LIMITS_POLICIES)
+            if new.get('max_publish_rate_hz', 0.0) < 0:
+                raise RobotDescriptionError('max_publish_rate_hz must be >= 0')
+        except RobotDescriptionError as exc:
+            self.get_logger().error(f'parameter change refused: {exc}')
+            return SetParametersResult(successful=False, reason=str(exc))
+        self._publish_tf = new.get('publish_tf', self._publish_tf)
+        self._publish_poses = new.get('publish_poses', self._publish_poses)
+        self._publish_twist = new.get('publish_twist', self._publish_twist)
+        self._use_joint_state_stamp = new.get('use_joint_state_stamp',
+                                              self._use_joint_state_stamp)
+        self._max_rate_hz = new.get('max_publish_rate_hz', self._max_rate_hz)
+        rebuild = model is not None or any(k in new for k in ('out_of_limits', 'frame_prefix'))
+        self._out_of_limits = new.get('out_of_limits', self._out_of_limits)
+        self._frame_prefix = new.get('frame_prefix', self._frame_prefix)
+        if rebuild:
+            self._apply_model(model or self._model)
+            if model is not None:
+                self.get_logger().info(f'reloaded robot {model.name} from {model.source}')
+        return SetParametersResult(successful=True)
+
+    def _apply_model(self, model):
+        """(Re)build everything that depends on the robot: publishers, merger, messages."""
+        counts = self._merger.counts if self._merger is not None else None
+        self._model = model
+        self._merger = JointStateMerger(model.joint_names, model.limits, self._out_of_limits)
+        if counts is not None:
+            self._merger.counts = counts
+        self._messages = FrameMessages(model, self._frame_prefix)
+        for pub in self._pose_pubs + self._twist_pubs:
+            self.destroy_publisher(pub)
+        self._pose_pubs = [self.create_publisher(PoseStamped, f'~/pose/{name}', 10)
+                           for name in model.frame_names]
+        self._twist_pubs = [
+            self.create_publisher(TwistStamped, f'~/twist/{model.frame_names[k]}', 10)
+            for k in self._messages.twist_frames]
+        if self._publish_tf:
+            self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
+
+    # -- the hot path --------------------------------------------------------------------
     def _on_joint_state(self, msg):
-        pass
+        try:
+            self._handle(msg)
+        except Exception as exc:  # nothing a user sends may stop the node
+            self._merger.counts['rejected'] += 1
+            self._merger.counts['rejected_internal_error'] += 1
+            self.get_logger().error(f'joint state not processed: {exc!r}',
+                                    throttle_duration_sec=WARN_EVERY_S)
+
+    def _handle(self, msg):
+        names, positions, velocities, stamp_ns = joint_state_fields(msg)
+        result = self._merger.merge(names, positions, velocities, stamp_ns)
+        log = self.get_logger()
+        if result.new_unknown:
+            log.warn(f'ignoring joints that {self._model.name} does not have: '
+                     f'{", ".join(result.new_unknown)} (reported once)')
+        if result.time_jump:
+            log.info('joint state stamps jumped back in time; state reset')
+        if result.status == REJECTED:
+            log.warn(f'joint state rejected ({result.reason}): {result.detail}',
+                     throttle_duration_sec=WARN_EVERY_S)
+            return
+        if result.out_of_limits:
+            log.warn(f'joints outside their limits ({self._out_of_limits}): '
+                     f'{", ".join(result.out_of_limits)}', throttle_duration_sec=WARN_EVERY_S)
+        if result.status == INCOMPLETE:
+            log.warn(f'waiting for joints never seen: {", ".join(result.missing)}',
+                     throttle_duration_sec=WARN_EVERY_S)
+            return
+        assert result.status == PUBLISH
+        now = self.get_clock().now()
+        now_ns = now.nanoseconds
+        self._last_update_ns = now_ns
+        if self._max_rate_hz > 0 and self._last_publish_ns is not None and \
+                now_ns - self._last_publish_ns < 1e9 / self._max_rate_hz:
+            self._merger.counts['rate_limited'] += 1
+            return
+        stamp = msg.header.stamp if (self._use_joint_state_stamp and stamp_ns) else now.to_msg()
+        self._publish(stamp, result.q, result.qdot)
+        self._last_publish_ns = now_ns
+        self._merger.counts['published'] += 1
+
+    def _publish(self, stamp, q, qdot):
+        chain = self._model.chain
+        absolute, relative = chain.frame_poses(q)
+        tf, poses = self._messages.fill(stamp, absolute, relative)
+        if self._publish_tf:
+            self._tf_pub.publish(tf)
+        if self._publish_poses:
+            for pub, msg in zip(self._pose_pubs, poses):
+                pub.publish(msg)
+        if self._publish_twist and qdot is not None:
+            v, w = chain.twist(q, qdot)
+            twists = []
+            p_end = np.array(absolute[-1][:3])
+            for k in self._messages.twist_frames:
+                # the same rigid-body motion seen at another origin: v_k = v + w x (p_k - p)
+                twists.append((v + np.cross(w, np.array(absolute[k][:3]) - p_end), w))
+            for pub, msg in zip(self._twist_pubs, self._messages.fill_twists(stamp, twists)):
+                pub.publish(msg)
+
+    # -- diagnostics ---------------------------------------------------------------------
+    def diagnostics(self):
+        """Return the node's counters as one DiagnosticStatus."""
+        counts = self._merger.counts
+        never_seen = self._merger.never_seen
+        age = ('never' if self._last_update_ns is None else
+               f'{(self.get_clock().now().nanoseconds - self._last_update_ns) / 1e9:.3f}')
+        values = {'robot': self._model.name,
+                  'updates_received': counts['received'],
+                  'updates_published': counts['published'],
+                  'updates_incomplete': counts['incomplete'],
+                  'updates_rate_limited': counts['rate_limited'],
+                  'updates_rejected': counts['rejected'],
+                  'time_jumps': counts['time_jumps'],
+                  'joints_never_seen': ', '.join(never_seen),
+                  'unknown_joints': ', '.join(sorted(self._merger.unknown)),
+                  'last_update_age_s': age}
+        for key in sorted(counts):
+            if key.startswith('rejected_'):
+                values[key] = counts[key]
+        if never_seen:
+            level, message = DiagnosticStatus.WARN, f'{len(never_seen)} joints never seen'
+        elif counts['rejected']:
+            level, message = DiagnosticStatus.WARN, f"{counts['rejected']} updates rejected"
+        else:
+            level, message = DiagnosticStatus.OK, 'ok'
+        level = level if isinstance(level, bytes) else bytes([level])
+        return DiagnosticStatus(
+            level=level, name=f'{self.get_name()}: joint states', message=message,
+            hardware_id=self._model.name,
+            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+
+    def _publish_diagnostics(self):
+        msg = DiagnosticArray()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.status = [self.diagnostics()]
+        self._diag_pub.publish(msg)
 
 
 def main(args=None):
@@ -30,13 +268,17 @@ def main(args=None):
     try:
         node = DqFkNode()
         rclpy.spin(node)
+    except RobotDescriptionError as exc:
+        print(f'dq_fk_node: {exc}', file=sys.stderr)
+        return 1
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    return 0
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

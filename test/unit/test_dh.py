@@ -237,3 +237,18 @@ def test_rotation_helper_consistency():
     q = DualQuaternion.from_rotation([1, 2, 3], 0.8).real
     np.testing.assert_allclose(quat_to_matrix(q), hm.rodrigues([1, 2, 3], 0.8)[:3, :3],
                                atol=1e-15)
+
+
+def test_frame_poses_are_absolute_and_relative_transforms():
+    rng = np.random.default_rng(31)
+    chain, base, tool = random_chain(rng, 'modified')
+    for q in rng.uniform(-3, 3, size=(100, chain.dof)):
+        absolute, relative = chain.frame_poses(q)
+        expected = hm.chain_frames(reference_rows(chain, q), 'modified', base, tool)
+        for pose, m in zip(absolute, expected):
+            np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]), m, atol=1e-12)
+            assert pose[6] >= 0.0
+        for i, pose in enumerate(relative):
+            np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]),
+                                       np.linalg.inv(expected[i]) @ expected[i + 1],
+                                       atol=1e-12)

@@ -172,3 +172,11 @@ def test_bad_inputs_are_clear_errors():
         DualQuaternion.from_rotation([0, 0, 0], 1.0)
     with pytest.raises(ZeroDivisionError):
         DualQuaternion(np.zeros(8)).inverse()
+
+
+def test_scalar_pose_conversion_matches_the_array_one(rng):
+    from dq_fk_ros.dual_quaternion import pose_xyzw_from_coeffs
+    for _ in range(300):
+        h = DualQuaternion.from_matrix(random_matrix(rng)).coeffs * rng.choice([-1.0, 1.0])
+        np.testing.assert_allclose(pose_xyzw_from_coeffs(h.tolist()), dq_to_pose_xyzw(h),
+                                   atol=1e-14)

@@ -1,0 +1,122 @@
+"""
+The one place where kinematics become ROS messages, and ROS messages become numbers.
+
+Poses arrive as tuples ``(x, y, z, qx, qy, qz, qw)`` (metres, the ROS quaternion order,
+``qw >= 0``) from :meth:`dq_fk_ros.dh.KinematicChain.frame_poses`. :class:`FrameMessages`
+builds the messages of one robot once and refills them for every update, so that the
+node's hot path allocates nothing.
+"""
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
+from tf2_msgs.msg import TFMessage
+
+NS_PER_S = 1_000_000_000
+
+
+def stamp_to_ns(stamp):
+    """Return the nanoseconds of a ``builtin_interfaces/Time``."""
+    return stamp.sec * NS_PER_S + stamp.nanosec
+
+
+def ns_to_stamp(ns):
+    """Return a ``builtin_interfaces/Time`` of ``ns`` nanoseconds."""
+    return Time(sec=ns // NS_PER_S, nanosec=ns % NS_PER_S)
+
+
+def joint_state_fields(msg):
+    """Return names, positions, velocities and stamp (ns) of a ``sensor_msgs/JointState``."""
+    return msg.name, msg.position, msg.velocity, stamp_to_ns(msg.header.stamp)
+
+
+def set_transform(transform, pose):
+    """Fill a ``geometry_msgs/Transform`` from ``(x, y, z, qx, qy, qz, qw)``."""
+    t, r = transform.translation, transform.rotation
+    t.x, t.y, t.z, r.x, r.y, r.z, r.w = pose
+
+
+def set_pose(msg_pose, pose):
+    """Fill a ``geometry_msgs/Pose`` from ``(x, y, z, qx, qy, qz, qw)``."""
+    p, r = msg_pose.position, msg_pose.orientation
+    p.x, p.y, p.z, r.x, r.y, r.z, r.w = pose
+
+
+class FrameMessages:
+    """
+    The messages of one robot model under one ``frame_prefix``, built once, refilled often.
+
+    ``frame_prefix`` is prepended to every frame id the model names, except the fixed
+    frame, so that several robots hang in one TF tree under a shared world frame.
+    """
+
+    def __init__(self, model, frame_prefix=''):
+        """Build the message objects for ``model``."""
+        self.model = model
+        fixed = model.fixed_frame
+        self.frame_ids = [frame_prefix + name for name in model.frame_names]
+        parent_ids = [fixed] + self.frame_ids[:-1]
+        # frame k (k >= 1) is the child of DH row k - 1; frame 0 and the tool are static
+        n_rows = len(model.chain.joints)
+        self.moving_rows = [k - 1 for k in range(1, n_rows + 1) if model.moving[k]]
+        self.tf = TFMessage(transforms=[
+            _transform_stamped(parent_ids[row + 1], self.frame_ids[row + 1])
+            for row in self.moving_rows])
+        self.poses = []
+        for _ in self.frame_ids:
+            msg = PoseStamped()
+            msg.header.frame_id = fixed
+            self.poses.append(msg)
+        self._static_rows = [k - 1 for k in range(1, n_rows + 1) if not model.moving[k]]
+        self._parent_ids = parent_ids
+        # end effector and, if there is one, the tool: their twists
+        self.twist_frames = list(range(len(self.frame_ids)))[-1 - (model.chain.tool is not None):]
+        self.twists = []
+        for _ in self.twist_frames:
+            msg = TwistStamped()
+            msg.header.frame_id = fixed
+            self.twists.append(msg)
+
+    def fill(self, stamp, absolute, relative):
+        """Refill /tf and pose messages for one update; return ``(tf, poses)``."""
+        for transform, row in zip(self.tf.transforms, self.moving_rows):
+            transform.header.stamp = stamp
+            set_transform(transform.transform, relative[row])
+        for msg, pose in zip(self.poses, absolute):
+            msg.header.stamp = stamp
+            set_pose(msg.pose, pose)
+        return self.tf, self.poses
+
+    def fill_twists(self, stamp, twists):
+        """Refill the twist messages from ``[(v, omega), ...]`` in fixed-frame axes."""
+        for msg, (v, w) in zip(self.twists, twists):
+            msg.header.stamp = stamp
+            lin, ang = msg.twist.linear, msg.twist.angular
+            lin.x, lin.y, lin.z = (float(c) for c in v)
+            ang.x, ang.y, ang.z = (float(c) for c in w)
+        return self.twists
+
+    def static_tf(self, stamp):
+        """Return one TFMessage with every static transform: base, fixed rows, tool."""
+        model = self.model
+        chain = model.chain
+        _, relative = chain.frame_poses([0.0] * chain.dof)
+        transforms = [_transform_stamped(self._parent_ids[0], self.frame_ids[0], stamp,
+                                         chain.base.to_pose_xyzw())]
+        for row in self._static_rows:
+            transforms.append(_transform_stamped(self._parent_ids[row + 1],
+                                                 self.frame_ids[row + 1], stamp, relative[row]))
+        if chain.tool is not None:
+            transforms.append(_transform_stamped(self._parent_ids[-1], self.frame_ids[-1],
+                                                 stamp, chain.tool.to_pose_xyzw()))
+        return TFMessage(transforms=transforms)
+
+
+def _transform_stamped(parent, child, stamp=None, pose=None):
+    msg = TransformStamped()
+    msg.header.frame_id = parent
+    msg.child_frame_id = child
+    if stamp is not None:
+        msg.header.stamp = stamp
+    if pose is not None:
+        set_transform(msg.transform, [float(v) for v in pose])
+    return msg
