@@ -1,0 +1,221 @@
+"""dq_fk_node in-process with rclpy: a real publisher and subscribers over DDS (loopback)."""
+
+import math
+import sys
+import time
+
+from dq_fk_ros.node import DqFkNode
+from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path
+from geometry_msgs.msg import PoseStamped, TwistStamped
+import homogeneous_tf as htf
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
+
+pytestmark = pytest.mark.integration
+RL15_JOINTS = [f'joint_{i}' for i in range(1, 7)]
+TF_STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class Harness:
+    """One rclpy context with the node under test, a probe node and an executor."""
+
+    def __init__(self):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.nodes = []
+        self.probe = self.add(rclpy.create_node('dq_fk_test_probe', context=self.context))
+        self.joint_pub = self.probe.create_publisher(JointState, 'joint_states', 10)
+        self.received = {}
+
+    def add(self, node):
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def start_node(self, **params):
+        overrides = [Parameter(k, value=v) for k, v in params.items()]
+        return self.add(DqFkNode(context=self.context, parameter_overrides=overrides))
+
+    def listen(self, msg_type, topic, qos=10):
+        self.received[topic] = []
+        self.probe.create_subscription(msg_type, topic, self.received[topic].append, qos)
+        return self.received[topic]
+
+    def joint_state(self, names, positions, velocities=(), stamp=None):
+        msg = JointState()
+        msg.name = list(names)
+        msg.position = [float(v) for v in positions]
+        msg.velocity = [float(v) for v in velocities]
+        msg.header.stamp = stamp if stamp is not None else self.probe.get_clock().now().to_msg()
+        return msg
+
+    def spin_until(self, predicate, timeout_s=10.0, publish=None):
+        """Spin (publishing ``publish`` every 50 ms if given) until ``predicate()`` holds."""
+        deadline = time.monotonic() + timeout_s
+        next_pub = 0.0
+        while time.monotonic() < deadline:
+            if publish is not None and time.monotonic() >= next_pub:
+                self.joint_pub.publish(publish)
+                next_pub = time.monotonic() + 0.05
+            self.executor.spin_once(timeout_sec=0.01)
+            if predicate():
+                return True
+        return False
+
+    def close(self):
+        for node in self.nodes:
+            self.executor.remove_node(node)
+            node.destroy_node()
+        self.executor.shutdown()
+        rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture
+def ros(ros_domain_id):
+    harness = Harness()
+    try:
+        yield harness
+    finally:
+        harness.close()
+
+
+def position_of(msg):
+    p = msg.pose.position
+    return [p.x, p.y, p.z]
+
+
+def test_rl15_zero_pose_is_fig4_on_the_pose_topic_and_through_tf(ros):
+    ros.start_node()
+    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    tf = ros.listen(TFMessage, '/tf')
+    zero = ros.joint_state(RL15_JOINTS, [0] * 6)
+    assert ros.spin_until(lambda: poses and tf, publish=zero)
+    static = ros.listen(TFMessage, '/tf_static', TF_STATIC_QOS)  # a late joiner
+    assert ros.spin_until(lambda: static)
+    ee = poses[-1]
+    assert ee.header.frame_id == 'world' and ee.header.stamp == zero.header.stamp
+    np.testing.assert_allclose(position_of(ee), [1.025, 0, 1.445], atol=1e-9)
+    o = ee.pose.orientation
+    np.testing.assert_allclose([o.x, o.y, o.z, o.w], [0.707107, 0, 0.707107, 0], atol=5e-7)
+    transforms = static[-1].transforms + tf[-1].transforms
+    composed = htf.compose(transforms, 'world', 'eeCarry_seg6')
+    np.testing.assert_allclose(composed, htf.pose_matrix(ee.pose), atol=1e-9)
+    assert htf.parent_of(transforms, 'eeCarry_seg6') == 'wrist_seg5'
+
+
+BAD_MESSAGES = [
+    ('names and positions differ in length', RL15_JOINTS, [0.0] * 5),
+    ('NaN', RL15_JOINTS, [0.0, math.nan, 0, 0, 0, 0]),
+    ('infinity', RL15_JOINTS, [0.0, 0, 0, math.inf, 0, 0]),
+    ('empty', [], []),
+    ('only unknown joints', ['gripper'], [0.02]),
+    ('duplicate names', RL15_JOINTS + ['joint_1'], [0.0] * 7),
+]
+
+
+def test_every_bad_input_leaves_the_node_alive_and_publishing(ros):
+    node = ros.start_node()
+    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    chain = load_robot_description(shipped_robot_path('rl15')).chain
+    assert ros.spin_until(lambda: poses, publish=ros.joint_state(RL15_JOINTS, [0] * 6))
+    for k, (what, names, positions) in enumerate(BAD_MESSAGES):
+        before = node.diagnostics()
+        ros.joint_pub.publish(ros.joint_state(names, positions))
+        q = np.full(6, 0.1 * (k + 1))
+        poses.clear()
+        valid = ros.joint_state(RL15_JOINTS, q)
+        assert ros.spin_until(lambda: poses, publish=valid), what
+        np.testing.assert_allclose(position_of(poses[-1]), chain.forward(q).translation,
+                                   atol=1e-9, err_msg=what)
+        assert _value(node.diagnostics(), 'updates_rejected') > \
+            _value(before, 'updates_rejected'), what
+    status = node.diagnostics()
+    assert _value(status, 'rejected_length_mismatch') >= 1
+    assert _value(status, 'rejected_non_finite') >= 2
+    assert 'gripper' in {v.key: v.value for v in status.values}['unknown_joints']
+
+
+def test_missing_joints_hold_publishing_back(ros):
+    node = ros.start_node()
+    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    partial = ros.joint_state(RL15_JOINTS[:4], [0] * 4)
+    assert not ros.spin_until(lambda: poses, timeout_s=1.0, publish=partial)
+    status = {v.key: v.value for v in node.diagnostics().values}
+    assert status['joints_never_seen'] == 'joint_5, joint_6'
+    rest = ros.joint_state(RL15_JOINTS[4:], [0, 0])
+    assert ros.spin_until(lambda: poses, publish=rest)
+
+
+def test_reload_with_a_bad_file_keeps_the_old_model(ros, tmp_path):
+    node = ros.start_node()
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('robot: x\nbase: {frame: b}\nchain: []\n')
+    result = node.set_parameters([Parameter('robot_description_file', value=str(bad))])[0]
+    assert not result.successful and 'expected a non-empty list' in result.reason
+    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    assert ros.spin_until(lambda: poses, publish=ros.joint_state(RL15_JOINTS, [0] * 6))
+    # a good file is taken: the Panda's flange topic appears
+    good = shipped_robot_path('panda')
+    assert node.set_parameters([Parameter('robot_description_file', value=good)])[0].successful
+    flange = ros.listen(PoseStamped, '/dq_fk_node/pose/panda_link8')
+    panda = ros.joint_state([f'panda_joint{i}' for i in range(1, 8)], [0] * 7)
+    assert ros.spin_until(lambda: flange, publish=panda)
+    np.testing.assert_allclose(position_of(flange[-1]), [0.088, 0, 0.926], atol=1e-9)
+
+
+def test_frame_prefix_applies_to_every_frame_id(ros):
+    ros.start_node(frame_prefix='left/')
+    tf = ros.listen(TFMessage, '/tf')
+    assert ros.spin_until(lambda: tf, publish=ros.joint_state(RL15_JOINTS, [0] * 6))
+    static = ros.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+    assert ros.spin_until(lambda: static)
+    transforms = tf[-1].transforms + static[-1].transforms
+    ids = {t.child_frame_id for t in transforms} | {t.header.frame_id for t in transforms}
+    model = load_robot_description(shipped_robot_path('rl15'))
+    assert ids == {'world'} | {'left/' + n for n in model.frame_names}
+
+
+def test_twist_from_joint_velocities(ros):
+    ros.start_node()
+    twists = ros.listen(TwistStamped, '/dq_fk_node/twist/eeCarry_seg6')
+    chain = load_robot_description(shipped_robot_path('rl15')).chain
+    q, qdot = np.linspace(-0.5, 0.5, 6), np.linspace(0.2, 1.2, 6)
+    assert ros.spin_until(lambda: twists, publish=ros.joint_state(RL15_JOINTS, q, qdot))
+    v, w = chain.twist(q, qdot)
+    t = twists[-1].twist
+    np.testing.assert_allclose([t.linear.x, t.linear.y, t.linear.z], v, atol=1e-9)
+    np.testing.assert_allclose([t.angular.x, t.angular.y, t.angular.z], w, atol=1e-9)
+    assert twists[-1].header.frame_id == 'world'
+
+
+def test_a_zero_stamp_is_never_published(ros):
+    from builtin_interfaces.msg import Time
+    ros.start_node()
+    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    zero = ros.joint_state(RL15_JOINTS, [0] * 6, stamp=Time())
+    assert ros.spin_until(lambda: poses, publish=zero)
+    assert poses[-1].header.stamp.sec > 0
+
+
+def test_invalid_robot_file_at_start_exits_with_the_message(processes, tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('robot: x\nbase: {frame: b}\nchain:\n  - {frame: l, joint: j, theta: 0, '
+                   'd: 0, a: 0, alfa: 0}\n')
+    proc = processes.start([sys.executable, '-m', 'dq_fk_ros.node', '--ros-args', '-p',
+                            f'robot_description_file:={bad}'])
+    output, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 1
+    assert f"dq_fk_node: {bad}: chain[0] (frame 'l'): unknown field 'alfa'" in output
+    assert 'Traceback' not in output
+
+
+def _value(status, key):
+    return int({v.key: v.value for v in status.values}.get(key, 0))

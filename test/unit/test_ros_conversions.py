@@ -1,0 +1,92 @@
+"""FrameMessages: what the node would publish, checked without DDS."""
+
+from builtin_interfaces.msg import Time
+from dq_fk_ros.dh import homogeneous_from_dq
+from dq_fk_ros.robot_model import (
+    load_robot_description, parse_robot_description, shipped_robot_path)
+from dq_fk_ros.ros_conversions import FrameMessages, ns_to_stamp, stamp_to_ns
+import homogeneous as hm
+import numpy as np
+
+
+def as_matrix(translation, rotation):
+    return hm.matrix_of_pose([translation.x, translation.y, translation.z],
+                             [rotation.x, rotation.y, rotation.z, rotation.w])
+
+
+def compose_tf(transforms, root, frame):
+    """Walk a list of TransformStamped from ``frame`` up to ``root``."""
+    by_child = {t.child_frame_id: t for t in transforms}
+    m = np.eye(4)
+    while frame != root:
+        t = by_child[frame]
+        m = as_matrix(t.transform.translation, t.transform.rotation) @ m
+        frame = t.header.frame_id
+    return m
+
+
+def test_stamps_round_trip():
+    assert stamp_to_ns(ns_to_stamp(1_234_567_890_123)) == 1_234_567_890_123
+
+
+def test_rl15_messages_at_zero_are_fig4_and_tf_composes_to_the_pose():
+    model = load_robot_description(shipped_robot_path('rl15'))
+    messages = FrameMessages(model)
+    stamp = Time(sec=5, nanosec=7)
+    absolute, relative = model.chain.frame_poses(np.zeros(6))
+    tf, poses = messages.fill(stamp, absolute, relative)
+    static = messages.static_tf(stamp)
+    ee = poses[-1]
+    assert ee.header.frame_id == 'world' and ee.header.stamp == stamp
+    p, o = ee.pose.position, ee.pose.orientation
+    np.testing.assert_allclose([p.x, p.y, p.z], [1.025, 0, 1.445], atol=1e-12)
+    np.testing.assert_allclose([o.x, o.y, o.z, o.w], [0.707107, 0, 0.707107, 0], atol=5e-7)
+    assert [(t.header.frame_id, t.child_frame_id) for t in static.transforms] == [
+        ('world', 'base_seg0')]
+    assert tf.transforms[-1].header.frame_id == 'wrist_seg5'
+    assert tf.transforms[-1].child_frame_id == 'eeCarry_seg6'
+    assert len(tf.transforms) == 6 and all(t.header.stamp == stamp for t in tf.transforms)
+    np.testing.assert_allclose(compose_tf(static.transforms + tf.transforms, 'world',
+                                          'eeCarry_seg6'),
+                               as_matrix(p, o), atol=1e-12)
+
+
+def test_random_configurations_tf_tree_equals_absolute_poses():
+    model = load_robot_description(shipped_robot_path('panda'))
+    messages = FrameMessages(model, 'left/')
+    static = messages.static_tf(Time())
+    for q in np.random.default_rng(2).uniform(-2, 2, size=(20, 7)):
+        absolute, relative = model.chain.frame_poses(q)
+        tf, poses = messages.fill(Time(), absolute, relative)
+        expected = homogeneous_from_dq(model.chain.forward_all(q))
+        for k, frame_id in enumerate(messages.frame_ids):
+            np.testing.assert_allclose(
+                compose_tf(static.transforms + tf.transforms, 'world', frame_id), expected[k],
+                atol=1e-12)
+            np.testing.assert_allclose(as_matrix(poses[k].pose.position,
+                                                 poses[k].pose.orientation), expected[k],
+                                       atol=1e-12)
+
+
+def test_frame_prefix_applies_to_every_frame_id_but_the_fixed_frame():
+    model = load_robot_description(shipped_robot_path('panda'))
+    messages = FrameMessages(model, 'left/')
+    tf, _ = messages.fill(Time(), *model.chain.frame_poses(np.zeros(7)))
+    static = messages.static_tf(Time())
+    ids = {t.child_frame_id for t in tf.transforms + static.transforms}
+    ids |= {t.header.frame_id for t in tf.transforms + static.transforms}
+    assert ids == {'world'} | {'left/' + n for n in model.frame_names}
+    assert [(t.header.frame_id, t.child_frame_id) for t in static.transforms] == [
+        ('world', 'left/panda_link0'), ('left/panda_link7', 'left/panda_link8')]
+
+
+def test_fixed_rows_go_to_tf_static_and_mimic_rows_to_tf():
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b}\nchain:\n'
+        '  - {frame: l1, joint: j1, theta: 0, d: 0, a: 0.3, alpha: 0}\n'
+        '  - {frame: l2, type: fixed, theta: 0.5, d: 0.1, a: 0.2, alpha: 0}\n'
+        '  - {frame: l3, theta: 0, d: 0, a: 0.2, alpha: 0, mimic: {joint: j1}}\n')
+    messages = FrameMessages(model)
+    tf, _ = messages.fill(Time(), *model.chain.frame_poses([0.4]))
+    assert [t.child_frame_id for t in tf.transforms] == ['l1', 'l3']
+    assert [t.child_frame_id for t in messages.static_tf(Time()).transforms] == ['b', 'l2']
