@@ -77,8 +77,10 @@ $(BENCH_VENV)/.stamp: requirements/bench.txt setup.py
 	  $(BENCH_VENV)/bin/python -m pip install --disable-pip-version-check --no-deps -e .
 	@touch $@
 
-bench: $(BENCH_VENV)/.stamp
+bench: setup $(BENCH_VENV)/.stamp
 	@$(BENCH_VENV)/bin/python benchmarks/bench_core.py
+	@echo
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_node.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(BENCH_VENV)-logs build install log .pytest_cache
