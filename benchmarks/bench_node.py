@@ -63,8 +63,8 @@ def main(argv=None):
         timed('  FK, every frame (frame_poses)', lambda m: chain.frame_poses(next(it)))
         poses = [chain.frame_poses(q) for q in qs]
         it = iter(poses * 2)
-        timed('  fill 7 PoseStamped + TFMessage', lambda m: messages.fill(m.header.stamp,
-                                                                         *next(it)))
+        timed('  fill 7 PoseStamped + TFMessage',
+              lambda m: messages.fill(m.header.stamp, *next(it)))
         tf, pose_msgs = messages.fill(msgs[0].header.stamp, *poses[0])
 
         def publish_all(_):
