@@ -12,15 +12,15 @@ PIP := $(PY) -m pip install --disable-pip-version-check
 # Every ROS process started from here stays on loopback, on a domain of its own.
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 DEMO_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 80) + 20 )))
-DEMO_SECONDS ?= 3
 
 BENCH_VENV ?= .venv-bench
 
-.PHONY: help setup demo test bench clean
+.PHONY: help setup demo demo-live test bench clean
 
 help:
 	@echo 'make setup  create .venv with ROS 2 Jazzy (PyPI), tf2_msgs and dq_fk_ros'
-	@echo 'make demo   setup, then run dq_fk_node with the default robot (RL15)'
+	@echo 'make demo   setup, then node + fake joint publisher: print every RL15 frame pose'
+	@echo 'make demo-live  the same, sweeping the joints, printing the end effector (Ctrl-C)'
 	@echo 'make test   setup, then run linters, unit and integration tests'
 	@echo 'make bench  benchmarks: the core against its peers (installed in .venv-bench)'
 	@echo 'make clean  remove .venv, .venv-bench and build leftovers'
@@ -62,7 +62,10 @@ $(STAMPS)/project: setup.py setup.cfg package.xml $(STAMPS)/dev $(STAMPS)/tf2_ms
 	@touch $@
 
 demo: setup
-	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.demo --seconds $(DEMO_SECONDS)
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.demo
+
+demo-live: setup
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.demo --live
 
 test: setup
 	@scripts/run_tests $(PY)

@@ -26,6 +26,7 @@ setup(
         'console_scripts': [
             'dq_fk_node = dq_fk_ros.node:main',
             'dq_fk = dq_fk_ros.cli:main',
+            'fake_joint_publisher = dq_fk_ros.fake_joint_publisher:main',
         ],
     },
 )

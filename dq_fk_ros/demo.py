@@ -1,8 +1,13 @@
 """
-Headless demo: run dq_fk_node with the default robot for a few seconds, then stop it.
+Headless demo: dq_fk_node and fake_joint_publisher as separate processes, poses over DDS.
 
-Run as ``python -m dq_fk_ros.demo`` (``make demo``), with ``ROS_DOMAIN_ID`` and
-``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` set by the caller.
+Starts the node with the shipped RL15 and the fake publisher in ``zeros`` mode, waits for the
+first poses, prints one line per frame as received (frame, parent from TF, position,
+quaternion x y z w) and stops. With ``--live`` the publisher sweeps the joints (``sine``) and
+the end-effector pose is printed twice a second until Ctrl-C.
+
+The caller sets ``ROS_DOMAIN_ID`` and ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
+(``make demo`` does).
 """
 
 import argparse
@@ -12,22 +17,113 @@ import subprocess
 import sys
 import time
 
+from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path
+from geometry_msgs.msg import PoseStamped
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from tf2_msgs.msg import TFMessage
+
+
+def executable(name):
+    """Return the command of an installed executable (``ros2 run`` layout), or ``-m``."""
+    path = os.path.join(sys.prefix, 'lib', 'dq_fk_ros', name)
+    if os.access(path, os.X_OK):
+        return [path]
+    return [sys.executable, '-m', f'dq_fk_ros.{name if name != "dq_fk_node" else "node"}']
+
+
+class PoseWatcher:
+    """Subscribe to every frame's pose and to TF; remember the latest of each."""
+
+    def __init__(self, node, model, node_name='dq_fk_node'):
+        """Create the subscriptions on ``node``."""
+        self.poses = {}
+        self.parents = {}
+        for frame in model.frame_names:
+            node.create_subscription(PoseStamped, f'/{node_name}/pose/{frame}',
+                                     lambda msg, f=frame: self.poses.__setitem__(f, msg), 10)
+        static_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        node.create_subscription(TFMessage, '/tf_static', self._on_tf, static_qos)
+        node.create_subscription(TFMessage, '/tf', self._on_tf, 100)
+
+    def _on_tf(self, msg):
+        for t in msg.transforms:
+            self.parents[t.child_frame_id] = t.header.frame_id
+
+
+def format_pose(frame, parent, msg):
+    """Format one line: frame, parent, x y z, qx qy qz qw."""
+    p, o = msg.pose.position, msg.pose.orientation
+    values = [p.x, p.y, p.z, o.x, o.y, o.z, o.w]
+    return (f'{frame:14s} {parent:14s} '
+            + ' '.join(f'{round(v, 9) + 0.0:9.6f}' for v in values))
+
 
 def main(argv=None):
-    """Start the node as its own process, let it run ``--seconds``, stop it with SIGINT."""
+    """Run the demo; exit code 0 once the poses were shown, 1 if they never came."""
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
-    parser.add_argument('--seconds', type=float, default=3.0,
-                        help='how long the node runs before the demo stops it (default 3)')
+    parser.add_argument('--live', action='store_true',
+                        help='keep running in sine mode, printing the end-effector pose')
+    parser.add_argument('--timeout', type=float, default=30.0,
+                        help='seconds to wait for the first poses (default 30)')
     args = parser.parse_args(argv)
-    print(f"demo: ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} "
-          f"ROS_AUTOMATIC_DISCOVERY_RANGE={os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE')}")
-    node = subprocess.Popen([sys.executable, '-m', 'dq_fk_ros.node'])
+    model = load_robot_description(shipped_robot_path('rl15'))
+    print(f"demo: ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')}, "
+          f"discovery {os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', 'SUBNET')}; "
+          f'starting dq_fk_node ({model.name}) and fake_joint_publisher '
+          f"({'sine' if args.live else 'zeros'})", flush=True)
+    log_args = ['--ros-args', '--log-level', 'warn']
+    # own sessions: a Ctrl-C reaches the demo only, which then stops each child once
+    procs = [
+        subprocess.Popen(executable('dq_fk_node') + log_args, start_new_session=True),
+        subprocess.Popen(executable('fake_joint_publisher') + log_args + [
+            '-p', f"mode:={'sine' if args.live else 'zeros'}", '-p', 'rate_hz:=50.0'],
+            start_new_session=True),
+    ]
+    rclpy.init(args=log_args)
+    node = rclpy.create_node('dq_fk_demo')
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    watcher = PoseWatcher(node, model)
+    ee = model.frame_names[-1]
+    rc = 0
     try:
-        time.sleep(args.seconds)
+        deadline = time.monotonic() + args.timeout
+        while not (len(watcher.poses) == len(model.frame_names)
+                   and all(f in watcher.parents for f in model.frame_names)):
+            if time.monotonic() > deadline:
+                print(f'demo: no poses within {args.timeout:g} s (have '
+                      f'{sorted(watcher.poses)}); is DDS blocked on loopback?', file=sys.stderr)
+                return 1
+            executor.spin_once(timeout_sec=0.05)
+        print(f'{"frame":14s} {"parent":14s} {"x":>9s} {"y":>9s} {"z":>9s} '
+              f'{"qx":>9s} {"qy":>9s} {"qz":>9s} {"qw":>9s}   (m, quaternion x y z w, in '
+              f'{model.fixed_frame})')
+        for frame in model.frame_names:
+            print(format_pose(frame, watcher.parents[frame], watcher.poses[frame]))
+        if args.live:
+            print('demo: live end-effector pose (Ctrl-C to stop)', flush=True)
+            next_print = 0.0
+            while True:
+                executor.spin_once(timeout_sec=0.05)
+                if time.monotonic() >= next_print:
+                    print(format_pose(ee, watcher.parents[ee], watcher.poses[ee]), flush=True)
+                    next_print = time.monotonic() + 0.5
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
     finally:
-        node.send_signal(signal.SIGINT)
-        rc = node.wait(timeout=10)
-    print(f'demo: dq_fk_node stopped (exit code {rc})')
+        node.destroy_node()
+        rclpy.try_shutdown()
+        for proc in procs:
+            proc.send_signal(signal.SIGINT)
+        for proc in procs:
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                rc = 1
     return rc
 
 

@@ -1,0 +1,172 @@
+"""
+fake_joint_publisher: ``sensor_msgs/JointState`` for a robot description, for demos and tests.
+
+Modes: ``zeros``; ``fixed`` (the ``positions`` parameter); ``sine`` (each joint sweeps
+within its limits with a period of its own); ``random_walk`` (seeded, reproducible).
+``fault_fraction`` mixes malformed messages (wrong lengths, NaN, unknown names) into the
+stream, for robustness tests. The motion itself is plain Python (:class:`JointMotion`).
+"""
+
+import math
+import sys
+
+from dq_fk_ros.robot_model import (
+    load_robot_description, RobotDescriptionError, shipped_robot_path)
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+MODES = ('zeros', 'fixed', 'sine', 'random_walk')
+FAULTS = ('wrong_length', 'nan', 'unknown_names')
+# range swept by joints without limits: +-1 rad (revolute) or +-0.1 m (prismatic)
+UNBOUNDED_HALF_RANGE = 1.0
+
+
+class JointMotion:
+    """
+    Joint positions and velocities over time for one of :data:`MODES`; no ROS.
+
+    :param limits: ``(dof, 2)`` joint limits (+-inf for none).
+    :param fixed: positions for ``fixed`` mode.
+    :param amplitude: fraction of each joint's half range that ``sine`` sweeps.
+    :param seed: seed of ``random_walk``.
+    """
+
+    def __init__(self, mode, limits, fixed=None, amplitude=0.8, seed=0):
+        """Prepare centres, ranges and periods of every joint."""
+        if mode not in MODES:
+            raise ValueError(f'mode {mode!r} is not one of {", ".join(MODES)}')
+        self.mode = mode
+        limits = np.asarray(limits, dtype=float)
+        dof = len(limits)
+        bounded = np.isfinite(limits).all(axis=1)
+        lower = np.where(bounded, limits[:, 0], -UNBOUNDED_HALF_RANGE)
+        upper = np.where(bounded, limits[:, 1], UNBOUNDED_HALF_RANGE)
+        self.center = 0.5 * (lower + upper)
+        self.half_range = 0.5 * (upper - lower)
+        self.amplitude = amplitude * self.half_range
+        self.period_s = 4.0 + 1.5 * np.arange(dof)  # a period of its own per joint
+        self.limits = limits
+        if fixed is not None and len(fixed) != dof:
+            raise ValueError(f'fixed mode needs {dof} positions, got {len(fixed)}')
+        self.fixed = np.zeros(dof) if fixed is None else np.asarray(fixed, dtype=float)
+        self._rng = np.random.default_rng(seed)
+        self._walk = self.center.copy()
+        self._walk_t = None
+
+    def sample(self, t_s):
+        """Return positions and velocities at ``t_s`` (seconds since the start)."""
+        if self.mode == 'zeros':
+            return np.zeros_like(self.center), np.zeros_like(self.center)
+        if self.mode == 'fixed':
+            return self.fixed.copy(), np.zeros_like(self.center)
+        if self.mode == 'sine':
+            omega = 2.0 * math.pi / self.period_s
+            return (self.center + self.amplitude * np.sin(omega * t_s),
+                    self.amplitude * omega * np.cos(omega * t_s))
+        dt = 0.0 if self._walk_t is None else max(0.0, t_s - self._walk_t)
+        self._walk_t = t_s
+        step = self._rng.normal(scale=0.5 * self.half_range * math.sqrt(dt))
+        previous = self._walk.copy()
+        self._walk = np.clip(self._walk + step, self.limits[:, 0], self.limits[:, 1])
+        velocity = (self._walk - previous) / dt if dt > 0 else np.zeros_like(previous)
+        return self._walk.copy(), velocity
+
+
+def malformed(names, positions, kind):
+    """Return a broken copy ``(names, positions)`` of a joint state, fault ``kind``."""
+    names, positions = list(names), list(positions)
+    if kind == 'wrong_length':
+        return names, positions[:-1]
+    if kind == 'nan':
+        positions[len(positions) // 2] = math.nan
+        return names, positions
+    return [f'not_a_joint_{k}' for k in range(len(names))], positions
+
+
+class FakeJointPublisher(Node):
+    """Publish joint states of a robot description at ``rate_hz``."""
+
+    def __init__(self, **kwargs):
+        """Declare parameters, load the robot and start the timer."""
+        super().__init__('fake_joint_publisher', **kwargs)
+
+        def declare(name, default, description):
+            return self.declare_parameter(
+                name, default, ParameterDescriptor(description=description)).value
+        path = declare('robot_description_file', '',
+                       'YAML DH robot description; empty: the shipped RL15')
+        mode = declare('mode', 'sine', f'one of {", ".join(MODES)}')
+        rate_hz = declare('rate_hz', 50.0, 'messages per second')
+        positions = declare('positions', [0.0], 'joint positions for fixed mode (rad, m)')
+        self._with_velocity = declare('publish_velocities', True, 'fill JointState.velocity')
+        amplitude = declare('amplitude', 0.8, 'sine: fraction of each half range swept')
+        seed = declare('seed', 0, 'random_walk and fault injection seed')
+        self._fault_fraction = declare('fault_fraction', 0.0,
+                                       'fraction of messages sent malformed (0..1)')
+        self._max_messages = declare('max_messages', 0, 'stop publishing after this many; '
+                                     '0: never')
+        if not 0.0 <= self._fault_fraction <= 1.0:
+            raise ValueError(f'fault_fraction must be in [0, 1], got {self._fault_fraction}')
+        if not rate_hz > 0.0:
+            raise ValueError(f'rate_hz must be positive, got {rate_hz}')
+        model = load_robot_description(path or shipped_robot_path('rl15'))
+        self._names = list(model.joint_names)
+        self._motion = JointMotion(mode, model.limits,
+                                   fixed=positions if mode == 'fixed' else None,
+                                   amplitude=amplitude, seed=seed)
+        self._rng = np.random.default_rng(seed + 1)
+        self._pub = self.create_publisher(JointState, 'joint_states', 10)
+        self._start = self.get_clock().now()
+        self.sent = {'valid': 0, 'malformed': 0}
+        self._timer = self.create_timer(1.0 / rate_hz, self._tick)
+        self.get_logger().info(f'publishing {mode} joint states of {model.name} at '
+                               f'{rate_hz:g} Hz on {self._pub.topic_name}')
+
+    def _tick(self):
+        if self._max_messages and sum(self.sent.values()) >= self._max_messages:
+            self._timer.cancel()
+            self.get_logger().info(f'sent {self.sent}; stopped (max_messages)')
+            return
+        now = self.get_clock().now()
+        q, qdot = self._motion.sample((now - self._start).nanoseconds * 1e-9)
+        msg = JointState()
+        msg.header.stamp = now.to_msg()
+        names, positions = self._names, q.tolist()
+        if self._fault_fraction and self._rng.random() < self._fault_fraction:
+            names, positions = malformed(names, positions, FAULTS[self._rng.integers(3)])
+            self.sent['malformed'] += 1
+        else:
+            self.sent['valid'] += 1
+        msg.name = names
+        msg.position = positions
+        if self._with_velocity:
+            msg.velocity = qdot.tolist()[:len(positions)]
+        self._pub.publish(msg)
+
+
+def main(args=None):
+    """Run fake_joint_publisher until SIGINT/SIGTERM."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = FakeJointPublisher()
+        rclpy.spin(node)
+    except (RobotDescriptionError, ValueError) as exc:
+        print(f'fake_joint_publisher: {exc}', file=sys.stderr)
+        return 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.get_logger().info(f'sent {node.sent}')
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
