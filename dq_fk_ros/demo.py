@@ -26,7 +26,7 @@ from tf2_msgs.msg import TFMessage
 
 
 def executable(name):
-    """Return the command of an installed executable (``ros2 run`` layout), or ``-m``."""
+    """Return the command that runs an installed program (ros2 run layout), or ``-m``."""
     path = os.path.join(sys.prefix, 'lib', 'dq_fk_ros', name)
     if os.access(path, os.X_OK):
         return [path]
