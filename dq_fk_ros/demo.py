@@ -17,20 +17,13 @@ import subprocess
 import sys
 import time
 
+from dq_fk_ros.executables import executable
 from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path
 from geometry_msgs.msg import PoseStamped
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from tf2_msgs.msg import TFMessage
-
-
-def executable(name):
-    """Return the command that runs an installed program (ros2 run layout), or ``-m``."""
-    path = os.path.join(sys.prefix, 'lib', 'dq_fk_ros', name)
-    if os.access(path, os.X_OK):
-        return [path]
-    return [sys.executable, '-m', f'dq_fk_ros.{name if name != "dq_fk_node" else "node"}']
 
 
 class PoseWatcher:
@@ -43,7 +36,8 @@ class PoseWatcher:
         for frame in model.frame_names:
             node.create_subscription(PoseStamped, f'/{node_name}/pose/{frame}',
                                      lambda msg, f=frame: self.poses.__setitem__(f, msg), 10)
-        static_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+        # tf2_ros's StaticListenerQoS: depth 100 keeps every broadcaster's latched message
+        static_qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
         node.create_subscription(TFMessage, '/tf_static', self._on_tf, static_qos)
         node.create_subscription(TFMessage, '/tf', self._on_tf, 100)

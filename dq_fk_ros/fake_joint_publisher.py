@@ -109,6 +109,8 @@ class FakeJointPublisher(Node):
                                        'fraction of messages sent malformed (0..1)')
         self._max_messages = declare('max_messages', 0, 'stop publishing after this many; '
                                      '0: never')
+        self._wait_for = declare('wait_for_subscribers', 0,
+                                 'start publishing once this many subscriptions matched')
         if not 0.0 <= self._fault_fraction <= 1.0:
             raise ValueError(f'fault_fraction must be in [0, 1], got {self._fault_fraction}')
         if not rate_hz > 0.0:
@@ -127,6 +129,11 @@ class FakeJointPublisher(Node):
                                f'{rate_hz:g} Hz on {self._pub.topic_name}')
 
     def _tick(self):
+        if self._wait_for:
+            if self._pub.get_subscription_count() < self._wait_for:
+                return
+            self._wait_for = 0
+            self._start = self.get_clock().now()
         if self._max_messages and sum(self.sent.values()) >= self._max_messages:
             self._timer.cancel()
             self.get_logger().info(f'sent {self.sent}; stopped (max_messages)')

@@ -42,3 +42,11 @@ def compose(transforms, root, frame):
         m = transform_matrix(t.transform) @ m
         frame = t.header.frame_id
     return m
+
+
+def pose_matrix_of_tuple(pose):
+    """4x4 of ``(x, y, z, qx, qy, qz, qw)``."""
+    m = np.eye(4)
+    m[:3, :3] = quat_matrix(*pose[3:])
+    m[:3, 3] = pose[:3]
+    return m

@@ -2,80 +2,18 @@
 
 import math
 import sys
-import time
 
-from dq_fk_ros.node import DqFkNode
 from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import homogeneous_tf as htf
 import numpy as np
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
+from ros_harness import Harness, TF_STATIC_QOS
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.integration
 RL15_JOINTS = [f'joint_{i}' for i in range(1, 7)]
-TF_STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-
-class Harness:
-    """One rclpy context with the node under test, a probe node and an executor."""
-
-    def __init__(self):
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.nodes = []
-        self.probe = self.add(rclpy.create_node('dq_fk_test_probe', context=self.context))
-        self.joint_pub = self.probe.create_publisher(JointState, 'joint_states', 10)
-        self.received = {}
-
-    def add(self, node):
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        return node
-
-    def start_node(self, **params):
-        overrides = [Parameter(k, value=v) for k, v in params.items()]
-        return self.add(DqFkNode(context=self.context, parameter_overrides=overrides))
-
-    def listen(self, msg_type, topic, qos=10):
-        self.received[topic] = []
-        self.probe.create_subscription(msg_type, topic, self.received[topic].append, qos)
-        return self.received[topic]
-
-    def joint_state(self, names, positions, velocities=(), stamp=None):
-        msg = JointState()
-        msg.name = list(names)
-        msg.position = [float(v) for v in positions]
-        msg.velocity = [float(v) for v in velocities]
-        msg.header.stamp = stamp if stamp is not None else self.probe.get_clock().now().to_msg()
-        return msg
-
-    def spin_until(self, predicate, timeout_s=10.0, publish=None):
-        """Spin (publishing ``publish`` every 50 ms if given) until ``predicate()`` holds."""
-        deadline = time.monotonic() + timeout_s
-        next_pub = 0.0
-        while time.monotonic() < deadline:
-            if publish is not None and time.monotonic() >= next_pub:
-                self.joint_pub.publish(publish)
-                next_pub = time.monotonic() + 0.05
-            self.executor.spin_once(timeout_sec=0.01)
-            if predicate():
-                return True
-        return False
-
-    def close(self):
-        for node in self.nodes:
-            self.executor.remove_node(node)
-            node.destroy_node()
-        self.executor.shutdown()
-        rclpy.shutdown(context=self.context)
 
 
 @pytest.fixture

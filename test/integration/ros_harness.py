@@ -1,0 +1,70 @@
+"""A test-side rclpy context: probe node, publishers, subscriptions and a spin loop."""
+
+import time
+
+from dq_fk_ros.node import DqFkNode
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+
+# as tf2_ros's StaticListenerQoS: a reader depth of 1 would keep only one of several
+# static broadcasters' latched messages
+TF_STATIC_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class Harness:
+    """One rclpy context with the node under test, a probe node and an executor."""
+
+    def __init__(self, joint_states_topic='joint_states'):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.nodes = []
+        self.probe = self.add(rclpy.create_node('dq_fk_test_probe', context=self.context))
+        self.joint_pub = self.probe.create_publisher(JointState, joint_states_topic, 10)
+        self.received = {}
+
+    def add(self, node):
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def start_node(self, **params):
+        overrides = [Parameter(k, value=v) for k, v in params.items()]
+        return self.add(DqFkNode(context=self.context, parameter_overrides=overrides))
+
+    def listen(self, msg_type, topic, qos=10):
+        self.received[topic] = []
+        self.probe.create_subscription(msg_type, topic, self.received[topic].append, qos)
+        return self.received[topic]
+
+    def joint_state(self, names, positions, velocities=(), stamp=None):
+        msg = JointState()
+        msg.name = list(names)
+        msg.position = [float(v) for v in positions]
+        msg.velocity = [float(v) for v in velocities]
+        msg.header.stamp = stamp if stamp is not None else self.probe.get_clock().now().to_msg()
+        return msg
+
+    def spin_until(self, predicate, timeout_s=10.0, publish=None):
+        """Spin (publishing ``publish`` every 50 ms if given) until ``predicate()`` holds."""
+        deadline = time.monotonic() + timeout_s
+        next_pub = 0.0
+        while time.monotonic() < deadline:
+            if publish is not None and time.monotonic() >= next_pub:
+                self.joint_pub.publish(publish)
+                next_pub = time.monotonic() + 0.05
+            self.executor.spin_once(timeout_sec=0.01)
+            if predicate():
+                return True
+        return False
+
+    def close(self):
+        for node in self.nodes:
+            self.executor.remove_node(node)
+            node.destroy_node()
+        self.executor.shutdown()
+        rclpy.shutdown(context=self.context)

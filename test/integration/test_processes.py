@@ -1,0 +1,181 @@
+"""
+dq_fk_node and fake_joint_publisher as separate processes (the console scripts), over DDS.
+
+The test listens from its own rclpy context; every process is started and reaped by the
+``processes`` fixture on this run's private domain.
+"""
+
+import math
+import os
+import signal
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from dq_fk_ros.executables import executable
+from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path
+from geometry_msgs.msg import PoseStamped
+import homogeneous_tf as htf
+import numpy as np
+import pytest
+from ros_harness import Harness, TF_STATIC_QOS
+from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
+
+pytestmark = pytest.mark.integration
+
+
+def start(processes, name, *params, namespace=None):
+    argv = executable(name) + ['--ros-args', '--log-level', 'warn']
+    if namespace:
+        argv += ['-r', f'__ns:={namespace}']
+    for p in params:
+        argv += ['-p', p]
+    return processes.start(argv)
+
+
+@pytest.fixture
+def listener(ros_domain_id):
+    harness = Harness()
+    try:
+        yield harness
+    finally:
+        harness.close()
+
+
+def stamp_key(stamp):
+    return (stamp.sec, stamp.nanosec)
+
+
+@pytest.mark.parametrize('robot', ['rl15', 'panda'])
+def test_poses_and_tf_equal_core_fk_of_the_published_joints(processes, listener, robot):
+    path = shipped_robot_path(robot)
+    model = load_robot_description(path)
+    start(processes, 'dq_fk_node', f'robot_description_file:={path}')
+    start(processes, 'fake_joint_publisher', f'robot_description_file:={path}', 'mode:=sine',
+          'rate_hz:=50.0')
+    joints = listener.listen(JointState, '/joint_states')
+    ee = model.frame_names[-1]
+    poses = listener.listen(PoseStamped, f'/dq_fk_node/pose/{ee}')
+    tf = listener.listen(TFMessage, '/tf')
+    assert listener.spin_until(lambda: len(poses) >= 100 and len(tf) >= 100, timeout_s=20)
+    by_stamp = {stamp_key(m.header.stamp): m for m in joints}
+    matched = 0
+    for pose in poses:
+        js = by_stamp.get(stamp_key(pose.header.stamp))
+        if js is None:
+            continue
+        q = np.array([js.position[list(js.name).index(n)] for n in model.joint_names])
+        expected = model.chain.forward(q).to_matrix()
+        np.testing.assert_allclose(htf.pose_matrix(pose.pose), expected, atol=1e-9)
+        matched += 1
+    assert matched >= 90
+    _, relative = None, None
+    for msg in tf[-20:]:
+        js = by_stamp[stamp_key(msg.transforms[0].header.stamp)]
+        q = np.array([js.position[list(js.name).index(n)] for n in model.joint_names])
+        absolute, relative = model.chain.frame_poses(q)
+        for t in msg.transforms:
+            k = model.frame_names.index(t.child_frame_id)
+            np.testing.assert_allclose(htf.transform_matrix(t.transform),
+                                       htf.pose_matrix_of_tuple(relative[k - 1]), atol=1e-9)
+
+
+def test_tf_static_reaches_a_subscriber_that_starts_late(processes, listener):
+    start(processes, 'dq_fk_node')
+    time.sleep(2.0)
+    static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+    assert listener.spin_until(lambda: static, timeout_s=10)
+    assert [(t.header.frame_id, t.child_frame_id) for t in static[-1].transforms] == [
+        ('world', 'base_seg0')]
+    np.testing.assert_allclose(static[-1].transforms[0].transform.translation.z, 0.73)
+
+
+def is_malformed(msg, joint_names):
+    return (len(msg.name) != len(msg.position)
+            or any(not math.isfinite(v) for v in msg.position)
+            or not set(msg.name) & set(joint_names))
+
+
+def test_fault_injection_every_valid_update_published_and_rejections_counted(processes,
+                                                                             listener):
+    model = load_robot_description(shipped_robot_path('rl15'))
+    start(processes, 'dq_fk_node')
+    poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    diagnostics = listener.listen(DiagnosticArray, '/diagnostics')
+    joints = listener.listen(JointState, '/joint_states', 1000)
+    assert listener.spin_until(lambda: diagnostics, timeout_s=10)  # the node is up
+    total = 300
+    start(processes, 'fake_joint_publisher', 'mode:=random_walk', 'rate_hz:=100.0',
+          'fault_fraction:=0.2', f'max_messages:={total}', 'seed:=7',
+          'wait_for_subscribers:=2')
+
+    def counters():
+        if not diagnostics:
+            return {}
+        return {v.key: v.value for v in diagnostics[-1].status[0].values}
+    assert listener.spin_until(
+        lambda: len(joints) == total and counters().get('updates_received') == str(total),
+        timeout_s=30), (len(joints), counters())
+    malformed = [m for m in joints if is_malformed(m, model.joint_names)]
+    valid = [m for m in joints if not is_malformed(m, model.joint_names)]
+    assert 30 <= len(malformed) <= 90  # about 20 %
+    listener.spin_until(lambda: len(poses) >= len(valid), timeout_s=5)
+    c = counters()
+    assert int(c['updates_rejected']) == len(malformed)
+    assert int(c['updates_published']) == len(valid)
+    assert {stamp_key(m.header.stamp) for m in valid} == \
+        {stamp_key(p.header.stamp) for p in poses}
+
+
+def test_the_node_resumes_when_the_publisher_restarts(processes, listener):
+    start(processes, 'dq_fk_node')
+    poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    publisher = start(processes, 'fake_joint_publisher', 'mode:=zeros')
+    assert listener.spin_until(lambda: poses, timeout_s=20)
+    os.killpg(publisher.pid, signal.SIGKILL)
+    publisher.wait()
+    listener.spin_until(lambda: False, timeout_s=0.5)
+    poses.clear()
+    start(processes, 'fake_joint_publisher', 'mode:=fixed',
+          'positions:=[0.5, 0.0, 0.0, 0.0, 0.0, 0.0]')
+    assert listener.spin_until(lambda: poses and poses[-1].pose.position.y > 0.4,
+                               timeout_s=20)
+    np.testing.assert_allclose([poses[-1].pose.position.x, poses[-1].pose.position.y],
+                               [1.025 * math.cos(0.5), 1.025 * math.sin(0.5)], atol=1e-9)
+
+
+def test_two_robots_with_different_prefixes_do_not_mix(processes, listener):
+    panda = shipped_robot_path('panda')
+    start(processes, 'dq_fk_node', 'frame_prefix:=left/', namespace='/left')
+    start(processes, 'fake_joint_publisher', 'mode:=zeros', namespace='/left')
+    start(processes, 'dq_fk_node', 'frame_prefix:=right/', f'robot_description_file:={panda}',
+          namespace='/right')
+    start(processes, 'fake_joint_publisher', f'robot_description_file:={panda}', 'mode:=fixed',
+          'positions:=[0.3, -0.2, 0.1, -1.5, 0.2, 1.6, 0.4]', namespace='/right')
+    tf = listener.listen(TFMessage, '/tf')
+    static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+    left = listener.listen(PoseStamped, '/left/dq_fk_node/pose/eeCarry_seg6')
+    right = listener.listen(PoseStamped, '/right/dq_fk_node/pose/panda_link8')
+
+    def children():
+        return {t.child_frame_id for msg in tf + static for t in msg.transforms}
+    assert listener.spin_until(
+        lambda: left and right and {'left/eeCarry_seg6', 'right/panda_link7', 'left/base_seg0',
+                                    'right/panda_link8'} <= children(), timeout_s=20), \
+        (len(left), len(right), sorted(children()))
+    latest = {}
+    for msg in tf + static:
+        for t in msg.transforms:
+            prefixes = {t.child_frame_id.split('/')[0], t.header.frame_id.split('/')[0]}
+            assert prefixes in ({'left'}, {'right'}, {'world', 'left'}, {'world', 'right'}), \
+                (t.header.frame_id, t.child_frame_id)
+            latest[t.child_frame_id] = t
+    transforms = list(latest.values())
+    np.testing.assert_allclose(htf.compose(transforms, 'world', 'left/eeCarry_seg6')[:3, 3],
+                               [1.025, 0, 1.445], atol=1e-9)
+    panda_model = load_robot_description(panda)
+    q = np.array([0.3, -0.2, 0.1, -1.5, 0.2, 1.6, 0.4])
+    expected = panda_model.chain.forward(q).to_matrix()
+    np.testing.assert_allclose(htf.compose(transforms, 'world', 'right/panda_link8'), expected,
+                               atol=1e-9)
+    np.testing.assert_allclose(htf.pose_matrix(right[-1].pose), expected, atol=1e-9)
