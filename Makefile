@@ -84,6 +84,8 @@ bench: setup $(BENCH_VENV)/.stamp
 	@$(BENCH_VENV)/bin/python benchmarks/bench_core.py
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_node.py
+	@echo
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_e2e.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(BENCH_VENV)-logs build install log .pytest_cache
