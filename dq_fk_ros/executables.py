@@ -1,4 +1,4 @@
-"""Where this package's programs are, for starting them as processes (demo, tests, benchmarks)."""
+"""This package's programs: where they are installed, and the main loop their nodes share."""
 
 import os
 import sys
@@ -19,3 +19,30 @@ def executable(name):
     if os.access(path, os.X_OK):
         return [path]
     return [sys.executable, '-m', MODULES[name]]
+
+
+def spin_until_shutdown(program, make_node, user_errors, args=None):
+    """
+    Create a node with ``make_node()`` and spin it until SIGINT/SIGTERM; return the exit code.
+
+    As Jazzy's rclpy examples do, with try/finally. An exception of ``user_errors`` while
+    creating the node (a bad robot file, a bad parameter) is printed as one line
+    ``program: message`` and gives exit code 1, without a traceback.
+    """
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = make_node()
+        rclpy.spin(node)
+    except user_errors as exc:
+        print(f'{program}: {exc}', file=sys.stderr)
+        return 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

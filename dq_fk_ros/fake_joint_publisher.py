@@ -10,12 +10,11 @@ stream, for robustness tests. The motion itself is plain Python (:class:`JointMo
 import math
 import sys
 
+from dq_fk_ros.executables import spin_until_shutdown
 from dq_fk_ros.robot_model import (
     load_robot_description, RobotDescriptionError, shipped_robot_path)
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
@@ -157,22 +156,8 @@ class FakeJointPublisher(Node):
 
 def main(args=None):
     """Run fake_joint_publisher until SIGINT/SIGTERM."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = FakeJointPublisher()
-        rclpy.spin(node)
-    except (RobotDescriptionError, ValueError) as exc:
-        print(f'fake_joint_publisher: {exc}', file=sys.stderr)
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.get_logger().info(f'sent {node.sent}')
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return spin_until_shutdown('fake_joint_publisher', FakeJointPublisher,
+                               (RobotDescriptionError, ValueError), args)
 
 
 if __name__ == '__main__':

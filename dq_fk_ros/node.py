@@ -9,6 +9,7 @@ messages. See the README for topics and parameters.
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from dq_fk_ros.executables import spin_until_shutdown
 from dq_fk_ros.joint_states import (
     INCOMPLETE, JointStateMerger, OUT_OF_LIMITS_POLICIES, PUBLISH, REJECTED)
 from dq_fk_ros.robot_model import (
@@ -17,8 +18,6 @@ from dq_fk_ros.ros_conversions import FrameMessages, joint_state_fields
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -263,21 +262,7 @@ class DqFkNode(Node):
 
 def main(args=None):
     """Run dq_fk_node until SIGINT/SIGTERM (as ``ros2 run dq_fk_ros dq_fk_node``)."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = DqFkNode()
-        rclpy.spin(node)
-    except RobotDescriptionError as exc:
-        print(f'dq_fk_node: {exc}', file=sys.stderr)
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return spin_until_shutdown('dq_fk_node', DqFkNode, RobotDescriptionError, args)
 
 
 if __name__ == '__main__':

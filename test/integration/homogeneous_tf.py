@@ -13,19 +13,13 @@ def quat_matrix(x, y, z, w):
 def transform_matrix(transform):
     """4x4 of a geometry_msgs/Transform."""
     t, r = transform.translation, transform.rotation
-    m = np.eye(4)
-    m[:3, :3] = quat_matrix(r.x, r.y, r.z, r.w)
-    m[:3, 3] = (t.x, t.y, t.z)
-    return m
+    return pose_matrix_of_tuple((t.x, t.y, t.z, r.x, r.y, r.z, r.w))
 
 
 def pose_matrix(pose):
     """4x4 of a geometry_msgs/Pose."""
     p, o = pose.position, pose.orientation
-    m = np.eye(4)
-    m[:3, :3] = quat_matrix(o.x, o.y, o.z, o.w)
-    m[:3, 3] = (p.x, p.y, p.z)
-    return m
+    return pose_matrix_of_tuple((p.x, p.y, p.z, o.x, o.y, o.z, o.w))
 
 
 def parent_of(transforms, child):

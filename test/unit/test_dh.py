@@ -126,18 +126,22 @@ def fk_vector(chain, q):
     return chain.forward(q).coeffs
 
 
+def central_difference(f, q, j, eps=1e-6):
+    """Return (f(q + eps e_j) - f(q - eps e_j)) / 2 eps."""
+    step = np.zeros(len(q))
+    step[j] = eps
+    return (f(q + step) - f(q - step)) / (2 * eps)
+
+
 @pytest.mark.parametrize('convention', ['standard', 'modified'])
 def test_dual_quaternion_jacobian_matches_finite_differences(convention):
     rng = np.random.default_rng(21)
     chain, _, _ = random_chain(rng, convention)
-    eps = 1e-6
     for q in rng.uniform(-3, 3, size=(50, chain.dof)):
         jac = chain.jacobian_dq(q)
         assert jac.shape == (8, chain.dof)
         for j in range(chain.dof):
-            dq = np.zeros(chain.dof)
-            dq[j] = eps
-            fd = (fk_vector(chain, q + dq) - fk_vector(chain, q - dq)) / (2 * eps)
+            fd = central_difference(lambda x: fk_vector(chain, x), q, j)
             np.testing.assert_allclose(jac[:, j], fd, atol=1e-7)
 
 
@@ -145,18 +149,13 @@ def test_dual_quaternion_jacobian_matches_finite_differences(convention):
 def test_geometric_jacobian_matches_finite_differences(convention):
     rng = np.random.default_rng(22)
     chain, _, _ = random_chain(rng, convention)
-    eps = 1e-6
     for q in rng.uniform(-3, 3, size=(50, chain.dof)):
         jac = chain.jacobian_geometric(q)
+        m = chain.forward(q).to_matrix()
         for j in range(chain.dof):
-            dq = np.zeros(chain.dof)
-            dq[j] = eps
-            m_plus = chain.forward(q + dq).to_matrix()
-            m_minus = chain.forward(q - dq).to_matrix()
-            m = chain.forward(q).to_matrix()
-            lin = (m_plus[:3, 3] - m_minus[:3, 3]) / (2 * eps)
-            r_dot = (m_plus[:3, :3] - m_minus[:3, :3]) / (2 * eps)
-            skew = r_dot @ m[:3, :3].T
+            m_dot = central_difference(lambda x: chain.forward(x).to_matrix(), q, j)
+            lin = m_dot[:3, 3]
+            skew = m_dot[:3, :3] @ m[:3, :3].T
             ang = np.array([skew[2, 1], skew[0, 2], skew[1, 0]])
             np.testing.assert_allclose(jac[:3, j], lin, atol=1e-7)
             np.testing.assert_allclose(jac[3:, j], ang, atol=1e-7)
@@ -199,8 +198,7 @@ def test_mimic_row_follows_its_source_joint():
                                 (0, 0.15, 0, 0)], 'standard')
     np.testing.assert_allclose(homogeneous_from_dq(chain.forward_all(q)), expected, atol=1e-12)
     # the mimic row's motion counts towards the source joint's Jacobian column
-    eps = 1e-6
-    fd = (fk_vector(chain, q + [eps, 0]) - fk_vector(chain, q - [eps, 0])) / (2 * eps)
+    fd = central_difference(lambda x: fk_vector(chain, x), q, 0)
     np.testing.assert_allclose(chain.jacobian_dq(q)[:, 0], fd, atol=1e-7)
 
 
