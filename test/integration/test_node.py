@@ -157,3 +157,19 @@ def test_invalid_robot_file_at_start_exits_with_the_message(processes, tmp_path)
 
 def _value(status, key):
     return int({v.key: v.value for v in status.values}.get(key, 0))
+
+
+def test_use_sim_time_stamps_from_clock(ros):
+    """With use_sim_time, a zero JointState stamp is replaced by the /clock time."""
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+    ros.start_node(use_sim_time=True)
+    clock_pub = ros.probe.create_publisher(Clock, '/clock', 10)
+    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    sim = Time(sec=1234, nanosec=500)
+    zero = ros.joint_state(RL15_JOINTS, [0] * 6, stamp=Time())
+
+    def tick():
+        clock_pub.publish(Clock(clock=sim))
+        return bool(poses) and poses[-1].header.stamp == sim
+    assert ros.spin_until(tick, publish=zero)
