@@ -27,6 +27,7 @@ setup(
             'dq_fk_node = dq_fk_ros.node:main',
             'dq_fk = dq_fk_ros.cli:main',
             'fake_joint_publisher = dq_fk_ros.fake_joint_publisher:main',
+            'dq_fk_bag = dq_fk_ros.bag:main',
         ],
     },
 )

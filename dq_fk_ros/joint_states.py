@@ -126,7 +126,7 @@ class JointStateMerger:
             position = float(positions[k])
             if not math.isfinite(position):
                 return self._reject('non_finite', f'position of {name!r} is {position}')
-            ours.append((i, position, float(velocities[k]) if velocities else math.nan))
+            ours.append((i, position, float(velocities[k]) if len(velocities) else math.nan))
         if not ours:
             result = self._reject('no_known_joint', 'none of ' + ', '.join(map(repr, names[:5]))
                                   + (' ...' if n_msg > 5 else '') + ' is a joint of this robot')

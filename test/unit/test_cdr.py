@@ -1,0 +1,84 @@
+"""The fast CDR reader and templates against rosbags' own (independent) CDR implementation."""
+
+from dq_fk_ros.cdr import (
+    CdrError, JointStateNames, parse_joint_state, pose_stamped_template, tf_message_template)
+import numpy as np
+import pytest
+from rosbags.typesys import get_typestore, Stores
+
+TS = get_typestore(Stores.ROS2_JAZZY)
+JointState = TS.types['sensor_msgs/msg/JointState']
+Header = TS.types['std_msgs/msg/Header']
+Time = TS.types['builtin_interfaces/msg/Time']
+
+
+def joint_state_bytes(names, positions, velocities=(), stamp_ns=0, frame_id=''):
+    msg = JointState(header=Header(stamp=Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9),
+                                   frame_id=frame_id),
+                     name=list(names), position=np.array(positions, dtype=float),
+                     velocity=np.array(velocities, dtype=float), effort=np.zeros(0))
+    return bytes(TS.serialize_cdr(msg, 'sensor_msgs/msg/JointState'))
+
+
+@pytest.mark.parametrize('names, positions, velocities, frame_id', [
+    (['a', 'bb', 'ccc'], [0.1, -2.0, 3.5], [], ''),
+    (['joint_1', 'j2'], [1.0, 2.0], [0.5, -0.5], 'base'),
+    (['x'], [np.pi], [1.0], 'odd_length_frame'),
+    ([], [], [], ''),
+    (['a', 'b'], [0.1], [], 'f'),  # lengths differ: still readable, rejected later
+])
+def test_parse_matches_rosbags(names, positions, velocities, frame_id):
+    raw = joint_state_bytes(names, positions, velocities, 1_700_000_123_456_789_012, frame_id)
+    stamp, got_names, got_pos, got_vel = parse_joint_state(raw)
+    assert stamp == 1_700_000_123_456_789_012
+    assert got_names == tuple(names)
+    np.testing.assert_array_equal(got_pos, positions)
+    np.testing.assert_array_equal(got_vel, velocities)
+
+
+def test_names_are_reused_while_unchanged():
+    cache = JointStateNames()
+    first = parse_joint_state(joint_state_bytes(['a', 'b'], [1, 2]), cache)[1]
+    second = parse_joint_state(joint_state_bytes(['a', 'b'], [3, 4]), cache)[1]
+    third = parse_joint_state(joint_state_bytes(['a', 'c'], [3, 4]), cache)[1]
+    assert first is second and third == ('a', 'c')
+
+
+@pytest.mark.parametrize('cut', [3, 10, 20, 30, -9, -1])
+def test_truncated_messages_raise_cdr_error(cut):
+    raw = joint_state_bytes(['joint_1', 'joint_2'], [1.0, 2.0], [3.0, 4.0])
+    with pytest.raises(CdrError):
+        parse_joint_state(raw[:cut])
+
+
+def test_big_endian_is_refused():
+    raw = bytearray(joint_state_bytes(['a'], [1.0]))
+    raw[1] = 0
+    with pytest.raises(CdrError, match='little-endian'):
+        parse_joint_state(bytes(raw))
+
+
+def test_pose_stamped_template_deserializes_to_the_values():
+    rows = pose_stamped_template('world').fill(
+        np.array([5_000_000_001, 7]), np.array([[1, 2, 3, 0.5, 0.5, 0.5, 0.5],
+                                                [-1, -2, -3, 0, 0, 0, 1.0]]))
+    msg = TS.deserialize_cdr(rows[0].tobytes(), 'geometry_msgs/msg/PoseStamped')
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (5, 1)
+    assert msg.header.frame_id == 'world'
+    p, o = msg.pose.position, msg.pose.orientation
+    assert [p.x, p.y, p.z, o.x, o.y, o.z, o.w] == [1, 2, 3, 0.5, 0.5, 0.5, 0.5]
+    assert TS.deserialize_cdr(rows[1].tobytes(), 'geometry_msgs/msg/PoseStamped'
+                              ).header.stamp.nanosec == 7
+
+
+def test_tf_message_template_deserializes_to_the_values():
+    edges = [('world', 'base'), ('base', 'link_with_a_longer_name'), ('l', 'x')]
+    values = np.arange(21, dtype=float)[None, :] + 0.25
+    row = tf_message_template(edges).fill(np.array([123_000_000_456]), values)[0]
+    msg = TS.deserialize_cdr(row.tobytes(), 'tf2_msgs/msg/TFMessage')
+    assert [(t.header.frame_id, t.child_frame_id) for t in msg.transforms] == edges
+    for k, t in enumerate(msg.transforms):
+        tr, rot = t.transform.translation, t.transform.rotation
+        assert [tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w] == list(values[0, 7 * k:7 * k + 7])
+        assert (t.header.stamp.sec, t.header.stamp.nanosec) == (123, 456)
+    assert len(row) == len(TS.serialize_cdr(msg, 'tf2_msgs/msg/TFMessage'))
