@@ -18,7 +18,7 @@ import time
 from dq_fk_ros.cdr import (
     CdrError, JointStateNames, parse_joint_state, pose_stamped_template, tf_message_template)
 from dq_fk_ros.dual_quaternion import dq_to_pose_xyzw
-from dq_fk_ros.joint_states import JointStateMerger, PUBLISH, REJECTED
+from dq_fk_ros.joint_states import JointStateMerger, PUBLISH
 from dq_fk_ros.robot_model import (
     load_robot_description, RobotDescriptionError, shipped_robot_path)
 import numpy as np
@@ -46,7 +46,7 @@ def open_reader(path):
 
 
 def joint_state_connections(reader, path, topic=None):
-    """The connections of the JointState topic (``topic``, or the only JointState topic)."""
+    """Return the connections of the JointState topic (``topic``, or the only one)."""
     listing = ', '.join(f'{c.topic} ({c.msgtype})' for c in reader.connections) or 'none'
     if topic is not None:
         conns = [c for c in reader.connections if c.topic == topic]
@@ -210,7 +210,7 @@ def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=
             writer = Writer(out_path, version=9, storage_plugin=plugin)
             writer.open()
         typestore = get_typestore(Stores.ROS2_JAZZY)
-        copy_from = [c for c in reader.connections] if copy_input else []
+        copy_from = list(reader.connections) if copy_input else []
         try:
             outputs = BagOutputs(writer, model, typestore, pose_namespace, frame_prefix,
                                  copy_from, poses) if writer is not None else None
@@ -302,12 +302,15 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
 
 # -- playing -----------------------------------------------------------------------------
 def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=None,
-             clock=False, output_topic=None, progress=True, node=None):
+             clock=False, output_topic=None, progress=True, node=None, wait_for=0,
+             wait_timeout_s=30.0):
     """
     Publish the bag's JointState messages with their recorded timing; return how many.
 
     Serialized messages are published as they are (no conversion). ``clock`` publishes
     ``/clock`` with the bag time before each message, for nodes with ``use_sim_time``.
+    ``wait_for``: first wait until that many subscriptions are matched (messages sent
+    before discovery completes are lost otherwise).
     """
     import rclpy
     from rclpy.qos import QoSProfile
@@ -329,6 +332,12 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
         t_end = None if duration_s is None else t_begin + int(duration_s * 1e9)
         total = sum(c.msgcount for c in conns)
         sent = 0
+        deadline = time.monotonic() + wait_timeout_s
+        while pub.get_subscription_count() < wait_for:
+            if time.monotonic() > deadline:
+                raise BagError(f'no {wait_for} subscribers on {pub.topic_name} within '
+                               f'{wait_timeout_s:g} s')
+            time.sleep(0.05)
         meter = Progress(total, 'dq_fk_bag play', enabled=progress)
         try:
             while True:
@@ -405,6 +414,8 @@ def build_parser():
     p.add_argument('--start', type=float, default=0.0, help='skip this many seconds')
     p.add_argument('--duration', type=float, help='play this many seconds')
     p.add_argument('--clock', action='store_true', help='publish /clock (use_sim_time)')
+    p.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
+                   help='start once N subscriptions are matched (default 0: at once)')
     p.add_argument('--quiet', action='store_true', help='no progress output')
     return parser
 
@@ -430,7 +441,7 @@ def main(argv=None):
         else:
             sent = play_bag(args.bag, topic=args.topic, rate=args.rate, loop=args.loop,
                             start_s=args.start, duration_s=args.duration, clock=args.clock,
-                            progress=not args.quiet)
+                            progress=not args.quiet, wait_for=args.wait_for_subscribers)
             print(f'{args.bag}: published {sent} JointState messages')
     except (BagError, RobotDescriptionError, FileNotFoundError) as exc:
         print(f'dq_fk_bag: {exc}', file=sys.stderr)

@@ -1,0 +1,229 @@
+"""dq_fk_bag on bags the tests write themselves with rosbags (MCAP and sqlite3)."""
+
+import math
+
+from dq_fk_ros.bag import main as bag_main, process_bag
+from dq_fk_ros.executables import executable
+from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path
+from geometry_msgs.msg import PoseStamped
+import homogeneous_tf as htf
+import numpy as np
+import pytest
+from ros_harness import Harness
+from rosbags.interfaces import QosDurability
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.typesys import get_typestore, Stores
+
+TS = get_typestore(Stores.ROS2_JAZZY)
+JointState = TS.types['sensor_msgs/msg/JointState']
+Header = TS.types['std_msgs/msg/Header']
+Time = TS.types['builtin_interfaces/msg/Time']
+String = TS.types['std_msgs/msg/String']
+RL15 = shipped_robot_path('rl15')
+MODEL = load_robot_description(RL15)
+NAMES = list(MODEL.joint_names)
+T0 = 1_700_000_000_000_000_000
+STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
+
+
+def js_bytes(names, positions, stamp_ns):
+    msg = JointState(header=Header(stamp=Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9),
+                                   frame_id=''),
+                     name=list(names), position=np.asarray(positions, dtype=float),
+                     velocity=np.zeros(0), effort=np.zeros(0))
+    return bytes(TS.serialize_cdr(msg, 'sensor_msgs/msg/JointState'))
+
+
+def trajectory(n):
+    t = np.arange(n) * 0.01
+    return np.stack([0.5 * np.sin(t * (k + 1)) for k in range(6)], axis=1)
+
+
+def write_bag(path, messages, storage='mcap', extra_topic=False):
+    """``messages``: (stamp_ns, raw bytes); also a std_msgs/String topic if ``extra_topic``."""
+    with Writer(path, version=9, storage_plugin=STORAGES[storage]) as writer:
+        conn = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState',
+                                     typestore=TS)
+        chat = writer.add_connection('/chatter', 'std_msgs/msg/String', typestore=TS) \
+            if extra_topic else None
+        for stamp, raw in messages:
+            writer.write(conn, stamp, raw)
+            if chat is not None:
+                writer.write(chat, stamp, bytes(TS.serialize_cdr(
+                    String(data='hello'), 'std_msgs/msg/String')))
+
+
+def valid_bag(path, n=300, storage='mcap', **kw):
+    q = trajectory(n)
+    stamps = [T0 + k * 10_000_000 for k in range(n)]
+    write_bag(path, [(s, js_bytes(NAMES, row, s)) for s, row in zip(stamps, q)], storage, **kw)
+    return q, stamps
+
+
+def read_topic(path, topic):
+    with Reader(path) as reader:
+        conns = [c for c in reader.connections if c.topic == topic]
+        return [(t, TS.deserialize_cdr(raw, c.msgtype)) for c, t, raw in
+                reader.messages(connections=conns)]
+
+
+def stamp_ns(msg_header):
+    return msg_header.stamp.sec * 10**9 + msg_header.stamp.nanosec
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_offline_output_equals_core_fk(tmp_path, storage):
+    q, stamps = valid_bag(tmp_path / 'in', storage=storage)
+    summary = process_bag(tmp_path / 'in', tmp_path / 'out', RL15, storage=storage,
+                          csv_path=tmp_path / 'ee.csv', progress=False, chunk=64)
+    assert summary['read'] == summary['written'] == len(q) and not summary['rejected']
+    for k, frame in enumerate(MODEL.frame_names):
+        poses = read_topic(tmp_path / 'out', f'/dq_fk_node/pose/{frame}')
+        assert len(poses) == len(q)
+        for i in (0, 77, len(q) - 1):
+            t, msg = poses[i]
+            assert t == stamps[i] and stamp_ns(msg.header) == stamps[i]
+            expected = MODEL.chain.forward_all(q[i])
+            from dq_fk_ros.dh import homogeneous_from_dq
+            np.testing.assert_allclose(htf.pose_matrix(msg.pose),
+                                       homogeneous_from_dq(expected[k]), atol=1e-12)
+    tf = read_topic(tmp_path / 'out', '/tf')
+    static = read_topic(tmp_path / 'out', '/tf_static')
+    assert len(tf) == len(q) and len(static) == 1
+    transforms = static[0][1].transforms + tf[123][1].transforms
+    np.testing.assert_allclose(htf.compose(transforms, 'world', 'eeCarry_seg6'),
+                               MODEL.chain.forward(q[123]).to_matrix(), atol=1e-12)
+    rows = np.loadtxt(tmp_path / 'ee.csv', delimiter=',', skiprows=1, dtype=object)
+    assert [int(s) for s in rows[:, 0]] == stamps
+    np.testing.assert_allclose(rows[5, 1:4].astype(float),
+                               MODEL.chain.forward(q[5]).translation, atol=1e-15)
+
+
+def test_tf_static_is_offered_transient_local(tmp_path):
+    valid_bag(tmp_path / 'in', n=5)
+    process_bag(tmp_path / 'in', tmp_path / 'out', RL15, progress=False)
+    with Reader(tmp_path / 'out') as reader:
+        qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
+    assert qos['/tf_static'][0].durability == QosDurability.TRANSIENT_LOCAL
+    assert qos['/tf'][0].durability == QosDurability.VOLATILE
+
+
+def test_bad_content_is_skipped_counted_and_nothing_valid_lost(tmp_path):
+    q = trajectory(100)
+    messages, valid_stamps = [], []
+    for k, row in enumerate(q):
+        s = T0 + k * 10_000_000
+        if k % 10 == 3:
+            messages.append((s, js_bytes(NAMES, row[:5], s)))          # lengths differ
+        elif k % 10 == 5:
+            bad = row.copy()
+            bad[2] = math.nan
+            messages.append((s, js_bytes(NAMES, bad, s)))              # NaN
+        elif k % 10 == 7:
+            messages.append((s, js_bytes(NAMES, row, s)[:-12]))        # truncated CDR
+        else:
+            messages.append((s, js_bytes(NAMES + ['gripper'], list(row) + [0.0], s)))
+            valid_stamps.append(s)
+    write_bag(tmp_path / 'in', messages, extra_topic=True)
+    summary = process_bag(tmp_path / 'in', tmp_path / 'out', RL15, copy_input=True,
+                          progress=False)
+    assert summary['read'] == 100 and summary['written'] == len(valid_stamps) == 70
+    assert summary['rejected'] == {'length_mismatch': 10, 'non_finite': 10,
+                                   'malformed_cdr': 10}
+    assert summary['unknown_joints'] == ['gripper']
+    out = read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')
+    assert [stamp_ns(m.header) for _, m in out] == valid_stamps
+    with Reader(tmp_path / 'out') as reader:  # copied through, broken ones included
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    assert counts['/chatter'] == 100 and counts['/joint_states'] == 100
+
+
+def run_cli(capsys, *argv):
+    rc = bag_main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def test_user_errors_are_one_line(tmp_path, capsys):
+    valid_bag(tmp_path / 'in', n=3, extra_topic=True)
+    cases = [
+        ((tmp_path / 'nope', tmp_path / 'o1'), 'no such bag'),
+        ((tmp_path / 'in', tmp_path / 'o2', '--topic', '/missing'),
+         "has no topic '/missing'; its topics: /joint_states (sensor_msgs/msg/JointState), "
+         '/chatter (std_msgs/msg/String)'),
+        ((tmp_path / 'in', tmp_path / 'o3', '--topic', '/chatter'),
+         "topic '/chatter' has type std_msgs/msg/String, not sensor_msgs/msg/JointState"),
+    ]
+    for args, words in cases:
+        rc, _, err = run_cli(capsys, 'process', *args, '--quiet')
+        assert rc == 1 and err.startswith('dq_fk_bag: ') and err.count('\n') == 1, err
+        assert words in err
+    corrupt = tmp_path / 'corrupt'
+    corrupt.mkdir()
+    (corrupt / 'metadata.yaml').write_text('not: [a bag')
+    rc, _, err = run_cli(capsys, 'process', corrupt, tmp_path / 'o4', '--quiet')
+    assert rc == 1 and 'not a readable rosbag2' in err
+    (tmp_path / 'exists').mkdir()
+    rc, _, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'exists', '--quiet')
+    assert rc == 1 and 'exists; use --overwrite' in err
+    rc, out, _ = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'exists', '--quiet',
+                         '--overwrite')
+    assert rc == 0 and '3 JointState messages, 3 written' in out
+
+
+def test_truncated_bag_is_a_clear_error_and_writes_nothing(tmp_path, capsys):
+    """An MCAP cut short has no footer: rosbags cannot open it at all."""
+    valid_bag(tmp_path / 'in', n=3000)
+    mcap = next((tmp_path / 'in').glob('*.mcap'))
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[:len(data) // 2])
+    rc, _, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--quiet')
+    assert rc == 1 and 'not a readable rosbag2' in err
+    assert not (tmp_path / 'out').exists()
+
+
+def test_corrupt_bag_keeps_every_message_read_before_the_damage(tmp_path, capsys):
+    q, stamps = valid_bag(tmp_path / 'in', n=30000)
+    mcap = next((tmp_path / 'in').glob('*.mcap'))
+    data = bytearray(mcap.read_bytes())
+    middle = len(data) // 2
+    data[middle:middle + 2000] = b'\xff' * 2000
+    mcap.write_bytes(bytes(data))
+    rc, out, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--quiet')
+    assert rc == 1 and 'reading stopped after' in err
+    written = int(out.split(', ')[1].split()[0])
+    assert 0 < written < len(q)
+    poses = read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')
+    assert [stamp_ns(m.header) for _, m in poses] == stamps[:written]
+
+
+@pytest.mark.integration
+def test_replay_into_the_node_gives_the_offline_poses(tmp_path, processes, ros_domain_id):
+    q, stamps = valid_bag(tmp_path / 'in', n=200)
+    process_bag(tmp_path / 'in', tmp_path / 'out', RL15, progress=False)
+    offline = {stamp_ns(m.header): m for _, m in
+               read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')}
+    listener = Harness()
+    try:
+        poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6', 1000)
+        processes.start(executable('dq_fk_node') + ['--ros-args', '--log-level', 'warn'])
+        assert listener.spin_until(lambda: listener.probe.count_publishers(
+            '/dq_fk_node/pose/eeCarry_seg6') >= 1, timeout_s=20)
+        player = processes.start(executable('dq_fk_bag') + ['play', str(tmp_path / 'in'),
+                                                            '--rate', '2', '--quiet',
+                                                            '--wait-for-subscribers', '1'])
+        assert listener.spin_until(lambda: len(poses) == 200, timeout_s=30), len(poses)
+        player.wait(timeout=30)
+    finally:
+        listener.close()
+    assert player.returncode == 0
+    for msg in poses:
+        ref = offline[stamp_ns(msg.header)]
+        np.testing.assert_allclose(htf.pose_matrix(msg.pose), htf.pose_matrix(ref.pose),
+                                   atol=1e-12)
+
+
+def test_play_with_clock_and_bad_rate(tmp_path, capsys):
+    valid_bag(tmp_path / 'in', n=3)
+    rc, _, err = run_cli(capsys, 'play', tmp_path / 'in', '--rate', '0')
+    assert rc == 1 and '--rate must be positive' in err
