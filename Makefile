@@ -86,6 +86,8 @@ bench: setup $(BENCH_VENV)/.stamp
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_node.py
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_e2e.py
+	@echo
+	@$(PY) benchmarks/bench_bag.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(BENCH_VENV)-logs build install log .pytest_cache

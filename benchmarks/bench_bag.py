@@ -1,0 +1,91 @@
+"""
+Offline bag processing speed and memory: ``dq_fk_bag process`` end to end (read, FK, write).
+
+Writes a 6-DoF RL15 JointState bag of N messages (MCAP) into a temporary folder, then runs
+``dq_fk_bag process`` on it in a child process for each ``--poses`` choice (every frame's
+pose topic, only the end effector's, none: /tf only) and prints messages per second and the
+child's peak resident memory. Two bag lengths show whether memory grows with the bag.
+
+Run: ``python benchmarks/bench_bag.py [--messages 100000 1000000]``.
+"""
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+from dq_fk_ros.executables import executable
+import numpy as np
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import get_typestore, Stores
+
+
+def write_joint_state_bag(path, n):
+    """Write a bag of ``n`` RL15 joint states at 1 kHz along a smooth trajectory."""
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    js = ts.types['sensor_msgs/msg/JointState']
+    header = ts.types['std_msgs/msg/Header']
+    stamp = ts.types['builtin_interfaces/msg/Time']
+    names = [f'joint_{i}' for i in range(1, 7)]
+    t0 = 1_700_000_000_000_000_000
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState', typestore=ts)
+        for k in range(n):
+            t = t0 + k * 1_000_000
+            q = 0.8 * np.sin(np.arange(1, 7) * k * 1e-4)
+            msg = js(header=header(stamp=stamp(sec=t // 10**9, nanosec=t % 10**9), frame_id=''),
+                     name=names, position=q, velocity=np.zeros(0), effort=np.zeros(0))
+            writer.write(conn, t, ts.serialize_cdr(msg, 'sensor_msgs/msg/JointState'))
+
+
+def run_process(in_bag, out_bag, poses):
+    """Run ``dq_fk_bag process`` as a child; return (seconds, peak RSS MiB, summary line)."""
+    argv = executable('dq_fk_bag') + ['process', in_bag, out_bag, '--poses', poses,
+                                      '--quiet', '--overwrite']
+    start = time.perf_counter()
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True)
+    _, status, usage = os.wait4(proc.pid, 0)
+    elapsed = time.perf_counter() - start
+    out = proc.stdout.read().strip()
+    proc.stdout.close()
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f'dq_fk_bag process failed: {out}')
+    return elapsed, usage.ru_maxrss / 1024.0, out
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
+    parser.add_argument('--messages', type=int, nargs='+', default=[100_000, 1_000_000])
+    parser.add_argument('--poses', nargs='+', default=['all', 'end', 'none'])
+    args = parser.parse_args(argv)
+    rows = []
+    work = tempfile.mkdtemp(prefix='dq_fk_bench_bag_')
+    try:
+        for n in args.messages:
+            in_bag = os.path.join(work, f'in_{n}')
+            start = time.perf_counter()
+            write_joint_state_bag(in_bag, n)
+            print(f'wrote a {n}-message input bag in {time.perf_counter() - start:.1f} s',
+                  file=sys.stderr)
+            for poses in args.poses:
+                elapsed, rss, line = run_process(in_bag, os.path.join(work, 'out'), poses)
+                rows.append((n, poses, elapsed, n / elapsed, rss, line))
+            shutil.rmtree(in_bag)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    print('# dq_fk_bag process, RL15 (6 joints, 7 frames), MCAP in and out, end to end '
+          '(process start, read, FK, write)')
+    print('| messages | pose topics | seconds | messages/s | peak RSS MiB | output messages |')
+    print('|---|---|---|---|---|---|')
+    for n, poses, elapsed, rate, rss, _ in rows:
+        per_input = 1 + {'all': 7, 'end': 1, 'none': 0}[poses]
+        print(f'| {n:,} | {poses} | {elapsed:.1f} | {rate:,.0f} | {rss:.0f} '
+              f'| {per_input} per input + 1 /tf_static |')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
