@@ -126,6 +126,7 @@ class DqFkNode(Node):
         except RobotDescriptionError as exc:
             self.get_logger().error(f'parameter change refused: {exc}')
             return SetParametersResult(successful=False, reason=str(exc))
+        resend_static = new.get('publish_tf', self._publish_tf) and not self._publish_tf
         self._publish_tf = new.get('publish_tf', self._publish_tf)
         self._publish_poses = new.get('publish_poses', self._publish_poses)
         self._publish_twist = new.get('publish_twist', self._publish_twist)
@@ -139,6 +140,8 @@ class DqFkNode(Node):
             self._apply_model(model or self._model)
             if model is not None:
                 self.get_logger().info(f'reloaded robot {model.name} from {model.source}')
+        elif resend_static:
+            self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
         return SetParametersResult(successful=True)
 
     def _apply_model(self, model):
