@@ -267,12 +267,8 @@ class KinematicChain:
 
     def row_parameters(self, q):
         """Return the DH table at ``q``: arrays ``(theta, d)`` of every row, radians and metres."""
-        q = self._check_q(q)
-        qe = np.append(q, 0.0)
-        theta = self._theta0 + np.where(self._theta_index >= 0,
-                                        self._scale * qe[self._theta_index], 0.0)
-        d = self._d0 + np.where(self._d_index >= 0, self._scale * qe[self._d_index], 0.0)
-        return theta, d
+        theta, d = self._row_params_batch(self._check_q(q)[None, :])
+        return theta[0], d[0]
 
     def _check_q(self, q):
         q = np.asarray(q, dtype=float)
