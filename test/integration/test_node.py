@@ -173,3 +173,20 @@ def test_use_sim_time_stamps_from_clock(ros):
         clock_pub.publish(Clock(clock=sim))
         return bool(poses) and poses[-1].header.stamp == sim
     assert ros.spin_until(tick, publish=zero)
+
+
+def test_a_flood_of_messages_leaves_the_node_alive_with_the_latest_state(ros):
+    """Thousands of messages at once: some may be dropped by the queue, never the last one."""
+    node = ros.start_node()
+    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6', 1000)
+    chain = load_robot_description(shipped_robot_path('rl15')).chain
+    assert ros.spin_until(lambda: poses, publish=ros.joint_state(RL15_JOINTS, [0] * 6))
+    qs = np.random.default_rng(9).uniform(-1, 1, size=(3000, 6))
+    for q in qs:
+        ros.joint_pub.publish(ros.joint_state(RL15_JOINTS, q))
+    last = chain.forward(qs[-1]).translation
+
+    def caught_up():
+        return np.allclose(position_of(poses[-1]), last, atol=1e-9)
+    assert ros.spin_until(caught_up, timeout_s=30)
+    assert _value(node.diagnostics(), 'updates_rejected') == 0
