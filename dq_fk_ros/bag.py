@@ -312,6 +312,7 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
     ``wait_for``: first wait until that many subscriptions are matched (messages sent
     before discovery completes are lost otherwise).
     """
+    from dq_fk_ros.ros_conversions import ns_to_stamp
     import rclpy
     from rclpy.qos import QoSProfile
     from rosgraph_msgs.msg import Clock
@@ -348,7 +349,7 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
                     if delay > 0:
                         time.sleep(delay)
                     if clock_pub is not None:
-                        clock_pub.publish(Clock(clock=_time_msg(log_time)))
+                        clock_pub.publish(Clock(clock=ns_to_stamp(log_time)))
                     pub.publish(bytes(raw))
                     sent += 1
                     meter.update(sent)
@@ -362,11 +363,6 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
     finally:
         reader.close()
     return sent
-
-
-def _time_msg(ns):
-    from builtin_interfaces.msg import Time
-    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 # -- command line ------------------------------------------------------------------------

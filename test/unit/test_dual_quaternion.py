@@ -180,3 +180,13 @@ def test_scalar_pose_conversion_matches_the_array_one(rng):
         h = DualQuaternion.from_matrix(random_matrix(rng)).coeffs * rng.choice([-1.0, 1.0])
         np.testing.assert_allclose(pose_xyzw_from_coeffs(h.tolist()), dq_to_pose_xyzw(h),
                                    atol=1e-14)
+
+
+def test_the_three_conjugates(rng):
+    h = DualQuaternion(rng.normal(size=8))
+    r, d = h.coeffs[:4], h.coeffs[4:]
+    star = np.array([1.0, -1, -1, -1])
+    np.testing.assert_array_equal(h.conjugate().coeffs, np.concatenate([r * star, d * star]))
+    np.testing.assert_array_equal(h.dual_number_conjugate().coeffs, np.concatenate([r, -d]))
+    np.testing.assert_array_equal(h.combined_conjugate().coeffs,
+                                  h.dual_number_conjugate().conjugate().coeffs)
