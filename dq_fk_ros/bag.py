@@ -18,6 +18,7 @@ import time
 from dq_fk_ros.cdr import (
     CdrError, JointStateNames, parse_joint_state, pose_stamped_template, tf_message_template)
 from dq_fk_ros.dual_quaternion import dq_to_pose_xyzw
+from dq_fk_ros.executables import MATCH_SETTLE_S
 from dq_fk_ros.joint_states import JointStateMerger, PUBLISH
 from dq_fk_ros.robot_model import (
     load_robot_description, RobotDescriptionError, shipped_robot_path)
@@ -339,6 +340,8 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
                 raise BagError(f'no {wait_for} subscribers on {pub.topic_name} within '
                                f'{wait_timeout_s:g} s')
             time.sleep(0.05)
+        if wait_for:
+            time.sleep(MATCH_SETTLE_S)  # the subscribers' side of the match may lag ours
         meter = Progress(total, 'dq_fk_bag play', enabled=progress)
         try:
             while True:

@@ -3,6 +3,10 @@
 import os
 import sys
 
+# After a publisher counts its matched subscriptions, the subscribers' side of the match may
+# still be in progress (messages sent then are lost): wait this long before the first one.
+MATCH_SETTLE_S = 0.5
+
 MODULES = {'dq_fk_node': 'dq_fk_ros.node',
            'fake_joint_publisher': 'dq_fk_ros.fake_joint_publisher',
            'dq_fk': 'dq_fk_ros.cli'}

@@ -10,11 +10,12 @@ stream, for robustness tests. The motion itself is plain Python (:class:`JointMo
 import math
 import sys
 
-from dq_fk_ros.executables import spin_until_shutdown
+from dq_fk_ros.executables import MATCH_SETTLE_S, spin_until_shutdown
 from dq_fk_ros.robot_model import (
     load_robot_description, RobotDescriptionError, shipped_robot_path)
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
@@ -131,8 +132,11 @@ class FakeJointPublisher(Node):
         if self._wait_for:
             if self._pub.get_subscription_count() < self._wait_for:
                 return
+            # our side has matched; give the subscribers' side time to match us too
             self._wait_for = 0
-            self._start = self.get_clock().now()
+            self._start = self.get_clock().now() + Duration(seconds=MATCH_SETTLE_S)
+        if self.get_clock().now() < self._start:
+            return
         if self._max_messages and sum(self.sent.values()) >= self._max_messages:
             self._timer.cancel()
             self.get_logger().info(f'sent {self.sent}; stopped (max_messages)')

@@ -208,7 +208,10 @@ def test_replay_into_the_node_gives_the_offline_poses(tmp_path, processes, ros_d
     try:
         poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6', 1000)
         diagnostics = listener.listen(DiagnosticArray, '/diagnostics')
-        processes.start(executable('dq_fk_node') + ['--ros-args', '--log-level', 'warn'])
+        # a reliable input: a bag replay should lose nothing (best effort, the default,
+        # may drop messages under load)
+        processes.start(executable('dq_fk_node') + ['--ros-args', '--log-level', 'warn', '-p',
+                                                    'joint_states_reliability:=reliable'])
         assert listener.spin_until(lambda: listener.probe.count_publishers(
             '/dq_fk_node/pose/eeCarry_seg6') >= 1, timeout_s=20)
         player = processes.start(executable('dq_fk_bag') + ['play', str(tmp_path / 'in'),
@@ -236,3 +239,28 @@ def test_play_with_clock_and_bad_rate(tmp_path, capsys):
     valid_bag(tmp_path / 'in', n=3)
     rc, _, err = run_cli(capsys, 'play', tmp_path / 'in', '--rate', '0')
     assert rc == 1 and '--rate must be positive' in err
+
+
+@pytest.mark.integration
+def test_play_publishes_recorded_messages_and_clock(tmp_path, processes, ros_domain_id):
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState as RosJointState
+    _, stamps = valid_bag(tmp_path / 'in', n=50)
+    listener = Harness()
+    try:
+        joints = listener.listen(RosJointState, '/joint_states', 1000)
+        clock = listener.listen(Clock, '/clock', 1000)
+        player = processes.start(executable('dq_fk_bag') + [
+            'play', str(tmp_path / 'in'), '--clock', '--rate', '5', '--start', '0.1',
+            '--quiet', '--wait-for-subscribers', '1'])
+
+        def clock_ns():
+            return [c.clock.sec * 10**9 + c.clock.nanosec for c in clock]
+        assert listener.spin_until(lambda: len(joints) == 40 and clock_ns()[-1:] == stamps[-1:],
+                                   timeout_s=30), (len(joints), clock_ns()[-1:])
+        player.wait(timeout=30)
+    finally:
+        listener.close()
+    assert player.returncode == 0
+    assert [stamp_ns(m.header) for m in joints] == stamps[10:]  # --start 0.1 s skips 10
+    assert clock_ns() == stamps[10:]

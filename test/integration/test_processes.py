@@ -99,7 +99,8 @@ def is_malformed(msg, joint_names):
 def test_fault_injection_every_valid_update_published_and_rejections_counted(processes,
                                                                              listener):
     model = load_robot_description(shipped_robot_path('rl15'))
-    start(processes, 'dq_fk_node')
+    # reliable input, so that "every valid update is published" is checkable exactly
+    start(processes, 'dq_fk_node', 'joint_states_reliability:=reliable')
     poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
     diagnostics = listener.listen(DiagnosticArray, '/diagnostics')
     joints = listener.listen(JointState, '/joint_states', 1000)
