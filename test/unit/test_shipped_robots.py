@@ -2,6 +2,7 @@
 
 import math
 
+from dq_fk_ros.dh import homogeneous_from_dq
 from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path, shipped_robots
 import homogeneous as hm
 import numpy as np
@@ -29,18 +30,18 @@ def test_shipped_files_load_and_every_frame_matches_matrices(name):
     rng = np.random.default_rng(4)
     step = hm.dh_standard if model.chain.convention == 'standard' else hm.dh_modified
     for q in rng.uniform(-2, 2, size=(50, model.chain.dof)):
-        theta, d = model.chain.row_parameters(q)
+        value = dict(zip(model.joint_names, q))
         acc = model.chain.base.to_matrix()
-        frames = homogeneous_from(model, q)
+        frames = homogeneous_from_dq(model.chain.forward_all(q))
         np.testing.assert_allclose(frames[0], acc, atol=1e-12)
         for i, j in enumerate(model.chain.joints):
-            acc = acc @ step(theta[i], d[i], j.a, j.alpha)
+            # the row's DH values at q, read from the row itself (not the chain's index map)
+            theta = j.theta + (j.scale * value[j.name]
+                               if j.joint_type in ('revolute', 'cylindrical') else 0.0)
+            d = j.d + (j.scale * value[j.d_name if j.joint_type == 'cylindrical' else j.name]
+                       if j.joint_type in ('prismatic', 'cylindrical') else 0.0)
+            acc = acc @ step(theta, d, j.a, j.alpha)
             np.testing.assert_allclose(frames[i + 1], acc, atol=1e-12)
-
-
-def homogeneous_from(model, q):
-    from dq_fk_ros.dh import homogeneous_from_dq
-    return homogeneous_from_dq(model.chain.forward_all(q))
 
 
 def test_rl15_is_the_papers_robot_with_its_frame_names():
