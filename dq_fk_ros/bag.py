@@ -154,7 +154,7 @@ class BagOutputs:
         self.static_written = True
 
     def write_chunk(self, q, stamps_ns, log_times_ns):
-        """FK of a chunk of configurations, serialized and written message by message."""
+        """FK of a chunk of configurations, serialized and written as arrays."""
         chain = self.model.chain
         absolute = dq_to_pose_xyzw(chain.forward_all_batch(q))           # (N, frames, 7)
         relative = dq_to_pose_xyzw(chain.relative_all_batch(q)[:, self.moving_rows])
@@ -162,12 +162,7 @@ class BagOutputs:
         tf_rows = self.tf_template.fill(stamps_ns, relative.reshape(n, -1))
         pose_rows = [self.pose_template.fill(stamps_ns, absolute[:, k])
                      for k in self.pose_frames]
-        write, tf, poses = self.writer.write, self.tf, self.poses
-        for i in range(n):
-            t = int(log_times_ns[i])
-            write(tf, t, memoryview(tf_rows[i]))
-            for conn, rows in zip(poses, pose_rows):
-                write(conn, t, memoryview(rows[i]))
+        self.writer.write_rows([self.tf] + self.poses, log_times_ns, [tf_rows] + pose_rows)
         return absolute[:, -1]
 
     def copy(self, conn, time_ns, raw):
@@ -192,7 +187,7 @@ def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=
     Messages the node would reject are skipped and counted by reason; everything valid is
     written. Raises :class:`BagError` for problems with the bags themselves.
     """
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from dq_fk_ros.bag_writer import BagWriter
     from rosbags.typesys import get_typestore, Stores
     model = robot if not isinstance(robot, (str, os.PathLike)) else \
         load_robot_description(robot)
@@ -207,8 +202,7 @@ def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=
                 if not overwrite:
                     raise BagError(f'{out_path} exists; use --overwrite to replace it')
                 shutil.rmtree(out_path) if os.path.isdir(out_path) else os.remove(out_path)
-            plugin = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}[storage]
-            writer = Writer(out_path, version=9, storage_plugin=plugin)
+            writer = BagWriter(out_path, storage)
             writer.open()
         typestore = get_typestore(Stores.ROS2_JAZZY)
         copy_from = list(reader.connections) if copy_input else []

@@ -1,0 +1,209 @@
+"""
+BagWriter: array writes read back by rosbags, and by the official MCAP library (Foxglove).
+
+The MCAP checks use ``mcap`` (chunk and data-section CRCs validated, summary statistics) and
+``mcap_ros2`` (decodes every message from the schema the bag carries): readers that share
+no code with the writer.
+"""
+
+import struct
+import zlib
+
+from dq_fk_ros import bag_writer
+from dq_fk_ros.bag_writer import BagWriter
+from dq_fk_ros.cdr import pose_stamped_template, tf_message_template
+from mcap.reader import make_reader
+from mcap.records import Chunk, Message, MessageIndex
+from mcap.stream_reader import StreamReader
+from mcap_ros2.decoder import DecoderFactory
+import numpy as np
+import pytest
+from rosbags.interfaces import (
+    Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime)
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer, WriterError
+from rosbags.typesys import get_typestore, Stores
+
+TS = get_typestore(Stores.ROS2_JAZZY)
+T0 = 1_700_000_000_000_000_000
+EDGES = [('base', 'link_1'), ('link_1', 'link_2')]
+NEVER = QosTime(sec=0, nsec=0)
+LATCHED = [Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
+               QosDurability.TRANSIENT_LOCAL, NEVER, NEVER, QosLiveliness.AUTOMATIC, NEVER,
+               False)]
+
+
+def content(n, seed=0):
+    """N log times (1 kHz) and random pose / TF values."""
+    rng = np.random.default_rng(seed)
+    times = T0 + np.arange(n, dtype=np.int64) * 1_000_000
+    return times, rng.normal(size=(n, 7)), rng.normal(size=(n, 14))
+
+
+def write_sample(path, storage, n, bulk=True):
+    """
+    One static message, then N (pose, tf) pairs; then a chatter message at the last time.
+
+    ``bulk``: the pairs through :meth:`BagWriter.write_rows`; otherwise one ``write`` each
+    (rosbags' own storages when ``storage`` is a rosbags StoragePlugin).
+    """
+    times, pose_values, tf_values = content(n)
+    poses = pose_stamped_template('base').fill(times, pose_values)
+    tfs = tf_message_template(EDGES).fill(times, tf_values)
+    if isinstance(storage, StoragePlugin):
+        writer = Writer(path, version=9, storage_plugin=storage)
+    else:
+        writer = BagWriter(path, storage)
+    writer.open()
+    static = writer.add_connection('/tf_static', 'tf2_msgs/msg/TFMessage', typestore=TS,
+                                   offered_qos_profiles=LATCHED)
+    pose = writer.add_connection('/pose', 'geometry_msgs/msg/PoseStamped', typestore=TS)
+    tf = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
+    chat = writer.add_connection('/chatter', 'std_msgs/msg/String', typestore=TS)
+    writer.write(static, int(times[0]), tfs[0].tobytes())
+    if bulk:
+        writer.write_rows([pose, tf], times, [poses, tfs])
+    else:
+        for i, t in enumerate(times.tolist()):
+            writer.write(pose, t, poses[i].tobytes())
+            writer.write(tf, t, tfs[i].tobytes())
+    hello = TS.serialize_cdr(TS.types['std_msgs/msg/String'](data='hello'),
+                             'std_msgs/msg/String')
+    writer.write(chat, int(times[-1]), bytes(hello))
+    writer.close()
+    return times, pose_values, tf_values
+
+
+def read_all(path):
+    with Reader(path) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
+        messages = [(c.topic, t, bytes(raw)) for c, t, raw in reader.messages()]
+        return messages, counts, qos, reader.duration
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_rows_read_back_like_rosbags_own_writer(tmp_path, storage):
+    n = 6000  # about 2 MiB of records: several 1 MiB chunks
+    write_sample(tmp_path / 'ours', storage, n)
+    reference = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}[storage]
+    write_sample(tmp_path / 'rosbags', reference, n, bulk=False)
+    ours, reference = read_all(tmp_path / 'ours'), read_all(tmp_path / 'rosbags')
+    assert ours[0] == reference[0]          # same messages, same order
+    assert ours[1:] == reference[1:]        # counts, QoS, duration
+    assert ours[1] == {'/tf_static': 1, '/pose': n, '/tf': n, '/chatter': 1}
+    assert ours[2]['/tf_static'][0].durability == QosDurability.TRANSIENT_LOCAL
+
+
+def test_single_writes_equal_row_writes(tmp_path):
+    write_sample(tmp_path / 'rows', 'mcap', 700)
+    write_sample(tmp_path / 'singles', 'mcap', 700, bulk=False)
+    assert read_all(tmp_path / 'rows') == read_all(tmp_path / 'singles')
+
+
+def test_mcap_reads_in_the_official_library_with_crcs_and_schemas(tmp_path, monkeypatch):
+    monkeypatch.setattr(bag_writer, 'CHUNK_BYTES', 50_000)  # many chunks
+    n = 2000
+    times, pose_values, tf_values = write_sample(tmp_path / 'bag', 'mcap', n)
+    path = tmp_path / 'bag' / 'bag.mcap'
+    with open(path, 'rb') as f:  # every record; chunk and data-section CRCs checked
+        records = list(StreamReader(f, validate_crcs=True, emit_chunks=True).records)
+    chunks = [r for r in records if isinstance(r, Chunk)]
+    assert len(chunks) > 10 and all(c.uncompressed_crc for c in chunks)
+    with open(path, 'rb') as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()], validate_crcs=True)
+        summary = reader.get_summary()
+        by_topic = {ch.topic: ch for ch in summary.channels.values()}
+        assert summary.statistics.message_count == 2 * n + 2
+        assert summary.statistics.channel_message_counts[by_topic['/pose'].id] == n
+        assert len(summary.chunk_indexes) == len(chunks)
+        assert summary.statistics.message_start_time == times[0]
+        assert summary.statistics.message_end_time == times[-1]
+        assert reader.get_header().profile == 'ros2'
+        for topic, ch in by_topic.items():
+            assert ch.message_encoding == 'cdr'
+            assert ch.metadata['topic_type_hash'] == TS.hash_rihs01(
+                summary.schemas[ch.schema_id].name)
+            assert 'offered_qos_profiles' in ch.metadata
+        assert 'transient_local' in by_topic['/tf_static'].metadata['offered_qos_profiles']
+        pose_k = tf_k = 0
+        for _, channel, message, decoded in reader.iter_decoded_messages(log_time_order=True):
+            if channel.topic == '/pose':
+                assert message.log_time == times[pose_k]
+                p = decoded.pose
+                assert [p.position.x, p.position.y, p.position.z, p.orientation.x,
+                        p.orientation.y, p.orientation.z, p.orientation.w] == \
+                    pose_values[pose_k].tolist()
+                assert decoded.header.frame_id == 'base'
+                pose_k += 1
+            elif channel.topic == '/tf':
+                second = decoded.transforms[1]
+                assert (second.header.frame_id, second.child_frame_id) == EDGES[1]
+                assert second.transform.rotation.w == tf_values[tf_k, 13]
+                assert second.header.stamp.sec * 10**9 + second.header.stamp.nanosec == \
+                    times[tf_k]
+                tf_k += 1
+        assert (pose_k, tf_k) == (n, n)
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+        assert 'message_count: 4002' in metadata['rosbag2']['serialized_metadata']
+
+
+def test_mcap_message_indexes_point_at_their_messages(tmp_path, monkeypatch):
+    monkeypatch.setattr(bag_writer, 'CHUNK_BYTES', 20_000)
+    write_sample(tmp_path / 'bag', 'mcap', 500)
+    with open(tmp_path / 'bag' / 'bag.mcap', 'rb') as f:
+        records = list(StreamReader(f, emit_chunks=True).records)
+    checked = 0
+    chunk = None
+    for record in records:
+        if isinstance(record, Chunk):
+            chunk = record
+        elif isinstance(record, MessageIndex):
+            for log_time, offset in record.records:
+                data = chunk.data
+                assert data[offset] == 0x05  # a message record starts there
+                channel, _, t = struct.unpack_from('<HIQ', data, offset + 9)
+                assert (channel, t) == (record.channel_id, log_time)
+                checked += 1
+    assert checked == 1002
+    assert not any(isinstance(r, Message) for r in records)  # every message is in a chunk
+
+
+def test_mcap_summary_crc(tmp_path):
+    write_sample(tmp_path / 'bag', 'mcap', 50)
+    data = (tmp_path / 'bag' / 'bag.mcap').read_bytes()
+    footer = data[-8 - 29:-8]
+    assert footer[0] == 0x02 and data[-8:] == bag_writer.MCAP_MAGIC
+    summary_start, _, crc = struct.unpack_from('<QQI', footer, 9)
+    assert crc == zlib.crc32(data[summary_start:-8 - 4])
+
+
+def test_an_empty_bag_is_valid(tmp_path):
+    writer = BagWriter(tmp_path / 'empty')
+    writer.open()
+    conn = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
+    writer.write_rows([conn], np.zeros(0, np.int64), [np.zeros((0, 40), np.uint8)])
+    writer.close()
+    messages, counts, _, _ = read_all(tmp_path / 'empty')
+    assert messages == [] and counts == {'/tf': 0}
+    with open(tmp_path / 'empty' / 'empty.mcap', 'rb') as f:
+        assert make_reader(f).get_summary().statistics.message_count == 0
+
+
+def test_write_rows_refuses_what_it_cannot_write(tmp_path):
+    writer = BagWriter(tmp_path / 'bag')
+    rows = np.zeros((3, 8), np.uint8)
+    with pytest.raises(WriterError, match='not opened'):
+        writer.write_rows([], np.arange(3), [])
+    writer.open()
+    conn = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
+    other = BagWriter(tmp_path / 'other')
+    other.open()
+    stranger = other.add_connection('/x', 'std_msgs/msg/String', typestore=TS)
+    with pytest.raises(WriterError, match='unknown connection'):
+        writer.write_rows([stranger], np.arange(3), [rows])
+    with pytest.raises(ValueError, match=r'must be \(2, size\) uint8'):
+        writer.write_rows([conn], np.arange(2), [rows])
+    with pytest.raises(ValueError, match='uint8'):
+        writer.write_rows([conn], np.arange(3), [rows.astype(float)])
+    writer.close()
+    other.close()
