@@ -16,10 +16,11 @@ import sys
 import time
 
 from dq_fk_ros.cdr import (
-    CdrError, JointStateNames, parse_joint_state, pose_stamped_template, tf_message_template)
+    JointStateNames, MalformedJointState, parse_joint_states, pose_stamped_template,
+    tf_message_template)
 from dq_fk_ros.dual_quaternion import dq_to_pose_xyzw
 from dq_fk_ros.executables import MATCH_SETTLE_S
-from dq_fk_ros.joint_states import JointStateMerger, PUBLISH
+from dq_fk_ros.joint_states import JointStateMerger
 from dq_fk_ros.robot_model import (
     load_robot_description, RobotDescriptionError, shipped_robot_path)
 import numpy as np
@@ -222,65 +223,67 @@ def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=
 
 def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_of_limits,
                       progress, chunk, in_path):
+    """Read, merge, compute and write chunk by chunk; return the summary dict."""
     merger = JointStateMerger(model.joint_names, model.limits, out_of_limits)
     cache = JointStateNames()
     ids = {c.id for c in conns}
-    total = sum(c.msgcount for c in conns)
-    meter = Progress(total, 'dq_fk_bag process', enabled=progress)
-    dof = model.chain.dof
-    q_buf = np.empty((chunk, dof))
-    stamps = np.empty(chunk, np.int64)
-    log_times = np.empty(chunk, np.int64)
-    filled = 0
-    seen = 0
-    written = 0
+    meter = Progress(sum(c.msgcount for c in conns), 'dq_fk_bag process', enabled=progress)
     csv = open(csv_path, 'w', encoding='utf-8') if csv_path else None
-    error = None
     if csv:
         csv.write('stamp_ns,x,y,z,qx,qy,qz,qw\n')
+    raws, log_times = [], []
+    seen = written = 0
+    error = None
 
     def flush():
+        """Parse, merge (the node's rules), compute and write the collected messages."""
         nonlocal written
-        if not filled:
+        if not raws:
             return
-        if outputs is not None:
-            if not outputs.static_written:
-                outputs.write_static(int(log_times[0]))
-            ee = outputs.write_chunk(q_buf[:filled], stamps[:filled], log_times[:filled])
-        else:
-            ee = dq_to_pose_xyzw(model.chain.forward_batch(q_buf[:filled]))
-        if csv:
-            line = '%d,' + ','.join(['%.17g'] * 7) + '\n'
-            csv.writelines(line % (s, *p) for s, p in zip(stamps[:filled].tolist(),
-                                                          ee.tolist()))
-        written += filled
-
-    messages = reader.messages(connections=list(reader.connections) if copy_input else conns)
-    try:
-        for conn, log_time, raw in messages:
-            if conn.id not in ids:
-                outputs.copy(conn, log_time, raw)
-                continue
-            if copy_input:
-                outputs.copy(conn, log_time, raw)
-            seen += 1
-            try:
-                stamp_ns, names, positions, velocities = parse_joint_state(raw, cache)
-            except CdrError:
+        times = np.array(log_times, dtype=np.int64)
+        q, stamps, out_times = [], [], []
+        for item in parse_joint_states(raws, cache):
+            if isinstance(item, MalformedJointState):
                 merger.counts['received'] += 1
                 merger.counts['rejected'] += 1
                 merger.counts['rejected_malformed_cdr'] += 1
                 continue
-            result = merger.merge(names, positions, velocities, stamp_ns)
-            if result.status != PUBLISH:
+            published, q_run, _ = merger.merge_batch(item.names, item.positions,
+                                                     item.velocities, item.stamps_ns)
+            run_times = times[item.first + published]
+            run_stamps = item.stamps_ns[published]
+            q.append(q_run)
+            stamps.append(np.where(run_stamps != 0, run_stamps, run_times))  # input stamps
+            out_times.append(run_times)
+        raws.clear()
+        log_times.clear()
+        if not q or not sum(map(len, q)):
+            return
+        q, stamps, out_times = np.concatenate(q), np.concatenate(stamps), \
+            np.concatenate(out_times)
+        if outputs is not None:
+            if not outputs.static_written:
+                outputs.write_static(int(out_times[0]))
+            ee = outputs.write_chunk(q, stamps, out_times)
+        else:
+            ee = dq_to_pose_xyzw(model.chain.forward_batch(q))
+        if csv:
+            line = '%d,' + ','.join(['%.17g'] * 7) + '\n'
+            csv.writelines(line % (s, *p) for s, p in zip(stamps.tolist(), ee.tolist()))
+        written += len(q)
+
+    messages = reader.messages(connections=list(reader.connections) if copy_input else conns)
+    try:
+        for conn, log_time, raw in messages:
+            if copy_input:
+                outputs.copy(conn, log_time, raw)
+            if conn.id not in ids:
                 continue
-            q_buf[filled] = result.q
-            stamps[filled] = stamp_ns or log_time  # output stamps equal input stamps
-            log_times[filled] = log_time
-            filled += 1
-            if filled == chunk:
+            seen += 1
+            raws.append(raw)
+            log_times.append(log_time)
+            if len(raws) == chunk:
                 flush()
-                filled = 0
                 meter.update(seen)
     except Exception as exc:  # a truncated or corrupt bag: keep everything read so far
         error = f'{in_path}: reading stopped after {seen} JointState messages: {exc}'

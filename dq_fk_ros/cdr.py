@@ -12,6 +12,7 @@ aligned to its size, relative to the start of the payload.
 """
 
 import struct
+from typing import NamedTuple
 
 import numpy as np
 
@@ -46,17 +47,17 @@ class _Cursor:
             raise CdrError('string runs past the end of the message')
         self.pos += length
 
-    def f64_array(self):
+    def f64_span(self):
+        """Skip a float64 sequence; return ``(offset, count)`` of its values."""
         count = self.u32()
         if count == 0:
-            return np.empty(0)
+            return self.pos, 0
         self.align(8)
-        end = self.pos + 8 * count
+        start, end = self.pos, self.pos + 8 * count
         if end > len(self.raw):
             raise CdrError('float64 sequence runs past the end of the message')
-        values = np.frombuffer(self.raw, '<f8', count, self.pos)
         self.pos = end
-        return values
+        return start, count
 
 
 class JointStateNames:
@@ -70,6 +71,30 @@ class JointStateNames:
         self.names = ()
 
 
+def _joint_state_spans(raw):
+    """
+    Where the fields of a serialized JointState are: ``(names, positions, velocities, efforts)``.
+
+    Arrays are ``(offset, count)`` of their float64 values; names are ``(offset, count,
+    end)`` of the strings (from the first one's length). The stamp is always at bytes 4..12.
+    """
+    if len(raw) < 16 or raw[:2] != CDR_LE_HEADER[:2]:
+        raise CdrError('not a little-endian CDR message (or shorter than its header)')
+    try:
+        cur = _Cursor(raw)
+        cur.pos = 12
+        cur.skip_string()  # header.frame_id
+        count = cur.u32()
+        start = cur.pos
+        for _ in range(count):
+            cur.skip_string()
+        names = (start, count, cur.pos)
+        arrays = [cur.f64_span() for _ in range(3)]
+    except struct.error as exc:
+        raise CdrError(f'message ends early ({exc})') from None
+    return (names, *arrays)
+
+
 def parse_joint_state(raw, cache=None):
     """
     Read a serialized ``sensor_msgs/JointState``: ``(stamp_ns, names, positions, velocities)``.
@@ -78,30 +103,25 @@ def parse_joint_state(raw, cache=None):
     :param cache: a :class:`JointStateNames` shared between calls (names rarely change).
     :raises CdrError: truncated or not little-endian CDR.
     """
-    if len(raw) < 16 or raw[:2] != CDR_LE_HEADER[:2]:
-        raise CdrError('not a little-endian CDR message (or shorter than its header)')
-    try:
-        sec, nanosec = _STAMP.unpack_from(raw, 4)
-        cur = _Cursor(raw)
-        cur.pos = 12
-        cur.skip_string()  # header.frame_id
-        count = cur.u32()
-        start = cur.pos
-        for _ in range(count):
-            cur.skip_string()
-        names_raw = raw[start:cur.pos]
-        if cache is not None and cache.raw == names_raw:
-            names = cache.names
-        else:
-            names = _decode_names(raw, start, count)
-            if cache is not None:
-                cache.raw, cache.names = bytes(names_raw), names
-        positions = cur.f64_array()
-        velocities = cur.f64_array()
-        cur.f64_array()  # effort: read only to check the message is complete
-    except struct.error as exc:
-        raise CdrError(f'message ends early ({exc})') from None
-    return sec * 1_000_000_000 + nanosec, names, positions, velocities
+    names_span, positions, velocities, _ = _joint_state_spans(raw)
+    sec, nanosec = _STAMP.unpack_from(raw, 4)
+    names = _names(raw, names_span, cache)
+    return (sec * 1_000_000_000 + nanosec, names,
+            np.frombuffer(raw, '<f8', positions[1], positions[0]),
+            np.frombuffer(raw, '<f8', velocities[1], velocities[0]))
+
+
+def _names(raw, span, cache):
+    """Decode the names of ``span`` (reusing ``cache`` while their bytes are unchanged)."""
+    at, count, end = span
+    if cache is None:
+        return _decode_names(raw, at, count)
+    names_raw = bytes(raw[at:end])
+    if cache.raw == names_raw:
+        return cache.names
+    names = _decode_names(raw, at, count)
+    cache.raw, cache.names = names_raw, names
+    return names
 
 
 def _decode_names(raw, pos, count):
@@ -116,6 +136,107 @@ def _decode_names(raw, pos, count):
             raise CdrError('a joint name is not UTF-8') from None
         pos += length
     return tuple(names)
+
+
+class JointStateRun(NamedTuple):
+    """Consecutive messages of one layout (same names and array lengths), as arrays."""
+
+    first: int                # index of the run's first message in the batch
+    names: tuple
+    stamps_ns: np.ndarray     # (k,) int64
+    positions: np.ndarray     # (k, len(positions)) float64
+    velocities: np.ndarray    # (k, len(velocities)) float64, often (k, 0)
+
+
+class MalformedJointState(NamedTuple):
+    """A message of the batch that is not readable CDR of a JointState."""
+
+    index: int
+    reason: str
+
+
+class _Layout:
+    """One message's layout: its size, the bytes that must match, where the values are."""
+
+    def __init__(self, raw, cache):
+        names, self.positions, self.velocities, efforts = _joint_state_spans(raw)
+        self.names = _names(raw, names, cache)
+        self.size = len(raw)
+        fixed = np.ones(self.size, bool)
+        fixed[4:12] = False  # the stamp
+        for at, count in (self.positions, self.velocities, efforts):
+            fixed[at:at + 8 * count] = False
+        self.fixed = np.flatnonzero(fixed)
+        self.template = np.frombuffer(raw, np.uint8)[self.fixed]
+
+    def values(self, rows):
+        """Stamps, positions and velocities of ``(k, size)`` messages of this layout."""
+        sec = rows[:, 4:8].copy().view('<i4')[:, 0].astype(np.int64)
+        nanosec = rows[:, 8:12].copy().view('<u4')[:, 0].astype(np.int64)
+
+        def floats(span):
+            at, count = span
+            return rows[:, at:at + 8 * count].copy().view('<f8')
+        return sec * 1_000_000_000 + nanosec, floats(self.positions), floats(self.velocities)
+
+
+def parse_joint_states(raws, cache=None, max_layouts=8):
+    """
+    Read a batch of serialized JointStates: runs of one layout, as arrays, in batch order.
+
+    A layout is read from one message; every message of the same size whose bytes outside
+    the stamp and the float64 values are equal shares it, and its values are read for all
+    of them at once. Returns a list of :class:`JointStateRun` and
+    :class:`MalformedJointState` that covers the batch in order. The values are those
+    :func:`parse_joint_state` reads message by message.
+
+    :param raws: the messages' CDR bytes.
+    :param cache: a :class:`JointStateNames` shared between batches.
+    :param max_layouts: layouts matched against the whole batch; messages of further
+        layouts are read one by one (bounds the work when every message differs).
+    """
+    m = len(raws)
+    if not m:
+        return []
+    lengths = np.fromiter(map(len, raws), np.int64, m)
+    joined = np.frombuffer(b''.join(raws), np.uint8)
+    starts = np.zeros(m, np.int64)
+    np.cumsum(lengths[:-1], out=starts[1:])
+    layout_of = np.full(m, -1)
+    rank = np.zeros(m, np.int64)     # position of a message among its layout's messages
+    layouts, values, malformed = [], [], {}
+    todo = np.arange(m)
+    while len(todo):
+        first = int(todo[0])
+        try:
+            layout = _Layout(raws[first], cache)
+        except CdrError as exc:
+            malformed[first] = str(exc)
+            layout_of[first] = -2
+            todo = todo[1:]
+            continue
+        same = todo[lengths[todo] == layout.size] if len(layouts) < max_layouts else todo[:1]
+        rows = joined[starts[same][:, None] + np.arange(layout.size)]
+        match = (rows[:, layout.fixed] == layout.template).all(axis=1)
+        members = same[match]
+        layout_of[members] = len(layouts)
+        rank[members] = np.arange(len(members))
+        layouts.append(layout)
+        values.append(layout.values(rows[match]))
+        todo = todo[layout_of[todo] == -1]
+    out = []
+    breaks = np.flatnonzero((layout_of[1:] != layout_of[:-1]) | (layout_of[1:] == -2)) + 1
+    for a, b in zip(np.concatenate([[0], breaks]), np.concatenate([breaks, [m]])):
+        a, b = int(a), int(b)
+        lid = layout_of[a]
+        if lid == -2:
+            out.append(MalformedJointState(a, malformed[a]))
+            continue
+        r = rank[a]
+        stamps, positions, velocities = values[lid]
+        out.append(JointStateRun(a, layouts[lid].names, stamps[r:r + b - a],
+                                 positions[r:r + b - a], velocities[r:r + b - a]))
+    return out
 
 
 class CdrTemplate:

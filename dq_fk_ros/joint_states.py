@@ -100,6 +100,104 @@ class JointStateMerger:
             self.counts[result.status] += 1
         return result
 
+    def merge_batch(self, names, positions, velocities, stamps_ns):
+        """
+        Merge k messages that share ``names``, in order; the same outcome as k :meth:`merge`.
+
+        Returns ``(published, q, qdot)``: indices of the messages that completed the joint
+        vector, their ``(p, dof)`` joint values and ``(p, dof)`` velocities (a NaN row where
+        :meth:`merge` gives no ``qdot``). Counts are updated as :meth:`merge` would. When the
+        names cover every joint of the chain, each message is decided on its own
+        (vectorised); otherwise (partial messages build on earlier ones) the messages go
+        through :meth:`merge`.
+
+        :param names: the joint names of every message.
+        :param positions: ``(k, len(names))`` positions.
+        :param velocities: ``(k, len(names))`` or ``(k, 0)`` velocities.
+        :param stamps_ns: ``(k,)`` stamps in nanoseconds (0: none).
+        """
+        positions = np.asarray(positions, dtype=float)
+        velocities = np.asarray(velocities, dtype=float)
+        k, n = len(stamps_ns), len(self.joint_names)
+        columns = self._full_columns(names, positions, velocities)
+        if columns is None:
+            return self._merge_each(names, positions, velocities, stamps_ns)
+        self.counts['received'] += k
+        q = positions[:, columns]
+        qdot = velocities[:, columns] if velocities.shape[1] else np.full((k, n), math.nan)
+        lower, upper = self.limits[:, 0], self.limits[:, 1]
+        accepted = np.isfinite(q).all(axis=1)
+        self._count_rejected('non_finite', k - int(accepted.sum()))
+        if self.out_of_limits == 'reject':
+            inside = ((q >= lower) & (q <= upper)).all(axis=1)
+            self._count_rejected('out_of_limits', int((accepted & ~inside).sum()))
+            accepted &= inside
+        elif self.out_of_limits == 'clamp':
+            q = np.clip(q, lower, upper)
+        published = np.flatnonzero(accepted)
+        stamps = np.asarray(stamps_ns, dtype=np.int64)[published]
+        self._track_stamps(stamps[stamps != 0])
+        if len(published):
+            self._q = q[published[-1]].tolist()
+            self._qdot = qdot[published[-1]].tolist()
+            self._seen = [True] * n
+            self.counts[PUBLISH] += len(published)
+        qdot = qdot[published]
+        qdot[~np.isfinite(qdot).all(axis=1)] = math.nan  # as merge: all joints, or none
+        return published, q[published], qdot
+
+    def _full_columns(self, names, positions, velocities):
+        """Column of each chain joint in messages that name all of them, else None."""
+        n_msg = len(names)
+        if (positions.ndim != 2 or positions.shape[1] != n_msg or velocities.ndim != 2
+                or velocities.shape[1] not in (0, n_msg) or len(set(names)) != n_msg):
+            return None
+        where = {name: k for k, name in enumerate(names)}
+        columns = [where.get(name) for name in self.joint_names]
+        if None in columns:
+            return None
+        for name in names:
+            if name not in self._index and name not in self.unknown:
+                self.unknown.add(name)
+        return columns
+
+    def _count_rejected(self, reason, count):
+        if count:
+            self.counts['rejected'] += count
+            self.counts['rejected_' + reason] += count
+
+    def _track_stamps(self, stamps):
+        """Follow the last stamp through non-zero ``stamps`` as :meth:`merge` does."""
+        last = self._last_stamp_ns
+        at = 0
+        while at < len(stamps):
+            rest = stamps[at:]
+            before = np.maximum.accumulate(rest)
+            before = np.concatenate([[last if last is not None else rest[0]], before[:-1]])
+            if last is not None:
+                before = np.maximum(before, last)
+            jumps = np.flatnonzero(rest < before - TIME_JUMP_BACK_NS)
+            if not len(jumps):
+                last = int(before[-1] if before[-1] > rest[-1] else rest[-1])
+                break
+            self.counts['time_jumps'] += 1
+            last = None
+            at += int(jumps[0])
+        self._last_stamp_ns = last
+
+    def _merge_each(self, names, positions, velocities, stamps_ns):
+        published, qs, qdots = [], [], []
+        for i, stamp in enumerate(stamps_ns):
+            result = self.merge(names, positions[i], velocities[i], int(stamp))
+            if result.status == PUBLISH:
+                published.append(i)
+                qs.append(result.q)
+                qdots.append(result.qdot if result.qdot is not None
+                             else np.full(len(self.joint_names), math.nan))
+        n = len(self.joint_names)
+        return (np.array(published, dtype=np.int64), np.array(qs).reshape(-1, n),
+                np.array(qdots).reshape(-1, n))
+
     def _reject(self, reason, detail=''):
         return MergeResult(REJECTED, reason=reason,
                            detail=detail or REJECT_REASONS[reason])

@@ -1,7 +1,8 @@
 """The fast CDR reader and templates against rosbags' own (independent) CDR implementation."""
 
 from dq_fk_ros.cdr import (
-    CdrError, JointStateNames, parse_joint_state, pose_stamped_template, tf_message_template)
+    CdrError, JointStateNames, JointStateRun, MalformedJointState, parse_joint_state,
+    parse_joint_states, pose_stamped_template, tf_message_template)
 import numpy as np
 import pytest
 from rosbags.typesys import get_typestore, Stores
@@ -82,3 +83,63 @@ def test_tf_message_template_deserializes_to_the_values():
         assert [tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w] == list(values[0, 7 * k:7 * k + 7])
         assert (t.header.stamp.sec, t.header.stamp.nanosec) == (123, 456)
     assert len(row) == len(TS.serialize_cdr(msg, 'tf2_msgs/msg/TFMessage'))
+
+
+def mixed_messages(rng, count):
+    """Messages of several layouts (some of equal size), in runs, with malformed ones."""
+    kinds = [(['a', 'b', 'c'], 0, ''), (['a', 'b', 'd'], 0, ''),      # same size, other name
+             (['a', 'b', 'c'], 3, ''), (['a', 'b', 'c'], 0, 'base'),  # velocities, frame id
+             (['c'], 0, ''), ([], 0, '')]
+    raws = []
+    while len(raws) < count:
+        names, n_vel, frame = kinds[rng.integers(len(kinds))]
+        for _ in range(int(rng.integers(1, 12))):
+            stamp = int(rng.integers(0, 2**60))
+            raw = joint_state_bytes(names, rng.normal(size=len(names)),
+                                    rng.normal(size=n_vel), stamp, frame)
+            if rng.random() < 0.05:
+                raw = raw[:int(rng.integers(0, len(raw)))]  # truncated
+            raws.append(memoryview(raw) if rng.random() < 0.5 else raw)
+    return raws[:count]
+
+
+@pytest.mark.parametrize('max_layouts', [1, 3, 8])
+@pytest.mark.parametrize('seed', range(4))
+def test_batch_parse_equals_parsing_one_by_one(seed, max_layouts):
+    rng = np.random.default_rng(seed)
+    raws = mixed_messages(rng, 400)
+    expected = []
+    for raw in raws:
+        try:
+            expected.append(parse_joint_state(raw))
+        except CdrError as exc:
+            expected.append(str(exc))
+    got = [None] * len(raws)
+    covered = 0
+    for item in parse_joint_states(raws, JointStateNames(), max_layouts):
+        if isinstance(item, MalformedJointState):
+            assert item.index == covered
+            got[item.index] = item.reason
+            covered += 1
+            continue
+        assert isinstance(item, JointStateRun) and item.first == covered
+        for j in range(len(item.stamps_ns)):
+            got[item.first + j] = (int(item.stamps_ns[j]), item.names, item.positions[j],
+                                   item.velocities[j])
+        covered += len(item.stamps_ns)
+    assert covered == len(raws)
+    for g, e in zip(got, expected):
+        if isinstance(e, str):
+            assert g == e
+        else:
+            assert (g[0], g[1]) == (e[0], e[1])
+            np.testing.assert_array_equal(g[2], e[2])
+            np.testing.assert_array_equal(g[3], e[3])
+
+
+def test_batch_parse_makes_one_run_of_a_uniform_batch():
+    raws = [joint_state_bytes(['j1', 'j2'], [k, -k], [], 10**9 * k) for k in range(500)]
+    runs = parse_joint_states(raws)
+    assert len(runs) == 1 and runs[0].positions.shape == (500, 2)
+    assert runs[0].stamps_ns.tolist() == [10**9 * k for k in range(500)]
+    assert parse_joint_states([]) == []

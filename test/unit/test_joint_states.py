@@ -108,3 +108,73 @@ def test_counts(merger):
     assert merger.counts['received'] == 3
     assert merger.counts['incomplete'] == 1 and merger.counts['publish'] == 1
     assert merger.counts['rejected'] == 1
+
+
+# -- merge_batch: the same outcome as one merge per message -------------------------------
+NAME_SETS = [
+    ('a', 'b', 'c'), ('c', 'a', 'b'), ('b', 'x', 'c', 'a'),  # full, reordered, plus unknown
+    ('a', 'c'), ('y',), ('a', 'a', 'b'), (),                  # partial, foreign, duplicate
+]
+
+
+def random_batch(rng, names, k):
+    """K messages with ``names``: some NaN, some out of limits, stamps with jumps and zeros."""
+    n = len(names)
+    positions = rng.uniform(-1.5, 2.5, size=(k, n))
+    positions[rng.random((k, n)) < 0.03] = np.nan
+    velocities = rng.normal(size=(k, n)) if rng.random() < 0.5 else np.zeros((k, 0))
+    if velocities.size:
+        velocities[rng.random((k, n)) < 0.05] = np.nan
+    steps = rng.choice([0, 1_000_000, 5_000_000, -300_000_000, -3_000_000_000], size=k,
+                       p=[0.1, 0.6, 0.2, 0.05, 0.05])
+    stamps = 5_000_000_000 + np.cumsum(steps)
+    stamps[rng.random(k) < 0.1] = 0
+    return positions, velocities, stamps
+
+
+def merge_one_by_one(merger, names, positions, velocities, stamps):
+    published, qs, qdots = [], [], []
+    for i in range(len(stamps)):
+        r = merger.merge(names, positions[i], velocities[i], int(stamps[i]))
+        if r.status == PUBLISH:
+            published.append(i)
+            qs.append(r.q)
+            qdots.append(r.qdot if r.qdot is not None else np.full(3, np.nan))
+    return published, np.array(qs).reshape(-1, 3), np.array(qdots).reshape(-1, 3)
+
+
+@pytest.mark.parametrize('policy', ['warn', 'clamp', 'reject'])
+@pytest.mark.parametrize('seed', range(6))
+def test_merge_batch_equals_merging_one_by_one(policy, seed):
+    rng = np.random.default_rng(seed)
+    batched = JointStateMerger(NAMES, LIMITS, policy)
+    single = JointStateMerger(NAMES, LIMITS, policy)
+    for _ in range(25):
+        names = NAME_SETS[rng.integers(len(NAME_SETS))]
+        k = int(rng.integers(1, 60))
+        positions, velocities, stamps = random_batch(rng, names, k)
+        if names == ('a', 'a', 'b') and rng.random() < 0.5:
+            positions = positions[:, :2]  # and a length mismatch
+        published, q, qdot = batched.merge_batch(names, positions, velocities, stamps)
+        expected = merge_one_by_one(single, names, positions, velocities, stamps)
+        assert published.tolist() == expected[0]
+        np.testing.assert_array_equal(q, expected[1])
+        np.testing.assert_array_equal(qdot, expected[2])
+        assert batched.counts == single.counts
+        assert batched.unknown == single.unknown
+        # the state left behind is the same: a partial message completes alike
+        probe_b = batched.merge(['b'], [0.25], [0.5], stamp_ns=0)
+        probe_s = single.merge(['b'], [0.25], [0.5], stamp_ns=0)
+        assert (probe_b.status, str(probe_b.q), str(probe_b.qdot)) == \
+            (probe_s.status, str(probe_s.q), str(probe_s.qdot))
+    assert single.counts['time_jumps'] > 0 and single.counts['rejected_non_finite'] > 0
+
+
+def test_merge_batch_tracks_time_jumps_across_batches(merger):
+    full = np.zeros((1, 3))
+    merger.merge_batch(NAMES, full, np.zeros((1, 0)), [10 * TIME_JUMP_BACK_NS])
+    # 8.9 s is a jump back from the 10 s of the batch before, not from the 9.5 s before it
+    merger.merge_batch(NAMES, np.zeros((3, 3)), np.zeros((3, 0)),
+                       [9.5 * TIME_JUMP_BACK_NS, 8.9 * TIME_JUMP_BACK_NS, 0])
+    assert merger.counts['time_jumps'] == 1
+    assert merger.counts['publish'] == 4
