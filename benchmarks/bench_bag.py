@@ -2,11 +2,14 @@
 Offline bag processing speed and memory: ``dq_fk_bag process`` end to end (read, FK, write).
 
 Writes a 6-DoF RL15 JointState bag of N messages (MCAP) into a temporary folder, then runs
-``dq_fk_bag process`` on it in a child process for each ``--poses`` choice (every frame's
-pose topic, only the end effector's, none: /tf only) and prints messages per second and the
-child's peak resident memory. Two bag lengths show whether memory grows with the bag.
+``dq_fk_bag process`` on it in a child process for each case and prints messages per second
+and the child's peak resident memory. A case is ``STORAGE:POSES:INPUT``: the output storage
+(mcap, sqlite3), the pose topics written (all frames, the end effector only, none: /tf only)
+and the input (``full``: every message names all six joints; ``split``: two publishers
+alternate, three joints each, so every message merges with the one before). Two bag lengths
+show whether memory grows with the bag.
 
-Run: ``python benchmarks/bench_bag.py [--messages 100000 1000000]``.
+Run: ``python benchmarks/bench_bag.py [--messages 100000 1000000] [--cases mcap:all:full]``.
 """
 
 import argparse
@@ -22,9 +25,16 @@ import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
+CASES = ['mcap:all:full', 'mcap:end:full', 'mcap:none:full', 'sqlite3:all:full',
+         'mcap:all:split']
 
-def write_joint_state_bag(path, n):
-    """Write a bag of ``n`` RL15 joint states at 1 kHz along a smooth trajectory."""
+
+def write_joint_state_bag(path, n, split=False):
+    """
+    Write a bag of ``n`` RL15 joint states at 1 kHz along a smooth trajectory.
+
+    ``split``: messages alternate between joints 1-3 and joints 4-6 (two publishers).
+    """
     ts = get_typestore(Stores.ROS2_JAZZY)
     js = ts.types['sensor_msgs/msg/JointState']
     header = ts.types['std_msgs/msg/Header']
@@ -36,15 +46,17 @@ def write_joint_state_bag(path, n):
         for k in range(n):
             t = t0 + k * 1_000_000
             q = 0.8 * np.sin(np.arange(1, 7) * k * 1e-4)
+            part = slice(3 * (k % 2), 3 * (k % 2) + 3) if split else slice(0, 6)
             msg = js(header=header(stamp=stamp(sec=t // 10**9, nanosec=t % 10**9), frame_id=''),
-                     name=names, position=q, velocity=np.zeros(0), effort=np.zeros(0))
+                     name=names[part], position=q[part], velocity=np.zeros(0),
+                     effort=np.zeros(0))
             writer.write(conn, t, ts.serialize_cdr(msg, 'sensor_msgs/msg/JointState'))
 
 
-def run_process(in_bag, out_bag, poses):
+def run_process(in_bag, out_bag, storage, poses):
     """Run ``dq_fk_bag process`` as a child; return (seconds, peak RSS MiB, summary line)."""
     argv = executable('dq_fk_bag') + ['process', in_bag, out_bag, '--poses', poses,
-                                      '--quiet', '--overwrite']
+                                      '--storage', storage, '--quiet', '--overwrite']
     start = time.perf_counter()
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -59,31 +71,36 @@ def run_process(in_bag, out_bag, poses):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--messages', type=int, nargs='+', default=[100_000, 1_000_000])
-    parser.add_argument('--poses', nargs='+', default=['all', 'end', 'none'])
+    parser.add_argument('--cases', nargs='+', default=CASES, metavar='STORAGE:POSES:INPUT')
     args = parser.parse_args(argv)
+    cases = [tuple(c.split(':')) for c in args.cases]
     rows = []
     work = tempfile.mkdtemp(prefix='dq_fk_bench_bag_')
     try:
         for n in args.messages:
-            in_bag = os.path.join(work, f'in_{n}')
-            start = time.perf_counter()
-            write_joint_state_bag(in_bag, n)
-            print(f'wrote a {n}-message input bag in {time.perf_counter() - start:.1f} s',
-                  file=sys.stderr)
-            for poses in args.poses:
-                elapsed, rss, line = run_process(in_bag, os.path.join(work, 'out'), poses)
-                rows.append((n, poses, elapsed, n / elapsed, rss, line))
-            shutil.rmtree(in_bag)
+            for shape in sorted({c[2] for c in cases}):
+                in_bag = os.path.join(work, f'in_{n}_{shape}')
+                start = time.perf_counter()
+                write_joint_state_bag(in_bag, n, split=shape == 'split')
+                print(f'wrote a {n}-message {shape} input bag in '
+                      f'{time.perf_counter() - start:.1f} s', file=sys.stderr)
+                for storage, poses, _ in [c for c in cases if c[2] == shape]:
+                    out_bag = os.path.join(work, 'out')
+                    elapsed, rss, line = run_process(in_bag, out_bag, storage, poses)
+                    written = int(line.split(', ')[1].split()[0])
+                    rows.append((n, storage, poses, shape, elapsed, rss, written))
+                shutil.rmtree(in_bag)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    print('# dq_fk_bag process, RL15 (6 joints, 7 frames), MCAP in and out, end to end '
+    print('# dq_fk_bag process, RL15 (6 joints, 7 frames), MCAP in, end to end '
           '(process start, read, FK, write)')
-    print('| messages | pose topics | seconds | messages/s | peak RSS MiB | output messages |')
-    print('|---|---|---|---|---|---|')
-    for n, poses, elapsed, rate, rss, _ in rows:
+    print('| messages | storage | pose topics | input | seconds | messages/s | peak RSS MiB '
+          '| joint vectors written | output messages |')
+    print('|---|---|---|---|---|---|---|---|---|')
+    for n, storage, poses, shape, elapsed, rss, written in rows:
         per_input = 1 + {'all': 7, 'end': 1, 'none': 0}[poses]
-        print(f'| {n:,} | {poses} | {elapsed:.1f} | {rate:,.0f} | {rss:.0f} '
-              f'| {per_input} per input + 1 /tf_static |')
+        print(f'| {n:,} | {storage} | {poses} | {shape} | {elapsed:.1f} | {n / elapsed:,.0f} '
+              f'| {rss:.0f} | {written:,} | {per_input} per vector + 1 /tf_static |')
     return 0
 
 

@@ -16,7 +16,7 @@ import sys
 import time
 
 from dq_fk_ros.cdr import (
-    JointStateNames, MalformedJointState, parse_joint_states, pose_stamped_template,
+    JointStateNames, JointStateRun, parse_joint_states, pose_stamped_template,
     tf_message_template)
 from dq_fk_ros.dual_quaternion import dq_to_pose_xyzw
 from dq_fk_ros.executables import MATCH_SETTLE_S
@@ -240,27 +240,23 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
         nonlocal written
         if not raws:
             return
-        times = np.array(log_times, dtype=np.int64)
-        q, stamps, out_times = [], [], []
-        for item in parse_joint_states(raws, cache):
-            if isinstance(item, MalformedJointState):
-                merger.counts['received'] += 1
-                merger.counts['rejected'] += 1
-                merger.counts['rejected_malformed_cdr'] += 1
-                continue
-            published, q_run, _ = merger.merge_batch(item.names, item.positions,
-                                                     item.velocities, item.stamps_ns)
-            run_times = times[item.first + published]
-            run_stamps = item.stamps_ns[published]
-            q.append(q_run)
-            stamps.append(np.where(run_stamps != 0, run_stamps, run_times))  # input stamps
-            out_times.append(run_times)
+        items = parse_joint_states(raws, cache)
+        runs = [item for item in items if isinstance(item, JointStateRun)]
+        malformed = len(items) - len(runs)
+        merger.counts['received'] += malformed
+        merger.count_rejected('malformed_cdr', malformed)
+        published, q, _ = merger.merge_many(
+            [(r.names, r.positions, r.velocities, r.stamps_ns) for r in runs])
+        # message index in this batch of every run message, in merge order
+        where = np.concatenate([r.first + np.arange(len(r.stamps_ns)) for r in runs] or [[]])
+        where = where.astype(np.int64)[published]
+        out_times = np.array(log_times, dtype=np.int64)[where]
+        stamps = np.concatenate([r.stamps_ns for r in runs] or [[]]).astype(np.int64)[published]
+        stamps = np.where(stamps != 0, stamps, out_times)  # output stamps are input stamps
         raws.clear()
         log_times.clear()
-        if not q or not sum(map(len, q)):
+        if not len(q):
             return
-        q, stamps, out_times = np.concatenate(q), np.concatenate(stamps), \
-            np.concatenate(out_times)
         if outputs is not None:
             if not outputs.static_written:
                 outputs.write_static(int(out_times[0]))

@@ -100,103 +100,148 @@ class JointStateMerger:
             self.counts[result.status] += 1
         return result
 
-    def merge_batch(self, names, positions, velocities, stamps_ns):
+    def merge_many(self, runs):
         """
-        Merge k messages that share ``names``, in order; the same outcome as k :meth:`merge`.
+        Merge runs of messages, in order: the same outcome as one :meth:`merge` per message.
 
-        Returns ``(published, q, qdot)``: indices of the messages that completed the joint
-        vector, their ``(p, dof)`` joint values and ``(p, dof)`` velocities (a NaN row where
-        :meth:`merge` gives no ``qdot``). Counts are updated as :meth:`merge` would. When the
-        names cover every joint of the chain, each message is decided on its own
-        (vectorised); otherwise (partial messages build on earlier ones) the messages go
-        through :meth:`merge`.
-
-        :param names: the joint names of every message.
-        :param positions: ``(k, len(names))`` positions.
-        :param velocities: ``(k, len(names))`` or ``(k, 0)`` velocities.
-        :param stamps_ns: ``(k,)`` stamps in nanoseconds (0: none).
+        A run is ``(names, positions, velocities, stamps_ns)`` for k messages that share
+        ``names``: ``(k, len(names))`` positions, ``(k, len(names))`` or ``(k, 0)``
+        velocities, ``(k,)`` stamps (0: none). Runs may name different joints (several
+        publishers): each joint keeps its last accepted value, carried forward with numpy.
+        Returns ``(published, q, qdot)``: indices (into all the runs' messages, in order) of
+        the messages that completed the joint vector, their ``(p, dof)`` joint values and
+        ``(p, dof)`` velocities (a NaN row where :meth:`merge` gives no ``qdot``). Counts and
+        the merged state are updated as :meth:`merge` would.
         """
-        positions = np.asarray(positions, dtype=float)
-        velocities = np.asarray(velocities, dtype=float)
-        k, n = len(stamps_ns), len(self.joint_names)
-        columns = self._full_columns(names, positions, velocities)
-        if columns is None:
-            return self._merge_each(names, positions, velocities, stamps_ns)
-        self.counts['received'] += k
-        q = positions[:, columns]
-        qdot = velocities[:, columns] if velocities.shape[1] else np.full((k, n), math.nan)
-        lower, upper = self.limits[:, 0], self.limits[:, 1]
-        accepted = np.isfinite(q).all(axis=1)
-        self._count_rejected('non_finite', k - int(accepted.sum()))
-        if self.out_of_limits == 'reject':
-            inside = ((q >= lower) & (q <= upper)).all(axis=1)
-            self._count_rejected('out_of_limits', int((accepted & ~inside).sum()))
-            accepted &= inside
-        elif self.out_of_limits == 'clamp':
-            q = np.clip(q, lower, upper)
-        published = np.flatnonzero(accepted)
-        stamps = np.asarray(stamps_ns, dtype=np.int64)[published]
-        self._track_stamps(stamps[stamps != 0])
-        if len(published):
-            self._q = q[published[-1]].tolist()
-            self._qdot = qdot[published[-1]].tolist()
-            self._seen = [True] * n
-            self.counts[PUBLISH] += len(published)
-        qdot = qdot[published]
+        n = len(self.joint_names)
+        total = sum(len(run[3]) for run in runs)
+        given = np.zeros((total, n), bool)      # joint values an accepted message sets
+        values = np.zeros((total, n))
+        rates = np.full((total, n), math.nan)
+        accepted = np.zeros(total, bool)
+        stamps = np.zeros(total, np.int64)
+        # runs of one layout (several publishers interleave) are checked together
+        layouts = {}
+        at = 0
+        for names, positions, velocities, run_stamps in runs:
+            k = len(run_stamps)
+            key = (tuple(names), np.shape(positions)[1], np.shape(velocities)[1])
+            layouts.setdefault(key, []).append((at, positions, velocities))
+            stamps[at:at + k] = run_stamps
+            at += k
+        self.counts['received'] += total
+        for (names, _, n_vel), members in layouts.items():
+            rows = np.concatenate([np.arange(a, a + len(p)) for a, p, _ in members])
+            columns, joints = self._run_columns(names, members[0][1], members[0][2], len(rows))
+            if columns is None:
+                continue
+            q = np.concatenate([np.asarray(p, dtype=float) for _, p, _ in members])[:, columns]
+            ok = np.isfinite(q).all(axis=1)
+            self.count_rejected('non_finite', len(rows) - int(ok.sum()))
+            lower, upper = self.limits[joints, 0], self.limits[joints, 1]
+            if self.out_of_limits == 'reject':
+                inside = ((q >= lower) & (q <= upper)).all(axis=1)
+                self.count_rejected('out_of_limits', int((ok & ~inside).sum()))
+                ok &= inside
+            elif self.out_of_limits == 'clamp':
+                q = np.clip(q, lower, upper)
+            accepted[rows] = ok
+            taken = rows[ok][:, None]
+            given[taken, joints] = True
+            values[taken, joints] = q[ok]
+            if n_vel:
+                qdot = np.concatenate([np.asarray(v, dtype=float) for _, _, v in members])
+                rates[taken, joints] = qdot[ok][:, columns]
+        stamped = np.flatnonzero(accepted & (stamps != 0))
+        jumps, last_stamp = self._track_stamps(stamps[stamped])
+        resets = stamped[jumps]
+        q_out, qdot_out = np.empty((total, n)), np.empty((total, n))
+        complete = np.zeros(total, bool)
+        bounds = zip(np.concatenate([[0], resets]), np.concatenate([resets, [total]]))
+        for segment, (a, b) in enumerate(bounds):
+            if segment:
+                self.reset()  # a time jump: merge() forgets everything first
+            self._carry_forward(given[a:b], values[a:b], rates[a:b], q_out[a:b],
+                                qdot_out[a:b], complete[a:b])
+        self._last_stamp_ns = last_stamp
+        published = np.flatnonzero(accepted & complete)
+        self.counts[PUBLISH] += len(published)
+        self.counts[INCOMPLETE] += int((accepted & ~complete).sum())
+        qdot = qdot_out[published]
         qdot[~np.isfinite(qdot).all(axis=1)] = math.nan  # as merge: all joints, or none
-        return published, q[published], qdot
+        return published, q_out[published], qdot
 
-    def _full_columns(self, names, positions, velocities):
-        """Column of each chain joint in messages that name all of them, else None."""
+    def _run_columns(self, names, positions, velocities, k):
+        """
+        Columns of the chain's joints in k messages' arrays, and their chain indices.
+
+        Returns ``(None, None)`` (and counts the k rejections) when :meth:`merge` rejects
+        every message of this layout whatever its values; registers unknown joint names.
+        """
         n_msg = len(names)
-        if (positions.ndim != 2 or positions.shape[1] != n_msg or velocities.ndim != 2
-                or velocities.shape[1] not in (0, n_msg) or len(set(names)) != n_msg):
-            return None
-        where = {name: k for k, name in enumerate(names)}
-        columns = [where.get(name) for name in self.joint_names]
-        if None in columns:
-            return None
-        for name in names:
-            if name not in self._index and name not in self.unknown:
-                self.unknown.add(name)
-        return columns
+        reason = None
+        if n_msg == 0:
+            reason = 'empty'
+        elif np.shape(positions)[1] != n_msg or np.shape(velocities)[1] not in (0, n_msg):
+            reason = 'length_mismatch'
+        elif len(set(names)) != n_msg:
+            reason = 'duplicate_name'
+        else:
+            self.unknown.update(name for name in names if name not in self._index)
+            columns = [c for c, name in enumerate(names) if name in self._index]
+            if not columns:
+                reason = 'no_known_joint'
+        if reason is not None:
+            self.count_rejected(reason, k)
+            return None, None
+        return columns, [self._index[names[c]] for c in columns]
 
-    def _count_rejected(self, reason, count):
+    def count_rejected(self, reason, count=1):
+        """Count ``count`` messages rejected for ``reason`` (also ones rejected elsewhere)."""
         if count:
             self.counts['rejected'] += count
             self.counts['rejected_' + reason] += count
 
     def _track_stamps(self, stamps):
-        """Follow the last stamp through non-zero ``stamps`` as :meth:`merge` does."""
+        """
+        Follow the last stamp through non-zero ``stamps`` as :meth:`merge` does.
+
+        Returns the positions in ``stamps`` of time jumps back (where merge resets) and
+        the last stamp after them all.
+        """
         last = self._last_stamp_ns
+        jumps = []
         at = 0
         while at < len(stamps):
             rest = stamps[at:]
-            before = np.maximum.accumulate(rest)
-            before = np.concatenate([[last if last is not None else rest[0]], before[:-1]])
+            before = np.concatenate([[rest[0] if last is None else last],
+                                     np.maximum.accumulate(rest)[:-1]])
             if last is not None:
                 before = np.maximum(before, last)
-            jumps = np.flatnonzero(rest < before - TIME_JUMP_BACK_NS)
-            if not len(jumps):
-                last = int(before[-1] if before[-1] > rest[-1] else rest[-1])
+            back = np.flatnonzero(rest < before - TIME_JUMP_BACK_NS)
+            if not len(back):
+                last = int(max(before[-1], rest[-1]))
                 break
             self.counts['time_jumps'] += 1
+            at += int(back[0])
+            jumps.append(at)
             last = None
-            at += int(jumps[0])
-        self._last_stamp_ns = last
+        return np.array(jumps, dtype=np.int64), last
 
-    def _merge_each(self, names, positions, velocities, stamps_ns):
-        published, qs, qdots = [], [], []
-        for i, stamp in enumerate(stamps_ns):
-            result = self.merge(names, positions[i], velocities[i], int(stamp))
-            if result.status == PUBLISH:
-                published.append(i)
-                qs.append(result.q)
-                qdots.append(result.qdot if result.qdot is not None
-                             else np.full(len(self.joint_names), math.nan))
-        n = len(self.joint_names)
-        return (np.array(published, dtype=np.int64), np.array(qs).reshape(-1, n),
-                np.array(qdots).reshape(-1, n))
+    def _carry_forward(self, given, values, rates, q_out, qdot_out, complete):
+        """Fill each message's joint vector with the last given values, from the state."""
+        if not len(given):
+            return
+        steps = np.arange(len(given))[:, None]
+        last = np.maximum.accumulate(np.where(given, steps, -1), axis=0)
+        has = last >= 0
+        pick = (np.where(has, last, 0), np.arange(given.shape[1]))
+        q_out[:] = np.where(has, values[pick], self._q)
+        qdot_out[:] = np.where(has, rates[pick], self._qdot)
+        seen = has | np.array(self._seen)
+        complete[:] = seen.all(axis=1)
+        self._q, self._qdot, self._seen = q_out[-1].tolist(), qdot_out[-1].tolist(), \
+            seen[-1].tolist()
 
     def _reject(self, reason, detail=''):
         return MergeResult(REJECTED, reason=reason,
@@ -212,18 +257,18 @@ class JointStateMerger:
         if len(set(names)) != n_msg:
             return self._reject('duplicate_name')
         index = self._index
+        new_unknown = [name for name in names if name not in index and name not in self.unknown]
+        self.unknown.update(new_unknown)
         ours = []  # (chain index, position, velocity)
-        new_unknown = []
         for k, name in enumerate(names):
             i = index.get(name)
             if i is None:
-                if name not in self.unknown:
-                    self.unknown.add(name)
-                    new_unknown.append(name)
                 continue
             position = float(positions[k])
             if not math.isfinite(position):
-                return self._reject('non_finite', f'position of {name!r} is {position}')
+                result = self._reject('non_finite', f'position of {name!r} is {position}')
+                result.new_unknown = tuple(new_unknown)
+                return result
             ours.append((i, position, float(velocities[k]) if len(velocities) else math.nan))
         if not ours:
             result = self._reject('no_known_joint', 'none of ' + ', '.join(map(repr, names[:5]))

@@ -167,8 +167,7 @@ class DqFkNode(Node):
         try:
             self._handle(msg)
         except Exception as exc:  # nothing a user sends may stop the node
-            self._merger.counts['rejected'] += 1
-            self._merger.counts['rejected_internal_error'] += 1
+            self._merger.count_rejected('internal_error')
             self.get_logger().error(f'joint state not processed: {exc!r}',
                                     throttle_duration_sec=WARN_EVERY_S)
 

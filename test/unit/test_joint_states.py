@@ -132,31 +132,36 @@ def random_batch(rng, names, k):
     return positions, velocities, stamps
 
 
-def merge_one_by_one(merger, names, positions, velocities, stamps):
+def merge_one_by_one(merger, runs):
     published, qs, qdots = [], [], []
-    for i in range(len(stamps)):
-        r = merger.merge(names, positions[i], velocities[i], int(stamps[i]))
-        if r.status == PUBLISH:
-            published.append(i)
-            qs.append(r.q)
-            qdots.append(r.qdot if r.qdot is not None else np.full(3, np.nan))
+    at = 0
+    for names, positions, velocities, stamps in runs:
+        for i in range(len(stamps)):
+            r = merger.merge(names, positions[i], velocities[i], int(stamps[i]))
+            if r.status == PUBLISH:
+                published.append(at + i)
+                qs.append(r.q)
+                qdots.append(r.qdot if r.qdot is not None else np.full(3, np.nan))
+        at += len(stamps)
     return published, np.array(qs).reshape(-1, 3), np.array(qdots).reshape(-1, 3)
 
 
 @pytest.mark.parametrize('policy', ['warn', 'clamp', 'reject'])
 @pytest.mark.parametrize('seed', range(6))
-def test_merge_batch_equals_merging_one_by_one(policy, seed):
+def test_merge_many_equals_merging_one_by_one(policy, seed):
     rng = np.random.default_rng(seed)
     batched = JointStateMerger(NAMES, LIMITS, policy)
     single = JointStateMerger(NAMES, LIMITS, policy)
     for _ in range(25):
-        names = NAME_SETS[rng.integers(len(NAME_SETS))]
-        k = int(rng.integers(1, 60))
-        positions, velocities, stamps = random_batch(rng, names, k)
-        if names == ('a', 'a', 'b') and rng.random() < 0.5:
-            positions = positions[:, :2]  # and a length mismatch
-        published, q, qdot = batched.merge_batch(names, positions, velocities, stamps)
-        expected = merge_one_by_one(single, names, positions, velocities, stamps)
+        runs = []
+        for _ in range(int(rng.integers(1, 8))):  # several publishers, interleaved
+            names = NAME_SETS[rng.integers(len(NAME_SETS))]
+            positions, velocities, stamps = random_batch(rng, names, int(rng.integers(1, 30)))
+            if names == ('a', 'a', 'b') and rng.random() < 0.5:
+                positions = positions[:, :2]  # and a length mismatch
+            runs.append((names, positions, velocities, stamps))
+        published, q, qdot = batched.merge_many(runs)
+        expected = merge_one_by_one(single, runs)
         assert published.tolist() == expected[0]
         np.testing.assert_array_equal(q, expected[1])
         np.testing.assert_array_equal(qdot, expected[2])
@@ -167,14 +172,26 @@ def test_merge_batch_equals_merging_one_by_one(policy, seed):
         probe_s = single.merge(['b'], [0.25], [0.5], stamp_ns=0)
         assert (probe_b.status, str(probe_b.q), str(probe_b.qdot)) == \
             (probe_s.status, str(probe_s.q), str(probe_s.qdot))
-    assert single.counts['time_jumps'] > 0 and single.counts['rejected_non_finite'] > 0
+    for outcome in ('time_jumps', 'rejected_non_finite', 'incomplete', 'publish'):
+        assert single.counts[outcome] > 0, outcome
 
 
-def test_merge_batch_tracks_time_jumps_across_batches(merger):
-    full = np.zeros((1, 3))
-    merger.merge_batch(NAMES, full, np.zeros((1, 0)), [10 * TIME_JUMP_BACK_NS])
-    # 8.9 s is a jump back from the 10 s of the batch before, not from the 9.5 s before it
-    merger.merge_batch(NAMES, np.zeros((3, 3)), np.zeros((3, 0)),
-                       [9.5 * TIME_JUMP_BACK_NS, 8.9 * TIME_JUMP_BACK_NS, 0])
+def test_merge_many_tracks_time_jumps_across_calls(merger):
+    merger.merge_many([(NAMES, np.zeros((1, 3)), np.zeros((1, 0)), [10 * TIME_JUMP_BACK_NS])])
+    # 8.9 s is a jump back from the 10 s of the call before, not from the 9.5 s before it
+    merger.merge_many([(NAMES, np.zeros((3, 3)), np.zeros((3, 0)),
+                        [9.5 * TIME_JUMP_BACK_NS, 8.9 * TIME_JUMP_BACK_NS, 0])])
     assert merger.counts['time_jumps'] == 1
     assert merger.counts['publish'] == 4
+
+
+def test_merge_many_resets_partial_state_at_a_time_jump(merger):
+    late, early = 10 * TIME_JUMP_BACK_NS, 2 * TIME_JUMP_BACK_NS
+    published, q, _ = merger.merge_many([
+        (('a', 'b'), [[0.5, 0.5]], np.zeros((1, 0)), [late]),
+        (('c',), [[1.0]], np.zeros((1, 0)), [late]),          # complete: a, b, c
+        (('a', 'b'), [[0.1, 0.2]], np.zeros((1, 0)), [early]),  # jump back: c forgotten
+        (('c',), [[1.5]], np.zeros((1, 0)), [early])])
+    assert published.tolist() == [1, 3]
+    np.testing.assert_array_equal(q, [[0.5, 0.5, 1.0], [0.1, 0.2, 1.5]])
+    assert merger.counts['incomplete'] == 2 and merger.counts['time_jumps'] == 1
