@@ -4,16 +4,21 @@ import math
 
 from diagnostic_msgs.msg import DiagnosticArray
 from dq_fk_ros.bag import main as bag_main, process_bag
+from dq_fk_ros.cdr import parse_joint_state
 from dq_fk_ros.executables import executable
+from dq_fk_ros.joint_states import JointStateMerger, PUBLISH
 from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path
 from geometry_msgs.msg import PoseStamped
 import homogeneous_tf as htf
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
 from ros_harness import Harness
 from rosbags.interfaces import QosDurability
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
+import yaml
 
 TS = get_typestore(Stores.ROS2_JAZZY)
 JointState = TS.types['sensor_msgs/msg/JointState']
@@ -107,6 +112,60 @@ def test_tf_static_is_offered_transient_local(tmp_path):
         qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
     assert qos['/tf_static'][0].durability == QosDurability.TRANSIENT_LOCAL
     assert qos['/tf'][0].durability == QosDurability.VOLATILE
+
+
+def test_split_publishers_merge_as_the_node_does(tmp_path):
+    """Two publishers (joints 1-3, joints 4-6) alternate; their clock restarts halfway."""
+    q = trajectory(400)
+    messages = []
+    for k, row in enumerate(q):
+        stamp = T0 + k * 10_000_000 - (5 * 10**9 if k >= 200 else 0)  # a jump back at 200
+        part = slice(0, 3) if k % 2 == 0 else slice(3, 6)
+        if k == 201:  # one publisher keeps going alone for a while after the jump
+            part = slice(0, 3)
+        messages.append((T0 + k * 10_000_000, js_bytes(NAMES[part], row[part], stamp)))
+    write_bag(tmp_path / 'in', messages)
+    summary = process_bag(tmp_path / 'in', tmp_path / 'out', RL15, progress=False, chunk=64)
+    merger = JointStateMerger(MODEL.joint_names, MODEL.limits)  # the node's rules, one by one
+    expected = []
+    for _, raw in messages:
+        stamp, names, positions, _ = parse_joint_state(raw)
+        result = merger.merge(names, positions, stamp_ns=stamp)
+        if result.status == PUBLISH:
+            expected.append((stamp, result.q))
+    # incomplete: the first message, and 200-202 after the reset (joints 4-6 unseen)
+    assert summary['written'] == len(expected) == 396 and summary['incomplete'] == 4
+    out = read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')
+    assert [stamp_ns(m.header) for _, m in out] == [s for s, _ in expected]
+    for (_, msg), (_, joints) in zip(out, expected):
+        np.testing.assert_allclose(htf.pose_matrix(msg.pose),
+                                   MODEL.chain.forward(joints).to_matrix(), atol=1e-12)
+
+
+def test_output_opens_in_the_official_mcap_reader(tmp_path):
+    """Foxglove's mcap (CRCs checked) reads it and mcap_ros2 decodes it from its schemas."""
+    q, stamps = valid_bag(tmp_path / 'in', n=150)
+    process_bag(tmp_path / 'in', tmp_path / 'out', RL15, progress=False, chunk=32)
+    with open(tmp_path / 'out' / 'out.mcap', 'rb') as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()], validate_crcs=True)
+        channels = {c.topic: c for c in reader.get_summary().channels.values()}
+        assert 'transient_local' in channels['/tf_static'].metadata['offered_qos_profiles']
+        assert all(c.metadata['topic_type_hash'].startswith('RIHS01_')
+                   for c in channels.values())
+        counts = {}
+        ee = []
+        for _, channel, _, decoded in reader.iter_decoded_messages(log_time_order=True):
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            if channel.topic == '/dq_fk_node/pose/eeCarry_seg6':
+                ee.append(decoded.pose)
+    assert counts.pop('/tf_static') == 1 and counts.pop('/tf') == len(q)
+    assert len(counts) == len(MODEL.frame_names) and set(counts.values()) == {len(q)}
+    np.testing.assert_allclose(htf.pose_matrix(ee[99]), MODEL.chain.forward(q[99]).to_matrix(),
+                               atol=1e-12)
+    info = yaml.safe_load((tmp_path / 'out' / 'metadata.yaml').read_text())
+    info = info['rosbag2_bagfile_information']
+    assert info['version'] == 9 and info['storage_identifier'] == 'mcap'
+    assert info['message_count'] == 1 + len(q) * (1 + len(MODEL.frame_names))
 
 
 def test_bad_content_is_skipped_counted_and_nothing_valid_lost(tmp_path):
