@@ -130,8 +130,7 @@ class BagOutputs:
             [(parents[k], self.frame_ids[k]) for k in self.static_frames])
         self.copied = {}
         for conn in copy_from:
-            self.copied[conn.id] = add(conn.topic, conn.msgtype, typestore=typestore,
-                                       offered_qos_profiles=_offered_qos(conn))
+            self.copied[conn.id] = _copy_connection(writer, conn, typestore)
         self.static_written = False
 
     def write_static(self, time_ns):
@@ -173,9 +172,22 @@ class BagOutputs:
             self.writer.write(out, time_ns, raw)
 
 
-def _offered_qos(conn):
+def _copy_connection(writer, conn, typestore):
+    """Add an input connection to the output: its own type definition, else Jazzy's."""
+    from rosbags.typesys import TypesysError
     ext = getattr(conn, 'ext', None)
-    return list(getattr(ext, 'offered_qos_profiles', None) or [])
+    qos = list(getattr(ext, 'offered_qos_profiles', None) or [])
+    definition = getattr(getattr(conn, 'msgdef', None), 'data', '')
+    if definition and conn.digest:
+        return writer.add_connection(conn.topic, conn.msgtype, msgdef=definition,
+                                     rihs01=conn.digest, offered_qos_profiles=qos)
+    try:
+        return writer.add_connection(conn.topic, conn.msgtype, typestore=typestore,
+                                     offered_qos_profiles=qos)
+    except TypesysError:
+        raise BagError(f'cannot copy {conn.topic}: the bag carries no definition of '
+                       f'{conn.msgtype} and ROS 2 Jazzy has none; leave out --copy-input'
+                       ) from None
 
 
 def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=False,

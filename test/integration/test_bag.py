@@ -17,7 +17,7 @@ import pytest
 from ros_harness import Harness
 from rosbags.interfaces import QosDurability
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
-from rosbags.typesys import get_typestore, Stores
+from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 import yaml
 
 TS = get_typestore(Stores.ROS2_JAZZY)
@@ -202,6 +202,27 @@ def run_cli(capsys, *argv):
     rc = bag_main([str(a) for a in argv])
     out, err = capsys.readouterr()
     return rc, out, err
+
+
+def test_copy_input_keeps_custom_types_with_their_definition(tmp_path):
+    store = get_typestore(Stores.ROS2_JAZZY)
+    store.register(get_types_from_msg('float64 x\nstring label', 'my_pkg/msg/Thing'))
+    thing = store.types['my_pkg/msg/Thing']
+    things = [bytes(store.serialize_cdr(thing(x=k / 3, label=f'#{k}'), 'my_pkg/msg/Thing'))
+              for k in range(20)]
+    q = trajectory(20)
+    with Writer(tmp_path / 'in', version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        js = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState', typestore=TS)
+        custom = writer.add_connection('/thing', 'my_pkg/msg/Thing', typestore=store)
+        for k in range(20):
+            writer.write(js, T0 + k, js_bytes(NAMES, q[k], T0 + k))
+            writer.write(custom, T0 + k, things[k])
+    process_bag(tmp_path / 'in', tmp_path / 'out', RL15, copy_input=True, progress=False)
+    with Reader(tmp_path / 'out') as reader:
+        conn = next(c for c in reader.connections if c.topic == '/thing')
+        assert conn.digest == store.hash_rihs01('my_pkg/msg/Thing')
+        assert 'string label' in conn.msgdef.data
+        assert [bytes(raw) for _, _, raw in reader.messages([conn])] == things
 
 
 def test_user_errors_are_one_line(tmp_path, capsys):
