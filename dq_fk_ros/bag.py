@@ -11,6 +11,7 @@
 
 import argparse
 import os
+import re
 import shutil
 import sys
 import time
@@ -35,16 +36,53 @@ class BagError(Exception):
 
 # -- reading -----------------------------------------------------------------------------
 def open_reader(path):
-    """Open a rosbag2 (sqlite3 or MCAP) for reading, or raise :class:`BagError`."""
+    """
+    Open a bag for reading: rosbags' ``Reader``, or its MCAP files record by record.
+
+    A rosbag2 folder rosbags cannot open (no ``metadata.yaml``, no MCAP summary: a
+    recording that did not stop cleanly) and a bare ``.mcap`` file are read with
+    :class:`~dq_fk_ros.mcap_stream.McapStreamBag`, which keeps every complete record; its
+    ``note`` says so and its ``damage`` where reading stops. Raises :class:`BagError`.
+    """
     from rosbags.rosbag2 import Reader, ReaderError
     if not os.path.exists(path):
         raise BagError(f'{path}: no such bag')
+    if os.path.isfile(path) and str(path).endswith('.mcap'):
+        return _stream_bag([path], path, None)
     try:
         reader = Reader(path)
         reader.open()
     except (ReaderError, OSError, ValueError, KeyError) as exc:
-        raise BagError(f'{path}: not a readable rosbag2 ({exc})') from None
+        mcaps = _mcap_files(path)
+        if not mcaps:
+            raise BagError(f'{path}: not a readable rosbag2 ({exc})') from None
+        if not os.path.exists(os.path.join(path, 'metadata.yaml')):
+            exc = 'no metadata.yaml'
+        return _stream_bag(mcaps, path, exc)
+    reader.note = reader.damage = None
     return reader
+
+
+def _mcap_files(folder):
+    """List the MCAP files of a bag folder, splits in order (``x_2`` before ``x_10``)."""
+    if not os.path.isdir(folder):
+        return []
+    names = [n for n in os.listdir(folder) if n.endswith('.mcap')]
+    split = re.compile(r'^(.*?)(\d*)\.mcap$')
+    return [os.path.join(folder, n) for n in sorted(
+        names, key=lambda n: (split.match(n)[1], int(split.match(n)[2] or -1)))]
+
+
+def _stream_bag(files, path, why):
+    from dq_fk_ros.mcap_stream import McapStreamBag
+    try:
+        bag = McapStreamBag(files)
+    except OSError as exc:
+        raise BagError(f'{path}: cannot be read ({exc})') from None
+    listing = ', '.join(os.path.basename(f) for f in files)
+    bag.note = None if why is None else \
+        f'{path}: not a complete rosbag2 ({why}); read {listing} record by record'
+    return bag
 
 
 def joint_state_connections(reader, path, topic=None):
@@ -230,6 +268,8 @@ def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=
     finally:
         reader.close()
     summary['output'] = None if csv_only else out_path
+    summary['note'] = reader.note
+    summary['error'] = summary['error'] or reader.damage
     return summary
 
 
@@ -311,7 +351,10 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
              clock=False, output_topic=None, progress=True, node=None, wait_for=0,
              wait_timeout_s=30.0):
     """
-    Publish the bag's JointState messages with their recorded timing; return how many.
+    Publish the bag's JointState messages with their recorded timing; return a summary.
+
+    The summary dict: ``sent`` (messages published), ``note`` and ``error`` (lines about a
+    bag read record by record, see :func:`open_reader`; ``error`` if it is damaged).
 
     Serialized messages are published as they are (no conversion). ``clock`` publishes
     ``/clock`` with the bag time before each message, for nodes with ``use_sim_time``.
@@ -370,7 +413,7 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
                 rclpy.try_shutdown()
     finally:
         reader.close()
-    return sent
+    return {'sent': sent, 'note': reader.note, 'error': reader.damage}
 
 
 # -- command line ------------------------------------------------------------------------
@@ -439,14 +482,16 @@ def main(argv=None):
                             out_of_limits=args.out_of_limits, progress=not args.quiet,
                             poses=args.poses)
             print(summary_line(args.in_bag, s))
-            if s['error']:
-                print(f"dq_fk_bag: {s['error']}", file=sys.stderr)
-                return 1
         else:
-            sent = play_bag(args.bag, topic=args.topic, rate=args.rate, loop=args.loop,
-                            start_s=args.start, duration_s=args.duration, clock=args.clock,
-                            progress=not args.quiet, wait_for=args.wait_for_subscribers)
-            print(f'{args.bag}: published {sent} JointState messages')
+            s = play_bag(args.bag, topic=args.topic, rate=args.rate, loop=args.loop,
+                         start_s=args.start, duration_s=args.duration, clock=args.clock,
+                         progress=not args.quiet, wait_for=args.wait_for_subscribers)
+            print(f"{args.bag}: published {s['sent']} JointState messages")
+        for line in (s['note'], s['error']):
+            if line:
+                print(f'dq_fk_bag: {line}', file=sys.stderr)
+        if s['error']:
+            return 1
     except (BagError, RobotDescriptionError, FileNotFoundError) as exc:
         print(f'dq_fk_bag: {exc}', file=sys.stderr)
         return 1

@@ -1,5 +1,6 @@
 """dq_fk_bag on bags the tests write themselves with rosbags (MCAP and sqlite3)."""
 
+import io
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -252,14 +253,94 @@ def test_user_errors_are_one_line(tmp_path, capsys):
     assert rc == 0 and '3 JointState messages, 3 written' in out
 
 
-def test_truncated_bag_is_a_clear_error_and_writes_nothing(tmp_path, capsys):
-    """An MCAP cut short has no footer: rosbags cannot open it at all."""
-    valid_bag(tmp_path / 'in', n=3000)
+def messages_in_chunks_before(mcap_bytes, cut):
+    """Log times of the messages in the chunks that end before byte ``cut`` (mcap's index)."""
+    reader = make_reader(io.BytesIO(mcap_bytes))
+    complete = [c for c in reader.get_summary().chunk_indexes
+                if c.chunk_start_offset + c.chunk_length <= cut]
+    assert complete, 'the cut must leave at least one complete chunk'
+    last = max(c.message_end_time for c in complete)
+    return [m.log_time for _, _, m in reader.iter_messages(log_time_order=True)
+            if m.log_time <= last]
+
+
+def test_recording_cut_short_keeps_every_complete_chunk(tmp_path, capsys):
+    """A recording killed on the robot: no metadata.yaml, the MCAP ends mid-chunk."""
+    q, stamps = valid_bag(tmp_path / 'in', n=30000)
     mcap = next((tmp_path / 'in').glob('*.mcap'))
     data = mcap.read_bytes()
-    mcap.write_bytes(data[:len(data) // 2])
+    cut = int(len(data) * 0.6)
+    expected = messages_in_chunks_before(data, cut)
+    mcap.write_bytes(data[:cut])
+    (tmp_path / 'in' / 'metadata.yaml').unlink()
+    rc, out, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--quiet')
+    assert rc == 1
+    assert 'not a complete rosbag2' in err and 'record by record' in err
+    assert f'{mcap} ends early or is damaged' in err
+    assert len(err.strip().splitlines()) == 2  # the note and the damage, a line each
+    assert 0 < len(expected) < len(q) and f'{len(expected)} written' in out
+    poses = read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')
+    assert [stamp_ns(m.header) for _, m in poses] == expected == stamps[:len(expected)]
+
+
+def test_a_bare_mcap_file_or_a_folder_without_metadata_is_read_whole(tmp_path, capsys):
+    q, stamps = valid_bag(tmp_path / 'in', n=500, extra_topic=True)
+    mcap = next((tmp_path / 'in').glob('*.mcap'))
+    rc, out, err = run_cli(capsys, 'process', mcap, tmp_path / 'out1', '--quiet',
+                           '--copy-input')
+    assert rc == 0 and err == '' and '500 written' in out
+    with Reader(tmp_path / 'out1') as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    assert counts['/chatter'] == 500 and counts['/joint_states'] == 500
+    (tmp_path / 'in' / 'metadata.yaml').unlink()
+    rc, out, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out2', '--quiet')
+    assert rc == 0 and 'not a complete rosbag2' in err and '500 written' in out
+    assert read_topic(tmp_path / 'out2', '/tf') == read_topic(tmp_path / 'out1', '/tf')
+
+
+def test_recovered_recording_replays(tmp_path, capsys):
+    valid_bag(tmp_path / 'in', n=30000)
+    mcap = next((tmp_path / 'in').glob('*.mcap'))
+    data = mcap.read_bytes()
+    expected = messages_in_chunks_before(data, len(data) * 2 // 3)
+    mcap.write_bytes(data[:len(data) * 2 // 3])
+    (tmp_path / 'in' / 'metadata.yaml').unlink()
+    from dq_fk_ros.bag import open_reader
+    reader = open_reader(tmp_path / 'in')
+    assert [t for _, t, _ in reader.messages()] == expected
+    conn = reader.connections[0]
+    assert (conn.topic, conn.msgtype, conn.msgcount) == \
+        ('/joint_states', 'sensor_msgs/msg/JointState', len(expected))
+    assert 'string[] name' in conn.msgdef.data  # the schema the file carries
+    start = reader.start_time + 10**9  # --start 1 s
+    assert [t for _, t, _ in reader.messages([conn], start=start, stop=start + 10**8)] == \
+        [t for t in expected if start <= t < start + 10**8]
+
+
+def test_split_recording_without_metadata_is_read_in_split_order(tmp_path, capsys):
+    q = trajectory(12 * 50)
+    folder = tmp_path / 'rec'
+    folder.mkdir()
+    for split in range(12):  # rec_0 .. rec_11: rec_10 must come after rec_9, not rec_1
+        rows = range(split * 50, split * 50 + 50)
+        stamps = [T0 + k * 10_000_000 for k in rows]
+        write_bag(tmp_path / f'part{split}', [(s, js_bytes(NAMES, q[k], s))
+                                              for s, k in zip(stamps, rows)])
+        next((tmp_path / f'part{split}').glob('*.mcap')).rename(folder / f'rec_{split}.mcap')
+    rc, out, err = run_cli(capsys, 'process', folder, tmp_path / 'out', '--quiet')
+    assert rc == 0 and 'rec_0.mcap, rec_1.mcap, rec_2.mcap' in err and '600 written' in out
+    assert 'rec_9.mcap, rec_10.mcap, rec_11.mcap' in err
+    poses = read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')
+    assert [stamp_ns(m.header) for _, m in poses] == [T0 + k * 10_000_000 for k in range(600)]
+
+
+def test_damaged_sqlite3_bag_is_a_clear_error_and_writes_nothing(tmp_path, capsys):
+    valid_bag(tmp_path / 'in', n=3000, storage='sqlite3')
+    db = next((tmp_path / 'in').glob('*.db3'))
+    data = db.read_bytes()
+    db.write_bytes(data[:100] + b'\xff' * (len(data) - 100))
     rc, _, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--quiet')
-    assert rc == 1 and 'not a readable rosbag2' in err
+    assert rc == 1 and 'not a readable rosbag2' in err and len(err.splitlines()) == 1
     assert not (tmp_path / 'out').exists()
 
 
