@@ -281,6 +281,11 @@ def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=
         try:
             outputs = BagOutputs(writer, model, typestore, pose_namespace, frame_prefix,
                                  copy_from, poses) if writer is not None else None
+        except BagError:  # refused before anything was written: leave no output behind
+            writer.abort()
+            shutil.rmtree(out_path, ignore_errors=True)
+            raise
+        try:
             summary = _process_messages(reader, conns, model, outputs, csv_path, copy_input,
                                         out_of_limits, progress, chunk, in_path)
         finally:

@@ -226,6 +226,19 @@ def test_copy_input_keeps_custom_types_with_their_definition(tmp_path):
         assert [bytes(raw) for _, _, raw in reader.messages([conn])] == things
 
 
+def test_copy_input_of_a_type_without_definition_is_refused_cleanly(tmp_path, capsys):
+    with Writer(tmp_path / 'in', version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        js = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState', typestore=TS)
+        odd = writer.add_connection('/odd', 'other_pkg/msg/Odd', msgdef='', rihs01='RIHS01_0')
+        writer.write(js, T0, js_bytes(NAMES, np.zeros(6), T0))
+        writer.write(odd, T0, b'\x00\x01\x00\x00')
+    rc, _, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--quiet',
+                         '--copy-input')
+    assert rc == 1 and err.count('\n') == 1
+    assert 'cannot copy /odd' in err and 'other_pkg/msg/Odd' in err
+    assert not (tmp_path / 'out').exists()
+
+
 def test_user_errors_are_one_line(tmp_path, capsys):
     valid_bag(tmp_path / 'in', n=3, extra_topic=True)
     cases = [
