@@ -33,7 +33,6 @@ class McapStreamBag:
         self.paths = [os.fspath(p) for p in paths]
         self.connections = []
         self._by_channel = {}       # (file index, channel id) -> Connection
-        self._ends = {}             # file index -> records to read before the damage
         self.damage = None          # one line: where and why reading stopped, or None
         counts = Counter()
         self.start_time = None      # earliest log time (ns), as rosbags' Reader.start_time
@@ -77,22 +76,21 @@ class McapStreamBag:
         for file_index, path in enumerate(self.paths):
             schemas, local = {}, {}
             read = 0
-            limit = None if scanning else self._ends.get(file_index)
             with open(path, 'rb') as f:
                 reader = StreamReader(f, validate_crcs=True,
                                       record_size_limit=max(os.path.getsize(path), 1))
                 records = reader.records
-                while limit is None or read < limit:
+                while True:
                     try:
                         record = next(records)
                     except StopIteration:
                         break
                     except Exception as exc:  # cut short or damaged: stop at this record
-                        if scanning:
-                            self._ends[file_index] = read
+                        if scanning:  # (the second pass stops at the same record)
                             why = type(exc).__name__ + (f': {exc}' if str(exc) else '')
-                            self.damage = (f'{path} ends early or is damaged after {read} '
-                                           f'complete records ({why}); read up to there')
+                            self.damage = '; '.join(filter(None, [
+                                self.damage, f'{path} ends early or is damaged after {read} '
+                                f'complete records ({why}); read up to there']))
                         break
                     read += 1
                     if isinstance(record, Schema):
