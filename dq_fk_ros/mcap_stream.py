@@ -34,6 +34,7 @@ class McapStreamBag:
         self.connections = []
         self._by_channel = {}       # (file index, channel id) -> Connection
         self.damage = None          # one line: where and why reading stopped, or None
+        self.note = None            # one line for the user about how the bag is read
         counts = Counter()
         self.start_time = None      # earliest log time (ns), as rosbags' Reader.start_time
         for conn_id, _, log_time in self._records(scanning=True):
@@ -47,14 +48,6 @@ class McapStreamBag:
 
     def close(self):
         """Do nothing: every pass closes its file."""
-
-    def __enter__(self):
-        """Return self."""
-        return self
-
-    def __exit__(self, *exc):
-        """Close."""
-        self.close()
 
     def messages(self, connections=None, start=None, stop=None):
         """
