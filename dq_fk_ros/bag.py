@@ -28,6 +28,7 @@ import numpy as np
 
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 CHUNK = 4096
+ACK_TIMEOUT_S = 5.0  # play: longest wait for reliable subscribers to acknowledge the end
 
 
 class BagError(Exception):
@@ -389,6 +390,7 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
     """
     from dq_fk_ros.ros_conversions import ns_to_stamp
     import rclpy
+    from rclpy.duration import Duration
     from rclpy.qos import QoSProfile
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
@@ -432,6 +434,10 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
                     meter.update(sent)
                 if not loop:
                     break
+            # leaving at once would destroy the publishers before reliable subscribers
+            # have the last messages (one was seen lost that way)
+            for publisher in filter(None, (pub, clock_pub)):
+                publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
         finally:
             meter.update(sent, force=True)
             if own:
