@@ -1,7 +1,7 @@
 """
 Forward-kinematics speed of the dq_fk_ros core against the peers a user would pick instead.
 
-Prints one table per robot (RL15 of 000_*.txt and the Puma 560): microseconds per single
+Prints one table per robot (RL15 of [Zivkovic2023] and the Puma 560): microseconds per single
 call (end effector, all frames) and configurations per second for a batch of N, each with
 the ratio ``peer time / dq_fk_ros time`` (above 1: dq_fk_ros is faster). Peers that are
 not installed are listed as such (``make bench`` installs them from
@@ -28,7 +28,7 @@ DEG = math.pi / 180.0
 
 # (a [m], alpha [rad], d [m], theta offset [rad]) per revolute row, standard DH
 ROBOTS = {
-    # 000_*.txt Table 3; theta_2 = q2 + 90 deg
+    # [Zivkovic2023] Table 3; theta_2 = q2 + 90 deg
     'RL15': [(0.200, 90 * DEG, 0.0, 0.0), (0.600, 0.0, 0.0, 90 * DEG),
              (0.115, 90 * DEG, 0.0, 0.0), (0.0, -90 * DEG, 0.825, 0.0),
              (0.0, 90 * DEG, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0)],

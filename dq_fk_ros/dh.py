@@ -4,7 +4,7 @@ Denavit-Hartenberg chains in dual quaternions: every link frame, batches, Jacobi
 Conventions (per chain):
 
 * ``standard`` (distal, Spong; the papers'): ``T_i = Rz(theta) Tz(d) Tx(a) Rx(alpha)``, the
-  closed form of eq. (3) of 002_*.txt, eqs. (13)-(15) of 000_*.txt.
+  closed form of [Radavelli2014] eq. (3), [Zivkovic2023] eqs. (13)-(15).
 * ``modified`` (proximal, Craig): ``T_i = Rx(alpha) Tx(a) Rz(theta) Tz(d)``.
 
 Lengths are metres, angles radians. A row's variable parameter is ``scale * q + offset``,
@@ -39,7 +39,7 @@ class DHJoint:
 
     ``joint_type``: ``revolute`` (theta = scale*q + theta), ``prismatic``
     (d = scale*q + d), ``cylindrical`` (both: two joint variables, theta's then d's, the
-    RRC robot's third joint in 002_*.txt) or ``fixed`` (no variable).
+    RRC robot's third joint in [Radavelli2014]) or ``fixed`` (no variable).
     ``name`` names the joint variable (cylindrical rows get ``name`` and ``name + '_d'``
     unless ``d_name`` is given). ``follows`` makes the row read another joint's variable
     instead of having its own (a mimic joint: ``scale`` is the multiplier).
@@ -70,7 +70,7 @@ class DHJoint:
 
 
 def _row_standard(ca, sa, a, theta, d):
-    """Evaluate the standard DH operator, closed form, eq. (3) of 002_*.txt (ca, sa of alpha/2)."""
+    """Evaluate the standard DH operator in closed form, [Radavelli2014] eq. (3)."""
     ct = math.cos(0.5 * theta)
     st = math.sin(0.5 * theta)
     ha = 0.5 * a
@@ -92,7 +92,7 @@ def _row_modified(ca, sa, a, theta, d):
 
 
 def _mul(a, b):
-    """Eq. (12) of 000_*.txt on two 8-tuples (floats, or equal-length arrays per component)."""
+    """[Zivkovic2023] eq. (12) on two 8-tuples (floats, or equal-length arrays each)."""
     aw, ax, ay, az, bw_, bx_, by_, bz_ = a
     cw, cx, cy, cz, dw, dx, dy, dz = b
     return (
@@ -107,7 +107,7 @@ def _mul(a, b):
     )
 
 
-# The sparse factorisation of a DH row (eqs. (13)-(15) of 000_*.txt): the z factor
+# The sparse factorisation of a DH row ([Zivkovic2023] eqs. (13)-(15)): the z factor
 # Rz(theta) Tz(d) = (c + s k)(1 + eps d/2 k) and the x factor Tx(a) Rx(alpha) =
 # (1 + eps a/2 i)(c + s i) each touch a few coefficients only, so applying them costs a
 # fraction of a full product with the row's eq. (3) operator.
@@ -171,7 +171,7 @@ class KinematicChain:
 
     ``joint_names`` lists the joint variables in the order ``q`` is given.
     ``forward_all(q)`` returns the absolute pose of every frame (0..n, then the tool) in the
-    fixed frame in one pass of cumulative products (eq. (16) of 000_*.txt).
+    fixed frame in one pass of cumulative products ([Zivkovic2023] eq. (16)).
     """
 
     def __init__(self, joints, convention='standard', base=None, tool=None):
@@ -249,7 +249,7 @@ class KinematicChain:
         self._program = tuple(op for i, j in enumerate(self.joints)
                               for op in _row_program(j, int(self._theta_index[i]),
                                                      int(self._d_index[i]), modified))
-        # the closed-form operators of eq. (3) of 002_*.txt, for relative_all
+        # the closed-form operators of [Radavelli2014] eq. (3), for relative_all
         self._rows = tuple(
             (math.cos(0.5 * j.alpha), math.sin(0.5 * j.alpha), j.a, j.theta, j.d, j.scale,
              int(self._theta_index[i]), int(self._d_index[i]))
@@ -415,7 +415,7 @@ class KinematicChain:
 
     def jacobian_dq(self, q):
         """
-        Return the 8 x dof dual-quaternion Jacobian ``d vec(h_end) / d q`` (Adorno; 003_*.txt).
+        Return the 8 x dof dual-quaternion Jacobian ``d vec(h_end) / d q`` (Adorno; [DQFKcpp2023]).
 
         Column j is ``(1/2) xi_j h_end`` with ``xi_j`` the joint's unit screw (its z axis as
         a line, dual part for a prismatic joint) in the fixed frame; ``h_end`` is the
@@ -463,7 +463,7 @@ class KinematicChain:
         return v[:3], v[3:]
 
     def pose_rate(self, q, qdot):
-        """Time derivative of the end pose's 8 coefficients, ``J_dq qdot`` (003_*.txt)."""
+        """Time derivative of the end pose's 8 coefficients, ``J_dq qdot`` ([DQFKcpp2023])."""
         return self.jacobian_dq(q) @ np.asarray(qdot, dtype=float)
 
 

@@ -8,11 +8,11 @@ Conventions, stated once and used everywhere in this module:
   :func:`quat_xyzw_to_wxyz` convert at that boundary.
 * A dual quaternion ``h = r + eps d`` is an array of 8 numbers
   ``(w, x, y, z, w', x', y', z')``: the real (primary) part ``r`` then the dual part ``d``,
-  the layout of eq. (3) of 002_*.txt.
+  the layout of [Radavelli2014] eq. (3).
 * A pose (rotation ``r``, translation ``t`` in the parent frame) is
   ``h = r + eps (1/2) t r``, so ``x_parent = R x_child + t``; ``t = 2 d r*`` is eq. (17)
-  of 000_*.txt and ``r`` is eq. (18).
-* Composition is the product ``h_01 * h_12 = h_02`` (eq. (12) of 000_*.txt), like 4x4
+  of [Zivkovic2023] and ``r`` is eq. (18).
+* Composition is the product ``h_01 * h_12 = h_02`` ([Zivkovic2023] eq. (12)), like 4x4
   homogeneous matrices.
 * Unit norm: ``|r| = 1`` and ``r . d = 0``. Canonical sign: the real part has ``w >= 0``
   (``h`` and ``-h`` are the same pose); :func:`canonical` applies it.
@@ -25,7 +25,7 @@ import numpy as np
 
 
 def quat_multiply(a, b):
-    """Hamilton product of quaternions ``(..., 4)`` in (w, x, y, z) order (000_*.txt Table 1)."""
+    """Hamilton product of quaternions ``(..., 4)``, (w, x, y, z) ([Zivkovic2023] Table 1)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
@@ -111,7 +111,7 @@ def quat_xyzw_to_wxyz(q):
 
 
 def dq_multiply_array(a, b):
-    """Dual-quaternion product of ``(..., 8)`` arrays, eq. (12) of 000_*.txt."""
+    """Dual-quaternion product of ``(..., 8)`` arrays, [Zivkovic2023] eq. (12)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     real = quat_multiply(a[..., :4], b[..., :4])
@@ -149,7 +149,7 @@ def pose_xyzw_from_coeffs(h):
     """
     Pose ``(x, y, z, qx, qy, qz, qw)`` of 8 plain floats, ``qw >= 0``; no numpy.
 
-    The position is the vector part of ``2 d r*`` (eq. (17) of 000_*.txt); the scalar fast
+    The position is the vector part of ``2 d r*`` ([Zivkovic2023] eq. (17)); the scalar fast
     path of :func:`dq_to_pose_xyzw` for one dual quaternion.
     """
     w, x, y, z, dw, dx, dy, dz = h
@@ -184,7 +184,7 @@ class DualQuaternion:
     A dual quaternion ``r + eps d``, stored as 8 floats (w, x, y, z, w', x', y', z').
 
     Construct poses with :meth:`from_pose`, :meth:`from_matrix` or :meth:`identity`;
-    compose them with ``*`` (eq. (12) of 000_*.txt).
+    compose them with ``*`` ([Zivkovic2023] eq. (12)).
     """
 
     __slots__ = ('coeffs',)
@@ -248,12 +248,12 @@ class DualQuaternion:
 
     @property
     def rotation_wxyz(self):
-        """Rotation quaternion (w, x, y, z), eq. (18) of 000_*.txt (sign as stored)."""
+        """Rotation quaternion (w, x, y, z), [Zivkovic2023] eq. (18) (sign as stored)."""
         return self.coeffs[:4].copy()
 
     @property
     def translation(self):
-        """Return the position (x, y, z) of a unit pose, eq. (17) of 000_*.txt."""
+        """Return the position (x, y, z) of a unit pose, [Zivkovic2023] eq. (17)."""
         return dq_translation_array(self.coeffs)
 
     def to_matrix(self):
@@ -269,7 +269,7 @@ class DualQuaternion:
 
     # -- algebra -----------------------------------------------------------------------
     def __mul__(self, other):
-        """Dual-quaternion product, eq. (12) of 000_*.txt: composition of transforms."""
+        """Dual-quaternion product, [Zivkovic2023] eq. (12): composition of transforms."""
         if isinstance(other, DualQuaternion):
             return DualQuaternion(dq_multiply_array(self.coeffs, other.coeffs))
         if np.isscalar(other):

@@ -71,7 +71,7 @@ def test_transform_point(rng):
 
 
 def test_point_transform_by_combined_conjugate_sandwich(rng):
-    """``h (1 + eps p) h~`` with the combined conjugate moves a point (eq. (4) of 002_*.txt)."""
+    """``h (1 + eps p) h~`` with the combined conjugate moves a point ([Radavelli2014] eq. (4))."""
     m, p = random_matrix(rng), rng.normal(size=3)
     h = DualQuaternion.from_matrix(m)
     point = DualQuaternion([1, 0, 0, 0, 0, *p])

@@ -1,7 +1,8 @@
 """
 The numbers the papers print, reproduced by the core.
 
-Readings of misprints follow ../shared/reference/paper-errata.md.
+Readings of misprints follow docs/paper-errata.md; sources are cited by the keys of
+docs/references.md.
 """
 
 import math
@@ -13,7 +14,7 @@ import pytest
 
 DEG = math.pi / 180.0
 
-# 000_*.txt Table 3 (RL15), lengths in metres; theta_2 = q2 + 90 deg
+# [Zivkovic2023] Table 3 (RL15), lengths in metres; theta_2 = q2 + 90 deg
 A1, A2, A3, D4 = 0.200, 0.600, 0.115, 0.825
 PEDESTAL_Z = 0.730
 
@@ -30,7 +31,7 @@ def rl15(pedestal=True):
 
 
 def test_rl15_zero_pose_is_the_rviz_panel_of_fig4():
-    """Fig. 4 of 000_*.txt: eeCarry_seg6 at (1.025, ~0, 1.445), xyzw (0.707107, 0, 0.707107, 0)."""
+    """[Zivkovic2023] Fig. 4: eeCarry_seg6 at (1.025, ~0, 1.445), xyzw (0.7071, 0, 0.7071, 0)."""
     pose = dq_to_pose_xyzw(rl15().forward_all(np.zeros(6))[-1])
     np.testing.assert_allclose(pose[:3], [1.025, 0.0, 1.445], atol=1e-12)
     np.testing.assert_allclose(pose[3:], [0.707107, 0.0, 0.707107, 0.0], atol=5e-7)
@@ -48,7 +49,7 @@ def test_rl15_closed_form_position_eqs_21_to_23():
 
 
 def test_rl15_table4_half_angles_for_joint_2():
-    """Table 4 of 000_*.txt (read q2/2 + 45 deg): row 2 rotates about z by half angle q2/2+45."""
+    """[Zivkovic2023] Table 4 (read q2/2 + 45 deg): row 2 rotates about z by half angle q2/2+45."""
     q = np.array([0.0, 0.4, 0.0, 0.0, 0.0, 0.0])
     rel = rl15().relative_all(q)[1]
     half = 0.2 + 45 * DEG
@@ -56,7 +57,7 @@ def test_rl15_table4_half_angles_for_joint_2():
     np.testing.assert_allclose(rel[:4], [math.cos(half), 0, 0, math.sin(half)], atol=1e-15)
 
 
-# 002_*.txt section 4.2 (anthropomorphic arm with spherical wrist), Table 2 as read in the
+# [Radavelli2014] section 4.2 (anthropomorphic arm with spherical wrist), Table 2 as read in the
 # errata: alpha = +90, 0, +90, -90, +90, 0 deg; a2 = 50, d4 = 30, d6 = 20 (the paper's units)
 ANTHRO_EXAMPLES = [
     ((45, 0, 0, 0, 0, 0), (35.3553, 35.3553, -50.0000)),
@@ -84,7 +85,7 @@ def test_anthropomorphic_arm_tables_3_and_4(q_deg, xyz):
     np.testing.assert_allclose(homogeneous_from_dq(batch[0])[:3, 3], xyz, atol=5e-5)
 
 
-# 002_*.txt section 4.1, the RRC robot: Table 1, two revolute joints and a cylindrical one
+# [Radavelli2014] section 4.1, the RRC robot: Table 1, two revolute joints and a cylindrical one
 def rrc(l1, l2):
     return KinematicChain([DHJoint(a=l1, name='theta1'),
                            DHJoint(a=l2, alpha=math.pi, name='theta2'),
@@ -106,7 +107,7 @@ def test_rrc_per_joint_operators_eq_6():
 
 
 def test_rrc_end_pose_eq_5():
-    """Eq. (5) of 002_*.txt, with the rotation's row 2 as corrected in the errata."""
+    """Eq. (5) of [Radavelli2014], with the rotation's row 2 as corrected in the errata."""
     l1, l2 = 0.7, 0.4
     chain = rrc(l1, l2)
     rng = np.random.default_rng(5)
