@@ -62,10 +62,10 @@ $(STAMPS)/project: setup.py setup.cfg package.xml $(STAMPS)/dev $(STAMPS)/tf2_ms
 	@touch $@
 
 demo: setup
-	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.demo
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.ros.demo
 
 demo-live: setup
-	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.demo --live
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.ros.demo --live
 
 test: setup
 	@scripts/run_tests $(PY)

@@ -24,10 +24,10 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'dq_fk_node = dq_fk_ros.node:main',
-            'dq_fk = dq_fk_ros.cli:main',
-            'fake_joint_publisher = dq_fk_ros.fake_joint_publisher:main',
-            'dq_fk_bag = dq_fk_ros.bag:main',
+            'dq_fk_node = dq_fk_ros.ros.node:main',
+            'dq_fk = dq_fk_ros.cli.dq_fk:main',
+            'fake_joint_publisher = dq_fk_ros.ros.fake_joint_publisher:main',
+            'dq_fk_bag = dq_fk_ros.cli.dq_fk_bag:main',
         ],
     },
 )

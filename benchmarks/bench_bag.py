@@ -20,7 +20,7 @@ import sys
 import tempfile
 import time
 
-from dq_fk_ros.executables import executable
+from dq_fk_ros.ros.executables import executable
 import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores

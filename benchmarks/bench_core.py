@@ -21,7 +21,7 @@ import statistics
 import sys
 import time
 
-from dq_fk_ros.dh import DHJoint, homogeneous_from_dq, KinematicChain
+from dq_fk_ros.kinematics.dh import DHJoint, homogeneous_from_dq, KinematicChain
 import numpy as np
 
 DEG = math.pi / 180.0

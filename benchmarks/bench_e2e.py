@@ -18,7 +18,7 @@ import subprocess
 import sys
 import time
 
-from dq_fk_ros.executables import executable
+from dq_fk_ros.ros.executables import executable
 import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor

@@ -15,8 +15,8 @@ import statistics
 import sys
 import time
 
-from dq_fk_ros.node import DqFkNode
-from dq_fk_ros.ros_conversions import joint_state_fields
+from dq_fk_ros.ros.conversions import joint_state_fields
+from dq_fk_ros.ros.node import DqFkNode
 import numpy as np
 import rclpy
 from sensor_msgs.msg import JointState

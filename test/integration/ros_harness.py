@@ -2,7 +2,7 @@
 
 import time
 
-from dq_fk_ros.node import DqFkNode
+from dq_fk_ros.ros.node import DqFkNode
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter

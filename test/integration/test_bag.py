@@ -4,11 +4,12 @@ import io
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray
-from dq_fk_ros.bag import main as bag_main, process_bag
-from dq_fk_ros.cdr import parse_joint_state
-from dq_fk_ros.executables import executable
-from dq_fk_ros.joint_states import JointStateMerger, PUBLISH
-from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.bag.process import process_bag
+from dq_fk_ros.cli.dq_fk_bag import main as bag_main
+from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.messages.cdr import parse_joint_state
+from dq_fk_ros.messages.joint_states import JointStateMerger, PUBLISH
+from dq_fk_ros.ros.executables import executable
 from geometry_msgs.msg import PoseStamped
 import homogeneous_tf as htf
 from mcap.reader import make_reader
@@ -91,7 +92,7 @@ def test_offline_output_equals_core_fk(tmp_path, storage):
             t, msg = poses[i]
             assert t == stamps[i] and stamp_ns(msg.header) == stamps[i]
             expected = MODEL.chain.forward_all(q[i])
-            from dq_fk_ros.dh import homogeneous_from_dq
+            from dq_fk_ros.kinematics.dh import homogeneous_from_dq
             np.testing.assert_allclose(htf.pose_matrix(msg.pose),
                                        homogeneous_from_dq(expected[k]), atol=1e-12)
     tf = read_topic(tmp_path / 'out', '/tf')
@@ -318,7 +319,7 @@ def test_recovered_recording_replays(tmp_path, capsys):
     expected = messages_in_chunks_before(data, len(data) * 2 // 3)
     mcap.write_bytes(data[:len(data) * 2 // 3])
     (tmp_path / 'in' / 'metadata.yaml').unlink()
-    from dq_fk_ros.bag import open_reader
+    from dq_fk_ros.bag.reading import open_reader
     reader = open_reader(tmp_path / 'in')
     assert [t for _, t, _ in reader.messages()] == expected
     conn = reader.connections[0]

@@ -3,7 +3,7 @@
 import math
 import sys
 
-from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import homogeneous_tf as htf
 import numpy as np
@@ -147,7 +147,7 @@ def test_invalid_robot_file_at_start_exits_with_the_message(processes, tmp_path)
     bad = tmp_path / 'bad.yaml'
     bad.write_text('robot: x\nbase: {frame: b}\nchain:\n  - {frame: l, joint: j, theta: 0, '
                    'd: 0, a: 0, alfa: 0}\n')
-    proc = processes.start([sys.executable, '-m', 'dq_fk_ros.node', '--ros-args', '-p',
+    proc = processes.start([sys.executable, '-m', 'dq_fk_ros.ros.node', '--ros-args', '-p',
                             f'robot_description_file:={bad}'])
     output, _ = proc.communicate(timeout=30)
     assert proc.returncode == 1

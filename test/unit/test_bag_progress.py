@@ -2,7 +2,7 @@
 
 import io
 
-from dq_fk_ros.bag import Progress
+from dq_fk_ros.bag.progress import Progress
 
 
 class FakeClock:

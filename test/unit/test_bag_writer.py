@@ -9,9 +9,9 @@ no code with the writer.
 import struct
 import zlib
 
-from dq_fk_ros import bag_writer
-from dq_fk_ros.bag_writer import BagWriter
-from dq_fk_ros.cdr import pose_stamped_template, tf_message_template
+from dq_fk_ros.bag import writer as bag_writer
+from dq_fk_ros.bag.writer import BagWriter
+from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
 from mcap.reader import make_reader
 from mcap.records import Chunk, Message, MessageIndex
 from mcap.stream_reader import StreamReader

@@ -1,6 +1,6 @@
 """The fast CDR reader and templates against rosbags' own (independent) CDR implementation."""
 
-from dq_fk_ros.cdr import (
+from dq_fk_ros.messages.cdr import (
     CdrError, JointStateNames, JointStateRun, MalformedJointState, parse_joint_state,
     parse_joint_states, pose_stamped_template, tf_message_template)
 import numpy as np

@@ -2,7 +2,7 @@
 
 import json
 
-from dq_fk_ros.cli import main
+from dq_fk_ros.cli.dq_fk import main
 import pytest
 
 
@@ -19,6 +19,16 @@ def test_fk_table_shows_the_rl15_end_effector(capsys):
     assert last[:2] == ['eeCarry_seg6', 'wrist_seg5']
     assert [float(v) for v in last[2:9]] == pytest.approx(
         [1.025, 0.0, 1.445, 0.707107, 0.0, 0.707107, 0.0], abs=1e-6)
+
+
+def test_fk_says_poses_are_absolute_beside_the_tf_parent(capsys):
+    """The parent column is TF's parent; the pose beside it is in the fixed frame."""
+    rc, out, _ = run(capsys, 'fk', 'rl15', '--joints', '0.3', '0', '0', '0', '0', '0')
+    comment, header, *_ = out.splitlines()
+    assert 'every pose is in world, not relative to its tf_parent' in comment
+    assert header.split()[:2] == ['frame', 'tf_parent']
+    rc, out, _ = run(capsys, 'fk', 'rl15', '--json')
+    assert json.loads(out)['frames'][-1]['tf_parent'] == 'wrist_seg5'
 
 
 def test_fk_json_with_named_joints_in_degrees(capsys):

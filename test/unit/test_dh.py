@@ -2,8 +2,8 @@
 
 import math
 
-from dq_fk_ros.dh import DHJoint, homogeneous_from_dq, KinematicChain
-from dq_fk_ros.dual_quaternion import DualQuaternion, quat_to_matrix
+from dq_fk_ros.kinematics.dh import DHJoint, homogeneous_from_dq, KinematicChain
+from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion, quat_to_matrix
 import homogeneous as hm
 import numpy as np
 import pytest

@@ -1,6 +1,6 @@
 """DualQuaternion algebra against the independent 4x4 reference in ``homogeneous.py``."""
 
-from dq_fk_ros.dual_quaternion import (
+from dq_fk_ros.kinematics.dual_quaternion import (
     canonical, dq_multiply_array, dq_normalize_array, dq_to_pose_xyzw, DualQuaternion,
     quat_wxyz_to_xyzw, quat_xyzw_to_wxyz)
 import homogeneous as hm
@@ -175,7 +175,7 @@ def test_bad_inputs_are_clear_errors():
 
 
 def test_scalar_pose_conversion_matches_the_array_one(rng):
-    from dq_fk_ros.dual_quaternion import pose_xyzw_from_coeffs
+    from dq_fk_ros.kinematics.dual_quaternion import pose_xyzw_from_coeffs
     for _ in range(300):
         h = DualQuaternion.from_matrix(random_matrix(rng)).coeffs * rng.choice([-1.0, 1.0])
         np.testing.assert_allclose(pose_xyzw_from_coeffs(h.tolist()), dq_to_pose_xyzw(h),

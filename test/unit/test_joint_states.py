@@ -2,7 +2,7 @@
 
 import math
 
-from dq_fk_ros.joint_states import (
+from dq_fk_ros.messages.joint_states import (
     INCOMPLETE, JointStateMerger, PUBLISH, REJECTED, TIME_JUMP_BACK_NS)
 import numpy as np
 import pytest

@@ -7,8 +7,8 @@ docs/references.md.
 
 import math
 
-from dq_fk_ros.dh import DHJoint, homogeneous_from_dq, KinematicChain
-from dq_fk_ros.dual_quaternion import dq_to_pose_xyzw, DualQuaternion
+from dq_fk_ros.kinematics.dh import DHJoint, homogeneous_from_dq, KinematicChain
+from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw, DualQuaternion
 import numpy as np
 import pytest
 

@@ -2,7 +2,7 @@
 
 import math
 
-from dq_fk_ros.robot_model import (
+from dq_fk_ros.description.robot_model import (
     load_robot_description, parse_robot_description, RobotDescriptionError)
 import homogeneous as hm
 import numpy as np
@@ -39,7 +39,7 @@ def test_a_good_file_in_mm_and_deg_becomes_metres_and_radians():
         [(0.3, 0.1, 0.2, 90 * deg), (30 * deg, 0.05 + 0.1, 0, 0), (0, 0, 0.1, 0),
          (10 * deg - 2 * 0.3 + 5 * deg, 0, 0, 0)], 'standard',
         base=hm.trans(z=0.5) @ hm.rot_z(90 * deg), tool=hm.trans(z=0.02))
-    from dq_fk_ros.dh import homogeneous_from_dq
+    from dq_fk_ros.kinematics.dh import homogeneous_from_dq
     np.testing.assert_allclose(homogeneous_from_dq(model.chain.forward_all(q)), expected,
                                atol=1e-12)
 

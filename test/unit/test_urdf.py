@@ -3,10 +3,10 @@
 import math
 import xml.etree.ElementTree as ET
 
-from dq_fk_ros.dh import homogeneous_from_dq
-from dq_fk_ros.robot_model import (
+from dq_fk_ros.description.robot_model import (
     load_robot_description, parse_robot_description, shipped_robot_path, shipped_robots)
-from dq_fk_ros.urdf import robot_to_urdf
+from dq_fk_ros.description.urdf import robot_to_urdf
+from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 import homogeneous as hm
 import numpy as np
 import pytest

@@ -14,14 +14,14 @@ where ``q`` is a joint variable and ``offset`` is the row's ``theta`` (revolute)
 and an optional fixed ``tool`` transform follows frame ``n``.
 
 Dual quaternions are 8-vectors (w, x, y, z, w', x', y', z'); see
-:mod:`dq_fk_ros.dual_quaternion`.
+:mod:`dq_fk_ros.kinematics.dual_quaternion`.
 """
 
 from array import array
 from dataclasses import dataclass
 import math
 
-from dq_fk_ros.dual_quaternion import (
+from dq_fk_ros.kinematics.dual_quaternion import (
     canonical, dq_multiply_array, dq_translation_array, DualQuaternion, pose_xyzw_from_coeffs,
     quat_conjugate, quat_to_matrix)
 import numpy as np

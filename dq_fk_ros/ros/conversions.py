@@ -2,9 +2,9 @@
 The one place where kinematics become ROS messages, and ROS messages become numbers.
 
 Poses arrive as tuples ``(x, y, z, qx, qy, qz, qw)`` (metres, the ROS quaternion order,
-``qw >= 0``) from :meth:`dq_fk_ros.dh.KinematicChain.frame_poses`. :class:`FrameMessages`
-builds the messages of one robot once and refills them for every update, so that the
-node's hot path allocates nothing.
+``qw >= 0``) from :meth:`dq_fk_ros.kinematics.dh.KinematicChain.frame_poses`.
+:class:`FrameMessages` builds the messages of one robot once and refills them for every
+update, so that the node's hot path allocates nothing.
 """
 
 from builtin_interfaces.msg import Time

@@ -11,10 +11,10 @@ import math
 import os
 import sys
 
-from dq_fk_ros.dual_quaternion import DualQuaternion
-from dq_fk_ros.robot_model import (
+from dq_fk_ros.description.robot_model import (
     load_robot_description, RobotDescriptionError, shipped_robot_path, shipped_robots)
-from dq_fk_ros.urdf import matrix_to_rpy, robot_to_urdf
+from dq_fk_ros.description.urdf import matrix_to_rpy, robot_to_urdf
+from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
 import numpy as np
 
 
@@ -86,14 +86,18 @@ def _number(text, name):
 
 
 def frames_table(model, q):
-    """One dict per frame: name, parent, position (m), quaternion (x, y, z, w), matrix."""
+    """
+    One dict per frame: name, TF parent, pose in the fixed frame (m; quaternion x y z w).
+
+    The pose is absolute (in the fixed frame), not relative to ``tf_parent``.
+    """
     poses = model.chain.forward_all(q)
     rows = []
     for name, parent, h in zip(model.frame_names, model.parent_frames, poses):
         dq = DualQuaternion(h)
         pose = dq.to_pose_xyzw()
         matrix = dq.to_matrix()
-        rows.append({'frame': name, 'parent': parent, 'position': pose[:3].tolist(),
+        rows.append({'frame': name, 'tf_parent': parent, 'position': pose[:3].tolist(),
                      'quaternion_xyzw': pose[3:].tolist(),
                      'rpy': list(matrix_to_rpy(matrix[:3, :3])), 'matrix': matrix.tolist()})
     return rows
@@ -136,16 +140,16 @@ def cmd_fk(args):
         print()
         return 0
     width = max(len(r['frame']) for r in rows)
-    pwidth = max(len(r['parent']) for r in rows)
-    header = f'{"frame":{width}s}  {"parent":{pwidth}s}  {"x":>10s} {"y":>10s} {"z":>10s}  ' \
+    pwidth = max(len(r['tf_parent']) for r in rows)
+    header = f'{"frame":{width}s}  {"tf_parent":{pwidth}s}  {"x":>10s} {"y":>10s} {"z":>10s}  ' \
              f'{"qx":>9s} {"qy":>9s} {"qz":>9s} {"qw":>9s}'
     if args.rpy:
         header += f'  {"roll":>9s} {"pitch":>9s} {"yaw":>9s}'
-    print(f'# {model.name}: poses in {model.fixed_frame} (m; quaternion x y z w'
-          f'{"; rpy rad" if args.rpy else ""})')
+    print(f'# {model.name}: every pose is in {model.fixed_frame}, not relative to its tf_parent '
+          f'(m; quaternion x y z w{"; rpy rad" if args.rpy else ""})')
     print(header)
     for r in rows:
-        line = (f'{r["frame"]:{width}s}  {r["parent"]:{pwidth}s}  '
+        line = (f'{r["frame"]:{width}s}  {r["tf_parent"]:{pwidth}s}  '
                 + ' '.join(f'{_tidy(v):10.6f}' for v in r['position']) + '  '
                 + ' '.join(f'{_tidy(v):9.6f}' for v in r['quaternion_xyzw']))
         if args.rpy:

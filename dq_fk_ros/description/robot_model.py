@@ -25,8 +25,8 @@ import math
 import os
 import re
 
-from dq_fk_ros.dh import CONVENTIONS, DHJoint, KinematicChain
-from dq_fk_ros.dual_quaternion import DualQuaternion, quat_from_matrix
+from dq_fk_ros.kinematics.dh import CONVENTIONS, DHJoint, KinematicChain
+from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion, quat_from_matrix
 import numpy as np
 import yaml
 
@@ -390,8 +390,8 @@ def shipped_robot_path(name):
         candidates.append(os.path.join(get_package_share_directory('dq_fk_ros'), 'config'))
     except Exception:  # not installed through ament (or ament_index missing): source tree
         pass
-    candidates.append(os.path.join(os.path.dirname(os.path.dirname(
-        os.path.abspath(__file__))), 'config'))
+    source_tree = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    candidates.append(os.path.join(source_tree, 'config'))
     for folder in candidates:
         path = os.path.join(folder, filename)
         if os.path.isfile(path):

@@ -7,9 +7,10 @@ import sys
 # still be in progress (messages sent then are lost): wait this long before the first one.
 MATCH_SETTLE_S = 0.5
 
-MODULES = {'dq_fk_node': 'dq_fk_ros.node',
-           'fake_joint_publisher': 'dq_fk_ros.fake_joint_publisher',
-           'dq_fk': 'dq_fk_ros.cli'}
+MODULES = {'dq_fk_node': 'dq_fk_ros.ros.node',
+           'fake_joint_publisher': 'dq_fk_ros.ros.fake_joint_publisher',
+           'dq_fk': 'dq_fk_ros.cli.dq_fk',
+           'dq_fk_bag': 'dq_fk_ros.cli.dq_fk_bag'}
 
 
 def executable(name):

@@ -1,5 +1,5 @@
 """
-A URDF equivalent to a :class:`~dq_fk_ros.robot_model.RobotModel`, for RViz's RobotModel.
+A URDF equivalent to a :class:`~dq_fk_ros.description.robot_model.RobotModel` (RViz).
 
 Links are named after the frames the package publishes, so RViz draws the robot from the
 TF this package sends (no robot_state_publisher needed). A moving DH row ``pre * Z(q) *
@@ -12,7 +12,7 @@ Every constant joint offset is drawn as a thin cylinder in its parent link.
 import math
 from xml.sax.saxutils import quoteattr
 
-from dq_fk_ros.dual_quaternion import DualQuaternion
+from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
 import numpy as np
 
 LINK_RADIUS_M = 0.02

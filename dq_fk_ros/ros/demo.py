@@ -17,8 +17,8 @@ import subprocess
 import sys
 import time
 
-from dq_fk_ros.executables import executable
-from dq_fk_ros.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.ros.executables import executable
 from geometry_msgs.msg import PoseStamped
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -48,7 +48,7 @@ class PoseWatcher:
 
 
 def format_pose(frame, parent, msg):
-    """Format one line: frame, parent, x y z, qx qy qz qw."""
+    """Format one line: frame, TF parent, x y z, qx qy qz qw (the pose as published)."""
     p, o = msg.pose.position, msg.pose.orientation
     values = [p.x, p.y, p.z, o.x, o.y, o.z, o.w]
     return (f'{frame:14s} {parent:14s} '
@@ -92,9 +92,9 @@ def main(argv=None):
                       f'{sorted(watcher.poses)}); is DDS blocked on loopback?', file=sys.stderr)
                 return 1
             executor.spin_once(timeout_sec=0.05)
-        print(f'{"frame":14s} {"parent":14s} {"x":>9s} {"y":>9s} {"z":>9s} '
-              f'{"qx":>9s} {"qy":>9s} {"qz":>9s} {"qw":>9s}   (m, quaternion x y z w, in '
-              f'{model.fixed_frame})')
+        print(f'{"frame":14s} {"tf_parent":14s} {"x":>9s} {"y":>9s} {"z":>9s} '
+              f'{"qx":>9s} {"qy":>9s} {"qz":>9s} {"qw":>9s}   (pose in {model.fixed_frame}, '
+              f'not relative to tf_parent; m, quaternion x y z w)')
         for frame in model.frame_names:
             print(format_pose(frame, watcher.parents[frame], watcher.poses[frame]))
         if args.live:

@@ -6,7 +6,7 @@ message definitions and type hashes, ``metadata.yaml``, version 9). What it cann
 one Python call per message: ``dq_fk_bag process`` writes eight messages per joint state.
 :class:`BagWriter` adds :meth:`BagWriter.write_rows`: N messages on each of K connections,
 given as K ``(N, size)`` uint8 arrays of serialized messages (fixed size per connection, as
-:class:`~dq_fk_ros.cdr.CdrTemplate` makes them), written interleaved in time order.
+:class:`~dq_fk_ros.messages.cdr.CdrTemplate` makes them), written interleaved in time order.
 
 * :class:`McapChunkStorage` encodes MCAP (https://mcap.dev/spec, ``ros2`` profile) itself:
   the message records of a chunk, and their message indexes, are built with numpy. Chunks

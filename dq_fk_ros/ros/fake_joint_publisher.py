@@ -10,9 +10,9 @@ stream, for robustness tests. The motion itself is plain Python (:class:`JointMo
 import math
 import sys
 
-from dq_fk_ros.executables import MATCH_SETTLE_S, spin_until_shutdown
-from dq_fk_ros.robot_model import (
+from dq_fk_ros.description.robot_model import (
     load_robot_description, RobotDescriptionError, shipped_robot_path)
+from dq_fk_ros.ros.executables import MATCH_SETTLE_S, spin_until_shutdown
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration

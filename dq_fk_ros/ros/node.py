@@ -1,20 +1,20 @@
 """
 The dq_fk_node executable: ``sensor_msgs/JointState`` in, every link frame out.
 
-Thin glue: :mod:`dq_fk_ros.joint_states` decides what a message means,
-:mod:`dq_fk_ros.dh` computes the frames, :mod:`dq_fk_ros.ros_conversions` fills the
+Thin glue: :mod:`dq_fk_ros.messages.joint_states` decides what a message means,
+:mod:`dq_fk_ros.kinematics.dh` computes the frames, :mod:`dq_fk_ros.ros.conversions` fills the
 messages. See the README for topics and parameters.
 """
 
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from dq_fk_ros.executables import spin_until_shutdown
-from dq_fk_ros.joint_states import (
-    INCOMPLETE, JointStateMerger, OUT_OF_LIMITS_POLICIES, PUBLISH, REJECTED)
-from dq_fk_ros.robot_model import (
+from dq_fk_ros.description.robot_model import (
     load_robot_description, RobotDescriptionError, shipped_robot_path)
-from dq_fk_ros.ros_conversions import FrameMessages, joint_state_fields
+from dq_fk_ros.messages.joint_states import (
+    INCOMPLETE, JointStateMerger, OUT_OF_LIMITS_POLICIES, PUBLISH, REJECTED)
+from dq_fk_ros.ros.conversions import FrameMessages, joint_state_fields
+from dq_fk_ros.ros.executables import spin_until_shutdown
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult

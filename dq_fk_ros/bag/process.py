@@ -1,0 +1,246 @@
+"""
+Offline FK of a joint-state bag: ``dq_fk_bag process`` without its command line.
+
+Every JointState of the bag goes through the node's own input rules
+(:class:`~dq_fk_ros.messages.joint_states.JointStateMerger`), then the batched FK in chunks,
+written as /tf, /tf_static and the node's pose topics to a new bag (MCAP by default);
+``csv_path`` gets the end-effector pose per message.
+"""
+
+import os
+import shutil
+
+from dq_fk_ros.bag.progress import Progress
+from dq_fk_ros.bag.reading import BagError, joint_state_connections, open_reader
+from dq_fk_ros.description.robot_model import load_robot_description
+from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
+from dq_fk_ros.messages.cdr import (
+    JointStateNames, JointStateRun, parse_joint_states, pose_stamped_template,
+    tf_message_template)
+from dq_fk_ros.messages.joint_states import JointStateMerger
+import numpy as np
+
+CHUNK = 4096
+
+
+class BagOutputs:
+    """The output bag's connections and the chunked, vectorised writing of FK results."""
+
+    def __init__(self, writer, model, typestore, pose_namespace, frame_prefix, copy_from,
+                 poses='all'):
+        """Register /tf, /tf_static, pose topics (all, end, none), copied input topics."""
+        from rosbags.interfaces import (
+            Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime)
+
+        def qos(depth, durability):
+            never = QosTime(sec=0, nsec=0)
+            return [Qos(QosHistory.KEEP_LAST, depth, QosReliability.RELIABLE, durability,
+                        never, never, QosLiveliness.AUTOMATIC, never, False)]
+        volatile, latched = QosDurability.VOLATILE, QosDurability.TRANSIENT_LOCAL
+        self.model = model
+        self.writer = writer
+        self.typestore = typestore
+        self.frame_ids = [frame_prefix + name for name in model.frame_names]
+        parents = [model.fixed_frame] + self.frame_ids[:-1]
+        n_rows = len(model.chain.joints)
+        self.moving_rows = [k - 1 for k in range(1, n_rows + 1) if model.moving[k]]
+        self.static_frames = [k for k in range(len(self.frame_ids)) if not model.moving[k]]
+        add = writer.add_connection
+        self.tf = add('/tf', 'tf2_msgs/msg/TFMessage', typestore=typestore,
+                      offered_qos_profiles=qos(100, volatile))
+        self.tf_static = add('/tf_static', 'tf2_msgs/msg/TFMessage', typestore=typestore,
+                             offered_qos_profiles=qos(1, latched))
+        n_frames = len(model.frame_names)
+        self.pose_frames = {'all': list(range(n_frames)), 'end': [n_frames - 1],
+                            'none': []}[poses]
+        self.poses = [add(f'{pose_namespace}/pose/{model.frame_names[k]}',
+                          'geometry_msgs/msg/PoseStamped', typestore=typestore,
+                          offered_qos_profiles=qos(10, volatile)) for k in self.pose_frames]
+        self.tf_template = tf_message_template(
+            [(parents[row + 1], self.frame_ids[row + 1]) for row in self.moving_rows])
+        self.pose_template = pose_stamped_template(model.fixed_frame)
+        self.static_template = tf_message_template(
+            [(parents[k], self.frame_ids[k]) for k in self.static_frames])
+        self.copied = {}
+        for conn in copy_from:
+            self.copied[conn.id] = _copy_connection(writer, conn, typestore)
+        self.static_written = False
+
+    def write_static(self, time_ns):
+        """Write /tf_static once: base, fixed rows and tool, stamped ``time_ns``."""
+        chain = self.model.chain
+        q0 = np.zeros((1, chain.dof))
+        frames = dq_to_pose_xyzw(chain.forward_all_batch(q0)[0])
+        # static transforms relative to their parent: base (absolute = relative), fixed
+        # rows (the row operator), tool
+        rel = dq_to_pose_xyzw(chain.relative_all_batch(q0)[0])
+        values = []
+        for k in self.static_frames:
+            if k == 0:
+                values.append(frames[0])
+            elif k <= len(chain.joints):
+                values.append(rel[k - 1])
+            else:
+                values.append(chain.tool.to_pose_xyzw())
+        row = self.static_template.fill([time_ns], np.concatenate(values)[None, :])[0]
+        self.writer.write(self.tf_static, time_ns, memoryview(row))
+        self.static_written = True
+
+    def write_chunk(self, q, stamps_ns, log_times_ns):
+        """FK of a chunk of configurations, serialized and written as arrays."""
+        chain = self.model.chain
+        absolute = dq_to_pose_xyzw(chain.forward_all_batch(q))           # (N, frames, 7)
+        relative = dq_to_pose_xyzw(chain.relative_all_batch(q)[:, self.moving_rows])
+        n = len(q)
+        tf_rows = self.tf_template.fill(stamps_ns, relative.reshape(n, -1))
+        pose_rows = [self.pose_template.fill(stamps_ns, absolute[:, k])
+                     for k in self.pose_frames]
+        self.writer.write_rows([self.tf] + self.poses, log_times_ns, [tf_rows] + pose_rows)
+        return absolute[:, -1]
+
+    def copy(self, conn, time_ns, raw):
+        """Copy an input message through unchanged."""
+        out = self.copied.get(conn.id)
+        if out is not None:
+            self.writer.write(out, time_ns, raw)
+
+
+def _copy_connection(writer, conn, typestore):
+    """Add an input connection to the output: its own type definition, else Jazzy's."""
+    from rosbags.typesys import TypesysError
+    ext = getattr(conn, 'ext', None)
+    qos = list(getattr(ext, 'offered_qos_profiles', None) or [])
+    definition = getattr(getattr(conn, 'msgdef', None), 'data', '')
+    if definition and conn.digest:
+        return writer.add_connection(conn.topic, conn.msgtype, msgdef=definition,
+                                     rihs01=conn.digest, offered_qos_profiles=qos)
+    try:
+        return writer.add_connection(conn.topic, conn.msgtype, typestore=typestore,
+                                     offered_qos_profiles=qos)
+    except TypesysError:
+        raise BagError(f'cannot copy {conn.topic}: the bag carries no definition of '
+                       f'{conn.msgtype} and ROS 2 Jazzy has none; leave out --copy-input'
+                       ) from None
+
+
+def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=False,
+                csv_path=None, csv_only=False, copy_input=False, pose_namespace='/dq_fk_node',
+                frame_prefix='', out_of_limits='warn', progress=True, chunk=CHUNK,
+                poses='all'):
+    """
+    Compute every frame for every JointState of ``in_path``; return a summary dict.
+
+    Messages the node would reject are skipped and counted by reason; everything valid is
+    written. Raises :class:`BagError` for problems with the bags themselves.
+    """
+    from dq_fk_ros.bag.writer import BagWriter
+    from rosbags.typesys import get_typestore, Stores
+    model = robot if not isinstance(robot, (str, os.PathLike)) else \
+        load_robot_description(robot)
+    reader = open_reader(in_path)
+    try:
+        conns = joint_state_connections(reader, in_path, topic)
+        if csv_only and not csv_path:
+            raise BagError('--csv-only needs --csv FILE')
+        writer = None
+        if not csv_only:
+            if os.path.exists(out_path):
+                if not overwrite:
+                    raise BagError(f'{out_path} exists; use --overwrite to replace it')
+                shutil.rmtree(out_path) if os.path.isdir(out_path) else os.remove(out_path)
+            writer = BagWriter(out_path, storage)
+            writer.open()
+        typestore = get_typestore(Stores.ROS2_JAZZY)
+        copy_from = list(reader.connections) if copy_input else []
+        try:
+            outputs = BagOutputs(writer, model, typestore, pose_namespace, frame_prefix,
+                                 copy_from, poses) if writer is not None else None
+        except BagError:  # refused before anything was written: leave no output behind
+            writer.abort()
+            shutil.rmtree(out_path, ignore_errors=True)
+            raise
+        try:
+            summary = _process_messages(reader, conns, model, outputs, csv_path, copy_input,
+                                        out_of_limits, progress, chunk, in_path)
+        finally:
+            if writer is not None:
+                writer.close()
+    finally:
+        reader.close()
+    summary['output'] = None if csv_only else out_path
+    summary['note'] = reader.note
+    summary['error'] = summary['error'] or reader.damage
+    return summary
+
+
+def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_of_limits,
+                      progress, chunk, in_path):
+    """Read, merge, compute and write chunk by chunk; return the summary dict."""
+    merger = JointStateMerger(model.joint_names, model.limits, out_of_limits)
+    cache = JointStateNames()
+    ids = {c.id for c in conns}
+    meter = Progress(sum(c.msgcount for c in conns), 'dq_fk_bag process', enabled=progress)
+    csv = open(csv_path, 'w', encoding='utf-8') if csv_path else None
+    if csv:
+        csv.write('stamp_ns,x,y,z,qx,qy,qz,qw\n')
+    raws, log_times = [], []
+    seen = written = 0
+    error = None
+
+    def flush():
+        """Parse, merge (the node's rules), compute and write the collected messages."""
+        nonlocal written
+        if not raws:
+            return
+        items = parse_joint_states(raws, cache)
+        runs = [item for item in items if isinstance(item, JointStateRun)]
+        malformed = len(items) - len(runs)
+        merger.counts['received'] += malformed
+        merger.count_rejected('malformed_cdr', malformed)
+        published, q, _ = merger.merge_many(
+            [(r.names, r.positions, r.velocities, r.stamps_ns) for r in runs])
+        # message index in this batch of every run message, in merge order
+        where = np.concatenate([r.first + np.arange(len(r.stamps_ns)) for r in runs] or [[]])
+        where = where.astype(np.int64)[published]
+        out_times = np.array(log_times, dtype=np.int64)[where]
+        stamps = np.concatenate([r.stamps_ns for r in runs] or [[]]).astype(np.int64)[published]
+        stamps = np.where(stamps != 0, stamps, out_times)  # output stamps are input stamps
+        raws.clear()
+        log_times.clear()
+        if not len(q):
+            return
+        if outputs is not None:
+            if not outputs.static_written:
+                outputs.write_static(int(out_times[0]))
+            ee = outputs.write_chunk(q, stamps, out_times)
+        else:
+            ee = dq_to_pose_xyzw(model.chain.forward_batch(q))
+        if csv:
+            line = '%d,' + ','.join(['%.17g'] * 7) + '\n'
+            csv.writelines(line % (s, *p) for s, p in zip(stamps.tolist(), ee.tolist()))
+        written += len(q)
+
+    messages = reader.messages(connections=list(reader.connections) if copy_input else conns)
+    try:
+        for conn, log_time, raw in messages:
+            if copy_input:
+                outputs.copy(conn, log_time, raw)
+            if conn.id not in ids:
+                continue
+            seen += 1
+            raws.append(raw)
+            log_times.append(log_time)
+            if len(raws) == chunk:
+                flush()
+                meter.update(seen)
+    except Exception as exc:  # a truncated or corrupt bag: keep everything read so far
+        error = f'{in_path}: reading stopped after {seen} JointState messages: {exc}'
+    flush()
+    meter.update(seen, force=True)
+    if csv:
+        csv.close()
+    counts = merger.counts
+    rejected = {k[len('rejected_'):]: v for k, v in counts.items()
+                if k.startswith('rejected_') and v}
+    return {'read': seen, 'written': written, 'incomplete': counts['incomplete'],
+            'rejected': rejected, 'unknown_joints': sorted(merger.unknown), 'error': error}

@@ -1,0 +1,1 @@
+"""Command lines (``dq_fk``, ``dq_fk_bag``): the top layer, free to use every other."""

@@ -1,0 +1,107 @@
+"""
+``dq_fk_bag``: joint states from rosbag2 files, without rosbag2 (bags via ``rosbags``).
+
+* ``dq_fk_bag process IN_BAG OUT_BAG --robot FILE``: every JointState of the bag, through the
+  same input rules as the node, then the batched FK in chunks, written as /tf, /tf_static and
+  the pose topics of the node to a new bag (:mod:`dq_fk_ros.bag.process`); ``--csv`` writes
+  the end-effector pose per message.
+* ``dq_fk_bag play BAG``: publishes the bag's JointState messages with their recorded timing
+  (``--rate``, ``--loop``, ``--start``, ``--duration``, ``--clock``) into a running node
+  (:mod:`dq_fk_ros.ros.bag_play`).
+"""
+
+import argparse
+import os
+import sys
+
+from dq_fk_ros.bag.process import process_bag
+from dq_fk_ros.bag.reading import BagError
+from dq_fk_ros.description.robot_model import RobotDescriptionError, shipped_robot_path
+
+
+def summary_line(path, s):
+    """One line saying what ``process`` read, wrote and skipped (with reasons)."""
+    parts = [f"{path}: {s['read']} JointState messages, {s['written']} written"
+             + (f" to {s['output']}" if s['output'] else '')]
+    if s['incomplete']:
+        parts.append(f"{s['incomplete']} incomplete (joints not all seen yet)")
+    if s['rejected']:
+        parts.append('rejected (' + ', '.join(f'{k}: {v}' for k, v in
+                                              sorted(s['rejected'].items())) + ')')
+    if s['unknown_joints']:
+        parts.append('unknown joints ignored: ' + ', '.join(s['unknown_joints']))
+    return ', '.join(parts)
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog='dq_fk_bag', description='Joint-state bags: offline FK into a new bag, or replay.')
+    sub = parser.add_subparsers(dest='command', required=True)
+    p = sub.add_parser('process', help='compute every frame for every JointState of a bag')
+    p.add_argument('in_bag', metavar='IN_BAG')
+    p.add_argument('out_bag', metavar='OUT_BAG')
+    p.add_argument('--robot', default='rl15',
+                   help='robot description file or shipped robot name (default rl15)')
+    p.add_argument('--topic', help='JointState topic (default: the only one in the bag)')
+    p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
+    p.add_argument('--overwrite', action='store_true', help='replace OUT_BAG if it exists')
+    p.add_argument('--csv', metavar='FILE', help='also write the end-effector pose per message')
+    p.add_argument('--csv-only', action='store_true', help='write the CSV and no bag')
+    p.add_argument('--copy-input', action='store_true', help='copy the input topics through')
+    p.add_argument('--pose-namespace', default='/dq_fk_node',
+                   help='pose topics are <ns>/pose/<frame> (default /dq_fk_node, as the node)')
+    p.add_argument('--frame-prefix', default='', help='as the node parameter frame_prefix')
+    p.add_argument('--poses', choices=('all', 'end', 'none'), default='all',
+                   help='pose topics written: every frame (default), the end effector, none')
+    p.add_argument('--out-of-limits', choices=('warn', 'clamp', 'reject'), default='warn')
+    p.add_argument('--quiet', action='store_true', help='no progress output')
+    p = sub.add_parser('play', help='publish the JointState messages with recorded timing')
+    p.add_argument('bag', metavar='BAG')
+    p.add_argument('--topic', help='JointState topic (default: the only one in the bag)')
+    p.add_argument('--rate', type=float, default=1.0, help='speed factor (default 1)')
+    p.add_argument('--loop', action='store_true', help='start over at the end')
+    p.add_argument('--start', type=float, default=0.0, help='skip this many seconds')
+    p.add_argument('--duration', type=float, help='play this many seconds')
+    p.add_argument('--clock', action='store_true', help='publish /clock (use_sim_time)')
+    p.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
+                   help='start once N subscriptions are matched (default 0: at once)')
+    p.add_argument('--quiet', action='store_true', help='no progress output')
+    return parser
+
+
+def main(argv=None):
+    """Run ``dq_fk_bag``; exit 0 on success, 1 on a user error or a damaged bag."""
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == 'process':
+            robot = args.robot
+            if not os.path.exists(robot) and os.sep not in robot:
+                robot = shipped_robot_path(robot)
+            s = process_bag(args.in_bag, args.out_bag, robot, topic=args.topic,
+                            storage=args.storage, overwrite=args.overwrite, csv_path=args.csv,
+                            csv_only=args.csv_only, copy_input=args.copy_input,
+                            pose_namespace=args.pose_namespace, frame_prefix=args.frame_prefix,
+                            out_of_limits=args.out_of_limits, progress=not args.quiet,
+                            poses=args.poses)
+            print(summary_line(args.in_bag, s))
+        else:
+            from dq_fk_ros.ros.bag_play import play_bag  # rclpy only where it is needed
+            s = play_bag(args.bag, topic=args.topic, rate=args.rate, loop=args.loop,
+                         start_s=args.start, duration_s=args.duration, clock=args.clock,
+                         progress=not args.quiet, wait_for=args.wait_for_subscribers)
+            print(f"{args.bag}: published {s['sent']} JointState messages")
+        for line in (s['note'], s['error']):
+            if line:
+                print(f'dq_fk_bag: {line}', file=sys.stderr)
+        if s['error']:
+            return 1
+    except (BagError, RobotDescriptionError, FileNotFoundError) as exc:
+        print(f'dq_fk_bag: {exc}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Kinematics layer: dual quaternions and DH chains in numpy; imports nothing else."""
