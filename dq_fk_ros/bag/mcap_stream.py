@@ -1,29 +1,74 @@
 """
-MCAP files read record by record: bags rosbags cannot open, such as a recording cut short.
+MCAP files read record by record: bags rosbags cannot open, or cannot read to the end.
 
 ``ros2 bag record`` writes ``metadata.yaml`` and the MCAP summary and footer when it stops;
 a recording killed on the robot (power lost, SIGKILL) has neither, and rosbags refuses the
-bag. The complete chunks before the cut are intact, and :class:`McapStreamBag` reads them
-with Foxglove's ``mcap`` stream reader (chunk CRCs checked), in file order, up to the first
-record that is cut or damaged. It offers the part of rosbags' ``Reader`` that
-:mod:`dq_fk_ros.bag` uses (``connections``, ``messages``, ``start_time``, ``close``), and says
-in :attr:`McapStreamBag.damage` where reading stopped.
+bag. A damaged byte inside a chunk makes rosbags stop at that chunk. :class:`McapStreamBag`
+reads such files itself, with Foxglove's ``mcap`` record classes, in file order:
+
+* every chunk is checked (CRC, structure); a damaged chunk is skipped and reported with the
+  number of messages it held (from its message indexes, where they survive);
+* after a damaged record the reader resynchronises on the next chunk whose structure and CRC
+  are intact (from the summary's chunk index where the summary is intact, else by scanning),
+  so one damaged byte costs one chunk, not the rest of the file;
+* channels and schemas come from the data section and, where its CRC holds, the summary.
+
+It offers the part of rosbags' ``Reader`` that :mod:`dq_fk_ros.bag` uses (``connections``,
+``messages``, ``start_time``, ``close``), and says in :attr:`McapStreamBag.damage` what was
+skipped.
 """
 
 from collections import Counter
+from io import BytesIO
+import mmap
 import os
+import struct
+import zlib
 
 from rosbags.interfaces import (
     Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat)
 from rosbags.rosbag2.metadata import parse_qos
 
+MAGIC = b'\x89MCAP0\r\n'
+OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x02, 0x03, 0x04, 0x05, 0x06
+OP_HEADER, OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_METADATA = 0x01, 0x07, 0x08, 0x0C
+OP_DATA_END = 0x0F
+END_LENGTHS = {OP_DATA_END: 4, OP_FOOTER: 20}   # the body sizes of the records that end data
+KNOWN_OPCODES = range(0x01, 0x11)
+_U64 = struct.Struct('<Q')
+_CHUNK_HEAD = struct.Struct('<QQQII')  # start, end, uncompressed size, crc, compression len
+
+
+def summary_intact(path):
+    """
+    Whether an MCAP file's summary can be trusted: its CRC holds, or it has none to check.
+
+    A file without a footer (cut short) has no summary and passes: readers find that out
+    themselves. Raises ``OSError`` if the file cannot be read.
+    """
+    with open(path, 'rb') as f:
+        size = os.fstat(f.fileno()).st_size
+        if size < 8 + 29 + 8:
+            return True
+        f.seek(size - 8 - 29)
+        tail = f.read(29 + 8)
+        if tail[0] != OP_FOOTER or tail[29:] != MAGIC:
+            return True
+        summary_start, _, crc = struct.unpack_from('<QQI', tail, 9)
+        if not crc or not summary_start:
+            return True
+        if summary_start > size - 8 - 29:
+            return False
+        f.seek(summary_start)
+        return zlib.crc32(f.read(size - 8 - 4 - summary_start)) == crc
+
 
 class McapStreamBag:
     """
-    The messages of one or more MCAP files, read sequentially (no index, no summary needed).
+    The messages of one or more MCAP files, read in file order (no index needed).
 
-    Opening scans the files once: channels, message counts, first time and where a file
-    ends early. :meth:`messages` reads them again, up to the same place.
+    Opening scans the files once: channels, message counts, first time and what is damaged.
+    :meth:`messages` reads them again, skipping the same damaged parts.
 
     :param paths: MCAP files, read in this order (the splits of one recording).
     """
@@ -31,16 +76,22 @@ class McapStreamBag:
     def __init__(self, paths):
         """Scan ``paths``; raises ``OSError`` if a file cannot be opened."""
         self.paths = [os.fspath(p) for p in paths]
+        for path in self.paths:
+            with open(path, 'rb'):
+                pass
         self.connections = []
         self._by_channel = {}       # (file index, channel id) -> Connection
-        self.damage = None          # one line: where and why reading stopped, or None
+        self.damage = None          # one line: what was damaged and skipped, or None
         self.note = None            # one line for the user about how the bag is read
+        self.skipped = Counter()    # topic -> messages lost in damaged chunks
         counts = Counter()
         self.start_time = None      # earliest log time (ns), as rosbags' Reader.start_time
+        self.end_time = 0           # latest log time (ns), as rosbags' Reader.end_time
         for conn_id, _, log_time in self._records(scanning=True):
             counts[conn_id] += 1
             if self.start_time is None or log_time < self.start_time:
                 self.start_time = log_time
+            self.end_time = max(self.end_time, log_time)
         self.start_time = self.start_time or 0
         self.connections = [c._replace(msgcount=counts[c.id]) for c in self.connections]
         self._by_id = {c.id: c for c in self.connections}
@@ -51,7 +102,7 @@ class McapStreamBag:
 
     def messages(self, connections=None, start=None, stop=None):
         """
-        Yield ``(connection, log_time_ns, raw)`` in file order, up to the damage if any.
+        Yield ``(connection, log_time_ns, raw)`` in file order, skipping damaged chunks.
 
         :param connections: only these connections (default all).
         :param start: only log times ``>= start`` ns; ``stop``: only ``< stop``.
@@ -64,36 +115,66 @@ class McapStreamBag:
 
     # -- the two passes: scanning builds the connections and finds the damage -------------
     def _records(self, scanning=False):
-        from mcap.records import Channel, Message, Schema
-        from mcap.stream_reader import StreamReader
         for file_index, path in enumerate(self.paths):
-            schemas, local = {}, {}
-            read = 0
             with open(path, 'rb') as f:
-                reader = StreamReader(f, validate_crcs=True,
-                                      record_size_limit=max(os.path.getsize(path), 1))
-                records = reader.records
-                while True:
-                    try:
-                        record = next(records)
-                    except StopIteration:
-                        break
-                    except Exception as exc:  # cut short or damaged: stop at this record
-                        if scanning:  # (the second pass stops at the same record)
-                            why = type(exc).__name__ + (f': {exc}' if str(exc) else '')
-                            self.damage = '; '.join(filter(None, [
-                                self.damage, f'{path} ends early or is damaged after {read} '
-                                f'complete records ({why}); read up to there']))
-                        break
-                    read += 1
-                    if isinstance(record, Schema):
-                        schemas[record.id] = record
-                    elif isinstance(record, Channel):
-                        conn = self._connection(file_index, record, schemas) if scanning \
-                            else self._by_channel[(file_index, record.id)]
-                        local[record.id] = conn.id
-                    elif isinstance(record, Message) and record.channel_id in local:
-                        yield local[record.channel_id], record.data, record.log_time
+                size = os.fstat(f.fileno()).st_size
+                if size == 0:
+                    if scanning:
+                        self._report(f'{path} is empty')
+                    continue
+                with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
+                    yield from self._file_records(file_index, path, data, scanning)
+
+    def _file_records(self, file_index, path, data, scanning):
+        from mcap.records import Channel, Schema
+        reader = _RecordReader(data)
+        schemas = dict(reader.summary_schemas)
+        local = {}
+        orphans = 0
+        for channel in reader.summary_channels.values():
+            local[channel.id] = self._channel(file_index, channel, schemas, scanning).id
+        for kind, item in reader.records():
+            if kind == 'damage':
+                if scanning:
+                    self._report(f'{path} {item}')
+            elif kind == 'damaged_chunk':
+                offset, why, per_channel = item
+                if scanning:
+                    self._damaged_chunk(path, offset, why, per_channel, file_index, local)
+            elif isinstance(item, Schema):
+                schemas[item.id] = item
+            elif isinstance(item, Channel):
+                if item.id not in local:
+                    local[item.id] = self._channel(file_index, item, schemas, scanning).id
+            elif item.channel_id in local:  # a message
+                yield local[item.channel_id], item.data, item.log_time
+            else:
+                orphans += 1
+        if orphans and scanning:
+            self._report(f'{path}: {orphans} messages on channels whose definition is lost '
+                         f'to damage; skipped')
+
+    def _damaged_chunk(self, path, offset, why, per_channel, file_index, local):
+        if per_channel is None:
+            held = 'an unknown number of messages (its message indexes are damaged too)'
+        else:
+            topics = Counter()
+            for channel_id, count in per_channel.items():
+                conn = self._by_channel.get((file_index, channel_id))
+                topics[conn.topic if conn is not None else f'channel {channel_id}'] += count
+            self.skipped.update(topics)
+            held = f'{sum(topics.values())} messages (' + ', '.join(
+                f'{topic}: {n}' for topic, n in sorted(topics.items())) + ')'
+        self._report(f'{path}: the chunk at byte {offset} is damaged ({why}); skipped {held}')
+
+    def _report(self, line):
+        self.damage = '; '.join(filter(None, [self.damage, line]))
+
+    def _channel(self, file_index, channel, schemas, scanning):
+        key = (file_index, channel.id)
+        if not scanning:
+            return self._by_channel[key]
+        return self._connection(file_index, channel, schemas)
 
     def _connection(self, file_index, channel, schemas):
         """Return the connection of a channel (one per topic and type across the files)."""
@@ -121,3 +202,206 @@ class McapStreamBag:
         self.connections.append(conn)
         self._by_channel[key] = conn
         return conn
+
+
+class _DamagedRecord(Exception):
+    """A record whose framing or content cannot be trusted."""
+
+
+class _RecordReader:
+    """
+    The records of one MCAP file in memory (an mmap), tolerant of damage.
+
+    :meth:`records` yields ``('record', record)`` for schemas, channels and messages (those
+    of intact chunks too), ``('damaged_chunk', (offset, why, {channel: count} or None))``
+    and ``('damage', line)``.
+    """
+
+    def __init__(self, data):
+        """Read the summary if the footer and the summary's CRC are intact."""
+        self.data = data
+        self.size = len(data)
+        self.summary_schemas, self.summary_channels = {}, {}
+        self.chunk_index = {}       # chunk start offset -> ChunkIndex, from an intact summary
+        self.summary_start = None
+        try:
+            self._read_summary()
+        except Exception:  # no usable summary (cut short, damaged): read without it
+            self.summary_schemas, self.summary_channels, self.chunk_index = {}, {}, {}
+            self.summary_start = None
+
+    # -- parsing one record --------------------------------------------------------------
+    def _frame(self, pos):
+        """Return ``(opcode, body start, end)`` of the record at ``pos``, or raise."""
+        if pos + 9 > self.size:
+            raise _DamagedRecord(f'the file ends inside a record at byte {pos}')
+        opcode = self.data[pos]
+        length = _U64.unpack_from(self.data, pos + 1)[0]
+        end = pos + 9 + length
+        if opcode not in KNOWN_OPCODES:
+            raise _DamagedRecord(f'unknown record type 0x{opcode:02x} at byte {pos}')
+        if end > self.size:
+            raise _DamagedRecord(f'the record at byte {pos} runs past the end of the file')
+        return opcode, pos + 9, end
+
+    def _parse(self, opcode, start, end, kind):
+        """Parse the body with mcap's record class; the body must be used exactly."""
+        from mcap.data_stream import ReadDataStream
+        stream = ReadDataStream(BytesIO(self.data[start:end]))
+        record = kind.read(stream, end - start) if opcode == OP_MESSAGE else kind.read(stream)
+        if stream.count != end - start:
+            raise _DamagedRecord(f'record at byte {start - 9} has {end - start} bytes, '
+                                 f'its fields {stream.count}')
+        return record
+
+    def _read_summary(self):
+        from mcap.records import Channel, ChunkIndex, Footer, Schema
+        data, size = self.data, self.size
+        if size < 8 + 29 + 8 or data[size - 8:] != MAGIC:
+            return
+        footer_at = size - 8 - 29
+        if data[footer_at] != OP_FOOTER:
+            return
+        footer = self._parse(OP_FOOTER, footer_at + 9, size - 8, Footer)
+        start = footer.summary_start
+        if not start or not 8 <= start <= footer_at:
+            return
+        # the summary CRC covers the summary section and the footer up to the CRC field
+        if footer.summary_crc and zlib.crc32(data[start:size - 8 - 4]) != footer.summary_crc:
+            return
+        kinds = {OP_SCHEMA: Schema, OP_CHANNEL: Channel, OP_CHUNK_INDEX: ChunkIndex}
+        pos = start
+        while pos < footer_at:
+            opcode, body, end = self._frame(pos)
+            if opcode in kinds:
+                record = self._parse(opcode, body, end, kinds[opcode])
+                if opcode == OP_SCHEMA:
+                    self.summary_schemas[record.id] = record
+                elif opcode == OP_CHANNEL:
+                    self.summary_channels[record.id] = record
+                else:
+                    self.chunk_index[record.chunk_start_offset] = record
+            pos = end
+        self.summary_start = start
+
+    # -- chunks --------------------------------------------------------------------------
+    def _chunk_records(self, body, end):
+        """Check and open a chunk; return its records or raise ``_DamagedRecord``."""
+        from mcap.records import Chunk
+        from mcap.stream_reader import breakup_chunk
+        try:
+            chunk = self._parse(OP_CHUNK, body, end, Chunk)
+            return breakup_chunk(chunk, validate_crc=True)
+        except _DamagedRecord:
+            raise
+        except Exception as exc:
+            from mcap.stream_reader import CRCValidationError
+            raise _DamagedRecord('its CRC does not match' if isinstance(
+                exc, CRCValidationError) else f'cannot be decoded: {type(exc).__name__}') \
+                from None
+
+    def _plausible_chunk(self, pos):
+        """Whether a chunk starts at ``pos``: consistent lengths and an intact CRC."""
+        if pos + 9 + _CHUNK_HEAD.size > self.size or self.data[pos] != OP_CHUNK:
+            return False
+        length = _U64.unpack_from(self.data, pos + 1)[0]
+        t0, t1, raw_size, crc, name_len = _CHUNK_HEAD.unpack_from(self.data, pos + 9)
+        if t0 > t1 or name_len > 16 or pos + 9 + length > self.size:
+            return False
+        at = pos + 9 + _CHUNK_HEAD.size + name_len
+        if at + 8 > self.size:
+            return False
+        records_len = _U64.unpack_from(self.data, at)[0]
+        if at + 8 + records_len != pos + 9 + length:
+            return False
+        try:
+            self._chunk_records(pos + 9, pos + 9 + length)
+        except _DamagedRecord:
+            return False
+        return crc != 0 or raw_size == records_len
+
+    def _resync(self, start):
+        """Return the next offset from ``start`` where an intact chunk begins, or None."""
+        known = sorted(p for p in self.chunk_index if p >= start)
+        for pos in known:
+            if self._plausible_chunk(pos):
+                return pos
+        limit = self.summary_start or self.size
+        pos = start
+        while True:
+            pos = self.data.find(bytes((OP_CHUNK,)), pos, limit)
+            if pos < 0:
+                return None
+            if self._plausible_chunk(pos):
+                return pos
+            pos += 1
+
+    def _message_counts(self, chunk_at, end):
+        """Messages per channel of the chunk at ``chunk_at``, from its message indexes."""
+        from mcap.records import MessageIndex
+        counts = Counter()
+        index = self.chunk_index.get(chunk_at)
+        try:
+            if index is not None:
+                for channel_id, offset in index.message_index_offsets.items():
+                    opcode, body, stop = self._frame(offset)
+                    record = self._parse(opcode, body, stop, MessageIndex)
+                    counts[channel_id] += len(record.records)
+                return counts
+            pos = end  # the message indexes follow their chunk in the data section
+            while pos < self.size and self.data[pos] == OP_MESSAGE_INDEX:
+                opcode, body, stop = self._frame(pos)
+                record = self._parse(opcode, body, stop, MessageIndex)
+                counts[record.channel_id] += len(record.records)
+                pos = stop
+        except Exception:
+            return None
+        return counts if counts or index is not None else None
+
+    # -- the walk ------------------------------------------------------------------------
+    def records(self):
+        """Yield the file's records in order, skipping and reporting what is damaged."""
+        from mcap.records import Channel, Header, Message, MessageIndex, Metadata, Schema
+        kinds = {OP_SCHEMA: Schema, OP_CHANNEL: Channel, OP_MESSAGE: Message}
+        # read only to check them: a damaged opcode must not make a chunk pass for these
+        checked = {OP_HEADER: Header, OP_MESSAGE_INDEX: MessageIndex, OP_METADATA: Metadata}
+        if self.data[:8] != MAGIC:
+            yield 'damage', 'is damaged: it does not start with the MCAP magic; reading on'
+        pos = 8
+        resume = 8          # a resync never goes back before this (already yielded)
+        last = 8            # start of the last record taken as intact
+        limit = self.summary_start or self.size
+        while pos < limit:
+            try:
+                opcode, body, end = self._frame(pos)
+                if opcode in END_LENGTHS:
+                    if end - body != END_LENGTHS[opcode]:
+                        raise _DamagedRecord(f'record at byte {pos} is not what its type says')
+                    return
+                if opcode == OP_CHUNK:
+                    try:
+                        records = self._chunk_records(body, end)
+                    except _DamagedRecord as exc:
+                        yield 'damaged_chunk', (pos, str(exc), self._message_counts(pos, end))
+                        pos = resume = last = end
+                        continue
+                    for record in records:
+                        if isinstance(record, (Schema, Channel, Message)):
+                            yield 'record', record
+                    resume = end
+                elif opcode in kinds:
+                    yield 'record', self._parse(opcode, body, end, kinds[opcode])
+                    resume = end
+                elif opcode in checked:
+                    self._parse(opcode, body, end, checked[opcode])
+                last = pos
+                pos = end
+            except Exception as exc:  # framing lost: find the next intact chunk
+                why = str(exc) if isinstance(exc, _DamagedRecord) else \
+                    f'record at byte {pos} cannot be read ({type(exc).__name__})'
+                found = self._resync(max(last + 1, resume))
+                if found is None:
+                    yield 'damage', f'ends early or is damaged: {why}; read up to there'
+                    return
+                yield 'damage', f'is damaged: {why}; reading on at the chunk at byte {found}'
+                pos = last = resume = found

@@ -11,7 +11,7 @@ import os
 import shutil
 
 from dq_fk_ros.bag.progress import Progress
-from dq_fk_ros.bag.reading import BagError, joint_state_connections, open_reader
+from dq_fk_ros.bag.reading import BagError, joint_state_connections, open_reader, Ros1Bag
 from dq_fk_ros.description.robot_model import load_robot_description
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
 from dq_fk_ros.messages.cdr import (
@@ -123,6 +123,65 @@ def _copy_connection(writer, conn, typestore):
                        ) from None
 
 
+def check_output_paths(in_path, out_path, csv_path, overwrite, csv_only):
+    """
+    Refuse output paths that would destroy the input or write somewhere unexpected.
+
+    An output may not be, contain or lie inside the input (paths resolved), nor be a
+    symbolic link (never followed, also with ``overwrite``); an existing output needs
+    ``overwrite``; its folder must exist. Nothing is written or removed here: every
+    refusal is a :class:`BagError` before any output exists.
+    """
+    inp = os.path.realpath(in_path)
+    outputs = [] if csv_only else [('OUT_BAG', out_path)]
+    if csv_path:
+        outputs.append(('--csv', csv_path))
+    for what, path in outputs:
+        path = os.fspath(path)
+        real = os.path.realpath(path)
+        if real == inp or _inside(real, inp):
+            raise BagError(f'{what} {path} would overwrite the input bag {in_path}; '
+                           f'choose another path')
+        if _inside(inp, real):
+            raise BagError(f'{what} {path} contains the input bag {in_path}; '
+                           f'choose another path')
+        if os.path.islink(path):
+            raise BagError(f'{what} {path} is a symbolic link; not following it '
+                           f'(give the real path)')
+        parent = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(parent):
+            raise BagError(f'{what} {path}: folder {parent} does not exist')
+        if what == '--csv' and os.path.isdir(path):
+            raise BagError(f'--csv {path} is a directory; give a file name')
+        if os.path.lexists(path) and not overwrite:
+            raise BagError(f'{path} exists; use --overwrite to replace it')
+    if len(outputs) == 2 and (os.path.realpath(csv_path) == os.path.realpath(out_path)
+                              or _inside(os.path.realpath(csv_path),
+                                         os.path.realpath(out_path))):
+        raise BagError(f'--csv {csv_path} would be inside OUT_BAG {out_path}; '
+                       f'choose another path')
+
+
+def _inside(path, folder):
+    """Whether ``path`` lies strictly inside ``folder`` (both resolved)."""
+    return path != folder and os.path.commonpath([path, folder]) == folder
+
+
+def _remove(path):
+    if os.path.isdir(path) and not os.path.islink(path):
+        shutil.rmtree(path)
+    elif os.path.lexists(path):
+        os.remove(path)
+
+
+class _ReadingStopped(Exception):
+    """The reader raised inside the bag; ``partial`` is the summary of what was written."""
+
+    def __init__(self, partial, why):
+        super().__init__(why)
+        self.partial = partial
+
+
 def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=False,
                 csv_path=None, csv_only=False, copy_input=False, pose_namespace='/dq_fk_node',
                 frame_prefix='', out_of_limits='warn', progress=True, chunk=CHUNK,
@@ -131,45 +190,92 @@ def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=
     Compute every frame for every JointState of ``in_path``; return a summary dict.
 
     Messages the node would reject are skipped and counted by reason; everything valid is
-    written. Raises :class:`BagError` for problems with the bags themselves.
+    written. A chunk that rosbags cannot read (damaged) makes the whole bag be read again
+    record by record, skipping only the damaged chunks. The summary's ``error`` says what
+    was damaged, or that no message could be used (the output is then removed). Raises
+    :class:`BagError` for a command that cannot run (paths, topics, refused outputs).
     """
-    from dq_fk_ros.bag.writer import BagWriter
-    from rosbags.typesys import get_typestore, Stores
     model = robot if not isinstance(robot, (str, os.PathLike)) else \
         load_robot_description(robot)
+    if csv_only and not csv_path:
+        raise BagError('--csv-only needs --csv FILE')
+    check_output_paths(in_path, out_path, csv_path, overwrite, csv_only)
     reader = open_reader(in_path)
+    if copy_input and isinstance(reader, Ros1Bag):
+        reader.close()
+        raise BagError(f'{in_path}: --copy-input cannot copy ROS 1 messages; convert the bag '
+                       f'first (rosbags-convert --src {in_path} --dst NEW_BAG)')
+    args = (model, topic, storage, out_path, csv_path, csv_only, copy_input, pose_namespace,
+            frame_prefix, out_of_limits, progress, chunk, poses, in_path)
     try:
-        conns = joint_state_connections(reader, in_path, topic)
-        if csv_only and not csv_path:
-            raise BagError('--csv-only needs --csv FILE')
-        writer = None
-        if not csv_only:
-            if os.path.exists(out_path):
-                if not overwrite:
-                    raise BagError(f'{out_path} exists; use --overwrite to replace it')
-                shutil.rmtree(out_path) if os.path.isdir(out_path) else os.remove(out_path)
-            writer = BagWriter(out_path, storage)
-            writer.open()
-        typestore = get_typestore(Stores.ROS2_JAZZY)
-        copy_from = list(reader.connections) if copy_input else []
         try:
-            outputs = BagOutputs(writer, model, typestore, pose_namespace, frame_prefix,
-                                 copy_from, poses) if writer is not None else None
-        except BagError:  # refused before anything was written: leave no output behind
-            writer.abort()
-            shutil.rmtree(out_path, ignore_errors=True)
-            raise
-        try:
-            summary = _process_messages(reader, conns, model, outputs, csv_path, copy_input,
-                                        out_of_limits, progress, chunk, in_path)
-        finally:
-            if writer is not None:
-                writer.close()
+            summary = _process_with(reader, *args)
+        except _ReadingStopped as stop:
+            retry = reader.fallback()
+            if retry is None:
+                summary = stop.partial
+            else:
+                reader.close()
+                reader = retry
+                summary = _process_with(reader, *args, overwrite_own=True)
+    except _ReadingStopped as stop:
+        summary = stop.partial
     finally:
         reader.close()
     summary['output'] = None if csv_only else out_path
     summary['note'] = reader.note
     summary['error'] = summary['error'] or reader.damage
+    if summary['written'] == 0:
+        for path in ([] if csv_only else [out_path]) + ([csv_path] if csv_path else []):
+            _remove(path)
+        summary['output'] = None
+        summary['error'] = '; '.join(filter(None, [
+            summary['error'], nothing_usable(in_path, summary, model, robot)]))
+    return summary
+
+
+def nothing_usable(in_path, summary, model, robot):
+    """One line: no message could be used, what the bag has and what the robot needs."""
+    names = summary['joint_names_seen']
+    has = ('names joints ' + ', '.join(names[:12]) + (' ...' if len(names) > 12 else '')
+           if names else 'names no joints')
+    source = f' ({robot})' if isinstance(robot, (str, os.PathLike)) else ''
+    return (f'{in_path}: no JointState message could be used (nothing written): '
+            f"{summary['topic']} has {summary['read']} messages and {has}; robot "
+            f"{model.name}{source} needs {', '.join(model.joint_names)}")
+
+
+def _process_with(reader, model, topic, storage, out_path, csv_path, csv_only, copy_input,
+                  pose_namespace, frame_prefix, out_of_limits, progress, chunk, poses,
+                  in_path, overwrite_own=False):
+    """Process the bag with one reader; raises ``_ReadingStopped`` if reading fails."""
+    from dq_fk_ros.bag.writer import BagWriter
+    from rosbags.typesys import get_typestore, Stores
+    conns = joint_state_connections(reader, in_path, topic)
+    writer = None
+    if not csv_only:
+        if os.path.lexists(out_path):  # checked: --overwrite given, or our own first try
+            _remove(out_path)
+        writer = BagWriter(out_path, storage)
+        writer.open()
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    copy_from = list(reader.connections) if copy_input else []
+    try:
+        outputs = BagOutputs(writer, model, typestore, pose_namespace, frame_prefix,
+                             copy_from, poses) if writer is not None else None
+    except BagError:  # refused before anything was written: leave no output behind
+        writer.abort()
+        shutil.rmtree(out_path, ignore_errors=True)
+        raise
+    try:
+        summary = _process_messages(reader, conns, model, outputs, csv_path, copy_input,
+                                    out_of_limits, progress, chunk, in_path)
+    finally:
+        if writer is not None:
+            writer.close()
+    summary['topic'] = conns[0].topic
+    if summary.pop('stopped'):
+        raise _ReadingStopped(summary, summary['error'])
     return summary
 
 
@@ -186,6 +292,8 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
     raws, log_times = [], []
     seen = written = 0
     error = None
+    stopped = False
+    names_seen = []  # the first joint names the bag's messages carry, for a closing message
 
     def flush():
         """Parse, merge (the node's rules), compute and write the collected messages."""
@@ -194,6 +302,9 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
             return
         items = parse_joint_states(raws, cache)
         runs = [item for item in items if isinstance(item, JointStateRun)]
+        for run in runs:
+            if len(names_seen) < 50:
+                names_seen.extend(n for n in run.names if n not in names_seen)
         malformed = len(items) - len(runs)
         merger.counts['received'] += malformed
         merger.count_rejected('malformed_cdr', malformed)
@@ -220,21 +331,27 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
             csv.writelines(line % (s, *p) for s, p in zip(stamps.tolist(), ee.tolist()))
         written += len(q)
 
-    messages = reader.messages(connections=list(reader.connections) if copy_input else conns)
-    try:
-        for conn, log_time, raw in messages:
-            if copy_input:
-                outputs.copy(conn, log_time, raw)
-            if conn.id not in ids:
-                continue
-            seen += 1
-            raws.append(raw)
-            log_times.append(log_time)
-            if len(raws) == chunk:
-                flush()
-                meter.update(seen)
-    except Exception as exc:  # a truncated or corrupt bag: keep everything read so far
-        error = f'{in_path}: reading stopped after {seen} JointState messages: {exc}'
+    messages = iter(reader.messages(
+        connections=list(reader.connections) if copy_input else conns))
+    while True:
+        try:
+            conn, log_time, raw = next(messages)
+        except StopIteration:
+            break
+        except Exception as exc:  # a truncated or corrupt bag: keep everything read so far
+            error = f'{in_path}: reading stopped after {seen} JointState messages: {exc}'
+            stopped = True
+            break
+        if copy_input:
+            outputs.copy(conn, log_time, raw)
+        if conn.id not in ids:
+            continue
+        seen += 1
+        raws.append(raw)
+        log_times.append(log_time)
+        if len(raws) == chunk:
+            flush()
+            meter.update(seen)
     flush()
     meter.update(seen, force=True)
     if csv:
@@ -243,4 +360,5 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
     rejected = {k[len('rejected_'):]: v for k, v in counts.items()
                 if k.startswith('rejected_') and v}
     return {'read': seen, 'written': written, 'incomplete': counts['incomplete'],
-            'rejected': rejected, 'unknown_joints': sorted(merger.unknown), 'error': error}
+            'rejected': rejected, 'unknown_joints': sorted(merger.unknown), 'error': error,
+            'stopped': stopped, 'joint_names_seen': names_seen[:50]}

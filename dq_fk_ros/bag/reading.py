@@ -1,9 +1,9 @@
 """
 Reading joint-state bags: rosbags' ``Reader``, or a damaged recording record by record.
 
-:func:`open_reader` opens a rosbag2 folder (MCAP or sqlite3) or a bare ``.mcap`` file;
-:func:`joint_state_connections` finds the ``sensor_msgs/JointState`` topic in it. Problems
-with a bag are :class:`BagError`, whose message is one line for the user.
+:func:`open_reader` opens a rosbag2 folder (MCAP or sqlite3), a bare ``.mcap`` file or a
+ROS 1 ``.bag`` file; :func:`joint_state_connections` finds the ``sensor_msgs/JointState``
+topic in it. Problems with a bag are :class:`BagError`, whose message is one line.
 """
 
 import os
@@ -21,27 +21,63 @@ def open_reader(path):
     Open a bag for reading: rosbags' ``Reader``, or its MCAP files record by record.
 
     A rosbag2 folder rosbags cannot open (no ``metadata.yaml``, no MCAP summary: a
-    recording that did not stop cleanly) and a bare ``.mcap`` file are read with
-    :class:`~dq_fk_ros.bag.mcap_stream.McapStreamBag`, which keeps every complete record; its
-    ``note`` says so and its ``damage`` where reading stops. Raises :class:`BagError`.
+    recording that did not stop cleanly), one whose MCAP summary fails its CRC, and a bare
+    ``.mcap`` file are read with :class:`~dq_fk_ros.bag.mcap_stream.McapStreamBag`, which
+    skips damaged chunks; its ``note`` says so and its ``damage`` what was skipped. A ROS 1
+    ``.bag`` file is read with rosbags and its JointStates converted to ROS 2 CDR.
+    Every reader has ``fallback()``: the record-by-record reader of the same MCAP files
+    (None where there is none), for when rosbags stops inside a damaged chunk.
+    Raises :class:`BagError`.
     """
     from rosbags.rosbag2 import Reader, ReaderError
-    if not os.path.exists(path):
+    path = os.fspath(path)
+    if not os.path.lexists(path):
         raise BagError(f'{path}: no such bag')
-    if os.path.isfile(path) and str(path).endswith('.mcap'):
+    if os.path.isfile(path) and path.endswith('.mcap'):
         return _stream_bag([path], path, None)
+    if os.path.isfile(path) and _is_ros1_bag(path):
+        return Ros1Bag(path)
     try:
         reader = Reader(path)
         reader.open()
-    except (ReaderError, OSError, ValueError, KeyError) as exc:
+    except (ReaderError, OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         mcaps = _mcap_files(path)
         if not mcaps:
-            raise BagError(f'{path}: not a readable rosbag2 ({exc})') from None
+            hint = ' (a ROS 1 bag is a single .bag file)' if os.path.isdir(path) else ''
+            raise BagError(f'{path}: not a readable rosbag2{hint} ({_one_line(exc)})') \
+                from None
         if not os.path.exists(os.path.join(path, 'metadata.yaml')):
             exc = 'no metadata.yaml'
-        return _stream_bag(mcaps, path, exc)
+        return _stream_bag(mcaps, path, _one_line(exc))
+    mcaps = _mcap_files(path)
+    damaged = [f for f in mcaps if not _summary_intact(f)]
+    if damaged:
+        reader.close()
+        return _stream_bag(mcaps, path, f'the summary of {os.path.basename(damaged[0])} '
+                                        f'fails its CRC')
     reader.note = reader.damage = None
+    reader.fallback = (lambda: _stream_bag(mcaps, path, 'a damaged chunk')) if mcaps \
+        else (lambda: None)
     return reader
+
+
+def _one_line(exc):
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def _summary_intact(path):
+    """Whether an MCAP file's summary passes its CRC (a file without one passes)."""
+    from dq_fk_ros.bag.mcap_stream import summary_intact
+    try:
+        return summary_intact(path)
+    except OSError:
+        return False
+
+
+def _is_ros1_bag(path):
+    with open(path, 'rb') as f:
+        return f.read(13) == b'#ROSBAG V2.0\n'
 
 
 def _mcap_files(folder):
@@ -63,12 +99,72 @@ def _stream_bag(files, path, why):
     listing = ', '.join(os.path.basename(f) for f in files)
     bag.note = None if why is None else \
         f'{path}: not a complete rosbag2 ({why}); read {listing} record by record'
+    bag.fallback = lambda: None
     return bag
+
+
+class Ros1Bag:
+    """
+    A ROS 1 bag, with its JointState messages converted to ROS 2 CDR as they are read.
+
+    Offers what :func:`open_reader`'s readers offer (``connections``, ``messages``,
+    ``start_time``, ``close``, ``note``, ``damage``). Only JointState topics are offered:
+    other ROS 1 types would need a conversion of their own (``rosbags-convert``, installed
+    with rosbags, converts a whole ROS 1 bag to rosbag2).
+    """
+
+    def __init__(self, path):
+        """Open the bag; raises :class:`BagError` if rosbags cannot read it."""
+        from rosbags.rosbag1 import Reader, ReaderError
+        from rosbags.typesys import get_typestore, Stores
+        self.path = path
+        self._reader = Reader(path)
+        try:
+            self._reader.open()
+        except (ReaderError, OSError, ValueError, KeyError) as exc:
+            raise BagError(f'{path}: not a readable ROS 1 bag ({_one_line(exc)})') from None
+        self._ros1 = get_typestore(Stores.ROS1_NOETIC)
+        self._ros2 = get_typestore(Stores.ROS2_JAZZY)
+        self.connections = [c for c in self._reader.connections if c.msgtype == JOINT_STATE]
+        self.all_topics = [(c.topic, c.msgtype) for c in self._reader.connections]
+        self.start_time = self._reader.start_time if self.connections else 0
+        self.end_time = self._reader.end_time if self.connections else 0
+        self.note = f'{path}: a ROS 1 bag; its JointState messages are converted to ROS 2'
+        self.damage = None
+
+    def fallback(self):
+        """No other way to read a ROS 1 bag."""
+        return None
+
+    def close(self):
+        """Close the bag file."""
+        self._reader.close()
+
+    def messages(self, connections=None, start=None, stop=None):
+        """Yield ``(connection, log_time_ns, cdr)`` of the JointState topics."""
+        conns = self.connections if connections is None else connections
+        types = self._ros2.types
+        js, header, stamp = (types['sensor_msgs/msg/JointState'], types['std_msgs/msg/Header'],
+                             types['builtin_interfaces/msg/Time'])
+        for conn, log_time, raw in self._reader.messages(connections=conns, start=start,
+                                                         stop=stop):
+            try:
+                old = self._ros1.deserialize_ros1(raw, JOINT_STATE)
+                msg = js(header=header(stamp=stamp(sec=old.header.stamp.sec,
+                                                   nanosec=old.header.stamp.nanosec),
+                                       frame_id=old.header.frame_id),
+                         name=old.name, position=old.position, velocity=old.velocity,
+                         effort=old.effort)
+                data = self._ros2.serialize_cdr(msg, JOINT_STATE)
+            except Exception:  # a damaged message: let the CDR reader count it malformed
+                data = b''
+            yield conn, log_time, memoryview(data)
 
 
 def joint_state_connections(reader, path, topic=None):
     """Return the connections of the JointState topic (``topic``, or the only one)."""
-    listing = ', '.join(f'{c.topic} ({c.msgtype})' for c in reader.connections) or 'none'
+    listing = ', '.join(f'{t} ({m})' for t, m in getattr(reader, 'all_topics', [
+        (c.topic, c.msgtype) for c in reader.connections])) or 'none'
     if topic is not None:
         conns = [c for c in reader.connections if c.topic == topic]
         if not conns:

@@ -11,6 +11,7 @@
 """
 
 import argparse
+import math
 import os
 import sys
 
@@ -40,8 +41,9 @@ def build_parser():
     p = sub.add_parser('process', help='compute every frame for every JointState of a bag')
     p.add_argument('in_bag', metavar='IN_BAG')
     p.add_argument('out_bag', metavar='OUT_BAG')
-    p.add_argument('--robot', default='rl15',
-                   help='robot description file or shipped robot name (default rl15)')
+    p.add_argument('--robot', required=True,
+                   help='robot description file or shipped robot name (e.g. rl15, ur5e); '
+                   'required: a bag does not say which robot recorded it')
     p.add_argument('--topic', help='JointState topic (default: the only one in the bag)')
     p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
     p.add_argument('--overwrite', action='store_true', help='replace OUT_BAG if it exists')
@@ -58,10 +60,10 @@ def build_parser():
     p = sub.add_parser('play', help='publish the JointState messages with recorded timing')
     p.add_argument('bag', metavar='BAG')
     p.add_argument('--topic', help='JointState topic (default: the only one in the bag)')
-    p.add_argument('--rate', type=float, default=1.0, help='speed factor (default 1)')
+    p.add_argument('--rate', type=finite, default=1.0, help='speed factor (default 1)')
     p.add_argument('--loop', action='store_true', help='start over at the end')
-    p.add_argument('--start', type=float, default=0.0, help='skip this many seconds')
-    p.add_argument('--duration', type=float, help='play this many seconds')
+    p.add_argument('--start', type=finite, default=0.0, help='skip this many seconds')
+    p.add_argument('--duration', type=finite, help='play this many seconds')
     p.add_argument('--clock', action='store_true', help='publish /clock (use_sim_time)')
     p.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
                    help='start once N subscriptions are matched (default 0: at once)')
@@ -69,8 +71,25 @@ def build_parser():
     return parser
 
 
+def finite(text):
+    """Parse a finite float for argparse (``nan`` and ``inf`` are refused)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number') from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f'{text!r} is not a finite number')
+    return value
+
+
 def main(argv=None):
-    """Run ``dq_fk_bag``; exit 0 on success, 1 on a user error or a damaged bag."""
+    """
+    Run ``dq_fk_bag``; return the exit code.
+
+    0: done. 1: the bag was read, but part of it was damaged (skipped) or no message could
+    be used. 2: the command cannot run as given (arguments, paths, robot file, topics,
+    a refused output); nothing is written then. 130: interrupted.
+    """
     args = build_parser().parse_args(argv)
     try:
         if args.command == 'process':
@@ -97,7 +116,11 @@ def main(argv=None):
             return 1
     except (BagError, RobotDescriptionError, FileNotFoundError) as exc:
         print(f'dq_fk_bag: {exc}', file=sys.stderr)
-        return 1
+        return 2
+    except OSError as exc:  # the file system refused (permissions, disk full)
+        print(f'dq_fk_bag: {exc.strerror or exc}'
+              + (f': {exc.filename}' if exc.filename else ''), file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         return 130
     return 0

@@ -1,5 +1,6 @@
 """``dq_fk_bag play``: publish a bag's JointState messages with their recorded timing."""
 
+import math
 import time
 
 from dq_fk_ros.bag.progress import Progress
@@ -29,11 +30,19 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
     from rclpy.qos import QoSProfile
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
-    if rate <= 0:
-        raise BagError(f'--rate must be positive, got {rate}')
+    if not rate > 0 or not math.isfinite(rate):
+        raise BagError(f'--rate must be a positive number, got {rate}')
+    if not 0 <= start_s < math.inf:
+        raise BagError(f'--start must be 0 or more seconds, got {start_s}')
+    if duration_s is not None and not 0 < duration_s < math.inf:
+        raise BagError(f'--duration must be a positive number of seconds, got {duration_s}')
     reader = open_reader(path)
     try:
         conns = joint_state_connections(reader, path, topic)
+        length_s = (reader.end_time - reader.start_time) / 1e9
+        if start_s > length_s:
+            raise BagError(f'--start {start_s:g} s is after the end of {path} '
+                           f'({length_s:.3f} s long)')
         own = node is None
         if own:
             rclpy.init(args=['--ros-args', '--log-level', 'warn'])
@@ -57,8 +66,8 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
         try:
             while True:
                 wall0 = time.monotonic()
-                for _, log_time, raw in reader.messages(connections=conns, start=t_begin,
-                                                        stop=t_end):
+                stream = _tolerant(reader, conns, t_begin, t_end)
+                for log_time, raw in stream:
                     delay = (log_time - t_begin) / 1e9 / rate - (time.monotonic() - wall0)
                     if delay > 0:
                         time.sleep(delay)
@@ -67,6 +76,7 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
                     pub.publish(bytes(raw))
                     sent += 1
                     meter.update(sent)
+                reader = stream.reader  # the fallback reader, if the first one stopped
                 if not loop:
                     break
             # leaving at once would destroy the publishers before reliable subscribers
@@ -81,3 +91,42 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
     finally:
         reader.close()
     return {'sent': sent, 'note': reader.note, 'error': reader.damage}
+
+
+class _tolerant:
+    """
+    Iterate ``(log_time, raw)`` of a reader, going on past a damaged chunk.
+
+    If the reader fails inside a damaged chunk, reading goes on with its record-by-record
+    fallback, after the last message already given.
+    """
+
+    def __init__(self, reader, conns, start, stop):
+        self.reader, self.conns, self.start, self.stop = reader, conns, start, stop
+
+    def __iter__(self):
+        last, at_last = None, 0  # the last log time given, and how many had it
+        try:
+            for _, log_time, raw in self.reader.messages(connections=self.conns,
+                                                         start=self.start, stop=self.stop):
+                at_last = at_last + 1 if log_time == last else 1
+                last = log_time
+                yield log_time, raw
+            return
+        except Exception:
+            retry = self.reader.fallback()
+            if retry is None:
+                self.reader.damage = self.reader.damage or 'reading stopped in a damaged part'
+                return
+        self.reader.close()
+        self.reader = retry
+        conns = [c for c in retry.connections if c.topic in {k.topic for k in self.conns}]
+        self.conns = conns
+        for _, log_time, raw in retry.messages(connections=conns, start=self.start,
+                                               stop=self.stop):
+            if last is not None and log_time < last:
+                continue  # given before the first reader stopped
+            if log_time == last and at_last > 0:
+                at_last -= 1
+                continue
+            yield log_time, raw

@@ -206,6 +206,11 @@ def run_cli(capsys, *argv):
     return rc, out, err
 
 
+def run_process(capsys, *argv):
+    """``dq_fk_bag process --robot rl15 ...`` (the bags of these tests are RL15 bags)."""
+    return run_cli(capsys, 'process', '--robot', 'rl15', *argv)
+
+
 def test_copy_input_keeps_custom_types_with_their_definition(tmp_path):
     store = get_typestore(Stores.ROS2_JAZZY)
     store.register(get_types_from_msg('float64 x\nstring label', 'my_pkg/msg/Thing'))
@@ -233,9 +238,8 @@ def test_copy_input_of_a_type_without_definition_is_refused_cleanly(tmp_path, ca
         odd = writer.add_connection('/odd', 'other_pkg/msg/Odd', msgdef='', rihs01='RIHS01_0')
         writer.write(js, T0, js_bytes(NAMES, np.zeros(6), T0))
         writer.write(odd, T0, b'\x00\x01\x00\x00')
-    rc, _, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--quiet',
-                         '--copy-input')
-    assert rc == 1 and err.count('\n') == 1
+    rc, _, err = run_process(capsys, tmp_path / 'in', tmp_path / 'out', '--quiet', '--copy-input')
+    assert rc == 2 and err.count('\n') == 1
     assert 'cannot copy /odd' in err and 'other_pkg/msg/Odd' in err
     assert not (tmp_path / 'out').exists()
 
@@ -251,19 +255,18 @@ def test_user_errors_are_one_line(tmp_path, capsys):
          "topic '/chatter' has type std_msgs/msg/String, not sensor_msgs/msg/JointState"),
     ]
     for args, words in cases:
-        rc, _, err = run_cli(capsys, 'process', *args, '--quiet')
-        assert rc == 1 and err.startswith('dq_fk_bag: ') and err.count('\n') == 1, err
+        rc, _, err = run_process(capsys, *args, '--quiet')
+        assert rc == 2 and err.startswith('dq_fk_bag: ') and err.count('\n') == 1, err
         assert words in err
     corrupt = tmp_path / 'corrupt'
     corrupt.mkdir()
     (corrupt / 'metadata.yaml').write_text('not: [a bag')
-    rc, _, err = run_cli(capsys, 'process', corrupt, tmp_path / 'o4', '--quiet')
-    assert rc == 1 and 'not a readable rosbag2' in err
+    rc, _, err = run_process(capsys, corrupt, tmp_path / 'o4', '--quiet')
+    assert rc == 2 and 'not a readable rosbag2' in err
     (tmp_path / 'exists').mkdir()
-    rc, _, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'exists', '--quiet')
-    assert rc == 1 and 'exists; use --overwrite' in err
-    rc, out, _ = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'exists', '--quiet',
-                         '--overwrite')
+    rc, _, err = run_process(capsys, tmp_path / 'in', tmp_path / 'exists', '--quiet')
+    assert rc == 2 and 'exists; use --overwrite' in err
+    rc, out, _ = run_process(capsys, tmp_path / 'in', tmp_path / 'exists', '--quiet', '--overwrite')
     assert rc == 0 and '3 JointState messages, 3 written' in out
 
 
@@ -287,7 +290,7 @@ def test_recording_cut_short_keeps_every_complete_chunk(tmp_path, capsys):
     expected = messages_in_chunks_before(data, cut)
     mcap.write_bytes(data[:cut])
     (tmp_path / 'in' / 'metadata.yaml').unlink()
-    rc, out, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--quiet')
+    rc, out, err = run_process(capsys, tmp_path / 'in', tmp_path / 'out', '--quiet')
     assert rc == 1
     assert 'not a complete rosbag2' in err and 'record by record' in err
     assert f'{mcap} ends early or is damaged' in err
@@ -300,14 +303,13 @@ def test_recording_cut_short_keeps_every_complete_chunk(tmp_path, capsys):
 def test_a_bare_mcap_file_or_a_folder_without_metadata_is_read_whole(tmp_path, capsys):
     q, stamps = valid_bag(tmp_path / 'in', n=500, extra_topic=True)
     mcap = next((tmp_path / 'in').glob('*.mcap'))
-    rc, out, err = run_cli(capsys, 'process', mcap, tmp_path / 'out1', '--quiet',
-                           '--copy-input')
+    rc, out, err = run_process(capsys, mcap, tmp_path / 'out1', '--quiet', '--copy-input')
     assert rc == 0 and err == '' and '500 written' in out
     with Reader(tmp_path / 'out1') as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
     assert counts['/chatter'] == 500 and counts['/joint_states'] == 500
     (tmp_path / 'in' / 'metadata.yaml').unlink()
-    rc, out, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out2', '--quiet')
+    rc, out, err = run_process(capsys, tmp_path / 'in', tmp_path / 'out2', '--quiet')
     assert rc == 0 and 'not a complete rosbag2' in err and '500 written' in out
     assert read_topic(tmp_path / 'out2', '/tf') == read_topic(tmp_path / 'out1', '/tf')
 
@@ -341,7 +343,7 @@ def test_split_recording_without_metadata_is_read_in_split_order(tmp_path, capsy
         write_bag(tmp_path / f'part{split}', [(s, js_bytes(NAMES, q[k], s))
                                               for s, k in zip(stamps, rows)])
         next((tmp_path / f'part{split}').glob('*.mcap')).rename(folder / f'rec_{split}.mcap')
-    rc, out, err = run_cli(capsys, 'process', folder, tmp_path / 'out', '--quiet')
+    rc, out, err = run_process(capsys, folder, tmp_path / 'out', '--quiet')
     assert rc == 0 and 'rec_0.mcap, rec_1.mcap, rec_2.mcap' in err and '600 written' in out
     assert 'rec_9.mcap, rec_10.mcap, rec_11.mcap' in err
     poses = read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')
@@ -353,24 +355,39 @@ def test_damaged_sqlite3_bag_is_a_clear_error_and_writes_nothing(tmp_path, capsy
     db = next((tmp_path / 'in').glob('*.db3'))
     data = db.read_bytes()
     db.write_bytes(data[:100] + b'\xff' * (len(data) - 100))
-    rc, _, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--quiet')
-    assert rc == 1 and 'not a readable rosbag2' in err and len(err.splitlines()) == 1
+    rc, _, err = run_process(capsys, tmp_path / 'in', tmp_path / 'out', '--quiet')
+    assert rc == 2 and 'not a readable rosbag2' in err and len(err.splitlines()) == 1
     assert not (tmp_path / 'out').exists()
 
 
-def test_corrupt_bag_keeps_every_message_read_before_the_damage(tmp_path, capsys):
+def messages_outside(mcap_bytes, lo, hi):
+    """Log times of the messages of every chunk that has no byte in ``[lo, hi)`` (mcap)."""
+    reader = make_reader(io.BytesIO(mcap_bytes))
+    chunks = reader.get_summary().chunk_indexes
+    hit = [c for c in chunks if c.chunk_start_offset < hi and
+           lo < c.chunk_start_offset + c.chunk_length]
+    assert hit and len(hit) < len(chunks), 'the damage must hit some chunks, not all'
+    lost = {(c.message_start_time, c.message_end_time) for c in hit}
+    return [m.log_time for _, _, m in reader.iter_messages(log_time_order=True)
+            if not any(a <= m.log_time <= b for a, b in lost)]
+
+
+def test_a_damaged_chunk_is_skipped_and_every_intact_chunk_processed(tmp_path, capsys):
     q, stamps = valid_bag(tmp_path / 'in', n=30000)
     mcap = next((tmp_path / 'in').glob('*.mcap'))
     data = bytearray(mcap.read_bytes())
     middle = len(data) // 2
+    expected = messages_outside(bytes(data), middle, middle + 2000)
     data[middle:middle + 2000] = b'\xff' * 2000
     mcap.write_bytes(bytes(data))
-    rc, out, err = run_cli(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--quiet')
-    assert rc == 1 and 'reading stopped after' in err
-    written = int(out.split(', ')[1].split()[0])
-    assert 0 < written < len(q)
+    rc, out, err = run_process(capsys, tmp_path / 'in', tmp_path / 'out', '--quiet')
+    assert rc == 1 and 'is damaged' in err and 'skipped' in err
+    assert len(err.strip().splitlines()) == 2  # how it was read, what was damaged
+    lost = len(q) - len(expected)
+    assert f'/joint_states: {lost})' in err  # the damage line counts what it skipped
     poses = read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')
-    assert [stamp_ns(m.header) for _, m in poses] == stamps[:written]
+    assert [stamp_ns(m.header) for _, m in poses] == expected
+    assert expected[-1] == stamps[-1]  # the chunks after the damage are there
 
 
 @pytest.mark.integration
@@ -412,8 +429,16 @@ def test_replay_into_the_node_gives_the_offline_poses(tmp_path, processes, ros_d
 
 def test_play_with_clock_and_bad_rate(tmp_path, capsys):
     valid_bag(tmp_path / 'in', n=3)
-    rc, _, err = run_cli(capsys, 'play', tmp_path / 'in', '--rate', '0')
-    assert rc == 1 and '--rate must be positive' in err
+    for args, words in [(('--rate', '0'), '--rate must be a positive number'),
+                        (('--rate', 'nan'), "argument --rate: 'nan' is not a finite number"),
+                        (('--start', '1e12'), '--start 1e+12 s is after the end of'),
+                        (('--start', '-1'), '--start must be 0 or more seconds'),
+                        (('--duration', '0'), '--duration must be a positive number')]:
+        try:
+            rc, _, err = run_cli(capsys, 'play', tmp_path / 'in', *args)
+        except SystemExit as exc:  # argparse refuses the value itself
+            rc, err = exc.code, capsys.readouterr().err
+        assert rc == 2 and words in err, err
 
 
 @pytest.mark.integration
