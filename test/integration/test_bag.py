@@ -266,7 +266,8 @@ def test_user_errors_are_one_line(tmp_path, capsys):
     (tmp_path / 'exists').mkdir()
     rc, _, err = run_process(capsys, tmp_path / 'in', tmp_path / 'exists', '--quiet')
     assert rc == 2 and 'exists; use --overwrite' in err
-    rc, out, _ = run_process(capsys, tmp_path / 'in', tmp_path / 'exists', '--quiet', '--overwrite')
+    rc, out, _ = run_process(capsys, tmp_path / 'in', tmp_path / 'exists', '--quiet',
+                             '--overwrite')
     assert rc == 0 and '3 JointState messages, 3 written' in out
 
 
