@@ -13,7 +13,16 @@ import subprocess
 import tempfile
 import time
 
+from hypothesis import HealthCheck, settings
 import pytest
+
+# Property-based fuzzing (hypothesis): a modest example count keeps `make test` fast; set
+# DQ_FK_FUZZ=long for a deeper search (e.g. before a release, or after changing an input path).
+settings.register_profile('ci', max_examples=60, deadline=None, derandomize=True,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile('long', max_examples=2000, deadline=None,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get('DQ_FK_FUZZ', 'ci'))
 
 # Domain ids 1..101 keep the DDS ports below Linux's ephemeral range.
 _DOMAIN_IDS = range(1, 102)

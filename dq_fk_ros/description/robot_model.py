@@ -33,9 +33,16 @@ import yaml
 LENGTH_UNITS = {'m': 1.0, 'cm': 0.01, 'mm': 0.001}
 ANGLE_UNITS = {'rad': 1.0, 'deg': math.pi / 180.0}
 ROW_TYPES = ('revolute', 'prismatic', 'cylindrical', 'fixed')
-# A ROS frame id: no leading slash, segments of letters, digits and underscores.
-FRAME_ID = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z0-9_]+)*$')
-JOINT_NAME = re.compile(r'^[A-Za-z_][A-Za-z0-9_./-]*$')
+# A frame id is also a token of the node's topic names (~/pose/<frame>), so it follows
+# ROS's topic-token rules: tokens of letters, digits and underscores that do not start with a
+# digit, joined by single inner slashes; no leading or trailing slash (tf2 frame ids).
+FRAME_ID = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*')
+# Joint names only travel inside JointState messages and URDF attributes.
+JOINT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_./-]*')
+MAX_NAME_CHARS = 128            # frame, joint and robot names (topic names stay < 247 chars)
+MAX_DESCRIPTION_CHARS = 4096
+MAX_FILE_BYTES = 1 << 20        # a robot description file is at most 1 MiB ...
+MAX_ROWS = 256                  # ... and at most this many DH rows
 
 TOP_FIELDS = ('robot', 'description', 'convention', 'units', 'fixed_frame', 'base', 'chain',
               'tool')
@@ -92,7 +99,7 @@ def _construct_mapping(loader, node, deep=False):
         key = loader.construct_object(key_node, deep=deep)
         if key in seen:
             raise yaml.constructor.ConstructorError(
-                None, None, f'duplicate key {key!r}', key_node.start_mark)
+                None, None, f'duplicate key {_short(key)}', key_node.start_mark)
         seen.add(key)
     return yaml.SafeLoader.construct_mapping(loader, node, deep)
 
@@ -106,19 +113,30 @@ def load_robot_description(path):
     path = os.fspath(path)
     try:
         with open(path, encoding='utf-8') as stream:
-            text = stream.read()
+            text = stream.read(MAX_FILE_BYTES + 1)
+        if len(text) > MAX_FILE_BYTES:
+            raise RobotDescriptionError(f'{path}: larger than {MAX_FILE_BYTES // 1024} KiB; '
+                                        f'a robot description file is at most that big')
     except FileNotFoundError:
         raise RobotDescriptionError(f'{path}: no such file') from None
     except IsADirectoryError:
         raise RobotDescriptionError(f'{path}: is a directory, not a robot description file') \
             from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise RobotDescriptionError(f'{path}: cannot be read ({exc})') from None
     return parse_robot_description(text, path)
 
 
 def parse_robot_description(text, source='<string>'):
-    """Validate the YAML text of a robot description; ``source`` names it in errors."""
+    """
+    Validate the YAML text of a robot description; ``source`` names it in errors.
+
+    Every problem, whatever the text holds, is a :class:`RobotDescriptionError` with one
+    line (the limits: :data:`MAX_FILE_BYTES`, :data:`MAX_ROWS`, :data:`MAX_NAME_CHARS`).
+    """
+    if len(text) > MAX_FILE_BYTES:
+        raise RobotDescriptionError(f'{source}: larger than {MAX_FILE_BYTES // 1024} KiB; a '
+                                    f'robot description is at most that big')
     try:
         data = yaml.load(text, Loader=_UniqueKeyLoader)
     except yaml.YAMLError as exc:
@@ -126,7 +144,17 @@ def parse_robot_description(text, source='<string>'):
         where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
         problem = getattr(exc, 'problem', None) or str(exc).splitlines()[0]
         raise RobotDescriptionError(f'{source}: not valid YAML{where}: {problem}') from None
-    return _Parser(source).robot(data)
+    except RecursionError:
+        raise RobotDescriptionError(f'{source}: YAML nested too deeply to be a robot '
+                                    f'description') from None
+    except (ValueError, TypeError, OverflowError) as exc:  # e.g. a 5000-digit integer
+        problem = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise RobotDescriptionError(f'{source}: not valid YAML: {problem}') from None
+    try:
+        return _Parser(source).robot(data)
+    except RecursionError:  # a value nested so deeply that describing it recurses
+        raise RobotDescriptionError(f'{source}: YAML nested too deeply to be a robot '
+                                    f'description') from None
 
 
 class _Parser:
@@ -148,7 +176,7 @@ class _Parser:
                       f'got {_describe(value)}')
         for key in value:
             if key not in allowed:
-                self.fail(where, f'unknown field {key!r}; allowed fields: '
+                self.fail(where, f'unknown field {_short(key)}; allowed fields: '
                           f'{", ".join(allowed)}')
         for key in required:
             if key not in value:
@@ -158,9 +186,14 @@ class _Parser:
     def number(self, value, where, field, unit=1.0):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             self.fail(where, f'field {field!r} must be a number, got {_describe(value)}')
-        if not math.isfinite(value):
-            self.fail(where, f'field {field!r} must be a finite number, got {value!r}')
-        return float(value) * unit
+        try:
+            scaled = float(value) * unit
+        except OverflowError:  # an integer beyond the float range
+            scaled = math.inf
+        if not math.isfinite(scaled):
+            self.fail(where, f'field {field!r} must be a finite number, got '
+                      f'{_describe(value)}')
+        return scaled
 
     def vector(self, value, where, field, size, unit=1.0):
         if not isinstance(value, list) or len(value) != size:
@@ -169,28 +202,35 @@ class _Parser:
         return [self.number(v, where, f'{field}[{k}]', unit) for k, v in enumerate(value)]
 
     def name(self, value, where, field, pattern, what):
-        if not isinstance(value, str) or not pattern.match(value):
-            self.fail(where, f'field {field!r} must be {what}, got {_describe(value)}')
+        if not isinstance(value, str) or len(value) > MAX_NAME_CHARS or \
+                not pattern.fullmatch(value):
+            self.fail(where, f'field {field!r} must be {what} (at most {MAX_NAME_CHARS} '
+                      f'characters), got {_describe(value)}')
         return value
 
     def frame(self, value, where, field='frame'):
         return self.name(value, where, field, FRAME_ID,
-                         'a ROS frame id (letters, digits, underscores, inner slashes; '
-                         'no leading slash)')
+                         'a ROS frame id (letters, digits, underscores, single inner slashes; '
+                         'no part starting with a digit; no leading or trailing slash)')
 
     def choice(self, value, where, field, allowed):
-        if value not in allowed:
-            self.fail(where, f'field {field!r} is {value!r}; allowed: {", ".join(allowed)}')
+        if not isinstance(value, str) or value not in allowed:
+            self.fail(where, f'field {field!r} is {_short(value)}; allowed: {", ".join(allowed)}')
         return value
 
     # -- sections ------------------------------------------------------------------------
     def robot(self, data):
         data = self.mapping(data, '', TOP_FIELDS, required=('robot', 'base', 'chain'))
         name = data['robot']
-        if not isinstance(name, str) or not name.strip():
-            self.fail('', f"field 'robot' must be a non-empty name, got {_describe(name)}")
-        if 'description' in data and not isinstance(data['description'], str):
-            self.fail('', "field 'description' must be text")
+        if not isinstance(name, str) or not name.strip() or not name.isprintable() or \
+                len(name) > MAX_NAME_CHARS:
+            self.fail('', f"field 'robot' must be a non-empty name of printable characters "
+                      f'(at most {MAX_NAME_CHARS}), got {_describe(name)}')
+        text = data.get('description', '')
+        if not isinstance(text, str) or len(text) > MAX_DESCRIPTION_CHARS or \
+                not text.replace('\n', ' ').replace('\t', ' ').isprintable():
+            self.fail('', f"field 'description' must be text of printable characters (at "
+                      f'most {MAX_DESCRIPTION_CHARS}), got {_describe(text)}')
         convention = self.choice(data.get('convention', 'standard'), '', 'convention',
                                  CONVENTIONS)
         units = self.mapping(data.get('units', {}), 'units', UNIT_FIELDS)
@@ -203,6 +243,8 @@ class _Parser:
         rows = data['chain']
         if not isinstance(rows, list) or not rows:
             self.fail('chain', f'expected a non-empty list of DH rows, got {_describe(rows)}')
+        if len(rows) > MAX_ROWS:
+            self.fail('chain', f'{len(rows)} rows; a robot description has at most {MAX_ROWS}')
         parsed = [self.row(row, k) for k, row in enumerate(rows)]
         tool_frame, tool = (self.transform(data['tool'], 'tool') if 'tool' in data
                             else (None, None))
@@ -211,7 +253,7 @@ class _Parser:
         if tool_frame:
             frames.append(tool_frame)
         seen = {fixed_frame: 'fixed_frame'}
-        places = ['base'] + [f"chain[{k}] (frame {p['frame']!r})" for k, p in
+        places = ['base'] + [f"chain[{k}] (frame {_short(p['frame'])})" for k, p in
                              enumerate(parsed)] + ['tool']
         for frame, place in zip(frames, places):
             if frame in seen:
@@ -242,9 +284,12 @@ class _Parser:
             self.fail(where, "give either 'rpy' or 'quaternion', not both")
         if 'quaternion' in value:
             xyzw = self.vector(value['quaternion'], where, 'quaternion', 4)
-            if math.sqrt(sum(c * c for c in xyzw)) < 1e-9:
+            largest = max(abs(c) for c in xyzw)
+            if largest == 0.0 or math.sqrt(sum(c * c for c in xyzw)) < 1e-9:
                 self.fail(where, "field 'quaternion' (x, y, z, w) must not be all zeros")
-            rotation = (xyzw[3], xyzw[0], xyzw[1], xyzw[2])
+            xyzw = [c / largest for c in xyzw]  # no overflow for huge components
+            norm = math.sqrt(sum(c * c for c in xyzw))
+            rotation = (xyzw[3] / norm, xyzw[0] / norm, xyzw[1] / norm, xyzw[2] / norm)
         else:
             roll, pitch, yaw = self.vector(value.get('rpy', [0, 0, 0]), where, 'rpy', 3,
                                            self.angle)
@@ -254,7 +299,7 @@ class _Parser:
     def row(self, row, k):
         where = f'chain[{k}]'
         if isinstance(row, dict) and isinstance(row.get('frame'), str):
-            where = f"chain[{k}] (frame {row['frame']!r})"
+            where = f"chain[{k}] (frame {_short(row['frame'])})"
         row = self.mapping(row, where, ROW_FIELDS, required=('frame', 'theta', 'd', 'a',
                                                              'alpha'))
         frame = self.frame(row['frame'], where)
@@ -317,8 +362,8 @@ class _Parser:
             return None
         lower, upper = self.vector(row[field], where, field, 2, unit)
         if lower > upper:
-            self.fail(where, f'field {field!r} has lower {row[field][0]!r} above upper '
-                      f'{row[field][1]!r}; give [lower, upper]')
+            self.fail(where, f'field {field!r} has lower {_short(row[field][0])} above upper '
+                      f'{_short(row[field][1])}; give [lower, upper]')
         return (lower, upper)
 
     def max_velocity(self, row, where, field, unit, joint, out):
@@ -327,7 +372,7 @@ class _Parser:
         value = self.number(row[field], where, field, unit)
         if value <= 0.0:
             self.fail(where, f'field {field!r} must be a positive speed (per second), '
-                      f'got {row[field]!r}')
+                      f'got {_short(row[field])}')
         out['velocity'][joint] = value
 
     def joints(self, parsed):
@@ -365,7 +410,7 @@ def rpy_matrix(roll, pitch, yaw):
 
 
 def _describe(value):
-    """Describe a YAML value briefly for an error message."""
+    """Describe a YAML value briefly for an error message (one line, at most ~80 chars)."""
     if value is None:
         return 'nothing'
     if isinstance(value, bool):
@@ -373,7 +418,18 @@ def _describe(value):
     if isinstance(value, (dict, list)):
         kind = 'a mapping' if isinstance(value, dict) else f'a list of {len(value)}'
         return kind
-    return f'{value!r} ({type(value).__name__})'
+    if isinstance(value, int) and abs(value) > 10**15:
+        try:
+            return f'an integer of {len(str(abs(value)))} digits'
+        except ValueError:  # beyond Python's int-to-text limit
+            return f'an integer of about {int(value.bit_length() * 0.30103)} digits'
+    return f'{_short(value)} ({type(value).__name__})'
+
+
+def _short(value):
+    """``repr(value)``, shortened to about 60 characters."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:40] + '...' + text[-12:]
 
 
 def shipped_robot_path(name):

@@ -18,6 +18,10 @@ OUT_OF_LIMITS_POLICIES = ('warn', 'clamp', 'reject')
 # A stamp this far before the last accepted one is a time jump (a looping bag, a restarted
 # simulation): the merger resets. Smaller steps back are out-of-order messages and merge.
 TIME_JUMP_BACK_NS = 1_000_000_000
+# Unknown joint names are remembered (and reported) up to this many; later new names are
+# only counted (counts['unknown_names_unlisted']), so a flood of made-up names cannot grow
+# memory, logs or /diagnostics.
+MAX_UNKNOWN_LISTED = 20
 
 # Outcomes of a message, as counted in MergeResult.status / JointStateMerger.counts
 PUBLISH = 'publish'          # complete joint vector, to be published
@@ -36,6 +40,7 @@ class MergeResult:
     qdot: np.ndarray = None              # joint velocities, when every joint has one
     stamp_ns: int = 0                    # the message stamp (0: none given)
     new_unknown: tuple = ()              # joint names seen for the first time, not ours
+    unknown_overflow: bool = False       # first message with unknown names beyond the list
     missing: tuple = ()                  # joints never seen (status INCOMPLETE)
     out_of_limits: tuple = ()            # joints outside their limits (warn/clamp)
     time_jump: bool = False              # the stamp jumped back; state was reset first
@@ -56,6 +61,10 @@ class JointStateMerger:
     """
     Keep the latest value of every joint of a chain, from partial or complete messages.
 
+    Velocities that are NaN or infinite are dropped (the message has no velocities then)
+    and counted in ``counts['velocities_non_finite']``; positions decide acceptance.
+    ``unknown`` holds at most :data:`MAX_UNKNOWN_LISTED` names not of this robot.
+
     :param joint_names: the chain's joint names, in the order ``q`` is returned.
     :param limits: ``(dof, 2)`` lower/upper limits (+-inf for none).
     :param out_of_limits: ``'warn'`` (publish as is), ``'clamp'`` or ``'reject'``.
@@ -75,6 +84,24 @@ class JointStateMerger:
         self._index = {name: k for k, name in enumerate(self.joint_names)}
         self.limits = np.asarray(self.limits, dtype=float).reshape(len(self.joint_names), 2)
         self.reset()
+
+    def _note_unknown(self, names, times=1):
+        """
+        Record names that are not joints of this robot, up to the listing limit.
+
+        Returns ``(new names listed, True the first time the list overflows)``; names beyond
+        the list are counted ``times`` each (once per message that carries them).
+        """
+        index, unknown = self._index, self.unknown
+        fresh = [n for n in dict.fromkeys(names) if n not in index and n not in unknown]
+        room = max(MAX_UNKNOWN_LISTED - len(unknown), 0)
+        listed, unlisted = fresh[:room], len(fresh) - min(len(fresh), room)
+        unknown.update(listed)
+        overflow = False
+        if unlisted:
+            overflow = not self.counts['unknown_names_unlisted']
+            self.counts['unknown_names_unlisted'] += unlisted * times
+        return listed, overflow
 
     def reset(self):
         """Forget all joint values and the last stamp (after a time jump)."""
@@ -151,7 +178,10 @@ class JointStateMerger:
             values[taken, joints] = q[ok]
             if n_vel:
                 qdot = np.concatenate([np.asarray(v, dtype=float) for _, _, v in members])
-                rates[taken, joints] = qdot[ok][:, columns]
+                qdot = qdot[:, columns]
+                bad_rate = ~np.isfinite(qdot).all(axis=1)  # dropped for the whole message
+                self.counts['velocities_non_finite'] += int((ok & bad_rate).sum())
+                rates[taken, joints] = np.where(bad_rate[:, None], math.nan, qdot)[ok]
         stamped = np.flatnonzero(accepted & (stamps != 0))
         jumps, last_stamp = self._track_stamps(stamps[stamped])
         resets = stamped[jumps]
@@ -187,7 +217,7 @@ class JointStateMerger:
         elif len(set(names)) != n_msg:
             reason = 'duplicate_name'
         else:
-            self.unknown.update(name for name in names if name not in self._index)
+            self._note_unknown(names, times=k)
             columns = [c for c, name in enumerate(names) if name in self._index]
             if not columns:
                 reason = 'no_known_joint'
@@ -257,8 +287,7 @@ class JointStateMerger:
         if len(set(names)) != n_msg:
             return self._reject('duplicate_name')
         index = self._index
-        new_unknown = [name for name in names if name not in index and name not in self.unknown]
-        self.unknown.update(new_unknown)
+        new_unknown, overflow = self._note_unknown(names)
         ours = []  # (chain index, position, velocity)
         for k, name in enumerate(names):
             i = index.get(name)
@@ -268,12 +297,14 @@ class JointStateMerger:
             if not math.isfinite(position):
                 result = self._reject('non_finite', f'position of {name!r} is {position}')
                 result.new_unknown = tuple(new_unknown)
+                result.unknown_overflow = overflow
                 return result
             ours.append((i, position, float(velocities[k]) if len(velocities) else math.nan))
         if not ours:
             result = self._reject('no_known_joint', 'none of ' + ', '.join(map(repr, names[:5]))
                                   + (' ...' if n_msg > 5 else '') + ' is a joint of this robot')
             result.new_unknown = tuple(new_unknown)
+            result.unknown_overflow = overflow
             return result
 
         outside = []
@@ -285,9 +316,14 @@ class JointStateMerger:
                     result = self._reject('out_of_limits', f'{self.joint_names[i]} = '
                                           f'{position:.6g} outside [{lower:.6g}, {upper:.6g}]')
                     result.new_unknown = tuple(new_unknown)
+                    result.unknown_overflow = overflow
                     return result
                 if self.out_of_limits == 'clamp':
                     ours[j] = (i, min(max(position, lower), upper), velocity)
+
+        if len(velocities) and not all(math.isfinite(v) for _, _, v in ours):
+            self.counts['velocities_non_finite'] += 1  # dropped: no velocities this time
+            ours = [(i, position, math.nan) for i, position, _ in ours]
 
         time_jump = False
         if stamp_ns:
@@ -304,6 +340,7 @@ class JointStateMerger:
             qdot[i] = velocity
             seen[i] = True
         base = {'stamp_ns': stamp_ns, 'new_unknown': tuple(new_unknown),
+                'unknown_overflow': overflow,
                 'out_of_limits': tuple(outside), 'time_jump': time_jump}
         if not all(seen):
             return MergeResult(INCOMPLETE, missing=self.never_seen, **base)

@@ -3,7 +3,8 @@
 import math
 
 from dq_fk_ros.messages.joint_states import (
-    INCOMPLETE, JointStateMerger, PUBLISH, REJECTED, TIME_JUMP_BACK_NS)
+    INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, PUBLISH, REJECTED, TIME_JUMP_BACK_NS)
+from hypothesis import given, strategies as st
 import numpy as np
 import pytest
 
@@ -195,3 +196,63 @@ def test_merge_many_resets_partial_state_at_a_time_jump(merger):
     assert published.tolist() == [1, 3]
     np.testing.assert_array_equal(q, [[0.5, 0.5, 1.0], [0.1, 0.2, 1.5]])
     assert merger.counts['incomplete'] == 2 and merger.counts['time_jumps'] == 1
+
+
+# -- hostile input: bounded memory, counted velocities, never an exception -----------------
+def test_a_flood_of_new_unknown_names_stays_bounded(merger):
+    """Each message with new made-up names used to grow the unknown set without bound."""
+    overflow_at = []
+    for k in range(5000):
+        r = merger.merge(['a', 'b', 'c', f'ghost_{k}', f'phantom_{k}'], [0, 0, 0, 0, 0])
+        assert r.status == PUBLISH
+        if r.unknown_overflow:
+            overflow_at.append(k)
+    assert len(merger.unknown) == MAX_UNKNOWN_LISTED == 20
+    assert merger.unknown == {f'{p}_{k}' for k in range(10) for p in ('ghost', 'phantom')}
+    assert overflow_at == [10]  # reported once, when the list is full
+    assert merger.counts['unknown_names_unlisted'] == 2 * (5000 - 10)
+
+
+def test_merge_many_bounds_unknown_names_as_merge_does():
+    rng = np.random.default_rng(4)
+    runs = [(('a', 'b', 'c', f'u{k}'), rng.normal(size=(3, 4)) * 0.1, np.zeros((3, 0)),
+             np.arange(3) + 100 * k + 1) for k in range(40)]
+    batched = JointStateMerger(NAMES, LIMITS)
+    single = JointStateMerger(NAMES, LIMITS)
+    batched.merge_many(runs)
+    merge_one_by_one(single, runs)
+    assert batched.unknown == single.unknown and len(single.unknown) == MAX_UNKNOWN_LISTED
+    assert batched.counts == single.counts
+    assert single.counts['unknown_names_unlisted'] == 3 * 20
+
+
+@pytest.mark.parametrize('bad', [math.nan, math.inf, -math.inf])
+def test_non_finite_velocities_are_dropped_and_counted(merger, bad):
+    r = merger.merge(NAMES, [0.1, 0.2, 0.3], [1.0, bad, 2.0])
+    assert r.status == PUBLISH and r.qdot is None
+    np.testing.assert_array_equal(r.q, [0.1, 0.2, 0.3])
+    assert merger.counts['velocities_non_finite'] == 1
+    r = merger.merge(NAMES, [0.1, 0.2, 0.3], [1.0, 1.5, 2.0])
+    np.testing.assert_array_equal(r.qdot, [1.0, 1.5, 2.0])  # the next message has them again
+    assert merger.counts['velocities_non_finite'] == 1
+
+
+ANY_NUMBER = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                       st.integers(-2**63, 2**63 - 1))
+ANY_NAME = st.one_of(st.sampled_from(['a', 'b', 'c', 'x', '']), st.text(max_size=12))
+
+
+@given(st.lists(st.tuples(st.lists(ANY_NAME, max_size=6), st.lists(ANY_NUMBER, max_size=6),
+                          st.lists(ANY_NUMBER, max_size=6), st.integers(0, 2**63 - 1)),
+                max_size=12),
+       st.sampled_from(['warn', 'clamp', 'reject']))
+def test_random_joint_state_contents_never_raise(messages, policy):
+    merger = JointStateMerger(NAMES, LIMITS, policy)
+    for names, positions, velocities, stamp in messages:
+        r = merger.merge(names, positions, velocities, stamp)
+        assert r.status in (PUBLISH, INCOMPLETE, REJECTED)
+        if r.status == PUBLISH:
+            assert np.isfinite(r.q).all()
+            assert r.qdot is None or np.isfinite(r.qdot).all()
+    assert merger.counts['received'] == len(messages)
+    assert len(merger.unknown) <= MAX_UNKNOWN_LISTED
