@@ -30,19 +30,35 @@ def spin_until_shutdown(program, make_node, user_errors, args=None):
     """
     Create a node with ``make_node()`` and spin it until SIGINT/SIGTERM; return the exit code.
 
-    As Jazzy's rclpy examples do, with try/finally. An exception of ``user_errors`` while
-    creating the node (a bad robot file, a bad parameter) is printed as one line
-    ``program: message`` and gives exit code 1, without a traceback.
+    As Jazzy's rclpy examples do, with try/finally. A user error while starting (an
+    exception of ``user_errors`` such as a bad robot file, a parameter of the wrong type, a
+    missing ``--params-file``) is printed as one line ``program: message`` and gives exit
+    code 1, without a traceback.
     """
     import rclpy
+    from rclpy._rclpy_pybind11 import RCLError
+    from rclpy.exceptions import (
+        InvalidParameterTypeException, InvalidParameterValueException,
+        NameValidationException, ParameterException)
     from rclpy.executors import ExternalShutdownException
-    rclpy.init(args=args)
+    if not isinstance(user_errors, tuple):
+        user_errors = (user_errors,)
     node = None
+    missing = _missing_params_files(sys.argv if args is None else args)
+    if missing:  # rcl would log an error of its own and raise; say it once, plainly
+        print(f'{program}: --params-file {missing}: no such file', file=sys.stderr)
+        return 1
     try:
+        rclpy.init(args=args)
         node = make_node()
         rclpy.spin(node)
-    except user_errors as exc:
-        print(f'{program}: {exc}', file=sys.stderr)
+    except (*user_errors, RCLError, ParameterException, InvalidParameterValueException,
+            NameValidationException) as exc:
+        print(f'{program}: {_one_line(exc)}', file=sys.stderr)
+        return 1
+    except InvalidParameterTypeException as exc:
+        print(f'{program}: {_one_line(exc)} (a double needs a decimal point, e.g. 10.0; '
+              f'a bool is true or false)', file=sys.stderr)
         return 1
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -51,3 +67,19 @@ def spin_until_shutdown(program, make_node, user_errors, args=None):
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def _missing_params_files(argv):
+    """The first ``--params-file`` argument after ``--ros-args`` that is not a file, or None."""
+    argv = list(argv)
+    for k, arg in enumerate(argv[:-1]):
+        if arg == '--params-file' and '--ros-args' in argv[:k] and \
+                not os.path.isfile(argv[k + 1]):
+            return argv[k + 1]
+    return None
+
+
+def _one_line(exc):
+    """The first line of an exception's message, without rcl's source locations."""
+    text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    return text.split(', at /')[0]

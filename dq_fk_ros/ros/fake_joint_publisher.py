@@ -15,6 +15,7 @@ from dq_fk_ros.description.robot_model import (
 from dq_fk_ros.ros.executables import MATCH_SETTLE_S, spin_until_shutdown
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
+import rclpy
 from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -23,6 +24,7 @@ MODES = ('zeros', 'fixed', 'sine', 'random_walk')
 FAULTS = ('wrong_length', 'nan', 'unknown_names')
 # range swept by joints without limits: +-1 rad (revolute) or +-0.1 m (prismatic)
 UNBOUNDED_HALF_RANGE = 1.0
+ACK_TIMEOUT_S = 5.0  # max_messages: longest wait for reliable subscribers before exiting
 
 
 class JointMotion:
@@ -139,7 +141,11 @@ class FakeJointPublisher(Node):
             return
         if self._max_messages and sum(self.sent.values()) >= self._max_messages:
             self._timer.cancel()
-            self.get_logger().info(f'sent {self.sent}; stopped (max_messages)')
+            # reliable subscribers get the last messages before we leave; then end the
+            # process (exit code 0), as a finite publisher should
+            self._pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
+            self.get_logger().info(f'sent {self.sent}; done (max_messages)')
+            rclpy.try_shutdown(context=self.context)
             return
         now = self.get_clock().now()
         q, qdot = self._motion.sample((now - self._start).nanoseconds * 1e-9)

@@ -6,13 +6,15 @@ Thin glue: :mod:`dq_fk_ros.messages.joint_states` decides what a message means,
 messages. See the README for topics and parameters.
 """
 
+import math
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dq_fk_ros.description.robot_model import (
-    load_robot_description, RobotDescriptionError, shipped_robot_path)
+    FRAME_ID, load_robot_description, RobotDescriptionError, shipped_robot_path)
 from dq_fk_ros.messages.joint_states import (
-    INCOMPLETE, JointStateMerger, OUT_OF_LIMITS_POLICIES, PUBLISH, REJECTED)
+    INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH,
+    REJECTED)
 from dq_fk_ros.ros.conversions import FrameMessages, joint_state_fields
 from dq_fk_ros.ros.executables import spin_until_shutdown
 from geometry_msgs.msg import PoseStamped, TwistStamped
@@ -43,12 +45,11 @@ class DqFkNode(Node):
         self._max_rate_hz = get('max_publish_rate_hz').value
         self._out_of_limits = get('out_of_limits').value
         self._frame_prefix = get('frame_prefix').value
-        self._check_choice('out_of_limits', self._out_of_limits, OUT_OF_LIMITS_POLICIES)
+        self._check_values({'out_of_limits': self._out_of_limits,
+                            'max_publish_rate_hz': self._max_rate_hz,
+                            'frame_prefix': self._frame_prefix})
         reliability = get('joint_states_reliability').value
         self._check_choice('joint_states_reliability', reliability, tuple(RELIABILITY))
-        if self._max_rate_hz < 0:
-            raise RobotDescriptionError('parameter max_publish_rate_hz must be >= 0 '
-                                        '(0: publish every update)')
         model = load_robot_description(self._description_path(
             get('robot_description_file').value))
 
@@ -64,7 +65,7 @@ class DqFkNode(Node):
         self._merger = None
         self._last_publish_ns = None
         self._last_update_ns = None
-        self._apply_model(model)
+        self._apply_model(model, self._build_outputs(model, self._frame_prefix))
 
         depth = get('qos_depth').value
         self._joint_state_sub = self.create_subscription(
@@ -106,26 +107,48 @@ class DqFkNode(Node):
             raise RobotDescriptionError(f'parameter {name} is {value!r}; allowed: '
                                         f'{", ".join(allowed)}')
 
+    def _check_values(self, new):
+        """Raise RobotDescriptionError (one line) for a value the node cannot use."""
+        if 'out_of_limits' in new:
+            self._check_choice('out_of_limits', new['out_of_limits'], OUT_OF_LIMITS_POLICIES)
+        rate = new.get('max_publish_rate_hz', 0.0)
+        if not (math.isfinite(rate) and rate >= 0.0):
+            raise RobotDescriptionError(f'parameter max_publish_rate_hz must be a finite number '
+                                        f'>= 0 (0: publish every update), got {rate}')
+        prefix = new.get('frame_prefix', '')
+        if prefix and (len(prefix) > 64 or not FRAME_ID.fullmatch(prefix + 'x')):
+            raise RobotDescriptionError(
+                f'parameter frame_prefix {prefix[:70]!r} would not give valid frame ids: use '
+                f'letters, digits, underscores and inner slashes, e.g. robot1/ (at most 64)')
+
     @staticmethod
     def _description_path(value):
         return value or shipped_robot_path('rl15')
 
     def _on_set_parameters(self, params):
-        """Validate every change first; apply them only if all are valid."""
+        """
+        Validate every change first; apply them only if all are valid.
+
+        Any failure while loading a new robot or building its publishers refuses the whole
+        change with the reason (one line); the node keeps the robot it has.
+        """
         new = {p.name: p.value for p in params}
-        model = None
+        model = outputs = None
         try:
+            self._check_values(new)
             if 'robot_description_file' in new:
                 model = load_robot_description(self._description_path(
                     new['robot_description_file']))
-            if 'out_of_limits' in new:
-                self._check_choice('out_of_limits', new['out_of_limits'],
-                                   OUT_OF_LIMITS_POLICIES)
-            if new.get('max_publish_rate_hz', 0.0) < 0:
-                raise RobotDescriptionError('max_publish_rate_hz must be >= 0')
-        except RobotDescriptionError as exc:
-            self.get_logger().error(f'parameter change refused: {exc}')
-            return SetParametersResult(successful=False, reason=str(exc))
+            if model is not None or 'frame_prefix' in new:
+                outputs = self._build_outputs(model or self._model,
+                                              new.get('frame_prefix', self._frame_prefix))
+        except Exception as exc:  # nothing a user sets may stop the node
+            reason = str(exc).strip().splitlines()[0] if str(exc).strip() else \
+                type(exc).__name__
+            if not isinstance(exc, RobotDescriptionError):
+                reason = f'{type(exc).__name__}: {reason}'
+            self.get_logger().error(f'parameter change refused: {reason}')
+            return SetParametersResult(successful=False, reason=reason)
         resend_static = new.get('publish_tf', self._publish_tf) and not self._publish_tf
         self._publish_tf = new.get('publish_tf', self._publish_tf)
         self._publish_poses = new.get('publish_poses', self._publish_poses)
@@ -137,28 +160,48 @@ class DqFkNode(Node):
         self._out_of_limits = new.get('out_of_limits', self._out_of_limits)
         self._frame_prefix = new.get('frame_prefix', self._frame_prefix)
         if rebuild:
-            self._apply_model(model or self._model)
+            self._apply_model(model or self._model, outputs)
             if model is not None:
                 self.get_logger().info(f'reloaded robot {model.name} from {model.source}')
         elif resend_static:
             self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
         return SetParametersResult(successful=True)
 
-    def _apply_model(self, model):
+    def _build_outputs(self, model, prefix):
+        """
+        Return ``(messages, pose publishers, twist publishers)`` for a robot and prefix.
+
+        Built before anything is replaced: if a topic name is refused (too long in this
+        namespace, say), the publishers made so far are destroyed and the error raised.
+        """
+        messages = FrameMessages(model, prefix)
+        made = []
+        try:
+            for name in model.frame_names:
+                made.append(self.create_publisher(PoseStamped, f'~/pose/{name}', 10))
+            for k in messages.twist_frames:
+                made.append(self.create_publisher(
+                    TwistStamped, f'~/twist/{model.frame_names[k]}', 10))
+        except Exception:
+            for pub in made:
+                self.destroy_publisher(pub)
+            raise
+        n = len(model.frame_names)
+        return messages, made[:n], made[n:]
+
+    def _apply_model(self, model, outputs=None):
         """(Re)build everything that depends on the robot: publishers, merger, messages."""
         counts = self._merger.counts if self._merger is not None else None
+        unknown = self._merger.unknown if self._merger is not None else set()
         self._model = model
         self._merger = JointStateMerger(model.joint_names, model.limits, self._out_of_limits)
         if counts is not None:
             self._merger.counts = counts
-        self._messages = FrameMessages(model, self._frame_prefix)
-        for pub in self._pose_pubs + self._twist_pubs:
-            self.destroy_publisher(pub)
-        self._pose_pubs = [self.create_publisher(PoseStamped, f'~/pose/{name}', 10)
-                           for name in model.frame_names]
-        self._twist_pubs = [
-            self.create_publisher(TwistStamped, f'~/twist/{model.frame_names[k]}', 10)
-            for k in self._messages.twist_frames]
+        self._merger.unknown = {n for n in unknown if n not in model.joint_names}
+        if outputs is not None:
+            for pub in self._pose_pubs + self._twist_pubs:
+                self.destroy_publisher(pub)
+            self._messages, self._pose_pubs, self._twist_pubs = outputs
         if self._publish_tf:
             self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
 
@@ -178,6 +221,9 @@ class DqFkNode(Node):
         if result.new_unknown:
             log.warn(f'ignoring joints that {self._model.name} does not have: '
                      f'{", ".join(result.new_unknown)} (reported once)')
+        if result.unknown_overflow:
+            log.warn(f'more than {MAX_UNKNOWN_LISTED} unknown joint names; further ones are '
+                     f'only counted (unknown_names_unlisted in /diagnostics)')
         if result.time_jump:
             log.info('joint state stamps jumped back in time; state reset')
         if result.status == REJECTED:
@@ -239,6 +285,8 @@ class DqFkNode(Node):
                   'time_jumps': counts['time_jumps'],
                   'joints_never_seen': ', '.join(never_seen),
                   'unknown_joints': ', '.join(sorted(self._merger.unknown)),
+                  'unknown_names_unlisted': counts['unknown_names_unlisted'],
+                  'velocities_non_finite': counts['velocities_non_finite'],
                   'last_update_age_s': age}
         for key in sorted(counts):
             if key.startswith('rejected_'):

@@ -2,6 +2,7 @@
 
 import time
 
+from dq_fk_ros.ros.executables import executable
 from dq_fk_ros.ros.node import DqFkNode
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -13,6 +14,16 @@ from sensor_msgs.msg import JointState
 # static broadcasters' latched messages
 TF_STATIC_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def start(processes, name, *params, namespace=None, log_level='warn'):
+    """Start one of the package's programs with ``-p`` parameters, reaped by ``processes``."""
+    argv = executable(name) + ['--ros-args', '--log-level', log_level]
+    if namespace:
+        argv += ['-r', f'__ns:={namespace}']
+    for p in params:
+        argv += ['-p', p]
+    return processes.start(argv)
 
 
 class Harness:

@@ -17,20 +17,11 @@ from geometry_msgs.msg import PoseStamped
 import homogeneous_tf as htf
 import numpy as np
 import pytest
-from ros_harness import Harness, TF_STATIC_QOS
+from ros_harness import Harness, start, TF_STATIC_QOS
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.integration
-
-
-def start(processes, name, *params, namespace=None):
-    argv = executable(name) + ['--ros-args', '--log-level', 'warn']
-    if namespace:
-        argv += ['-r', f'__ns:={namespace}']
-    for p in params:
-        argv += ['-p', p]
-    return processes.start(argv)
 
 
 @pytest.fixture
