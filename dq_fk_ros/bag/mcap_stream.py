@@ -22,6 +22,7 @@ from collections import Counter
 from io import BytesIO
 import mmap
 import os
+import re
 import struct
 import zlib
 
@@ -35,6 +36,14 @@ OP_HEADER, OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_METADATA = 0x01, 0x07, 0x08, 0x0
 OP_DATA_END = 0x0F
 END_LENGTHS = {OP_DATA_END: 4, OP_FOOTER: 20}   # the body sizes of the records that end data
 KNOWN_OPCODES = range(0x01, 0x11)
+# what a resynchronisation looks for, and how an intact schema or channel record looks
+_CANDIDATE = re.compile(rb'[\x03\x04\x06]')
+_NAME = re.compile(r'[A-Za-z0-9_]+(/[A-Za-z0-9_]+)*')
+_TOPIC = re.compile(r'/?[A-Za-z0-9_~{}]+(/[A-Za-z0-9_{}]+)*')
+MAX_DEFINITION_BYTES = 1 << 20  # a schema or channel record found by a resync is smaller
+SCHEMA_ENCODINGS = ('ros2msg', 'ros2idl', 'ros1msg', 'omgidl', 'jsonschema', 'protobuf',
+                    'flatbuffer')
+MESSAGE_ENCODINGS = ('cdr', 'ros1', 'json', 'protobuf', 'flatbuffer', 'cbor', 'msgpack')
 _U64 = struct.Struct('<Q')
 _CHUNK_HEAD = struct.Struct('<QQQII')  # start, end, uncompressed size, crc, compression len
 
@@ -163,8 +172,9 @@ class McapStreamBag:
                 conn = self._by_channel.get((file_index, channel_id))
                 topics[conn.topic if conn is not None else f'channel {channel_id}'] += count
             self.skipped.update(topics)
+            from dq_fk_ros.bag.reading import printable
             held = f'{sum(topics.values())} messages (' + ', '.join(
-                f'{topic}: {n}' for topic, n in sorted(topics.items())) + ')'
+                f'{printable(topic)}: {n}' for topic, n in sorted(topics.items())) + ')'
         self._report(f'{path}: the chunk at byte {offset} is damaged ({why}); skipped {held}')
 
     def _report(self, line):
@@ -320,21 +330,48 @@ class _RecordReader:
             return False
         return crc != 0 or raw_size == records_len
 
+    def _plausible_definition(self, pos):
+        """Whether an intact schema or channel record starts at ``pos`` (strict checks)."""
+        from mcap.records import Channel, Schema
+        try:
+            opcode, body, end = self._frame(pos)
+            if end - body > MAX_DEFINITION_BYTES:
+                return False
+            if opcode == OP_SCHEMA:
+                schema = self._parse(opcode, body, end, Schema)
+                return bool(_NAME.fullmatch(schema.name)) and schema.encoding in SCHEMA_ENCODINGS
+            if opcode == OP_CHANNEL:
+                channel = self._parse(opcode, body, end, Channel)
+                return bool(_TOPIC.fullmatch(channel.topic)) and \
+                    channel.message_encoding in MESSAGE_ENCODINGS
+        except Exception:
+            pass
+        return False
+
     def _resync(self, start):
-        """Return the next offset from ``start`` where an intact chunk begins, or None."""
+        """
+        Return the next offset from ``start`` where an intact record begins, or None.
+
+        Intact: a chunk whose structure and CRC hold, or a schema or channel record that
+        parses exactly with plausible names (these may sit between chunks).
+        """
         known = sorted(p for p in self.chunk_index if p >= start)
+        limit = self.summary_start or self.size
+        for found in _CANDIDATE.finditer(self.data, start, limit):
+            pos = found.start()
+            if known and pos > known[0]:
+                if self._plausible_chunk(known[0]):
+                    return known[0]
+                known.pop(0)
+            if self.data[pos] == OP_CHUNK:
+                if self._plausible_chunk(pos):
+                    return pos
+            elif self._plausible_definition(pos):
+                return pos
         for pos in known:
             if self._plausible_chunk(pos):
                 return pos
-        limit = self.summary_start or self.size
-        pos = start
-        while True:
-            pos = self.data.find(bytes((OP_CHUNK,)), pos, limit)
-            if pos < 0:
-                return None
-            if self._plausible_chunk(pos):
-                return pos
-            pos += 1
+        return None
 
     def _message_counts(self, chunk_at, end):
         """Messages per channel of the chunk at ``chunk_at``, from its message indexes."""
@@ -383,7 +420,11 @@ class _RecordReader:
                         records = self._chunk_records(body, end)
                     except _DamagedRecord as exc:
                         yield 'damaged_chunk', (pos, str(exc), self._message_counts(pos, end))
-                        pos = resume = last = end
+                        # its length may be damaged too: look for the next intact record
+                        found = self._resync(pos + 1)
+                        if found is None:
+                            return
+                        pos = resume = last = found
                         continue
                     for record in records:
                         if isinstance(record, (Schema, Channel, Message)):

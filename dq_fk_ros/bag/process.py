@@ -11,7 +11,8 @@ import os
 import shutil
 
 from dq_fk_ros.bag.progress import Progress
-from dq_fk_ros.bag.reading import BagError, joint_state_connections, open_reader, Ros1Bag
+from dq_fk_ros.bag.reading import (
+    BagError, joint_state_connections, open_reader, printable, Ros1Bag)
 from dq_fk_ros.description.robot_model import load_robot_description
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
 from dq_fk_ros.messages.cdr import (
@@ -136,6 +137,11 @@ def check_output_paths(in_path, out_path, csv_path, overwrite, csv_only):
     outputs = [] if csv_only else [('OUT_BAG', out_path)]
     if csv_path:
         outputs.append(('--csv', csv_path))
+    if len(outputs) == 2 and (os.path.realpath(csv_path) == os.path.realpath(out_path)
+                              or _inside(os.path.realpath(csv_path),
+                                         os.path.realpath(out_path))):
+        raise BagError(f'--csv {csv_path} would be inside OUT_BAG {out_path}; '
+                       f'choose another path')
     for what, path in outputs:
         path = os.fspath(path)
         real = os.path.realpath(path)
@@ -155,11 +161,6 @@ def check_output_paths(in_path, out_path, csv_path, overwrite, csv_only):
             raise BagError(f'--csv {path} is a directory; give a file name')
         if os.path.lexists(path) and not overwrite:
             raise BagError(f'{path} exists; use --overwrite to replace it')
-    if len(outputs) == 2 and (os.path.realpath(csv_path) == os.path.realpath(out_path)
-                              or _inside(os.path.realpath(csv_path),
-                                         os.path.realpath(out_path))):
-        raise BagError(f'--csv {csv_path} would be inside OUT_BAG {out_path}; '
-                       f'choose another path')
 
 
 def _inside(path, folder):
@@ -236,12 +237,12 @@ def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=
 
 def nothing_usable(in_path, summary, model, robot):
     """One line: no message could be used, what the bag has and what the robot needs."""
-    names = summary['joint_names_seen']
+    names = [printable(n, 40) for n in summary['joint_names_seen']]
     has = ('names joints ' + ', '.join(names[:12]) + (' ...' if len(names) > 12 else '')
            if names else 'names no joints')
     source = f' ({robot})' if isinstance(robot, (str, os.PathLike)) else ''
     return (f'{in_path}: no JointState message could be used (nothing written): '
-            f"{summary['topic']} has {summary['read']} messages and {has}; robot "
+            f"{printable(summary['topic'])} has {summary['read']} messages and {has}; robot "
             f"{model.name}{source} needs {', '.join(model.joint_names)}")
 
 

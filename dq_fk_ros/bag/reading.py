@@ -29,7 +29,7 @@ def open_reader(path):
     (None where there is none), for when rosbags stops inside a damaged chunk.
     Raises :class:`BagError`.
     """
-    from rosbags.rosbag2 import Reader, ReaderError
+    from rosbags.rosbag2 import Reader
     path = os.fspath(path)
     if not os.path.lexists(path):
         raise BagError(f'{path}: no such bag')
@@ -40,7 +40,7 @@ def open_reader(path):
     try:
         reader = Reader(path)
         reader.open()
-    except (ReaderError, OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+    except Exception as exc:  # rosbags cannot open it (ReaderError, or damage it trips on)
         mcaps = _mcap_files(path)
         if not mcaps:
             hint = ' (a ROS 1 bag is a single .bag file)' if os.path.isdir(path) else ''
@@ -61,9 +61,17 @@ def open_reader(path):
     return reader
 
 
+def printable(text, limit=80):
+    """Return a name read from a bag safe for a one-line message (escaped, shortened)."""
+    text = str(text)
+    if not text.isprintable():
+        text = text.encode('unicode_escape').decode('ascii')
+    return text if len(text) <= limit else text[:limit - 15] + '...' + text[-12:]
+
+
 def _one_line(exc):
     text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
+    return printable(text[0], 200) if text else type(exc).__name__
 
 
 def _summary_intact(path):
@@ -163,21 +171,23 @@ class Ros1Bag:
 
 def joint_state_connections(reader, path, topic=None):
     """Return the connections of the JointState topic (``topic``, or the only one)."""
-    listing = ', '.join(f'{t} ({m})' for t, m in getattr(reader, 'all_topics', [
-        (c.topic, c.msgtype) for c in reader.connections])) or 'none'
+    topics = getattr(reader, 'all_topics', [(c.topic, c.msgtype) for c in reader.connections])
+    listing = ', '.join(f'{printable(t)} ({printable(m)})' for t, m in topics[:20]) + \
+        (f' and {len(topics) - 20} more' if len(topics) > 20 else '') or 'none'
     if topic is not None:
         conns = [c for c in reader.connections if c.topic == topic]
         if not conns:
             raise BagError(f'{path} has no topic {topic!r}; its topics: {listing}')
         wrong = [c.msgtype for c in conns if c.msgtype != JOINT_STATE]
         if wrong:
-            raise BagError(f'{path}: topic {topic!r} has type {wrong[0]}, not {JOINT_STATE}')
+            raise BagError(f'{path}: topic {topic!r} has type {printable(wrong[0])}, '
+                           f'not {JOINT_STATE}')
         return conns
     conns = [c for c in reader.connections if c.msgtype == JOINT_STATE]
     topics = sorted({c.topic for c in conns})
     if not topics:
         raise BagError(f'{path} has no {JOINT_STATE} topic; its topics: {listing}')
     if len(topics) > 1:
-        raise BagError(f'{path} has several JointState topics ({", ".join(topics)}); '
-                       f'pick one with --topic')
+        raise BagError(f'{path} has several JointState topics '
+                       f'({", ".join(printable(t) for t in topics[:20])}); pick one with --topic')
     return conns

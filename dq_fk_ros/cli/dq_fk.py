@@ -53,6 +53,9 @@ def parse_joint_values(model, tokens, degrees):
             if name not in names:
                 raise UsageError(f'--joints: unknown joint {name!r}; joints of '
                                  f'{model.name}: {", ".join(names)}')
+            if name in values:
+                raise UsageError(f'--joints: {name} is given twice '
+                                 f'({values[name]:g} and {text}); give each joint once')
             values[name] = _number(text, name)
         values = {n: values.get(n, 0.0) for n in names}  # unnamed joints stay at zero
     else:
@@ -214,10 +217,19 @@ def build_parser():
 
 
 def main(argv=None):
-    """Run the ``dq_fk`` command; exit code 0 on success, 1 on a user error."""
+    """
+    Run the ``dq_fk`` command; return the exit code.
+
+    0: done. 1: an invalid robot file or argument (one line on stderr each). 2: a usage
+    mistake that argparse reports (unknown option, missing argument).
+    """
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
+    except BrokenPipeError:  # the reader went away (| head): stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 1
     except (RobotDescriptionError, UsageError, ValueError, OSError) as exc:
         print(f'dq_fk: {exc}', file=sys.stderr)
         return 1

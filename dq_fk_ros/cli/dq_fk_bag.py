@@ -16,7 +16,7 @@ import os
 import sys
 
 from dq_fk_ros.bag.process import process_bag
-from dq_fk_ros.bag.reading import BagError
+from dq_fk_ros.bag.reading import BagError, printable
 from dq_fk_ros.description.robot_model import RobotDescriptionError, shipped_robot_path
 
 
@@ -30,7 +30,8 @@ def summary_line(path, s):
         parts.append('rejected (' + ', '.join(f'{k}: {v}' for k, v in
                                               sorted(s['rejected'].items())) + ')')
     if s['unknown_joints']:
-        parts.append('unknown joints ignored: ' + ', '.join(s['unknown_joints']))
+        parts.append('unknown joints ignored: ' + ', '.join(printable(n, 40) for n in
+                                                            s['unknown_joints']))
     return ', '.join(parts)
 
 

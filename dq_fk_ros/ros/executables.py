@@ -70,7 +70,7 @@ def spin_until_shutdown(program, make_node, user_errors, args=None):
 
 
 def _missing_params_files(argv):
-    """The first ``--params-file`` argument after ``--ros-args`` that is not a file, or None."""
+    """Return the first ``--params-file`` argument that is not a file, or None."""
     argv = list(argv)
     for k, arg in enumerate(argv[:-1]):
         if arg == '--params-file' and '--ros-args' in argv[:k] and \
@@ -80,6 +80,6 @@ def _missing_params_files(argv):
 
 
 def _one_line(exc):
-    """The first line of an exception's message, without rcl's source locations."""
+    """Return the first line of an exception's message, without rcl's source locations."""
     text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
     return text.split(', at /')[0]

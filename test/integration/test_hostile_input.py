@@ -110,8 +110,8 @@ def rss_mib(pid):
     raise AssertionError('no VmRSS')
 
 
-def test_a_flood_of_unknown_joint_names_keeps_memory_and_diagnostics_small(processes,
-                                                                          listener):
+def test_a_flood_of_unknown_joint_names_keeps_memory_and_diagnostics_small(
+        processes, listener):
     """Every message names 20 new joints: memory, log and /diagnostics must stay bounded."""
     node = start(processes, 'dq_fk_node', 'joint_states_reliability:=reliable')
     diagnostics = listener.listen(DiagnosticArray, '/diagnostics')
@@ -147,8 +147,8 @@ def test_a_flood_of_unknown_joint_names_keeps_memory_and_diagnostics_small(proce
     # enough names (20 a message, ~100 bytes each) reached the node to matter
     assert int(values['updates_received']) >= 2000, (sent, values['updates_received'])
     assert len(values['unknown_joints'].split(', ')) == 20
-    assert int(values['unknown_names_unlisted']) >= 20 * (int(values['updates_received'])
-                                                           - 1 - 20)
+    count = int(values['updates_received'])
+    assert int(values['unknown_names_unlisted']) >= 20 * (count - 1 - 20)
     assert size < 4000, size
     assert grown < 25.0, f'RSS grew by {grown:.1f} MiB ({baseline:.1f} MiB before)'
     assert node.poll() is None

@@ -12,7 +12,6 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
-from dq_fk_ros.ros.executables import executable
 from geometry_msgs.msg import PoseStamped
 import homogeneous_tf as htf
 import numpy as np

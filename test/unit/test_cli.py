@@ -3,6 +3,7 @@
 import json
 
 from dq_fk_ros.cli.dq_fk import main
+from dq_fk_ros.description.robot_model import shipped_robot_path
 import pytest
 
 
@@ -91,3 +92,23 @@ def test_urdf_to_file(capsys, tmp_path):
     rc, _, err = run(capsys, 'urdf', 'rl15', '-o', str(target))
     assert rc == 0 and 'wrote' in err
     assert target.read_text().startswith('<?xml')
+
+
+def test_a_joint_given_twice_is_refused(capsys):
+    rc, out, err = run(capsys, 'fk', 'rl15', '--joints', 'joint_1=1', 'joint_1=2')
+    assert rc == 1 and out == ''
+    assert err == 'dq_fk: --joints: joint_1 is given twice (1 and 2); give each joint once\n'
+
+
+def test_validate_of_files_that_crashed_it_is_one_line_each(capsys, tmp_path):
+    """A 400-digit integer and deep nesting gave tracebacks (OverflowError, RecursionError)."""
+    text = open(shipped_robot_path('rl15'), encoding='utf-8').read()
+    huge, deep = tmp_path / 'huge.yaml', tmp_path / 'deep.yaml'
+    huge.write_text(text.replace('a: 200', 'a: ' + '9' * 400, 1))
+    deep.write_text(text.replace('a: 200', 'a: ' + '[' * 5000 + ']' * 5000, 1))
+    rc, out, err = run(capsys, 'validate', str(huge), str(deep), 'rl15')
+    assert rc == 1 and out.count('ok (rl15') == 1
+    assert err.splitlines() == [
+        f"{huge}: chain[0] (frame 'shoulder_seg1'): field 'a' must be a finite number, "
+        f'got an integer of 400 digits',
+        f'{deep}: YAML nested too deeply to be a robot description']

@@ -22,7 +22,7 @@ ROBOTS = {name: yaml.safe_load(open(shipped_robot_path(name), encoding='utf-8'))
 
 NASTY_TEXT = st.one_of(
     st.text(max_size=20),
-    st.sampled_from(['elbow\n', 'a b', '"q"', "x --> <evil/> <!-- ", '/leading', 'trail/',
+    st.sampled_from(['elbow\n', 'a b', '"q"', 'x --> <evil/> <!-- ', '/leading', 'trail/',
                      'a//b', 'a/1b', '1abc', 'tab\there', 'nul\x00', 'bell\x07', 'é',
                      'x' * 300, '']),
 )
@@ -56,7 +56,7 @@ def parent_of(data, path):
 
 @st.composite
 def mutated(draw):
-    """A shipped robot's data with 1-3 random mutations."""
+    """Draw a shipped robot's data with 1-3 random mutations."""
     data = copy.deepcopy(ROBOTS[draw(st.sampled_from(sorted(ROBOTS)))])
     for _ in range(draw(st.integers(1, 3))):
         places = [p for p, _ in paths(data) if p]
@@ -124,7 +124,7 @@ def test_the_classes_that_crashed_the_loader(text, words):
 @pytest.mark.parametrize('name', ['elbow\n', 'a b', "it's", 'a/1b', '/world', 'x/', 'a//b',
                                   'tab\t', 'x' * 129, 'ü'])
 def test_frame_names_follow_ros_topic_token_rules(name):
-    """``$`` used to match before a trailing newline: 'elbow\\n' passed as a frame name."""
+    r"""``$`` used to match before a trailing newline: 'elbow\n' passed as a frame name."""
     base = open(shipped_robot_path('rl15'), encoding='utf-8').read()
     text = base.replace('frame: shoulder_seg1', f'frame: {yaml.safe_dump(name).strip()}'
                         .replace('\n...', ''), 1)

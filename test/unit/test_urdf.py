@@ -1,5 +1,6 @@
 """The URDF export: well-formed, a tree over the published frames, and the same kinematics."""
 
+import json
 import math
 import xml.etree.ElementTree as ET
 
@@ -105,3 +106,14 @@ def test_scale_other_than_one_is_refused_clearly():
         '  - {frame: l1, joint: j1, theta: 0, d: 0, a: 0.3, alpha: 0, scale: 2}\n', 'x.yaml')
     with pytest.raises(ValueError, match="frame 'l1'.*scale 2.0"):
         robot_to_urdf(model)
+
+
+@pytest.mark.parametrize('name', ['x --> <evil/> <!-- ', 'a & b "c" \'d\'', '--', 'ends-',
+                                  ']]> <![CDATA[', 'ü ✓'])
+def test_hostile_robot_names_leave_the_urdf_well_formed(name):
+    """A robot name used to be written raw into an XML comment: '-->' broke the URDF."""
+    text = open(shipped_robot_path('rl15'), encoding='utf-8').read()
+    model = parse_robot_description(text.replace('robot: rl15', f'robot: {json.dumps(name)}'))
+    root = ET.fromstring(robot_to_urdf(model))  # expat, a real XML parser
+    assert root.tag == 'robot' and root.attrib['name'] == name
+    assert {link.attrib['name'] for link in root.iter('link')} >= set(model.frame_names)

@@ -1,0 +1,258 @@
+"""
+dq_fk_bag against misuse and damage.
+
+Refused outputs, user errors, empty results, ROS 1 bags, and fuzzed MCAP damage (every
+intact chunk must be processed).
+"""
+
+import io
+
+from dq_fk_ros.bag import writer as bag_writer
+from dq_fk_ros.bag.writer import BagWriter
+from dq_fk_ros.cli.dq_fk_bag import main as bag_main
+from hypothesis import given, HealthCheck, settings, strategies as st
+from mcap.reader import make_reader
+import numpy as np
+import pytest
+from test_bag import js_bytes, MODEL, NAMES, RL15, T0, trajectory, TS, valid_bag
+
+JS_TYPE = 'sensor_msgs/msg/JointState'
+
+
+def run(capsys, *argv):
+    rc = bag_main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def one_line_error(rc, err, code=2):
+    assert rc == code, (rc, err)
+    assert err.startswith('dq_fk_bag: ') and err.count('\n') == 1, err
+    assert 'Traceback' not in err
+
+
+# -- outputs that would destroy the input or go where nobody meant ------------------------
+def test_outputs_that_are_contain_or_lie_in_the_input_are_refused(
+        tmp_path, capsys, monkeypatch):
+    valid_bag(tmp_path / 'in', n=20)
+    before = sorted((p.name, p.stat().st_size) for p in (tmp_path / 'in').iterdir())
+    mcap = next((tmp_path / 'in').glob('*.mcap'))
+    (tmp_path / 'link').symlink_to(tmp_path / 'in')
+    cases = [
+        (('in', 'in', '--overwrite'), 'would overwrite the input bag'),
+        (('in', 'link', '--overwrite'), 'would overwrite the input bag'),  # via a symlink
+        (('in', 'in/sub', '--overwrite'), 'would overwrite the input bag'),
+        (('in/' + mcap.name, 'in', '--overwrite'), 'contains the input bag'),
+        (('in', '.', '--overwrite'), 'contains the input bag'),
+        (('in', 'out', '--csv', 'in/metadata.yaml', '--overwrite'),
+         '--csv in/metadata.yaml would overwrite the input bag'),
+        (('in', 'out', '--csv', 'out/ee.csv'), '--csv out/ee.csv would be inside OUT_BAG'),
+    ]
+    monkeypatch.chdir(tmp_path)
+    for args, words in cases:
+        rc, out, err = run(capsys, 'process', *args, '--robot', 'rl15', '--quiet')
+        one_line_error(rc, err)
+        assert words in err, err
+    assert sorted((p.name, p.stat().st_size) for p in (tmp_path / 'in').iterdir()) == before
+    assert not (tmp_path / 'out').exists()
+
+
+def test_symlinks_existing_files_and_directories_as_outputs(tmp_path, capsys, monkeypatch):
+    valid_bag(tmp_path / 'in', n=20)
+    target = tmp_path / 'precious.txt'
+    target.write_text('keep me')
+    (tmp_path / 'csv_link').symlink_to(target)
+    (tmp_path / 'bag_link').symlink_to(tmp_path / 'elsewhere')     # dangling
+    (tmp_path / 'old.csv').write_text('old')
+    (tmp_path / 'adir').mkdir()
+    cases = [
+        (('out1', '--csv', 'csv_link', '--overwrite'), 'is a symbolic link; not following'),
+        (('out2', '--csv', 'csv_link'), 'is a symbolic link; not following'),
+        (('bag_link',), 'is a symbolic link; not following'),
+        (('out3', '--csv', 'old.csv'), 'old.csv exists; use --overwrite'),
+        (('out4', '--csv', 'adir', '--overwrite'), '--csv adir is a directory'),
+        (('out5', '--csv', 'no/such/dir/ee.csv'), 'does not exist'),
+        (('no/such/dir/out',), 'does not exist'),
+    ]
+    monkeypatch.chdir(tmp_path)
+    for args, words in cases:
+        rc, _, err = run(capsys, 'process', 'in', *args, '--robot', 'rl15', '--quiet')
+        one_line_error(rc, err)
+        assert words in err, err
+        assert not any((tmp_path / f'out{k}').exists() for k in range(1, 6))  # nothing left
+    assert target.read_text() == 'keep me' and (tmp_path / 'old.csv').read_text() == 'old'
+    assert not (tmp_path / 'elsewhere').exists()
+
+
+def test_user_errors_are_one_line_and_exit_2(tmp_path, capsys):
+    valid_bag(tmp_path / 'in', n=20)
+    text = open(RL15, encoding='utf-8').read()
+    huge, deep = tmp_path / 'huge.yaml', tmp_path / 'deep.yaml'
+    huge.write_text(text.replace('a: 200', 'a: ' + '9' * 400, 1))
+    deep.write_text(text.replace('a: 200', 'a: ' + '[' * 5000 + ']' * 5000, 1))
+    for robot, words in [(huge, "field 'a' must be a finite number"),
+                         (deep, 'nested too deeply'), ('no_such_robot', 'no shipped robot')]:
+        rc, _, err = run(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--robot',
+                         robot, '--quiet')
+        one_line_error(rc, err)
+        assert words in err
+    with pytest.raises(SystemExit) as info:  # a bag does not say which robot recorded it
+        bag_main(['process', str(tmp_path / 'in'), str(tmp_path / 'out')])
+    assert info.value.code == 2 and 'the following arguments are required: --robot' in \
+        capsys.readouterr().err
+    assert not (tmp_path / 'out').exists()
+
+
+# -- nothing usable is not a success -------------------------------------------------------
+def test_a_bag_of_another_robot_is_an_error_that_names_both_joint_sets(tmp_path, capsys):
+    ur = ['shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint',
+          'wrist_2_joint', 'wrist_3_joint']
+    stamps = [T0 + k * 10**7 for k in range(30)]
+    from test_bag import write_bag
+    write_bag(tmp_path / 'in', [(s, js_bytes(ur, np.zeros(6), s)) for s in stamps])
+    rc, out, err = run(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--robot', 'rl15',
+                       '--csv', tmp_path / 'ee.csv', '--quiet')
+    assert rc == 1 and '30 JointState messages, 0 written' in out
+    assert err.count('\n') == 1 and 'no JointState message could be used (nothing written)' \
+        in err
+    assert '/joint_states has 30 messages and names joints shoulder_pan_joint' in err
+    assert 'robot rl15' in err and 'needs joint_1, joint_2' in err
+    assert not (tmp_path / 'out').exists() and not (tmp_path / 'ee.csv').exists()
+    rc, out, _ = run(capsys, 'process', tmp_path / 'in', tmp_path / 'out2', '--robot', 'ur5e',
+                     '--quiet')
+    assert rc == 0 and '30 written' in out
+
+
+def test_an_empty_joint_state_topic_is_an_error(tmp_path, capsys):
+    from test_bag import write_bag
+    write_bag(tmp_path / 'in', [])
+    rc, out, err = run(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--robot', 'rl15',
+                       '--quiet')
+    assert rc == 1 and 'has 0 messages and names no joints' in err
+    assert not (tmp_path / 'out').exists()
+
+
+# -- ROS 1 bags ------------------------------------------------------------------------------
+def write_ros1_bag(path, n):
+    from rosbags.rosbag1 import Writer as Ros1Writer
+    from rosbags.typesys import get_typestore, Stores
+    ts1 = get_typestore(Stores.ROS1_NOETIC)
+    js, header, time = (ts1.types[JS_TYPE], ts1.types['std_msgs/msg/Header'],
+                        ts1.types['builtin_interfaces/msg/Time'])
+    q = trajectory(n)
+    stamps = [T0 + k * 10**7 for k in range(n)]
+    with Ros1Writer(path) as writer:
+        conn = writer.add_connection('/joint_states', JS_TYPE, typestore=ts1)
+        chat = writer.add_connection('/chatter', 'std_msgs/msg/String', typestore=ts1)
+        for k, s in enumerate(stamps):
+            msg = js(header=header(seq=k, stamp=time(sec=s // 10**9, nanosec=s % 10**9),
+                                   frame_id='base'),
+                     name=NAMES, position=q[k], velocity=np.zeros(0), effort=np.zeros(0))
+            writer.write(conn, s, ts1.serialize_ros1(msg, JS_TYPE))
+            writer.write(chat, s, ts1.serialize_ros1(
+                ts1.types['std_msgs/msg/String'](data='x'), 'std_msgs/msg/String'))
+    return q, stamps
+
+
+def test_a_ros1_bag_is_processed_directly(tmp_path, capsys):
+    """ROS 1 .bag files were refused ("Unrecognized storage format"); rosbags reads them."""
+    q, stamps = write_ros1_bag(tmp_path / 'old.bag', 50)
+    rc, out, err = run(capsys, 'process', tmp_path / 'old.bag', tmp_path / 'out', '--robot',
+                       'rl15', '--csv', tmp_path / 'ee.csv', '--quiet')
+    assert rc == 0 and '50 JointState messages, 50 written' in out, (out, err)
+    assert 'a ROS 1 bag; its JointState messages are converted to ROS 2' in err
+    rows = np.loadtxt(tmp_path / 'ee.csv', delimiter=',', skiprows=1, dtype=object)
+    assert [int(s) for s in rows[:, 0]] == stamps
+    np.testing.assert_allclose(rows[:, 1:4].astype(float),
+                               [MODEL.chain.forward(r).translation for r in q], atol=1e-12)
+    rc, _, err = run(capsys, 'process', tmp_path / 'old.bag', tmp_path / 'out2', '--robot',
+                     'rl15', '--copy-input', '--quiet')
+    one_line_error(rc, err)
+    assert 'rosbags-convert --src' in err
+
+
+# -- MCAP damage, fuzzed ---------------------------------------------------------------------
+@pytest.fixture(scope='module')
+def small_mcap(tmp_path_factory):
+    """Write a rosbag2 MCAP of 240 RL15 joint states in ~12 chunks; return its layout."""
+    folder = tmp_path_factory.mktemp('fuzz') / 'in'
+    old = bag_writer.CHUNK_BYTES
+    bag_writer.CHUNK_BYTES = 4000
+    try:
+        q = trajectory(240)
+        stamps = [T0 + k * 10**7 for k in range(240)]
+        writer = BagWriter(folder, 'mcap')
+        writer.open()
+        conn = writer.add_connection('/joint_states', JS_TYPE, typestore=TS)
+        for s, row in zip(stamps, q):
+            writer.write(conn, s, js_bytes(NAMES, row, s))
+        writer.close()
+    finally:
+        bag_writer.CHUNK_BYTES = old
+    mcap = next(folder.glob('*.mcap'))
+    data = mcap.read_bytes()
+    chunks = []   # (start, end, stamps of its messages), from mcap's own chunk index
+    reader = make_reader(io.BytesIO(data))
+    times = [m.log_time for _, _, m in reader.iter_messages()]
+    for index in reader.get_summary().chunk_indexes:
+        start, end = index.chunk_start_offset, index.chunk_start_offset + index.chunk_length
+        chunks.append((start, end, [t for t in times if index.message_start_time <= t
+                                    <= index.message_end_time]))
+    assert len(chunks) >= 10 and sum(len(c[2]) for c in chunks) == 240
+    definitions = [(s, e) for s, e in record_spans(data) if data[s] in (0x03, 0x04)]
+    assert len(definitions) == 2  # the schema and the channel of /joint_states
+    summary_start = int.from_bytes(data[-8 - 20:-8 - 12], 'little')
+    return folder, mcap, data, chunks, definitions, summary_start
+
+
+def record_spans(data):
+    """(start, end) of every top-level record of the pristine file's data section."""
+    spans, pos = [], 8
+    while pos < len(data) - 8:
+        length = int.from_bytes(data[pos + 1:pos + 9], 'little')
+        spans.append((pos, pos + 9 + length))
+        if data[pos] == 0x0F:  # data end
+            break
+        pos += 9 + length
+    return spans
+
+
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(flips=st.lists(st.tuples(st.floats(0, 1, exclude_max=True), st.integers(1, 255)),
+                      min_size=0, max_size=3),
+       cut=st.one_of(st.none(), st.floats(0.05, 1.0)))
+def test_byte_damage_and_truncation_keep_every_intact_chunk(
+        small_mcap, tmp_path_factory, capsys, flips, cut):
+    """Exit 0 or 1 with one line per problem, and every message of every intact chunk."""
+    folder, mcap, data, chunks, definitions, summary_start = small_mcap
+    damaged = bytearray(data)
+    hit = []
+    for where, xor in flips:
+        at = int(where * len(data))
+        damaged[at] ^= xor
+        hit.append(at)
+    size = len(data) if cut is None else max(int(cut * len(data)), 1)
+    damaged = bytes(damaged[:size])
+    work = tmp_path_factory.mktemp('case')
+    (work / 'in').mkdir()
+    (work / 'in' / 'metadata.yaml').write_bytes((folder / 'metadata.yaml').read_bytes())
+    (work / 'in' / mcap.name).write_bytes(damaged)
+    rc, out, err = run(capsys, 'process', work / 'in', work / 'out', '--robot', 'rl15',
+                       '--csv', work / 'ee.csv', '--csv-only', '--quiet')
+    assert all(line.startswith('dq_fk_bag: ') for line in err.splitlines()), err
+    assert len(err.splitlines()) <= 2, err  # how the bag was read, what was damaged
+    # /joint_states is known if its schema and channel records survive in the data section,
+    # or the summary (which repeats them) does
+    definitions_intact = all(not any(s <= h < e for h in hit) and e <= size
+                             for s, e in definitions) or \
+        (size == len(data) and not any(h >= summary_start for h in hit))
+    expected = [t for start, end, times in chunks
+                if end <= size and not any(start <= h < end for h in hit) for t in times]
+    if not definitions_intact or not expected:
+        assert rc in (0, 1, 2), err  # (2: nothing left that is a bag at all)
+        return
+    assert rc in (0, 1), err
+    got = [int(line.split(',')[0]) for line in (work / 'ee.csv').read_text().splitlines()[1:]]
+    assert set(expected) <= set(got), (len(expected), len(got), err)
+    if not hit and cut is None:
+        assert rc == 0 and len(got) == 240 and err == ''
