@@ -260,7 +260,7 @@ def test_byte_damage_and_truncation_keep_every_intact_chunk(
 
 @pytest.mark.integration
 def test_play_goes_on_past_a_damaged_chunk(tmp_path, processes, ros_domain_id):
-    """rosbags stops inside the damaged chunk; play goes on with the intact ones (exit 1)."""
+    """Rosbags stops inside the damaged chunk; play goes on with the intact ones (exit 1)."""
     from ros_harness import Harness
     from sensor_msgs.msg import JointState as RosJointState
     from test_bag import messages_outside, stamp_ns
