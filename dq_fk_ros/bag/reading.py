@@ -16,6 +16,10 @@ class BagError(Exception):
     """A bag problem for the user; the message is one line."""
 
 
+class BagDamaged(BagError):
+    """The bag is damaged so badly that nothing in it can be used; the message is one line."""
+
+
 def open_reader(path):
     """
     Open a bag for reading: rosbags' ``Reader``, or its MCAP files record by record.
@@ -170,7 +174,22 @@ class Ros1Bag:
 
 
 def joint_state_connections(reader, path, topic=None):
-    """Return the connections of the JointState topic (``topic``, or the only one)."""
+    """
+    Return the connections of the JointState topic (``topic``, or the only one).
+
+    Raises :class:`BagError`, or :class:`BagDamaged` when the topic is missing from a bag
+    whose damage may have taken its definition.
+    """
+    try:
+        return _joint_state_connections(reader, path, topic)
+    except BagError as exc:
+        damage = getattr(reader, 'damage', None)
+        if damage:
+            raise BagDamaged(f'{exc}; {damage}') from None
+        raise
+
+
+def _joint_state_connections(reader, path, topic):
     topics = getattr(reader, 'all_topics', [(c.topic, c.msgtype) for c in reader.connections])
     listing = ', '.join(f'{printable(t)} ({printable(m)})' for t, m in topics[:20]) + \
         (f' and {len(topics) - 20} more' if len(topics) > 20 else '') or 'none'

@@ -16,7 +16,7 @@ import os
 import sys
 
 from dq_fk_ros.bag.process import process_bag
-from dq_fk_ros.bag.reading import BagError, printable
+from dq_fk_ros.bag.reading import BagDamaged, BagError, printable
 from dq_fk_ros.description.robot_model import RobotDescriptionError, shipped_robot_path
 
 
@@ -115,6 +115,9 @@ def main(argv=None):
                 print(f'dq_fk_bag: {line}', file=sys.stderr)
         if s['error']:
             return 1
+    except BagDamaged as exc:
+        print(f'dq_fk_bag: {exc}', file=sys.stderr)
+        return 1
     except (BagError, RobotDescriptionError, FileNotFoundError) as exc:
         print(f'dq_fk_bag: {exc}', file=sys.stderr)
         return 2

@@ -239,6 +239,7 @@ def test_byte_damage_and_truncation_keep_every_intact_chunk(
     (work / 'in' / mcap.name).write_bytes(damaged)
     rc, out, err = run(capsys, 'process', work / 'in', work / 'out', '--robot', 'rl15',
                        '--csv', work / 'ee.csv', '--csv-only', '--quiet')
+    assert rc in (0, 1), err
     assert all(line.startswith('dq_fk_bag: ') for line in err.splitlines()), err
     assert len(err.splitlines()) <= 2, err  # how the bag was read, what was damaged
     # /joint_states is known if its schema and channel records survive in the data section,
@@ -249,9 +250,7 @@ def test_byte_damage_and_truncation_keep_every_intact_chunk(
     expected = [t for start, end, times in chunks
                 if end <= size and not any(start <= h < end for h in hit) for t in times]
     if not definitions_intact or not expected:
-        assert rc in (0, 1, 2), err  # (2: nothing left that is a bag at all)
         return
-    assert rc in (0, 1), err
     got = [int(line.split(',')[0]) for line in (work / 'ee.csv').read_text().splitlines()[1:]]
     assert set(expected) <= set(got), (len(expected), len(got), err)
     if not hit and cut is None:
