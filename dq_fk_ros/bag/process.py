@@ -14,6 +14,7 @@ from dq_fk_ros.bag.progress import Progress
 from dq_fk_ros.bag.reading import (
     BagError, joint_state_connections, open_reader, printable, Ros1Bag)
 from dq_fk_ros.description.robot_model import load_robot_description
+from dq_fk_ros.description.urdf import HelperFrames, robot_to_urdf
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
 from dq_fk_ros.messages.cdr import (
     JointStateNames, JointStateRun, parse_joint_states, pose_stamped_template,
@@ -57,11 +58,22 @@ class BagOutputs:
         self.poses = [add(f'{pose_namespace}/pose/{model.frame_names[k]}',
                           'geometry_msgs/msg/PoseStamped', typestore=typestore,
                           offered_qos_profiles=qos(10, volatile)) for k in self.pose_frames]
+        # the URDF's helper links, as the node publishes them (children of their DH frames)
+        self.helpers = HelperFrames(model)
         self.tf_template = tf_message_template(
-            [(parents[row + 1], self.frame_ids[row + 1]) for row in self.moving_rows])
+            [(parents[row + 1], self.frame_ids[row + 1]) for row in self.moving_rows]
+            + [(self.frame_ids[k], frame_prefix + name) for name, k in self.helpers.moving])
         self.pose_template = pose_stamped_template(model.fixed_frame)
         self.static_template = tf_message_template(
-            [(parents[k], self.frame_ids[k]) for k in self.static_frames])
+            [(parents[k], self.frame_ids[k]) for k in self.static_frames]
+            + [(self.frame_ids[k], frame_prefix + name) for name, k, _ in self.helpers.static])
+        try:
+            self.urdf = robot_to_urdf(model)
+        except ValueError:  # a robot URDF cannot express: no /robot_description
+            self.urdf = None
+        self.description = add('/robot_description', 'std_msgs/msg/String',
+                               typestore=typestore, offered_qos_profiles=qos(1, latched)) \
+            if self.urdf is not None else None
         self.copied = {}
         for conn in copy_from:
             self.copied[conn.id] = _copy_connection(writer, conn, typestore)
@@ -83,8 +95,13 @@ class BagOutputs:
                 values.append(rel[k - 1])
             else:
                 values.append(chain.tool.to_pose_xyzw())
+        values += [offset.to_pose_xyzw() for _, _, offset in self.helpers.static]
         row = self.static_template.fill([time_ns], np.concatenate(values)[None, :])[0]
         self.writer.write(self.tf_static, time_ns, memoryview(row))
+        if self.description is not None:
+            text = self.typestore.types['std_msgs/msg/String'](data=self.urdf)
+            self.writer.write(self.description, time_ns,
+                              self.typestore.serialize_cdr(text, 'std_msgs/msg/String'))
         self.static_written = True
 
     def write_chunk(self, q, stamps_ns, log_times_ns):
@@ -93,7 +110,11 @@ class BagOutputs:
         absolute = dq_to_pose_xyzw(chain.forward_all_batch(q))           # (N, frames, 7)
         relative = dq_to_pose_xyzw(chain.relative_all_batch(q)[:, self.moving_rows])
         n = len(q)
-        tf_rows = self.tf_template.fill(stamps_ns, relative.reshape(n, -1))
+        relative = relative.reshape(n, -1)
+        if self.helpers.moving:  # (a cylindrical row's first motion: rare, per message)
+            moving = np.array([np.concatenate(self.helpers.moving_poses(row)) for row in q])
+            relative = np.concatenate([relative, moving], axis=1)
+        tf_rows = self.tf_template.fill(stamps_ns, relative)
         pose_rows = [self.pose_template.fill(stamps_ns, absolute[:, k])
                      for k in self.pose_frames]
         self.writer.write_rows([self.tf] + self.poses, log_times_ns, [tf_rows] + pose_rows)

@@ -8,6 +8,7 @@ update, so that the node's hot path allocates nothing.
 """
 
 from builtin_interfaces.msg import Time
+from dq_fk_ros.description.urdf import HelperFrames
 from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
 from tf2_msgs.msg import TFMessage
 
@@ -46,21 +47,28 @@ class FrameMessages:
     The messages of one robot model under one ``frame_prefix``, built once, refilled often.
 
     ``frame_prefix`` is prepended to every frame id the model names, except the fixed
-    frame, so that several robots hang in one TF tree under a shared world frame.
+    frame, so that several robots hang in one TF tree under a shared world frame. The
+    URDF's helper links (:class:`~dq_fk_ros.description.urdf.HelperFrames`) are published
+    as children of their DH frames: constant ones on /tf_static, moving ones on /tf.
     """
 
     def __init__(self, model, frame_prefix=''):
         """Build the message objects for ``model``."""
         self.model = model
+        self.prefix = frame_prefix
         fixed = model.fixed_frame
         self.frame_ids = [frame_prefix + name for name in model.frame_names]
         parent_ids = [fixed] + self.frame_ids[:-1]
         # frame k (k >= 1) is the child of DH row k - 1; frame 0 and the tool are static
         n_rows = len(model.chain.joints)
         self.moving_rows = [k - 1 for k in range(1, n_rows + 1) if model.moving[k]]
+        self.helpers = HelperFrames(model)
         self.tf = TFMessage(transforms=[
             _transform_stamped(parent_ids[row + 1], self.frame_ids[row + 1])
-            for row in self.moving_rows])
+            for row in self.moving_rows] + [
+            _transform_stamped(self.frame_ids[anchor], frame_prefix + name)
+            for name, anchor in self.helpers.moving])
+        self._helper_transforms = self.tf.transforms[len(self.moving_rows):]
         self.poses = []
         for _ in self.frame_ids:
             msg = PoseStamped()
@@ -76,11 +84,15 @@ class FrameMessages:
             msg.header.frame_id = fixed
             self.twists.append(msg)
 
-    def fill(self, stamp, absolute, relative):
-        """Refill /tf and pose messages for one update; return ``(tf, poses)``."""
+    def fill(self, stamp, absolute, relative, q=None):
+        """Refill /tf and pose messages for one update at joints ``q``; ``(tf, poses)``."""
         for transform, row in zip(self.tf.transforms, self.moving_rows):
             transform.header.stamp = stamp
             set_transform(transform.transform, relative[row])
+        if self._helper_transforms:
+            for transform, pose in zip(self._helper_transforms, self.helpers.moving_poses(q)):
+                transform.header.stamp = stamp
+                set_transform(transform.transform, [float(v) for v in pose])
         for msg, pose in zip(self.poses, absolute):
             msg.header.stamp = stamp
             set_pose(msg.pose, pose)
@@ -108,6 +120,9 @@ class FrameMessages:
         if chain.tool is not None:
             transforms.append(_transform_stamped(self._parent_ids[-1], self.frame_ids[-1],
                                                  stamp, chain.tool.to_pose_xyzw()))
+        for name, anchor, offset in self.helpers.static:
+            transforms.append(_transform_stamped(self.frame_ids[anchor], self.prefix + name, stamp,
+                                                 offset.to_pose_xyzw()))
         return TFMessage(transforms=transforms)
 
 

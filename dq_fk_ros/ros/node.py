@@ -12,6 +12,7 @@ import sys
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dq_fk_ros.description.robot_model import (
     FRAME_ID, load_robot_description, RobotDescriptionError, shipped_robot_path)
+from dq_fk_ros.description.urdf import robot_to_urdf
 from dq_fk_ros.messages.joint_states import (
     INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH,
     REJECTED)
@@ -23,6 +24,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
 RELIABILITY = {'best_effort': ReliabilityPolicy.BEST_EFFORT,
@@ -60,6 +62,12 @@ class DqFkNode(Node):
             QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        # as robot_state_publisher: the URDF for RViz's RobotModel and Foxglove's 3D panel
+        self._description_pub = self.create_publisher(
+            String, 'robot_description',
+            QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self._publish_description = get('publish_robot_description').value
         self._pose_pubs = []
         self._twist_pubs = []
         self._merger = None
@@ -88,6 +96,9 @@ class DqFkNode(Node):
         declare('frame_prefix', '', 'prepended to every frame id except the fixed frame')
         declare('publish_tf', True, 'publish /tf and /tf_static')
         declare('publish_poses', True, 'publish ~/pose/<frame> (PoseStamped in the fixed frame)')
+        declare('publish_robot_description', True,
+                'publish the URDF of the robot on robot_description (transient local), '
+                'as robot_state_publisher does; re-sent on reload')
         declare('publish_twist', True,
                 'publish ~/twist/<frame> for the end effector (and tool) when every joint '
                 'has a velocity')
@@ -150,6 +161,10 @@ class DqFkNode(Node):
             self.get_logger().error(f'parameter change refused: {reason}')
             return SetParametersResult(successful=False, reason=reason)
         resend_static = new.get('publish_tf', self._publish_tf) and not self._publish_tf
+        resend_description = new.get('publish_robot_description', self._publish_description) \
+            and not self._publish_description
+        self._publish_description = new.get('publish_robot_description',
+                                            self._publish_description)
         self._publish_tf = new.get('publish_tf', self._publish_tf)
         self._publish_poses = new.get('publish_poses', self._publish_poses)
         self._publish_twist = new.get('publish_twist', self._publish_twist)
@@ -163,8 +178,12 @@ class DqFkNode(Node):
             self._apply_model(model or self._model, outputs)
             if model is not None:
                 self.get_logger().info(f'reloaded robot {model.name} from {model.source}')
-        elif resend_static:
-            self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
+        else:
+            if resend_static:
+                self._tf_static_pub.publish(
+                    self._messages.static_tf(self.get_clock().now().to_msg()))
+            if resend_description:
+                self._send_description()
         return SetParametersResult(successful=True)
 
     def _build_outputs(self, model, prefix):
@@ -204,6 +223,18 @@ class DqFkNode(Node):
             self._messages, self._pose_pubs, self._twist_pubs = outputs
         if self._publish_tf:
             self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
+        self._send_description()
+
+    def _send_description(self):
+        """Publish the URDF of the robot (without frame_prefix, as robot_state_publisher)."""
+        if not self._publish_description:
+            return
+        try:
+            text = robot_to_urdf(self._model)
+        except ValueError as exc:  # a robot URDF cannot express (a scale other than +-1)
+            self.get_logger().warn(f'no robot_description: {exc}')
+            return
+        self._description_pub.publish(String(data=text))
 
     # -- the hot path --------------------------------------------------------------------
     def _on_joint_state(self, msg):
@@ -253,7 +284,7 @@ class DqFkNode(Node):
     def _publish(self, stamp, q, qdot):
         chain = self._model.chain
         absolute, relative = chain.frame_poses(q)
-        tf, poses = self._messages.fill(stamp, absolute, relative)
+        tf, poses = self._messages.fill(stamp, absolute, relative, q)
         if self._publish_tf:
             self._tf_pub.publish(tf)
         if self._publish_poses:

@@ -7,6 +7,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from dq_fk_ros.bag.process import process_bag
 from dq_fk_ros.cli.dq_fk_bag import main as bag_main
 from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.description.urdf import robot_to_urdf
 from dq_fk_ros.messages.cdr import parse_joint_state
 from dq_fk_ros.messages.joint_states import JointStateMerger, PUBLISH
 from dq_fk_ros.ros.executables import executable
@@ -160,6 +161,12 @@ def test_output_opens_in_the_official_mcap_reader(tmp_path):
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
             if channel.topic == '/dq_fk_node/pose/eeCarry_seg6':
                 ee.append(decoded.pose)
+            if channel.topic == '/robot_description':
+                urdf = decoded.data
+        assert 'transient_local' in channels['/robot_description'].metadata[
+            'offered_qos_profiles']
+    # the URDF for Foxglove's 3D panel, once, as the node publishes it
+    assert counts.pop('/robot_description') == 1 and urdf == robot_to_urdf(MODEL)
     assert counts.pop('/tf_static') == 1 and counts.pop('/tf') == len(q)
     assert len(counts) == len(MODEL.frame_names) and set(counts.values()) == {len(q)}
     np.testing.assert_allclose(htf.pose_matrix(ee[99]), MODEL.chain.forward(q[99]).to_matrix(),
@@ -167,7 +174,7 @@ def test_output_opens_in_the_official_mcap_reader(tmp_path):
     info = yaml.safe_load((tmp_path / 'out' / 'metadata.yaml').read_text())
     info = info['rosbag2_bagfile_information']
     assert info['version'] == 9 and info['storage_identifier'] == 'mcap'
-    assert info['message_count'] == 1 + len(q) * (1 + len(MODEL.frame_names))
+    assert info['message_count'] == 2 + len(q) * (1 + len(MODEL.frame_names))
 
 
 def test_bad_content_is_skipped_counted_and_nothing_valid_lost(tmp_path):

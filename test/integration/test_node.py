@@ -2,8 +2,10 @@
 
 import math
 import sys
+import xml.etree.ElementTree as ET
 
 from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.description.urdf import robot_to_urdf
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import homogeneous_tf as htf
 import numpy as np
@@ -118,7 +120,9 @@ def test_frame_prefix_applies_to_every_frame_id(ros):
     transforms = tf[-1].transforms + static[-1].transforms
     ids = {t.child_frame_id for t in transforms} | {t.header.frame_id for t in transforms}
     model = load_robot_description(shipped_robot_path('rl15'))
-    assert ids == {'world'} | {'left/' + n for n in model.frame_names}
+    links = {link.get('name') for link in ET.fromstring(robot_to_urdf(model)).iter('link')}
+    assert ids == {'world'} | {'left/' + n for n in links - {'world'}}
+    assert {'left/' + n for n in model.frame_names} < ids  # and the URDF's helper links
 
 
 def test_twist_from_joint_velocities(ros):

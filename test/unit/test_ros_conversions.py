@@ -41,8 +41,9 @@ def test_rl15_messages_at_zero_are_fig4_and_tf_composes_to_the_pose():
     p, o = ee.pose.position, ee.pose.orientation
     np.testing.assert_allclose([p.x, p.y, p.z], [1.025, 0, 1.445], atol=1e-12)
     np.testing.assert_allclose([o.x, o.y, o.z, o.w], [0.707107, 0, 0.707107, 0], atol=5e-7)
-    assert [(t.header.frame_id, t.child_frame_id) for t in static.transforms] == [
-        ('world', 'base_seg0')]
+    assert [(t.header.frame_id, t.child_frame_id) for t in static.transforms] == [('world', 'base_seg0')] + [
+        (f, f + '_dh_z') for f in ('shoulder_seg1', 'upperarm_seg2', 'elbow_seg3',
+                                   'forearm_seg4', 'wrist_seg5')]  # the URDF's helper links
     assert tf.transforms[-1].header.frame_id == 'wrist_seg5'
     assert tf.transforms[-1].child_frame_id == 'eeCarry_seg6'
     assert len(tf.transforms) == 6 and all(t.header.stamp == stamp for t in tf.transforms)
@@ -89,4 +90,5 @@ def test_fixed_rows_go_to_tf_static_and_mimic_rows_to_tf():
     messages = FrameMessages(model)
     tf, _ = messages.fill(Time(), *model.chain.frame_poses([0.4]))
     assert [t.child_frame_id for t in tf.transforms] == ['l1', 'l3']
-    assert [t.child_frame_id for t in messages.static_tf(Time()).transforms] == ['b', 'l2']
+    assert [(t.header.frame_id, t.child_frame_id) for t in messages.static_tf(Time())
+            .transforms] == [('world', 'b'), ('l1', 'l2'), ('l1', 'l1_dh_z'), ('l3', 'l3_dh_z')]
