@@ -39,7 +39,7 @@ def parse_joint_values(model, tokens, degrees):
     With ``degrees``, values of revolute joints are degrees; prismatic ones are metres.
     """
     names = model.joint_names
-    revolute = _revolute_variables(model)
+    revolute = model.angular
     if not tokens:
         tokens = ['0'] * len(names)
     named = ['=' in t for t in tokens]
@@ -67,15 +67,6 @@ def parse_joint_values(model, tokens, degrees):
     if degrees:
         q[revolute] = np.radians(q[revolute])
     return q
-
-
-def _revolute_variables(model):
-    """Boolean mask over the joint variables: True where the variable is an angle."""
-    mask = np.zeros(model.chain.dof, dtype=bool)
-    for j in model.chain.joints:
-        if j.joint_type in ('revolute', 'cylindrical') and not j.follows:
-            mask[model.joint_names.index(j.name)] = True
-    return mask
 
 
 def _number(text, name):
@@ -182,6 +173,28 @@ def cmd_urdf(args):
     return 0
 
 
+def cmd_plot(args):
+    from dq_fk_ros.description.plot import DEFAULT_VIEW, save_robot_plot
+    extension = os.path.splitext(args.output)[1].lower()
+    if extension not in ('.png', '.svg'):
+        raise UsageError(f'-o {args.output}: give a .png or .svg file name')
+    view = tuple(args.view) if args.view else DEFAULT_VIEW
+    if not all(math.isfinite(v) for v in view):
+        raise UsageError(f'--view: azimuth and elevation must be finite degrees, got {view}')
+    folder = os.path.dirname(os.path.abspath(args.output))
+    if not os.path.isdir(folder):
+        raise UsageError(f'-o {args.output}: folder {folder} does not exist')
+    model = load_robot_description(resolve_robot_file(args.file))
+    q = parse_joint_values(model, args.joints, args.deg)
+    try:
+        save_robot_plot(model, q, args.output, view)
+    except ImportError:
+        raise UsageError('dq_fk plot needs matplotlib (pip install matplotlib; on a ROS '
+                         'install: apt install python3-matplotlib)') from None
+    print(f'wrote {args.output} ({model.name})', file=sys.stderr)
+    return 0
+
+
 def cmd_list(args):
     for name in shipped_robots():
         model = load_robot_description(shipped_robot_path(name))
@@ -211,6 +224,16 @@ def build_parser():
     p.add_argument('file', metavar='FILE')
     p.add_argument('-o', '--output', help='output file (default: standard output)')
     p.set_defaults(func=cmd_urdf)
+    p = sub.add_parser('plot', help='draw the robot at given joint values (PNG or SVG)')
+    p.add_argument('file', metavar='FILE')
+    p.add_argument('--joints', nargs='*', default=[], metavar='Q',
+                   help='as for fk (default: all zeros)')
+    p.add_argument('--deg', action='store_true', help='revolute joint values in degrees')
+    p.add_argument('-o', '--output', required=True, metavar='OUT.png|OUT.svg',
+                   help='the picture to write (.png or .svg)')
+    p.add_argument('--view', nargs=2, type=float, metavar=('AZIMUTH', 'ELEVATION'),
+                   default=None, help='camera direction in degrees (default -60 25)')
+    p.set_defaults(func=cmd_plot)
     p = sub.add_parser('list', help='list the shipped robots')
     p.set_defaults(func=cmd_list)
     return parser

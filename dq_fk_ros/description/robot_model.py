@@ -88,6 +88,16 @@ class RobotModel:
         """Joint limits ``(dof, 2)``, lower and upper, in rad or m (+-inf: none given)."""
         return self.chain.limits
 
+    @property
+    def angular(self):
+        """Per joint (``joint_names`` order): True where the value is an angle (rad), else m."""
+        index = {name: k for k, name in enumerate(self.joint_names)}
+        mask = np.zeros(len(index), dtype=bool)
+        for j in self.chain.joints:
+            if j.joint_type in ('revolute', 'cylindrical') and not j.follows:
+                mask[index[j.name]] = True
+        return mask
+
 
 class _UniqueKeyLoader(yaml.SafeLoader):
     """A SafeLoader that refuses a mapping with the same key twice."""

@@ -283,7 +283,7 @@ def link_segments(model, q, joints=None):
 
 
 def _segment(origin):
-    """The visual cylinder along a joint origin's offset, in the parent link (or None)."""
+    """Return the visual cylinder along a joint origin's offset (parent link), or None."""
     t = origin.translation
     length = float(np.linalg.norm(t))
     if length < 1e-9:

@@ -75,7 +75,8 @@ def test_tf_static_reaches_a_subscriber_that_starts_late(processes, listener):
     time.sleep(2.0)
     static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
     assert listener.spin_until(lambda: static, timeout_s=10)
-    assert [(t.header.frame_id, t.child_frame_id) for t in static[-1].transforms] == [('world', 'base_seg0')] + [
+    pairs = [(t.header.frame_id, t.child_frame_id) for t in static[-1].transforms]
+    assert pairs == [('world', 'base_seg0')] + [
         (f, f + '_dh_z') for f in ('shoulder_seg1', 'upperarm_seg2', 'elbow_seg3',
                                    'forearm_seg4', 'wrist_seg5')]  # the URDF's helper links
     np.testing.assert_allclose(static[-1].transforms[0].transform.translation.z, 0.73)

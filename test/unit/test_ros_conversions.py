@@ -41,7 +41,8 @@ def test_rl15_messages_at_zero_are_fig4_and_tf_composes_to_the_pose():
     p, o = ee.pose.position, ee.pose.orientation
     np.testing.assert_allclose([p.x, p.y, p.z], [1.025, 0, 1.445], atol=1e-12)
     np.testing.assert_allclose([o.x, o.y, o.z, o.w], [0.707107, 0, 0.707107, 0], atol=5e-7)
-    assert [(t.header.frame_id, t.child_frame_id) for t in static.transforms] == [('world', 'base_seg0')] + [
+    pairs = [(t.header.frame_id, t.child_frame_id) for t in static.transforms]
+    assert pairs == [('world', 'base_seg0')] + [
         (f, f + '_dh_z') for f in ('shoulder_seg1', 'upperarm_seg2', 'elbow_seg3',
                                    'forearm_seg4', 'wrist_seg5')]  # the URDF's helper links
     assert tf.transforms[-1].header.frame_id == 'wrist_seg5'

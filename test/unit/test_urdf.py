@@ -6,7 +6,7 @@ import xml.etree.ElementTree as ET
 
 from dq_fk_ros.description.robot_model import (
     load_robot_description, parse_robot_description, shipped_robot_path, shipped_robots)
-from dq_fk_ros.description.urdf import robot_to_urdf
+from dq_fk_ros.description.urdf import NO_LIMIT_SPEED, robot_to_urdf
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 import homogeneous as hm
 import numpy as np
@@ -117,3 +117,45 @@ def test_hostile_robot_names_leave_the_urdf_well_formed(name):
     root = ET.fromstring(robot_to_urdf(model))  # expat, a real XML parser
     assert root.tag == 'robot' and root.attrib['name'] == name
     assert {link.attrib['name'] for link in root.iter('link')} >= set(model.frame_names)
+
+
+MIMIC_ROBOT = (
+    'robot: gripper_arm\nbase: {frame: b}\nchain:\n'
+    '  - {frame: l1, joint: j1, theta: 0, d: 0.1, a: 0.3, alpha: 0.4, limits: [-2, 2],'
+    ' max_velocity: 1.5}\n'
+    '  - {frame: l2, theta: 0.1, d: 0, a: 0.2, alpha: 0, mimic: {joint: j1,'
+    ' multiplier: -0.5}}\n'
+    '  - {frame: l3, type: prismatic, joint: j3, theta: 0.3, d: 0.2, a: 0.1, alpha: 1}\n')
+
+
+def test_a_mimic_row_loads_in_pinocchio_with_mimic_support():
+    """A mimic row was written 'continuous' after a limited joint: pinocchio refused it."""
+    from pinocchio_oracle import configuration, link_placements, urdf_model
+    model = parse_robot_description(MIMIC_ROBOT, 'mimic.yaml')
+    text = robot_to_urdf(model)
+    joints = {j.get('name'): j for j in ET.fromstring(text).iter('joint')}
+    mimic = joints['l2_joint']
+    assert mimic.get('type') == joints['j1'].get('type') == 'revolute'
+    assert [float(mimic.find('limit').get(k)) for k in ('lower', 'upper')] == [-1.0, 1.0]
+    pin_model = urdf_model(text, mimic=True)
+    assert pin_model.nq == 2  # the mimic joint adds no configuration variable
+    for q in np.random.default_rng(3).uniform(-1, 1, size=(10, 2)):
+        placements = link_placements(pin_model, configuration(
+            pin_model, dict(zip(model.joint_names, q))), model.frame_names)
+        for frame, m in zip(model.frame_names, homogeneous_from_dq(model.chain.forward_all(q))):
+            np.testing.assert_allclose(placements[frame], m, atol=1e-12)
+
+
+def test_limits_never_say_a_joint_cannot_move():
+    """velocity="0" effort="0" read as a joint that cannot move (MoveIt, ros2_control)."""
+    model = parse_robot_description(MIMIC_ROBOT, 'mimic.yaml')
+    root = ET.fromstring(robot_to_urdf(model))
+    limits = {j.get('name'): j.find('limit') for j in root.iter('joint')}
+    assert float(limits['j1'].get('velocity')) == 1.5  # the description's max_velocity
+    for name in ('j1', 'l2_joint', 'j3'):
+        assert float(limits[name].get('velocity')) > 0 and float(limits[name].get('effort')) > 0
+    assert float(limits['j3'].get('velocity')) == NO_LIMIT_SPEED  # none given
+    # a prismatic joint without limits: +-1000 m, said in a comment next to the joint
+    assert [float(limits['j3'].get(k)) for k in ('lower', 'upper')] == [-1000.0, 1000.0]
+    assert '<!-- no limits in the description: +-1000 m stands for none' in \
+        robot_to_urdf(model)
