@@ -1,10 +1,14 @@
 """
 Per-update cost of dq_fk_node for the 6-DoF RL15, in-process, split into its parts.
 
-One "update" is what the node does for a complete JointState: merge it, compute every frame
-(FK), fill 7 PoseStamped and one TFMessage of 6 transforms, and publish them all (DDS
-serialisation included; nothing subscribes, as for a node with no listeners yet). Prints
-median, 90th and 99th percentile microseconds per update and per part.
+One "update" is what the node does with a serialized JointState (its subscription is raw):
+read it, merge it, compute every frame (FK), serialize /tf (6 transforms) and the pose
+topics in place, and publish them as bytes (DDS included). Three cases: pose topics that
+nobody reads are skipped (the default; only /tf goes out), every output published with no
+subscriber (``publish_unread_topics``), and one subscriber on every topic (in this process:
+DDS delivers to it, so its cost is partly counted here too). Prints median, 90th and 99th
+percentile microseconds per update and per part, and the same for the message-object path
+the node used before (for comparison).
 
 Run with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a private ROS_DOMAIN_ID
 (``make bench`` sets both): ``python benchmarks/bench_node.py [--updates 20000]``.
@@ -15,11 +19,16 @@ import statistics
 import sys
 import time
 
+from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
 from dq_fk_ros.ros.conversions import joint_state_fields
 from dq_fk_ros.ros.node import DqFkNode
+from geometry_msgs.msg import PoseStamped
 import numpy as np
 import rclpy
+from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
 
 
 def percentiles(samples_s):
@@ -34,55 +43,96 @@ def main(argv=None):
     args = parser.parse_args(argv)
     rclpy.init(args=['--ros-args', '--log-level', 'warn'])
     node = DqFkNode()
+    probe = rclpy.create_node('dq_fk_bench_probe')
+    rows = []
     try:
         names = list(node._model.joint_names)
         rng = np.random.default_rng(0)
-        msgs = []
+        msgs, raws = [], []
         for q in rng.uniform(-1, 1, size=(args.updates, len(names))):
             msg = JointState(name=names, position=q.tolist())
             msg.header.stamp = node.get_clock().now().to_msg()
             msgs.append(msg)
-        chain, messages, merger = node._model.chain, node._messages, node._merger
-        for msg in msgs[:500]:  # warm up
-            node._handle(msg)
+            raws.append(serialize_message(msg))
+        chain, merger, out = node._model.chain, node._merger, node._bytes
 
-        rows = []
-
-        def timed(label, fn):
+        def timed(label, fn, items):
+            for item in items[:500]:  # warm up
+                fn(item)
             samples = []
-            for msg in msgs:
+            for item in items:
                 start = time.perf_counter()
-                fn(msg)
+                fn(item)
                 samples.append(time.perf_counter() - start)
             rows.append((label, *percentiles(samples)))
 
-        timed('whole update (node._handle)', node._handle)
-        timed('  merge JointState', lambda m: merger.merge(*joint_state_fields(m)))
+        node._refresh_readers()
+        timed('update, unread poses skipped (default)', node._on_joint_state, raws)
+        node.set_parameters([Parameter('publish_unread_topics', value=True)])
+        timed('update, all outputs, no subscribers', node._on_joint_state, raws)
+        cache = JointStateNames()
+        timed('  read + merge JointState', lambda raw: merger.merge(
+            *_fields(parse_joint_state(raw, cache))), raws)
         qs = [np.array(m.position) for m in msgs]
         it = iter(qs * 2)
-        timed('  FK, every frame (frame_poses)', lambda m: chain.frame_poses(next(it)))
+        timed('  FK, every frame (frame_poses)', lambda m: chain.frame_poses(next(it)), msgs)
         poses = [chain.frame_poses(q) for q in qs]
         it = iter(poses * 2)
-        timed('  fill 7 PoseStamped + TFMessage',
-              lambda m: messages.fill(m.header.stamp, *next(it)))
-        tf, pose_msgs = messages.fill(msgs[0].header.stamp, *poses[0])
+
+        def serialize(_):
+            absolute, relative = next(it)
+            return [out.tf(1, 2, relative)] + [out.pose(1, 2, p) for p in absolute]
+        timed('  serialize /tf + 7 poses (bytes)', serialize, msgs)
+        payloads = serialize(None)
 
         def publish_all(_):
-            node._tf_pub.publish(tf)
-            for pub, pm in zip(node._pose_pubs, pose_msgs):
+            node._tf_pub.publish(payloads[0])
+            for pub, payload in zip(node._pose_pubs, payloads[1:]):
+                pub.publish(payload)
+        timed('  publish /tf + 7 poses (bytes)', publish_all, msgs)
+        node.set_parameters([Parameter('publish_unread_topics', value=False)])
+
+        probe.create_subscription(TFMessage, '/tf', lambda _: None, 10, raw=True)
+        for name in node._model.frame_names:
+            probe.create_subscription(PoseStamped, f'/dq_fk_node/pose/{name}',
+                                      lambda _: None, 10, raw=True)
+        deadline = time.monotonic() + 10
+        while not all(p.get_subscription_count() for p in node._pose_pubs):
+            if time.monotonic() > deadline:
+                raise SystemExit('the probe subscriptions did not match within 10 s')
+            time.sleep(0.05)
+        node._refresh_readers()
+        timed('update, one subscriber on every topic', node._on_joint_state, raws)
+
+        # the message-object path the node used before, for comparison
+        messages = node._messages
+        tf, pose_msgs = messages.fill(msgs[0].header.stamp, *poses[0])
+
+        def object_update(msg):
+            result = merger.merge(*joint_state_fields(msg))
+            absolute, relative = chain.frame_poses(result.q)
+            tf_msg, pose_list = messages.fill(msg.header.stamp, absolute, relative)
+            node._tf_pub.publish(tf_msg)
+            for pub, pm in zip(node._pose_pubs, pose_list):
                 pub.publish(pm)
-        timed('  publish 7 PoseStamped + TFMessage', publish_all)
+        timed('(before: message objects, subscribed)', object_update, msgs)
     finally:
+        probe.destroy_node()
         node.destroy_node()
         rclpy.try_shutdown()
 
     print(f'# dq_fk_node per-update cost, RL15 (6 joints, 7 frames), {args.updates} updates '
-          'per row, in-process, no subscribers')
-    print(f"| {'part':36s} | median us | p90 us | p99 us |")
+          'per row, in-process')
+    print(f"| {'part':40s} | median us | p90 us | p99 us |")
     print('|---|---|---|---|')
     for label, p50, p90, p99 in rows:
-        print(f'| {label:36s} | {p50:9.1f} | {p90:6.1f} | {p99:6.1f} |')
+        print(f'| {label:40s} | {p50:9.1f} | {p90:6.1f} | {p99:6.1f} |')
     return 0
+
+
+def _fields(parsed):
+    stamp_ns, names, positions, velocities = parsed
+    return names, positions.tolist(), velocities.tolist(), stamp_ns
 
 
 if __name__ == '__main__':

@@ -26,7 +26,7 @@ class CdrError(ValueError):
 
 
 class _Cursor:
-    __slots__ = ('raw', 'pos')
+    __slots__ = ('raw', 'pos', 'count_at')
 
     def __init__(self, raw):
         self.raw = raw
@@ -49,6 +49,8 @@ class _Cursor:
 
     def f64_span(self):
         """Skip a float64 sequence; return ``(offset, count)`` of its values."""
+        self.align(4)
+        self.count_at = self.pos
         count = self.u32()
         if count == 0:
             return self.pos, 0
@@ -61,22 +63,30 @@ class _Cursor:
 
 
 class JointStateNames:
-    """Cache of the last ``name`` field's bytes and its decoded tuple."""
+    """
+    Cache of the last ``name`` field's bytes and its decoded tuple, and of its layout.
 
-    __slots__ = ('raw', 'names')
+    A stream of JointStates from one publisher repeats the same layout (size, frame id,
+    names, array lengths): :func:`parse_joint_state` then checks those bytes and reuses the
+    spans instead of walking the message again.
+    """
+
+    __slots__ = ('raw', 'names', 'layout')
 
     def __init__(self):
         """Start empty."""
         self.raw = None
         self.names = ()
+        self.layout = None  # (size, bytes 12..end of names, spans, count offsets)
 
 
-def _joint_state_spans(raw):
+def _joint_state_spans(raw, with_counts=False):
     """
     Where the fields of a serialized JointState are: ``(names, positions, velocities, efforts)``.
 
     Arrays are ``(offset, count)`` of their float64 values; names are ``(offset, count,
     end)`` of the strings (from the first one's length). The stamp is always at bytes 4..12.
+    ``with_counts``: also return where each array's length is, ``((offset, count), ...)``.
     """
     if len(raw) < 16 or raw[:2] != CDR_LE_HEADER[:2]:
         raise CdrError('not a little-endian CDR message (or shorter than its header)')
@@ -89,9 +99,14 @@ def _joint_state_spans(raw):
         for _ in range(count):
             cur.skip_string()
         names = (start, count, cur.pos)
-        arrays = [cur.f64_span() for _ in range(3)]
+        arrays, counts = [], []
+        for _ in range(3):
+            arrays.append(cur.f64_span())
+            counts.append((cur.count_at, arrays[-1][1]))
     except struct.error as exc:
         raise CdrError(f'message ends early ({exc})') from None
+    if with_counts:
+        return (names, *arrays), tuple(counts)
     return (names, *arrays)
 
 
@@ -103,9 +118,20 @@ def parse_joint_state(raw, cache=None):
     :param cache: a :class:`JointStateNames` shared between calls (names rarely change).
     :raises CdrError: truncated or not little-endian CDR.
     """
-    names_span, positions, velocities, _ = _joint_state_spans(raw)
+    layout = cache.layout if cache is not None else None
+    if layout is not None and len(raw) == layout[0] and \
+            raw[12:layout[2][0][2]] == layout[1] and \
+            all(_U32.unpack_from(raw, at)[0] == n for at, n in layout[3]):
+        spans = layout[2]  # same size, frame id, names and array lengths: same places
+        names_span, positions, velocities, _ = spans
+        names = cache.names
+    else:
+        spans, counts = _joint_state_spans(raw, with_counts=True)
+        names_span, positions, velocities, _ = spans
+        names = _names(raw, names_span, cache)
+        if cache is not None:
+            cache.layout = (len(raw), bytes(raw[12:names_span[2]]), spans, counts)
     sec, nanosec = _STAMP.unpack_from(raw, 4)
-    names = _names(raw, names_span, cache)
     return (sec * 1_000_000_000 + nanosec, names,
             np.frombuffer(raw, '<f8', positions[1], positions[0]),
             np.frombuffer(raw, '<f8', velocities[1], velocities[0]))
@@ -252,9 +278,12 @@ class CdrTemplate:
         self.buf = bytearray(CDR_LE_HEADER)
         self.stamps = []   # offsets of (int32 sec, uint32 nanosec)
         self.floats = []   # (offset, count) of float64 runs
+        self.padding = []  # offsets of alignment bytes (zero here; unset in rclpy's output)
 
     def _align(self, size):
-        self.buf += bytes((-(len(self.buf) - 4)) % size)
+        pad = (-(len(self.buf) - 4)) % size
+        self.padding.extend(range(len(self.buf), len(self.buf) + pad))
+        self.buf += bytes(pad)
 
     def u32(self, value):
         """Append a uint32 (a sequence length, say)."""
@@ -318,4 +347,13 @@ def tf_message_template(edges):
         t.string(parent)
         t.string(child)
         t.f64s(7)
+    return t
+
+
+def twist_stamped_template(frame_id):
+    """Template of ``geometry_msgs/TwistStamped``: 6 floats, linear then angular x y z."""
+    t = CdrTemplate()
+    t.stamp()
+    t.string(frame_id)
+    t.f64s(6)
     return t

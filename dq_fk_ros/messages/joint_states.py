@@ -82,7 +82,12 @@ class JointStateMerger:
             raise ValueError(f'out_of_limits must be one of {OUT_OF_LIMITS_POLICIES}, '
                              f'got {self.out_of_limits!r}')
         self._index = {name: k for k, name in enumerate(self.joint_names)}
+        # the last message layout that names every joint once and nothing else, and where
+        # each of its values goes: such messages take the short path (_merge_complete)
+        self._complete_names = None
+        self._complete_order = ()
         self.limits = np.asarray(self.limits, dtype=float).reshape(len(self.joint_names), 2)
+        self._limit_list = self.limits.tolist()
         self.reset()
 
     def _note_unknown(self, names, times=1):
@@ -119,7 +124,11 @@ class JointStateMerger:
     def merge(self, names, positions, velocities=(), stamp_ns=0):
         """Merge one message's content; returns a :class:`MergeResult` (never raises)."""
         self.counts['received'] += 1
-        result = self._merge(names, positions, velocities, stamp_ns)
+        complete = self._complete_names
+        if complete is not None and (names is complete or tuple(names) == complete):
+            result = self._merge_complete(positions, velocities, stamp_ns)
+        else:
+            result = self._merge(names, positions, velocities, stamp_ns)
         if result.status == REJECTED:
             self.counts['rejected'] += 1
             self.counts['rejected_' + result.reason] += 1
@@ -277,6 +286,63 @@ class JointStateMerger:
         return MergeResult(REJECTED, reason=reason,
                            detail=detail or REJECT_REASONS[reason])
 
+    def _merge_complete(self, positions, velocities, stamp_ns):
+        """
+        Merge a message of the cached complete layout: the outcome :meth:`_merge` gives.
+
+        Every joint is named once and nothing else, so there are no unknown names, no
+        duplicates, and a valid message always completes the joint vector.
+        """
+        order = self._complete_order          # chain index of each message column
+        n = len(order)
+        if len(positions) != n or len(velocities) not in (0, n):
+            return self._reject('length_mismatch', f'{n} names, {len(positions)} '
+                                f'positions, {len(velocities)} velocities')
+        values = [float(v) for v in positions]
+        for k, value in enumerate(values):
+            if not math.isfinite(value):
+                name = self.joint_names[order[k]]
+                return self._reject('non_finite', f'position of {name!r} is {value}')
+        outside = []
+        limits = self._limit_list
+        for k, value in enumerate(values):
+            lower, upper = limits[order[k]]
+            if value < lower or value > upper:
+                name = self.joint_names[order[k]]
+                outside.append(name)
+                if self.out_of_limits == 'reject':
+                    return self._reject('out_of_limits', f'{name} = {value:.6g} outside '
+                                                         f'[{lower:.6g}, {upper:.6g}]')
+                if self.out_of_limits == 'clamp':
+                    values[k] = min(max(value, lower), upper)
+        rates = [float(v) for v in velocities] if len(velocities) else None
+        if rates is not None and not all(math.isfinite(v) for v in rates):
+            self.counts['velocities_non_finite'] += 1  # dropped: no velocities this time
+            rates = None
+        time_jump = self._track_stamp(stamp_ns)
+        q, qdot = self._q, self._qdot
+        for k, i in enumerate(order):
+            q[i] = values[k]
+            qdot[i] = rates[k] if rates is not None else math.nan
+        self._seen = [True] * n
+        return MergeResult(PUBLISH, q=np.array(q),
+                           qdot=np.array(qdot) if rates is not None else None,
+                           stamp_ns=stamp_ns, out_of_limits=tuple(outside),
+                           time_jump=time_jump)
+
+    def _track_stamp(self, stamp_ns):
+        """Follow the last stamp; on a jump back, reset first. Return whether it jumped."""
+        if not stamp_ns:
+            return False
+        last = self._last_stamp_ns
+        jumped = last is not None and stamp_ns < last - TIME_JUMP_BACK_NS
+        if jumped:
+            self.reset()
+            self.counts['time_jumps'] += 1
+            last = None
+        self._last_stamp_ns = stamp_ns if last is None else max(stamp_ns, last)
+        return jumped
+
     def _merge(self, names, positions, velocities, stamp_ns):
         n_msg = len(names)
         if n_msg == 0:
@@ -325,14 +391,7 @@ class JointStateMerger:
             self.counts['velocities_non_finite'] += 1  # dropped: no velocities this time
             ours = [(i, position, math.nan) for i, position, _ in ours]
 
-        time_jump = False
-        if stamp_ns:
-            last = self._last_stamp_ns
-            if last is not None and stamp_ns < last - TIME_JUMP_BACK_NS:
-                self.reset()
-                self.counts['time_jumps'] += 1
-                time_jump, last = True, None
-            self._last_stamp_ns = stamp_ns if last is None else max(stamp_ns, last)
+        time_jump = self._track_stamp(stamp_ns)
 
         q, qdot, seen = self._q, self._qdot, self._seen
         for i, position, velocity in ours:
@@ -344,6 +403,9 @@ class JointStateMerger:
                 'out_of_limits': tuple(outside), 'time_jump': time_jump}
         if not all(seen):
             return MergeResult(INCOMPLETE, missing=self.never_seen, **base)
+        if len(ours) == n_msg == len(self.joint_names):  # every joint once, nothing else
+            self._complete_names = tuple(names)
+            self._complete_order = tuple(i for i, _, _ in ours)
         has_velocity = all(math.isfinite(v) for v in qdot)
         return MergeResult(PUBLISH, q=np.array(q), qdot=np.array(qdot) if has_velocity else None,
                            **base)

@@ -13,10 +13,12 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dq_fk_ros.description.robot_model import (
     FRAME_ID, load_robot_description, RobotDescriptionError, shipped_robot_path)
 from dq_fk_ros.description.urdf import robot_to_urdf
+from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
     INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH,
     REJECTED)
-from dq_fk_ros.ros.conversions import FrameMessages, joint_state_fields
+from dq_fk_ros.ros.conversions import (
+    FrameBytes, FrameMessages, joint_state_fields, NS_PER_S)
 from dq_fk_ros.ros.executables import spin_until_shutdown
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
@@ -30,6 +32,7 @@ from tf2_msgs.msg import TFMessage
 RELIABILITY = {'best_effort': ReliabilityPolicy.BEST_EFFORT,
                'reliable': ReliabilityPolicy.RELIABLE}
 WARN_EVERY_S = 5.0
+READERS_REFRESH_S = 0.5
 
 
 class DqFkNode(Node):
@@ -68,6 +71,7 @@ class DqFkNode(Node):
             QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self._publish_description = get('publish_robot_description').value
+        self._publish_unread = get('publish_unread_topics').value
         self._pose_pubs = []
         self._twist_pubs = []
         self._merger = None
@@ -76,9 +80,14 @@ class DqFkNode(Node):
         self._apply_model(model, self._build_outputs(model, self._frame_prefix))
 
         depth = get('qos_depth').value
+        self._names_cache = JointStateNames()
+        # serialized in, serialized out: the messages are read and written as bytes
         self._joint_state_sub = self.create_subscription(
             JointState, 'joint_states', self._on_joint_state,
-            QoSProfile(depth=depth, reliability=RELIABILITY[reliability]))
+            QoSProfile(depth=depth, reliability=RELIABILITY[reliability]), raw=True)
+        # who reads which pose topic, refreshed twice a second (a new subscriber waits
+        # at most that long for its first message)
+        self._readers_timer = self.create_timer(READERS_REFRESH_S, self._refresh_readers)
         self._diag_timer = self.create_timer(1.0, self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
@@ -99,6 +108,9 @@ class DqFkNode(Node):
         declare('publish_robot_description', True,
                 'publish the URDF of the robot on robot_description (transient local), '
                 'as robot_state_publisher does; re-sent on reload')
+        declare('publish_unread_topics', False,
+                'fill and publish ~/pose and ~/twist topics that nobody subscribes to (by '
+                'default they are skipped; /tf is always published)')
         declare('publish_twist', True,
                 'publish ~/twist/<frame> for the end effector (and tool) when every joint '
                 'has a velocity')
@@ -168,6 +180,7 @@ class DqFkNode(Node):
         self._publish_tf = new.get('publish_tf', self._publish_tf)
         self._publish_poses = new.get('publish_poses', self._publish_poses)
         self._publish_twist = new.get('publish_twist', self._publish_twist)
+        self._publish_unread = new.get('publish_unread_topics', self._publish_unread)
         self._use_joint_state_stamp = new.get('use_joint_state_stamp',
                                               self._use_joint_state_stamp)
         self._max_rate_hz = new.get('max_publish_rate_hz', self._max_rate_hz)
@@ -184,6 +197,7 @@ class DqFkNode(Node):
                     self._messages.static_tf(self.get_clock().now().to_msg()))
             if resend_description:
                 self._send_description()
+        self._refresh_readers()
         return SetParametersResult(successful=True)
 
     def _build_outputs(self, model, prefix):
@@ -221,6 +235,8 @@ class DqFkNode(Node):
             for pub in self._pose_pubs + self._twist_pubs:
                 self.destroy_publisher(pub)
             self._messages, self._pose_pubs, self._twist_pubs = outputs
+            self._bytes = FrameBytes(self._messages)
+            self._refresh_readers()
         if self._publish_tf:
             self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
         self._send_description()
@@ -237,17 +253,47 @@ class DqFkNode(Node):
         self._description_pub.publish(String(data=text))
 
     # -- the hot path --------------------------------------------------------------------
-    def _on_joint_state(self, msg):
+    def _on_joint_state(self, raw):
+        """Take a serialized JointState (a raw subscription): read, merge, publish."""
         try:
-            self._handle(msg)
+            try:
+                stamp_ns, names, positions, velocities = parse_joint_state(
+                    raw, self._names_cache)
+            except CdrError as exc:
+                self._merger.counts['received'] += 1
+                self._merger.count_rejected('malformed_cdr')
+                self.get_logger().warn(f'joint state rejected (malformed_cdr): {exc}',
+                                       throttle_duration_sec=WARN_EVERY_S)
+                return
+            self._handle_fields(names, positions.tolist(), velocities.tolist(), stamp_ns)
         except Exception as exc:  # nothing a user sends may stop the node
             self._merger.count_rejected('internal_error')
             self.get_logger().error(f'joint state not processed: {exc!r}',
                                     throttle_duration_sec=WARN_EVERY_S)
 
     def _handle(self, msg):
-        names, positions, velocities, stamp_ns = joint_state_fields(msg)
+        """Handle a ``sensor_msgs/JointState`` message object (in-process use, benchmarks)."""
+        self._handle_fields(*joint_state_fields(msg))
+
+    def _handle_fields(self, names, positions, velocities, stamp_ns):
         result = self._merger.merge(names, positions, velocities, stamp_ns)
+        if result.status != PUBLISH or result.new_unknown or result.time_jump or \
+                result.out_of_limits or result.unknown_overflow:
+            if not self._report(result):
+                return
+        now_ns = self.get_clock().now().nanoseconds
+        self._last_update_ns = now_ns
+        if self._max_rate_hz > 0 and self._last_publish_ns is not None and \
+                now_ns - self._last_publish_ns < 1e9 / self._max_rate_hz:
+            self._merger.counts['rate_limited'] += 1
+            return
+        self._publish(stamp_ns if (self._use_joint_state_stamp and stamp_ns) else now_ns,
+                      result.q, result.qdot)
+        self._last_publish_ns = now_ns
+        self._merger.counts['published'] += 1
+
+    def _report(self, result):
+        """Log what a merge result says; return whether the update is to be published."""
         log = self.get_logger()
         if result.new_unknown:
             log.warn(f'ignoring joints that {self._model.name} does not have: '
@@ -260,45 +306,44 @@ class DqFkNode(Node):
         if result.status == REJECTED:
             log.warn(f'joint state rejected ({result.reason}): {result.detail}',
                      throttle_duration_sec=WARN_EVERY_S)
-            return
+            return False
         if result.out_of_limits:
             log.warn(f'joints outside their limits ({self._out_of_limits}): '
                      f'{", ".join(result.out_of_limits)}', throttle_duration_sec=WARN_EVERY_S)
         if result.status == INCOMPLETE:
             log.warn(f'waiting for joints never seen: {", ".join(result.missing)}',
                      throttle_duration_sec=WARN_EVERY_S)
-            return
-        assert result.status == PUBLISH
-        now = self.get_clock().now()
-        now_ns = now.nanoseconds
-        self._last_update_ns = now_ns
-        if self._max_rate_hz > 0 and self._last_publish_ns is not None and \
-                now_ns - self._last_publish_ns < 1e9 / self._max_rate_hz:
-            self._merger.counts['rate_limited'] += 1
-            return
-        stamp = msg.header.stamp if (self._use_joint_state_stamp and stamp_ns) else now.to_msg()
-        self._publish(stamp, result.q, result.qdot)
-        self._last_publish_ns = now_ns
-        self._merger.counts['published'] += 1
+            return False
+        return True
 
-    def _publish(self, stamp, q, qdot):
+    def _publish(self, stamp_ns, q, qdot):
+        """Publish /tf and the read pose and twist topics, serialized, stamped ``stamp_ns``."""
         chain = self._model.chain
         absolute, relative = chain.frame_poses(q)
-        tf, poses = self._messages.fill(stamp, absolute, relative, q)
+        sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
+        out = self._bytes
         if self._publish_tf:
-            self._tf_pub.publish(tf)
+            self._tf_pub.publish(out.tf(sec, nanosec, relative, q))
         if self._publish_poses:
-            for pub, msg in zip(self._pose_pubs, poses):
-                pub.publish(msg)
-        if self._publish_twist and qdot is not None:
+            for pub, read, pose in zip(self._pose_pubs, self._pose_read, absolute):
+                if read:
+                    pub.publish(out.pose(sec, nanosec, pose))
+        if self._publish_twist and qdot is not None and any(self._twist_read):
             v, w = chain.twist(q, qdot)
-            twists = []
             p_end = np.array(absolute[-1][:3])
-            for k in self._messages.twist_frames:
-                # the same rigid-body motion seen at another origin: v_k = v + w x (p_k - p)
-                twists.append((v + np.cross(w, np.array(absolute[k][:3]) - p_end), w))
-            for pub, msg in zip(self._twist_pubs, self._messages.fill_twists(stamp, twists)):
-                pub.publish(msg)
+            for pub, read, k in zip(self._twist_pubs, self._twist_read,
+                                    self._messages.twist_frames):
+                if read:
+                    # the same rigid-body motion seen at another origin: v + w x (p_k - p)
+                    v_k = v + np.cross(w, np.array(absolute[k][:3]) - p_end)
+                    pub.publish(out.twist(sec, nanosec, v_k.tolist(), w.tolist()))
+
+    def _refresh_readers(self):
+        """Note which pose and twist topics have subscribers (nobody reads: not filled)."""
+        always = self._publish_unread
+        self._pose_read = [always or pub.get_subscription_count() > 0 for pub in self._pose_pubs]
+        self._twist_read = [always or pub.get_subscription_count() > 0
+                            for pub in self._twist_pubs]
 
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self):

@@ -3,6 +3,7 @@
 from dq_fk_ros.messages.cdr import (
     CdrError, JointStateNames, JointStateRun, MalformedJointState, parse_joint_state,
     parse_joint_states, pose_stamped_template, tf_message_template)
+from hypothesis import given, strategies as st
 import numpy as np
 import pytest
 from rosbags.typesys import get_typestore, Stores
@@ -143,3 +144,28 @@ def test_batch_parse_makes_one_run_of_a_uniform_batch():
     assert len(runs) == 1 and runs[0].positions.shape == (500, 2)
     assert runs[0].stamps_ns.tolist() == [10**9 * k for k in range(500)]
     assert parse_joint_states([]) == []
+
+
+@given(st.lists(st.tuples(st.sampled_from([('a', 'b', 'c'), ('c', 'b', 'a'), ('a', 'b'),
+                                           ('ab', 'c', 'd'), ('a', 'bc', 'd')]),
+                          st.integers(0, 4), st.integers(0, 4),
+                          st.sampled_from(['', 'base', 'base_link'])),
+                min_size=1, max_size=20))
+def test_the_layout_cache_reads_every_message_as_a_fresh_parse_does(layouts):
+    """Same size, same names, other array lengths: the cache must not reuse a stale layout."""
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState as RosJointState
+    cache = JointStateNames()
+    rng = np.random.default_rng(len(layouts))
+    for names, n_pos, n_vel, frame in layouts:
+        msg = RosJointState(name=list(names), position=rng.normal(size=n_pos).tolist(),
+                            velocity=rng.normal(size=n_vel).tolist())
+        msg.header.frame_id = frame
+        msg.header.stamp.sec = int(rng.integers(0, 2**31))
+        raw = serialize_message(msg)
+        cached, fresh = parse_joint_state(raw, cache), parse_joint_state(raw)
+        assert cached[:2] == fresh[:2] == (msg.header.stamp.sec * 10**9, tuple(names))
+        for a, b in zip(cached[2:], fresh[2:]):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(cached[2], msg.position)
+        np.testing.assert_array_equal(cached[3], msg.velocity)

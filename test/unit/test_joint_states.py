@@ -256,3 +256,36 @@ def test_random_joint_state_contents_never_raise(messages, policy):
             assert r.qdot is None or np.isfinite(r.qdot).all()
     assert merger.counts['received'] == len(messages)
     assert len(merger.unknown) <= MAX_UNKNOWN_LISTED
+
+
+class NoShortPath(JointStateMerger):
+    """The merger with its short path for complete layouts switched off."""
+
+    def _merge_complete(self, positions, velocities, stamp_ns):
+        raise AssertionError('not used')
+
+    def merge(self, names, positions, velocities=(), stamp_ns=0):
+        self._complete_names = None
+        return super().merge(names, positions, velocities, stamp_ns)
+
+
+@given(st.lists(st.tuples(st.sampled_from([('a', 'b', 'c'), ('c', 'a', 'b'), ('a', 'b'),
+                                           ('a', 'b', 'c', 'x'), ('b', 'c', 'a')]),
+                          st.lists(st.one_of(st.floats(-3, 3), st.sampled_from(
+                              [math.nan, math.inf, 2.5, -1.5])), min_size=2, max_size=4),
+                          st.lists(st.one_of(st.floats(-3, 3), st.just(math.nan)),
+                                   max_size=4),
+                          st.sampled_from([0, 1, 2, 5, -3])),
+                max_size=30),
+       st.sampled_from(['warn', 'clamp', 'reject']))
+def test_the_short_path_for_complete_messages_changes_nothing(messages, policy):
+    fast, slow = JointStateMerger(NAMES, LIMITS, policy), NoShortPath(NAMES, LIMITS, policy)
+    stamp = 10 * TIME_JUMP_BACK_NS
+    for names, positions, velocities, step in messages:
+        stamp += step * TIME_JUMP_BACK_NS // 2
+        a = fast.merge(list(names), positions, velocities, stamp)
+        b = slow.merge(list(names), positions, velocities, stamp)
+        assert (a.status, a.reason, a.detail, a.out_of_limits, a.time_jump, a.missing) == \
+            (b.status, b.reason, b.detail, b.out_of_limits, b.time_jump, b.missing)
+        assert str(a.q) == str(b.q) and str(a.qdot) == str(b.qdot)
+    assert fast.counts == slow.counts
