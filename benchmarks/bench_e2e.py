@@ -1,29 +1,43 @@
 """
-End to end over DDS: fake_joint_publisher -> dq_fk_node -> a /tf subscriber, three processes.
+End to end over DDS: a raw JointState publisher -> dq_fk_node -> a raw /tf subscriber.
 
-For each rate (default 100, 500 and 1000 Hz, 10 s each) the publisher sends
-``rate * seconds`` RL15 joint states (sine mode, default QoS); this script subscribes to /tf
-as a tf2 listener would (reliable, depth 100) and prints: updates sent, /tf messages
-received, lost, the latency from the JointState stamp to arrival here (p50, p99, max), the
-rate actually achieved, and the node's CPU use (share of one core, from /proc).
+Three processes on loopback. The publisher (this script with ``--publish``) sends
+pre-serialized RL15 joint states, stamped at sending, at a fixed rate; this script
+subscribes to /tf as a tf2 listener would (reliable, depth 100) without building message
+objects, so that the figures measure the node. For each rate and repetition it prints:
+updates sent, /tf messages received, lost, latency from the JointState stamp to arrival
+(p50, p99, max), and the node's CPU use (share of one core, from /proc).
+
+``--capacity S``: a flood instead. The publisher sends as fast as it can for S seconds
+(best effort, the node's default input), the node publishes every output
+(``publish_unread_topics``), pinned to one core when ``taskset`` exists, and the script
+reads the node's published-update rate from /diagnostics.
 
 Run with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a private ROS_DOMAIN_ID
-(``make bench`` sets both): ``python benchmarks/bench_e2e.py [--rates 100 500 1000]``.
+(``make bench`` sets both): ``python benchmarks/bench_e2e.py [--rates 100 1000 5000]``.
 """
 
 import argparse
 import os
+import shutil
 import signal
+import struct
 import subprocess
 import sys
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 from dq_fk_ros.ros.executables import executable
 import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
+from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
+
+LOG = ['--ros-args', '--log-level', 'warn']
+_STAMP = struct.Struct('<iI')
 
 
 def cpu_seconds(pid):
@@ -33,36 +47,100 @@ def cpu_seconds(pid):
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-def run_rate(rate_hz, seconds):
-    """One measurement; returns a dict of figures."""
-    log = ['--ros-args', '--log-level', 'warn']
-    node_proc = subprocess.Popen(executable('dq_fk_node') + log, start_new_session=True)
-    rclpy.init(args=log)
+def pinned(argv, core):
+    """Prefix ``argv`` with ``taskset -c core`` where taskset exists (and 2+ CPUs)."""
+    if shutil.which('taskset') and (os.cpu_count() or 1) > 1:
+        return ['taskset', '-c', str(core)] + argv
+    return argv
+
+
+# -- the publisher process ----------------------------------------------------------------
+def publish(rate_hz, count, reliable):
+    """Send ``count`` pre-serialized joint states at ``rate_hz`` (0: as fast as possible)."""
+    rclpy.init(args=LOG)
+    node = rclpy.create_node('dq_fk_bench_publisher')
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE if reliable
+                     else ReliabilityPolicy.BEST_EFFORT)
+    pub = node.create_publisher(JointState, 'joint_states', qos)
+    names = [f'joint_{i}' for i in range(1, 7)]
+    frames = []
+    for k in range(500):  # a sine trajectory, serialized once
+        q = 0.8 * np.sin(np.arange(1, 7) * k * 0.01)
+        frames.append(bytearray(serialize_message(JointState(name=names, position=q.tolist()))))
+    deadline = time.monotonic() + 20
+    while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.5)  # the subscriber's side of the match
+    start = time.monotonic()
+    for k in range(count):
+        if rate_hz:
+            delay = start + k / rate_hz - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        frame = frames[k % len(frames)]
+        sec, nanosec = divmod(time.time_ns(), 1_000_000_000)
+        _STAMP.pack_into(frame, 4, sec, nanosec)
+        pub.publish(bytes(frame))
+    if reliable:
+        from rclpy.duration import Duration
+        pub.wait_for_all_acked(Duration(seconds=5))
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+# -- one measurement ----------------------------------------------------------------------
+def start_node(params=()):
+    argv = executable('dq_fk_node') + LOG + [a for p in params for a in ('-p', p)]
+    return subprocess.Popen(pinned(argv, 1), start_new_session=True)
+
+
+def start_publisher(rate_hz, count, reliable):
+    argv = [sys.executable, os.path.abspath(__file__), '--publish', str(rate_hz), str(count),
+            '1' if reliable else '0']
+    return subprocess.Popen(pinned(argv, 0), start_new_session=True)
+
+
+def stop(*procs):
+    for proc in procs:
+        if proc is not None and proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+    for proc in procs:
+        if proc is not None:
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+
+
+def run_rate(rate_hz, seconds, reliable):
+    """One run at ``rate_hz``; returns a dict of figures."""
+    params = ['joint_states_reliability:=reliable'] if reliable else []
+    node_proc = start_node(params)
+    rclpy.init(args=LOG)
     probe = rclpy.create_node('dq_fk_bench_e2e')
     executor = SingleThreadedExecutor()
     executor.add_node(probe)
     latencies_ns, stamps = [], set()
 
-    def on_tf(msg):
+    def on_tf(raw):  # a serialized TFMessage: the first transform's stamp at bytes 8..16
         arrival = time.time_ns()
-        stamp = msg.transforms[0].header.stamp
-        ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        sec, nanosec = _STAMP.unpack_from(raw, 8)
+        ns = sec * 1_000_000_000 + nanosec
         latencies_ns.append(arrival - ns)
         stamps.add(ns)
     probe.create_subscription(TFMessage, '/tf', on_tf,
-                              QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+                              QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE),
+                              raw=True)
     pub_proc = None
+    total = int(rate_hz * seconds)
     try:
         deadline = time.monotonic() + 20
         while probe.count_publishers('/tf') < 1 or probe.count_subscribers('/tf') < 1:
             if time.monotonic() > deadline:
                 raise RuntimeError('dq_fk_node did not come up within 20 s')
             executor.spin_once(timeout_sec=0.05)
-        total = int(rate_hz * seconds)
-        pub_proc = subprocess.Popen(executable('fake_joint_publisher') + log + [
-            '-p', 'mode:=sine', '-p', f'rate_hz:={float(rate_hz)}', '-p',
-            f'max_messages:={total}', '-p', 'wait_for_subscribers:=1'],
-            start_new_session=True)
+        pub_proc = start_publisher(rate_hz, total, reliable)
         cpu_start, wall_start = cpu_seconds(node_proc.pid), time.monotonic()
         deadline = time.monotonic() + seconds * 3 + 20
         last_count, quiet_since = -1, time.monotonic()
@@ -75,43 +153,86 @@ def run_rate(rate_hz, seconds):
         cpu = cpu_seconds(node_proc.pid) - cpu_start
         wall = time.monotonic() - wall_start
     finally:
-        for proc in (pub_proc, node_proc):
-            if proc is not None:
-                proc.send_signal(signal.SIGINT)
-        for proc in (pub_proc, node_proc):
-            if proc is not None:
-                try:
-                    proc.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
+        stop(pub_proc, node_proc)
         probe.destroy_node()
         rclpy.try_shutdown()
     lat_ms = np.array(latencies_ns) / 1e6
-    span_s = (max(stamps) - min(stamps)) / 1e9 if len(stamps) > 1 else float('nan')
-    return {'rate': rate_hz, 'sent': total, 'received': len(stamps),
+    return {'rate': rate_hz, 'reliable': reliable, 'sent': total, 'received': len(stamps),
             'lost': total - len(stamps),
-            'achieved_hz': (len(stamps) - 1) / span_s if span_s else float('nan'),
             'p50': np.percentile(lat_ms, 50) if len(lat_ms) else float('nan'),
             'p99': np.percentile(lat_ms, 99) if len(lat_ms) else float('nan'),
             'max': lat_ms.max() if len(lat_ms) else float('nan'),
             'cpu': 100.0 * cpu / wall}
 
 
+def capacity(seconds):
+    """Flood the node; return (published updates per second, node CPU % of a core)."""
+    node_proc = start_node(['publish_unread_topics:=true'])
+    rclpy.init(args=LOG)
+    probe = rclpy.create_node('dq_fk_bench_capacity')
+    executor = SingleThreadedExecutor()
+    executor.add_node(probe)
+    reports = []
+
+    def on_diagnostics(msg):
+        values = {v.key: v.value for v in msg.status[0].values}
+        reports.append((time.monotonic(), int(values['updates_published']),
+                        cpu_seconds(node_proc.pid)))
+    probe.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
+    pub_proc = None
+    try:
+        deadline = time.monotonic() + 20
+        while not reports and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        pub_proc = start_publisher(0, 10**9, False)
+        while pub_proc.poll() is None and time.monotonic() < deadline + seconds + 5:
+            executor.spin_once(timeout_sec=0.05)
+            flooding = [r for r in reports if r[1] > 0]
+            if len(flooding) >= 2 and flooding[-1][0] - flooding[0][0] >= seconds:
+                break
+    finally:
+        stop(pub_proc, node_proc)
+        probe.destroy_node()
+        rclpy.try_shutdown()
+    flooding = [r for r in reports if r[1] > 0][1:]  # from the second busy report on
+    (t0, n0, c0), (t1, n1, c1) = flooding[0], flooding[-1]
+    return (n1 - n0) / (t1 - t0), 100.0 * (c1 - c0) / (t1 - t0)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
-    parser.add_argument('--rates', type=float, nargs='+', default=[100, 500, 1000])
+    parser.add_argument('--rates', type=float, nargs='+', default=[100, 1000, 5000])
     parser.add_argument('--seconds', type=float, default=10.0)
+    parser.add_argument('--repeat', type=int, default=3)
+    parser.add_argument('--capacity', type=float, default=10.0, metavar='S',
+                        help='seconds of flood for the capacity figure (0: skip)')
+    parser.add_argument('--publish', nargs=3, metavar=('RATE', 'COUNT', 'RELIABLE'),
+                        help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    rows = [run_rate(rate, args.seconds) for rate in args.rates]
-    print(f'# end to end: fake_joint_publisher -> dq_fk_node -> /tf subscriber, RL15, '
-          f'{args.seconds:g} s per rate, {os.cpu_count()} CPUs, loopback')
-    print('| rate Hz | sent | received on /tf | lost | achieved Hz | latency p50 ms '
-          '| p99 ms | max ms | node CPU % of a core |')
+    if args.publish:
+        try:
+            return publish(float(args.publish[0]), int(args.publish[1]),
+                           args.publish[2] == '1')
+        except KeyboardInterrupt:  # the flood ends with SIGINT
+            return 0
+    rows = [run_rate(rate, args.seconds, rate >= 5000) for rate in args.rates
+            for _ in range(args.repeat)]
+    print(f'# end to end: raw publisher -> dq_fk_node -> raw /tf subscriber, RL15, '
+          f'{args.seconds:g} s per run, {os.cpu_count()} CPUs, loopback; node on CPU 1, '
+          f'publisher on CPU 0 (taskset), this subscriber unpinned; nothing else running')
+    print('| rate Hz | input | sent | received on /tf | lost | latency p50 ms | p99 ms '
+          '| max ms | node CPU % of a core |')
     print('|---|---|---|---|---|---|---|---|---|')
     for r in rows:
-        print(f"| {r['rate']:g} | {r['sent']} | {r['received']} | {r['lost']} "
-              f"| {r['achieved_hz']:.0f} | {r['p50']:.3f} | {r['p99']:.3f} | {r['max']:.3f} "
-              f"| {r['cpu']:.0f} |")
+        print(f"| {r['rate']:g} | {'reliable' if r['reliable'] else 'best effort'} "
+              f"| {r['sent']} | {r['received']} | {r['lost']} | {r['p50']:.3f} "
+              f"| {r['p99']:.3f} | {r['max']:.3f} | {r['cpu']:.0f} |")
+    if args.capacity:
+        rate, cpu = capacity(args.capacity)
+        print(f'\n# capacity: a flood of pre-serialized joint states (best effort), every '
+              f'output published, node pinned to one core')
+        print(f'sustained updates published: {rate:,.0f} per second, node CPU {cpu:.0f} % '
+              f'of a core')
     return 0
 
 

@@ -8,6 +8,7 @@ messages. See the README for topics and parameters.
 
 import math
 import sys
+import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dq_fk_ros.description.robot_model import (
@@ -33,6 +34,7 @@ RELIABILITY = {'best_effort': ReliabilityPolicy.BEST_EFFORT,
                'reliable': ReliabilityPolicy.RELIABLE}
 WARN_EVERY_S = 5.0
 READERS_REFRESH_S = 0.5
+DRAIN_MAX = 64  # queued joint states worked through per executor wake-up
 
 
 class DqFkNode(Node):
@@ -254,7 +256,26 @@ class DqFkNode(Node):
 
     # -- the hot path --------------------------------------------------------------------
     def _on_joint_state(self, raw):
-        """Take a serialized JointState (a raw subscription): read, merge, publish."""
+        """
+        Take a serialized JointState (a raw subscription): read, merge, publish.
+
+        Then take whatever else is already queued (up to :data:`DRAIN_MAX`) in the same
+        call: one executor wake-up costs more than an update, so a burst is worked through
+        without paying it per message.
+        """
+        self._on_raw(raw)
+        sub = self._joint_state_sub
+        for _ in range(DRAIN_MAX):
+            try:
+                with sub.handle:
+                    taken = sub.handle.take_message(sub.msg_type, True)
+            except Exception:  # destroyed meanwhile (a shutdown): the executor decides
+                return
+            if taken is None:
+                return
+            self._on_raw(taken[0])
+
+    def _on_raw(self, raw):
         try:
             try:
                 stamp_ns, names, positions, velocities = parse_joint_state(
@@ -281,7 +302,10 @@ class DqFkNode(Node):
                 result.out_of_limits or result.unknown_overflow:
             if not self._report(result):
                 return
-        now_ns = self.get_clock().now().nanoseconds
+        clock = self.get_clock()
+        # ROS time is the system time unless /clock drives it (use_sim_time): skip the Time
+        # object then (2.5 us of a 40 us update)
+        now_ns = clock.now().nanoseconds if clock.ros_time_is_active else time.time_ns()
         self._last_update_ns = now_ns
         if self._max_rate_hz > 0 and self._last_publish_ns is not None and \
                 now_ns - self._last_publish_ns < 1e9 / self._max_rate_hz:
