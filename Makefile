@@ -87,6 +87,8 @@ bench: setup $(BENCH_VENV)/.stamp
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_e2e.py
 	@echo
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_rclpy_floor.py
+	@echo
 	@$(PY) benchmarks/bench_bag.py
 
 clean:

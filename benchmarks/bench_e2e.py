@@ -227,10 +227,11 @@ def main(argv=None):
                         help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.publish:
+        from rclpy._rclpy_pybind11 import RCLError
         try:
             return publish(float(args.publish[0]), int(args.publish[1]),
                            args.publish[2] == '1')
-        except KeyboardInterrupt:  # the flood ends with SIGINT
+        except (KeyboardInterrupt, RCLError):  # the flood ends with SIGINT (context gone)
             return 0
     rows = [run_rate(rate, args.seconds, rate >= 5000) for rate in args.rates
             for _ in range(args.repeat)]

@@ -331,10 +331,20 @@ class CdrTemplate:
 
 def pose_stamped_template(frame_id):
     """Template of ``geometry_msgs/PoseStamped``: 7 floats, position then x y z w."""
+    return _stamped_template(frame_id, 7)
+
+
+def twist_stamped_template(frame_id):
+    """Template of ``geometry_msgs/TwistStamped``: 6 floats, linear then angular x y z."""
+    return _stamped_template(frame_id, 6)
+
+
+def _stamped_template(frame_id, count):
+    """Return the template of a ``std_msgs/Header`` then ``count`` float64 fields."""
     t = CdrTemplate()
     t.stamp()
     t.string(frame_id)
-    t.f64s(7)
+    t.f64s(count)
     return t
 
 
@@ -347,13 +357,4 @@ def tf_message_template(edges):
         t.string(parent)
         t.string(child)
         t.f64s(7)
-    return t
-
-
-def twist_stamped_template(frame_id):
-    """Template of ``geometry_msgs/TwistStamped``: 6 floats, linear then angular x y z."""
-    t = CdrTemplate()
-    t.stamp()
-    t.string(frame_id)
-    t.f64s(6)
     return t

@@ -16,21 +16,12 @@ import numpy as np
 import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
-from ros_harness import Harness, start
+from ros_harness import start
 from sensor_msgs.msg import JointState
 
 pytestmark = pytest.mark.integration
 RL15_JOINTS = [f'joint_{i}' for i in range(1, 7)]
 RL15_TEXT = open(shipped_robot_path('rl15'), encoding='utf-8').read()
-
-
-@pytest.fixture
-def listener(ros_domain_id):
-    harness = Harness()
-    try:
-        yield harness
-    finally:
-        harness.close()
 
 
 def bad_robot_files(folder):

@@ -16,20 +16,11 @@ from geometry_msgs.msg import PoseStamped
 import homogeneous_tf as htf
 import numpy as np
 import pytest
-from ros_harness import Harness, start, TF_STATIC_QOS
+from ros_harness import start, TF_STATIC_QOS
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.integration
-
-
-@pytest.fixture
-def listener(ros_domain_id):
-    harness = Harness()
-    try:
-        yield harness
-    finally:
-        harness.close()
 
 
 def stamp_key(stamp):
