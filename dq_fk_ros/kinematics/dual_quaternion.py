@@ -120,7 +120,7 @@ def dq_multiply_array(a, b):
 
 
 def dq_from_pose_array(rotation_wxyz, translation):
-    """Return dual quaternions ``(..., 8)`` of poses, ``r + eps (1/2) t r`` (eq. (7), 000)."""
+    """Return dual quaternions ``(..., 8)`` of poses: ``r + eps t r / 2``, [Zivkovic2023] (7)."""
     r = np.asarray(rotation_wxyz, dtype=float)
     t = np.asarray(translation, dtype=float)
     t_quat = np.concatenate([np.zeros(t.shape[:-1] + (1,)), t], axis=-1)
@@ -128,7 +128,7 @@ def dq_from_pose_array(rotation_wxyz, translation):
 
 
 def dq_translation_array(h):
-    """Extract translations ``(..., 3)`` of unit dual quaternions, ``2 d r*`` (eq. (17), 000)."""
+    """Return translations ``(..., 3)`` of unit poses: ``2 d r*``, [Zivkovic2023] eq. (17)."""
     h = np.asarray(h, dtype=float)
     return 2.0 * quat_multiply(h[..., 4:], quat_conjugate(h[..., :4]))[..., 1:]
 
