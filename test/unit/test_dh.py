@@ -243,6 +243,7 @@ def test_frame_poses_are_absolute_and_relative_transforms():
     for q in rng.uniform(-3, 3, size=(100, chain.dof)):
         absolute, relative = chain.frame_poses(q)
         expected = hm.chain_frames(reference_rows(chain, q), 'modified', base, tool)
+        assert len(absolute) == len(expected) and len(relative) == len(chain.joints)
         for pose, m in zip(absolute, expected):
             np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]), m, atol=1e-12)
             assert pose[6] >= 0.0
@@ -250,3 +251,24 @@ def test_frame_poses_are_absolute_and_relative_transforms():
             np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]),
                                        np.linalg.inv(expected[i]) @ expected[i + 1],
                                        atol=1e-12)
+
+
+def test_row_parameters_is_the_dh_table_at_q():
+    """The theta and d of every row at q: offsets plus scaled joint values."""
+    rng = np.random.default_rng(41)
+    for convention in ('standard', 'modified'):
+        chain, _, _ = random_chain(rng, convention)
+        q = rng.uniform(-2, 2, chain.dof)
+        theta, d = chain.row_parameters(q)
+        expected = reference_rows(chain, q)
+        assert len(theta) == len(d) == len(chain.joints) == len(expected)
+        np.testing.assert_allclose(theta, [r[0] for r in expected], atol=1e-15)
+        np.testing.assert_allclose(d, [r[1] for r in expected], atol=1e-15)
+    with pytest.raises(ValueError, match='expected'):
+        chain.row_parameters(np.zeros(chain.dof + 1))
+
+
+def test_a_joint_without_limits_is_unbounded():
+    chain = KinematicChain([DHJoint(a=1.0, name='j1'),
+                            DHJoint(joint_type='prismatic', name='j2', limits=(0, 1))])
+    assert chain.limits.tolist() == [[-math.inf, math.inf], [0.0, 1.0]]

@@ -1,8 +1,10 @@
 """DualQuaternion algebra against the independent 4x4 reference in ``homogeneous.py``."""
 
+import math
+
 from dq_fk_ros.kinematics.dual_quaternion import (
-    canonical, dq_multiply_array, dq_normalize_array, dq_to_pose_xyzw, DualQuaternion,
-    quat_wxyz_to_xyzw, quat_xyzw_to_wxyz)
+    canonical, dq_from_pose_array, dq_multiply_array, dq_normalize_array, dq_to_pose_xyzw,
+    DualQuaternion, quat_from_matrix, quat_wxyz_to_xyzw, quat_xyzw_to_wxyz)
 import homogeneous as hm
 import numpy as np
 import pytest
@@ -190,3 +192,30 @@ def test_the_three_conjugates(rng):
     np.testing.assert_array_equal(h.dual_number_conjugate().coeffs, np.concatenate([r, -d]))
     np.testing.assert_array_equal(h.combined_conjugate().coeffs,
                                   h.dual_number_conjugate().conjugate().coeffs)
+
+
+def test_scaling_by_a_number_and_nothing_else(rng):
+    h = DualQuaternion(rng.normal(size=8))
+    np.testing.assert_allclose((2.5 * h).coeffs, 2.5 * h.coeffs)
+    with pytest.raises(TypeError):
+        np.ones(8).tolist() * h  # a list is not a scale factor
+
+
+def test_pose_array_conversion_works_on_batches(rng):
+    rotations = np.array([DualQuaternion.from_rotation(rng.normal(size=3), a).real
+                          for a in rng.uniform(-3, 3, 5)])
+    translations = rng.normal(size=(5, 3))
+    batch = dq_from_pose_array(rotations, translations)
+    assert batch.shape == (5, 8)
+    for h, r, t in zip(batch, rotations, translations):
+        np.testing.assert_allclose(h, DualQuaternion.from_pose(r, t).coeffs, atol=1e-15)
+
+
+def test_quat_from_matrix_takes_nested_lists():
+    np.testing.assert_allclose(quat_from_matrix([[1, 0, 0], [0, 0, -1], [0, 1, 0]]),
+                               [math.sqrt(0.5), math.sqrt(0.5), 0, 0], atol=1e-15)
+
+
+def test_repr_shows_the_eight_coefficients_in_order():
+    h = DualQuaternion([1, 0, 0, 0, 0, 0.25, -0.5, 1e-12])
+    assert repr(h) == 'DualQuaternion(1, 0, 0, 0, 0, 0.25, -0.5, 1e-12)'

@@ -289,3 +289,10 @@ def test_the_short_path_for_complete_messages_changes_nothing(messages, policy):
             (b.status, b.reason, b.detail, b.out_of_limits, b.time_jump, b.missing)
         assert str(a.q) == str(b.q) and str(a.qdot) == str(b.qdot)
     assert fast.counts == slow.counts
+
+
+def test_a_message_of_foreign_joints_says_which_names_it_had(merger):
+    r = merger.merge(['x', 'y'], [0.0, 0.0])
+    assert r.detail == "none of 'x', 'y' is a joint of this robot"
+    r = merger.merge([f'u{k}' for k in range(7)], [0.0] * 7)
+    assert r.detail == "none of 'u0', 'u1', 'u2', 'u3', 'u4' ... is a joint of this robot"

@@ -3,7 +3,7 @@
 import math
 
 from dq_fk_ros.description.robot_model import (
-    load_robot_description, parse_robot_description, RobotDescriptionError)
+    load_robot_description, parse_robot_description, RobotDescriptionError, shipped_robot_path)
 import homogeneous as hm
 import numpy as np
 import pytest
@@ -122,7 +122,15 @@ BAD_CASES = [
                                 'convention: modified'),
      ['not valid YAML', 'line 4', "duplicate key 'convention'"]),
     ('not YAML', 'robot: [unclosed\n', ['not valid YAML', 'line']),
+    ('mimic joint name that is no joint name',
+     edit(GOOD, 'mimic: {joint: j1', 'mimic: {joint: 9j'),
+     ["chain[3] (frame 'link4') mimic", "field 'joint' must be a joint name", "'9j'"]),
+    ('cylindrical row without d_joint',
+     edit(GOOD, 'tool: {', '  - {frame: link5, type: cylindrical, joint: j5, theta: 0, d: 0, '
+          'a: 0, alpha: 0}\ntool: {'),
+     ["chain[4] (frame 'link5')", "missing field 'd_joint'"]),
 ]
+PLACES = ('chain[', 'units', 'base', 'tool', 'chain')
 
 
 @pytest.mark.parametrize('what, text, words', BAD_CASES, ids=[c[0] for c in BAD_CASES])
@@ -134,6 +142,8 @@ def test_every_mistake_is_one_clear_line(what, text, words, tmp_path):
     message = str(info.value)
     assert '\n' not in message
     assert message.startswith(f'{path}: ')
+    if words[0].startswith(PLACES):  # the place comes first, right after the file
+        assert message.startswith(f'{path}: {words[0]}'), message
     for word in words:
         assert word in message, f'{word!r} not in {message!r}'
 
@@ -150,3 +160,20 @@ def test_binary_file_is_a_clear_error(tmp_path):
     path.write_bytes(b'\xff\xfe\x00garbage')
     with pytest.raises(RobotDescriptionError, match='cannot be read|not valid YAML'):
         load_robot_description(path)
+
+
+def test_a_cylindrical_row_with_limits_on_both_joints():
+    """Both joints of a cylindrical row get their own limits, in their own units."""
+    model = parse_robot_description(
+        'robot: r\nunits: {length: mm, angle: deg}\nbase: {frame: b}\nchain:\n'
+        '  - {frame: l1, type: cylindrical, joint: spin, d_joint: lift, theta: 0, d: 0, a: 0,'
+        ' alpha: 0, limits: [-90, 90], d_limits: [0, 250], d_max_velocity: 100}\n', 'cyl.yaml')
+    assert model.joint_names == ('spin', 'lift')
+    np.testing.assert_allclose(model.limits, [[-math.pi / 2, math.pi / 2], [0.0, 0.25]])
+    np.testing.assert_allclose(model.max_velocity, [math.inf, 0.1])
+
+
+def test_a_joint_without_limits_has_none():
+    """The default limits are (-inf, inf): (inf, inf) would make 'reject' refuse everything."""
+    model = load_robot_description(shipped_robot_path('rl15'))
+    assert model.limits.tolist() == [[-math.inf, math.inf]] * 6

@@ -91,5 +91,8 @@ def test_fixed_rows_go_to_tf_static_and_mimic_rows_to_tf():
     messages = FrameMessages(model)
     tf, _ = messages.fill(Time(), *model.chain.frame_poses([0.4]))
     assert [t.child_frame_id for t in tf.transforms] == ['l1', 'l3']
-    assert [(t.header.frame_id, t.child_frame_id) for t in messages.static_tf(Time())
-            .transforms] == [('world', 'b'), ('l1', 'l2'), ('l1', 'l1_dh_z'), ('l3', 'l3_dh_z')]
+    stamp = Time(sec=7, nanosec=9)
+    static = messages.static_tf(stamp).transforms
+    assert [(t.header.frame_id, t.child_frame_id) for t in static] == [
+        ('world', 'b'), ('l1', 'l2'), ('l1', 'l1_dh_z'), ('l3', 'l3_dh_z')]
+    assert all(t.header.stamp == stamp for t in static)

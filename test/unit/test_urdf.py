@@ -159,3 +159,52 @@ def test_limits_never_say_a_joint_cannot_move():
     assert [float(limits['j3'].get(k)) for k in ('lower', 'upper')] == [-1000.0, 1000.0]
     assert '<!-- no limits in the description: +-1000 m stands for none' in \
         robot_to_urdf(model)
+
+
+def test_a_fixed_row_is_a_fixed_joint_from_its_parent_frame():
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b}\nchain:\n'
+        '  - {frame: l1, joint: j1, theta: 0, d: 0.1, a: 0.3, alpha: 0.2}\n'
+        '  - {frame: l2, type: fixed, theta: 0.5, d: 0.1, a: 0.2, alpha: 0.3}\n', 'fixed.yaml')
+    root = ET.fromstring(robot_to_urdf(model))
+    joints = {j.get('name'): j for j in root.iter('joint')}
+    fixed = joints['l2_fixed']
+    assert fixed.get('type') == 'fixed'
+    assert (fixed.find('parent').get('link'), fixed.find('child').get('link')) == ('l1', 'l2')
+    m = homogeneous_from_dq(model.chain.relative_all([0.0])[1])
+    np.testing.assert_allclose(urdf_origin(fixed.find('origin')), m, atol=1e-12)
+    # every link the joints name is declared, leaves included
+    links = {link.get('name') for link in root.iter('link')}
+    named = {j.find(k).get('link') for j in joints.values() for k in ('parent', 'child')}
+    assert named == links and 'l2' in links
+
+
+def test_the_visual_cylinders_lie_along_each_offset():
+    """Each cylinder's length is its joint origin's offset, centred halfway, along it."""
+    model = load_robot_description(shipped_robot_path('rl15'))
+    root = ET.fromstring(robot_to_urdf(model))
+    offsets = {}
+    for j in root.iter('joint'):
+        m = urdf_origin(j.find('origin'))
+        if np.linalg.norm(m[:3, 3]) > 1e-9:
+            offsets.setdefault(j.find('parent').get('link'), []).append(m[:3, 3])
+    assert offsets
+    for link in root.iter('link'):
+        visuals = link.findall('visual')
+        expected = offsets.get(link.get('name'), [])
+        assert len(visuals) == len(expected)
+        for visual, t in zip(visuals, expected):
+            length = float(visual.find('geometry/cylinder').get('length'))
+            assert length == pytest.approx(np.linalg.norm(t), abs=1e-12)
+            m = urdf_origin(visual.find('origin'))
+            np.testing.assert_allclose(m[:3, 3], t / 2, atol=1e-12)
+            np.testing.assert_allclose(m[:3, 2], t / np.linalg.norm(t), atol=1e-9)
+
+
+@pytest.mark.parametrize('pitch', [math.pi / 2, -math.pi / 2])
+def test_rpy_at_gimbal_lock_still_gives_the_rotation(pitch):
+    from dq_fk_ros.description.urdf import matrix_to_rpy
+    m = hm.rot_z(0.7) @ hm.rot_y(pitch) @ hm.rot_x(0.3)
+    roll, p, yaw = matrix_to_rpy(m[:3, :3])
+    assert p == pytest.approx(pitch) and roll == 0.0
+    np.testing.assert_allclose(hm.rot_z(yaw) @ hm.rot_y(p) @ hm.rot_x(roll), m, atol=1e-12)
