@@ -15,7 +15,7 @@ DEMO_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 80) + 20 )))
 
 BENCH_VENV ?= .venv-bench
 
-.PHONY: help setup demo demo-live test bench clean
+.PHONY: help setup demo demo-live test bench mutate clean
 
 help:
 	@echo 'make setup  create .venv with ROS 2 Jazzy (PyPI), tf2_msgs and dq_fk_ros'
@@ -23,6 +23,7 @@ help:
 	@echo 'make demo-live  the same, sweeping the joints, printing the end effector (Ctrl-C)'
 	@echo 'make test   setup, then run linters, unit and integration tests'
 	@echo 'make bench  benchmarks: the core against its peers (installed in .venv-bench)'
+	@echo 'make mutate mutation testing of the pure modules (minutes; not part of make test)'
 	@echo 'make clean  remove .venv, .venv-bench and build leftovers'
 
 setup: $(STAMPS)/project
@@ -90,6 +91,9 @@ bench: setup $(BENCH_VENV)/.stamp
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_rclpy_floor.py
 	@echo
 	@$(PY) benchmarks/bench_bag.py
+
+mutate: setup
+	@$(PY) scripts/mutate.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(BENCH_VENV)-logs build install log .pytest_cache

@@ -1,0 +1,220 @@
+#!/usr/bin/env python3
+"""
+Mutation testing of the pure modules: does some unit test fail when a line is wrong?
+
+For each module, every mutation site is listed from its syntax tree (comparisons flipped,
+arithmetic swapped, constants changed, conditions negated, ``and``/``or`` exchanged,
+statements dropped, the first two arguments of a call swapped); a seeded sample is taken;
+each mutant is written into a copy of the package (the repository stays untouched) and the
+module's unit tests run against it (``PYTHONPATH`` puts the copy first). A mutant is
+*killed* when the tests fail or hang (time limit), and *survives* when they pass. Mutants
+judged equivalent (they change nothing a caller can see) are listed in
+``scripts/mutate_equivalent.txt`` and skipped.
+
+    scripts/mutate.py [--modules dh cdr ...] [--per-module 60] [--seed 1]
+
+Prints the kill rate per module and every survivor (file:line, what changed). Exit code 0
+(a report, not a gate). ``make mutate`` runs it on every module; it is not part of
+``make test`` (minutes, not seconds).
+"""
+
+import argparse
+import ast
+import os
+import random
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+EQUIVALENT = os.path.join(ROOT, 'scripts', 'mutate_equivalent.txt')
+UNIT = 'test/unit/'
+MODULES = {
+    'dual_quaternion': ('dq_fk_ros/kinematics/dual_quaternion.py',
+                        ['test_dual_quaternion.py', 'test_dh.py', 'test_papers.py']),
+    'dh': ('dq_fk_ros/kinematics/dh.py',
+           ['test_dh.py', 'test_papers.py', 'test_shipped_robots.py']),
+    'robot_model': ('dq_fk_ros/description/robot_model.py',
+                    ['test_robot_model.py', 'test_shipped_robots.py',
+                     'test_fuzz_robot_description.py']),
+    'urdf': ('dq_fk_ros/description/urdf.py', ['test_urdf.py']),
+    'plot': ('dq_fk_ros/description/plot.py', ['test_plot.py']),
+    'joint_states': ('dq_fk_ros/messages/joint_states.py', ['test_joint_states.py']),
+    'cdr': ('dq_fk_ros/messages/cdr.py', ['test_cdr.py', 'test_frame_bytes.py']),
+    'conversions': ('dq_fk_ros/ros/conversions.py',
+                    ['test_ros_conversions.py', 'test_frame_bytes.py']),
+}
+COMPARE_SWAPS = {ast.Lt: ast.LtE, ast.LtE: ast.Lt, ast.Gt: ast.GtE, ast.GtE: ast.Gt,
+                 ast.Eq: ast.NotEq, ast.NotEq: ast.Eq, ast.Is: ast.IsNot, ast.IsNot: ast.Is,
+                 ast.In: ast.NotIn, ast.NotIn: ast.In}
+BINOP_SWAPS = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult,
+               ast.FloorDiv: ast.Mult, ast.Mod: ast.FloorDiv, ast.Pow: ast.Mult}
+
+
+def sites(tree):
+    """Yield ``(index, kind, line, description)`` of every mutation site in walk order."""
+    docstrings = {id(n.body[0].value) for n in ast.walk(tree)
+                  if isinstance(n, (ast.Module, ast.FunctionDef, ast.ClassDef))
+                  and n.body and isinstance(n.body[0], ast.Expr)
+                  and isinstance(n.body[0].value, ast.Constant)}
+    for index, node in enumerate(ast.walk(tree)):
+        line = getattr(node, 'lineno', 0)
+        if isinstance(node, ast.Compare) and type(node.ops[0]) in COMPARE_SWAPS:
+            new = COMPARE_SWAPS[type(node.ops[0])].__name__
+            yield index, 'compare', line, f'{type(node.ops[0]).__name__} -> {new}'
+        elif isinstance(node, ast.BinOp) and type(node.op) in BINOP_SWAPS:
+            new = BINOP_SWAPS[type(node.op)].__name__
+            yield index, 'binop', line, f'{type(node.op).__name__} -> {new}'
+        elif isinstance(node, ast.BoolOp):
+            yield index, 'boolop', line, f'{type(node.op).__name__} -> the other'
+        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.Not)):
+            yield index, 'unary', line, f'drop {type(node.op).__name__}'
+        elif isinstance(node, ast.Constant) and id(node) not in docstrings and \
+                not isinstance(node.value, (str, bytes)) and node.value is not None:
+            yield index, 'constant', line, f'{node.value!r} -> {_changed(node.value)!r}'
+        elif isinstance(node, (ast.If, ast.While)) and not isinstance(node.test, ast.Constant):
+            yield index, 'negate', line, 'condition negated'
+        elif isinstance(node, ast.AugAssign) or (isinstance(node, ast.Expr) and
+                                                 isinstance(node.value, ast.Call)):
+            yield index, 'drop', line, 'statement dropped'
+        elif isinstance(node, ast.Call) and len(node.args) >= 2 and \
+                not any(isinstance(a, ast.Starred) for a in node.args[:2]):
+            yield index, 'swap', line, 'first two arguments swapped'
+
+
+def _changed(value):
+    if isinstance(value, bool):
+        return not value
+    if isinstance(value, (int, float)):
+        return value + 1 if value != -1 else 0
+    return value
+
+
+def mutate(source, index):
+    """Return the source with the mutation at walk position ``index`` applied."""
+    tree = ast.parse(source)
+    for k, node in enumerate(ast.walk(tree)):
+        if k != index:
+            continue
+        if isinstance(node, ast.Compare):
+            node.ops[0] = COMPARE_SWAPS[type(node.ops[0])]()
+        elif isinstance(node, ast.BinOp):
+            node.op = BINOP_SWAPS[type(node.op)]()
+        elif isinstance(node, ast.BoolOp):
+            node.op = ast.Or() if isinstance(node.op, ast.And) else ast.And()
+        elif isinstance(node, ast.UnaryOp):
+            node.op = ast.UAdd() if isinstance(node.op, ast.USub) else _Identity()
+        elif isinstance(node, ast.Constant):
+            node.value = _changed(node.value)
+        elif isinstance(node, (ast.If, ast.While)):
+            node.test = ast.UnaryOp(op=ast.Not(), operand=node.test)
+        elif isinstance(node, (ast.AugAssign, ast.Expr)):
+            _replace_statement(tree, node)
+        elif isinstance(node, ast.Call):
+            node.args[0], node.args[1] = node.args[1], node.args[0]
+        break
+    tree = _IdentityRemover().visit(tree)
+    return ast.unparse(ast.fix_missing_locations(tree))
+
+
+class _Identity(ast.unaryop):
+    """A placeholder: ``not x`` becomes ``x``."""
+
+
+class _IdentityRemover(ast.NodeTransformer):
+    def visit_UnaryOp(self, node):
+        self.generic_visit(node)
+        return node.operand if isinstance(node.op, _Identity) else node
+
+
+def _replace_statement(tree, target):
+    for parent in ast.walk(tree):
+        for field in ('body', 'orelse', 'finalbody'):
+            block = getattr(parent, field, None)
+            if isinstance(block, list) and target in block:
+                block[block.index(target)] = ast.Pass()
+                return
+
+
+def load_equivalent():
+    """The reviewed equivalent mutants: ``module:line:description`` per line."""
+    if not os.path.exists(EQUIVALENT):
+        return set()
+    with open(EQUIVALENT, encoding='utf-8') as stream:
+        return {line.split('#')[0].strip() for line in stream if line.split('#')[0].strip()}
+
+
+def run_tests(copy, tests, timeout_s):
+    """Run ``tests`` against the package copy; return 'killed', 'hang' or 'survived'."""
+    # the copy first; PYTHONSAFEPATH: not the repository itself from the working directory
+    env = dict(os.environ, PYTHONPATH=copy, PYTHONSAFEPATH='1', PYTHONDONTWRITEBYTECODE='1')
+    argv = [sys.executable, '-m', 'pytest', '-x', '-q', '-p', 'no:cacheprovider',
+            '--timeout', str(timeout_s)] + [UNIT + t for t in tests]
+    try:
+        done = subprocess.run(argv, cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, timeout=timeout_s + 30)
+    except subprocess.TimeoutExpired:
+        return 'hang'
+    return 'survived' if done.returncode == 0 else 'killed'
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
+    parser.add_argument('--modules', nargs='+', choices=sorted(MODULES), default=list(MODULES))
+    parser.add_argument('--per-module', type=int, default=60)
+    parser.add_argument('--seed', type=int, default=1)
+    parser.add_argument('--timeout', type=int, default=120, help='seconds per test run')
+    args = parser.parse_args(argv)
+    equivalent = load_equivalent()
+    work = tempfile.mkdtemp(prefix='dq_fk_mutate-')
+    try:
+        shutil.copytree(os.path.join(ROOT, 'dq_fk_ros'), os.path.join(work, 'dq_fk_ros'))
+        shutil.copytree(os.path.join(ROOT, 'config'), os.path.join(work, 'config'))
+        report = []
+        for name in args.modules:
+            path, tests = MODULES[name]
+            with open(os.path.join(ROOT, path), encoding='utf-8') as stream:
+                source = stream.read()
+            target = os.path.join(work, path)
+            if run_tests(work, tests, args.timeout) != 'survived':
+                raise SystemExit(f'mutate: the tests of {name} fail without any mutant')
+            candidates = [s for s in sites(ast.parse(source))
+                          if f'{name}:{s[2]}:{s[3]}' not in equivalent]
+            skipped = sum(1 for s in sites(ast.parse(source))) - len(candidates)
+            sample = random.Random(f'{args.seed}:{name}').sample(
+                candidates, min(args.per_module, len(candidates)))
+            outcome = {'killed': 0, 'hang': 0, 'survived': 0}
+            survivors = []
+            start = time.monotonic()
+            for index, kind, line, what in sorted(sample, key=lambda s: s[2]):
+                with open(target, 'w', encoding='utf-8') as stream:
+                    stream.write(mutate(source, index))
+                result = run_tests(work, tests, args.timeout)
+                outcome[result] += 1
+                if result == 'survived':
+                    survivors.append(f'{path}:{line}: {kind}: {what}')
+            with open(target, 'w', encoding='utf-8') as stream:
+                stream.write(source)
+            tried = len(sample)
+            killed = outcome['killed'] + outcome['hang']
+            report.append((name, tried, killed, outcome['hang'], skipped, survivors,
+                           time.monotonic() - start))
+            print(f'{name}: {killed}/{tried} killed ({100.0 * killed / max(tried, 1):.1f} %, '
+                  f'{outcome["hang"]} by the time limit), {skipped} equivalent skipped, '
+                  f'{time.monotonic() - start:.0f} s', flush=True)
+            for survivor in survivors:
+                print(f'  survived: {survivor}', flush=True)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    print('\n| module | mutants | killed | kill rate | equivalent skipped |')
+    print('|---|---|---|---|---|')
+    for name, tried, killed, _, skipped, _, _ in report:
+        print(f'| {name} | {tried} | {killed} | {100.0 * killed / max(tried, 1):.1f} % '
+              f'| {skipped} |')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
