@@ -72,7 +72,7 @@ def sites(tree):
         elif isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.Not)):
             yield index, 'unary', line, f'drop {type(node.op).__name__}'
         elif isinstance(node, ast.Constant) and id(node) not in docstrings and \
-                not isinstance(node.value, (str, bytes)) and node.value is not None:
+                isinstance(node.value, (bool, int, float)):
             yield index, 'constant', line, f'{node.value!r} -> {_changed(node.value)!r}'
         elif isinstance(node, (ast.If, ast.While)) and not isinstance(node.test, ast.Constant):
             yield index, 'negate', line, 'condition negated'

@@ -219,3 +219,10 @@ def test_quat_from_matrix_takes_nested_lists():
 def test_repr_shows_the_eight_coefficients_in_order():
     h = DualQuaternion([1, 0, 0, 0, 0, 0.25, -0.5, 1e-12])
     assert repr(h) == 'DualQuaternion(1, 0, 0, 0, 0, 0.25, -0.5, 1e-12)'
+
+
+def test_screw_of_the_identity_is_no_motion_about_z():
+    theta, d, axis, moment = DualQuaternion.identity().screw_parameters()
+    assert (theta, d) == (0.0, 0.0)
+    np.testing.assert_array_equal(axis, [0.0, 0.0, 1.0])
+    np.testing.assert_array_equal(moment, [0.0, 0.0, 0.0])
