@@ -226,3 +226,19 @@ def test_screw_of_the_identity_is_no_motion_about_z():
     assert (theta, d) == (0.0, 0.0)
     np.testing.assert_array_equal(axis, [0.0, 0.0, 1.0])
     np.testing.assert_array_equal(moment, [0.0, 0.0, 0.0])
+
+
+def test_isclose_knows_both_signs_of_a_pose():
+    h = DualQuaternion.from_rotation([1, 2, 3], 0.7) * DualQuaternion.from_translation([1, 0, 2])
+    assert h.isclose(DualQuaternion(-h.coeffs)) and h.isclose(h)
+    assert not h.isclose(DualQuaternion.identity())
+
+
+def test_normalising_a_batch_makes_each_row_a_unit_pose(rng):
+    batch = rng.normal(size=(6, 8))
+    unit = dq_normalize_array(batch)
+    assert unit.shape == (6, 8)
+    for row, h in zip(unit, batch):
+        np.testing.assert_allclose(np.linalg.norm(row[:4]), 1.0, atol=1e-15)
+        np.testing.assert_allclose(np.dot(row[:4], row[4:]), 0.0, atol=1e-15)
+        np.testing.assert_allclose(row, dq_normalize_array(h), atol=1e-15)
