@@ -8,6 +8,7 @@ messages. See the README for topics and parameters.
 
 import math
 import sys
+import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -21,6 +22,7 @@ from dq_fk_ros.messages.joint_states import (
 from dq_fk_ros.ros.conversions import (
     FrameBytes, FrameMessages, joint_state_fields, NS_PER_S)
 from dq_fk_ros.ros.executables import spin_until_shutdown
+from dq_fk_ros.ros.raw_input import RawSubscriptionThread
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -43,6 +45,9 @@ class DqFkNode(Node):
     def __init__(self, **kwargs):
         """Declare parameters, load the robot (may raise RobotDescriptionError), wire up."""
         super().__init__('dq_fk_node', **kwargs)
+        # the input thread's updates and the executor's callbacks (parameters, timers) take
+        # turns on the node's state
+        self._lock = threading.RLock()
         self._declare_parameters()
         get = self.get_parameter
         self._publish_tf = get('publish_tf').value
@@ -83,15 +88,23 @@ class DqFkNode(Node):
 
         depth = get('qos_depth').value
         self._names_cache = JointStateNames()
-        # serialized in, serialized out: the messages are read and written as bytes
-        self._joint_state_sub = self.create_subscription(
-            JointState, 'joint_states', self._on_joint_state,
-            QoSProfile(depth=depth, reliability=RELIABILITY[reliability]), raw=True)
         # who reads which pose topic, refreshed twice a second (a new subscriber waits
         # at most that long for its first message)
         self._readers_timer = self.create_timer(READERS_REFRESH_S, self._refresh_readers)
         self._diag_timer = self.create_timer(1.0, self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        # serialized in, serialized out: the messages are read and written as bytes, by
+        # default in a thread of their own (the executor's wake-up costs more than an update)
+        qos = QoSProfile(depth=depth, reliability=RELIABILITY[reliability])
+        self._input = None
+        if get('input_thread').value:
+            self._input = RawSubscriptionThread(self, JointState,
+                                                self.resolve_topic_name('joint_states'), qos,
+                                                self._on_joint_state)
+            self._joint_state_sub = self._input.subscription
+        else:
+            self._joint_state_sub = self.create_subscription(
+                JointState, 'joint_states', self._on_joint_state_drain, qos, raw=True)
         self.get_logger().info(
             f'dq_fk_node: {model.name} from {model.source}: {len(model.frame_names)} frames '
             f'under {model.fixed_frame!r}, joints {", ".join(model.joint_names)}')
@@ -123,6 +136,9 @@ class DqFkNode(Node):
         declare('out_of_limits', 'warn',
                 'joint values outside their limits: warn | clamp | reject')
         declare('qos_depth', 100, 'depth of the joint_states subscription', read_only=True)
+        declare('input_thread', True,
+                'take joint states in a thread of their own (true) or in the executor',
+                read_only=True)
         declare('joint_states_reliability', 'best_effort',
                 'best_effort (matches reliable and best-effort publishers) | reliable',
                 read_only=True)
@@ -151,6 +167,11 @@ class DqFkNode(Node):
         return value or shipped_robot_path('rl15')
 
     def _on_set_parameters(self, params):
+        """Validate and apply a parameter change, under the node's lock."""
+        with self._lock:
+            return self._set_parameters(params)
+
+    def _set_parameters(self, params):
         """
         Validate every change first; apply them only if all are valid.
 
@@ -256,14 +277,18 @@ class DqFkNode(Node):
 
     # -- the hot path --------------------------------------------------------------------
     def _on_joint_state(self, raw):
-        """
-        Take a serialized JointState (a raw subscription): read, merge, publish.
+        """Take a serialized JointState: read, merge, publish (under the node's lock)."""
+        with self._lock:
+            self._on_raw(raw)
 
-        Then take whatever else is already queued (up to :data:`DRAIN_MAX`) in the same
-        call: one executor wake-up costs more than an update, so a burst is worked through
-        without paying it per message.
+    def _on_joint_state_drain(self, raw):
         """
-        self._on_raw(raw)
+        Take a serialized JointState from the executor, and whatever else is queued.
+
+        Up to :data:`DRAIN_MAX` more in the same call: one executor wake-up costs more than
+        an update, so a burst is worked through without paying it per message.
+        """
+        self._on_joint_state(raw)
         sub = self._joint_state_sub
         for _ in range(DRAIN_MAX):
             try:
@@ -273,7 +298,7 @@ class DqFkNode(Node):
                 return
             if taken is None:
                 return
-            self._on_raw(taken[0])
+            self._on_joint_state(taken[0])
 
     def _on_raw(self, raw):
         try:
@@ -288,6 +313,8 @@ class DqFkNode(Node):
                 return
             self._handle_fields(names, positions.tolist(), velocities.tolist(), stamp_ns)
         except Exception as exc:  # nothing a user sends may stop the node
+            if not self.context.ok():
+                return  # shutting down: the publishers are gone
             self._merger.count_rejected('internal_error')
             self.get_logger().error(f'joint state not processed: {exc!r}',
                                     throttle_duration_sec=WARN_EVERY_S)
@@ -364,6 +391,10 @@ class DqFkNode(Node):
 
     def _refresh_readers(self):
         """Note which pose and twist topics have subscribers (nobody reads: not filled)."""
+        with self._lock:
+            self._count_readers()
+
+    def _count_readers(self):
         always = self._publish_unread
         self._pose_read = [always or pub.get_subscription_count() > 0 for pub in self._pose_pubs]
         self._twist_read = [always or pub.get_subscription_count() > 0
@@ -403,10 +434,18 @@ class DqFkNode(Node):
             hardware_id=self._model.name,
             values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
 
+    def destroy_node(self):
+        """Stop the input thread first, then destroy the node."""
+        if getattr(self, '_input', None) is not None:
+            self._input.close()
+            self._input = None
+        return super().destroy_node()
+
     def _publish_diagnostics(self):
         msg = DiagnosticArray()
         msg.header.stamp = self.get_clock().now().to_msg()
-        msg.status = [self.diagnostics()]
+        with self._lock:
+            msg.status = [self.diagnostics()]
         self._diag_pub.publish(msg)
 
 

@@ -1,0 +1,65 @@
+"""
+A subscription served by a thread of its own: serialized messages, one wait set, no executor.
+
+rclpy's ``SingleThreadedExecutor`` rebuilds its wait set in Python on every wake-up: at
+1 kHz that alone takes about a third of a core (``benchmarks/bench_rclpy_floor.py``). A
+thread that waits on one subscription with a wait set of its own and takes every queued
+message costs about a sixth of that. The subscription lives on a hidden helper node
+(``_<node>_input``), so the node's executor never sees it; timers, services and parameter
+changes stay with the executor, and the owner serialises the two with a lock.
+"""
+
+import threading
+
+import rclpy
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+WAKE_S = 0.1  # the longest a stop request waits for the thread
+
+
+class RawSubscriptionThread:
+    """
+    Call ``callback(raw_bytes)`` for every message of one topic, from a thread of its own.
+
+    :param owner: the node it serves: its context, and its name for the hidden helper node.
+    :param topic: a fully resolved topic name (the owner's remappings already applied).
+    """
+
+    def __init__(self, owner, msg_type, topic, qos, callback):
+        """Create the helper node and its raw subscription, and start the thread."""
+        self._context = owner.context
+        self._node = rclpy.create_node(f'_{owner.get_name()}_input', context=self._context,
+                                       start_parameter_services=False, enable_rosout=False,
+                                       use_global_arguments=False)
+        self.subscription = self._node.create_subscription(
+            msg_type, topic, lambda _: None, qos, raw=True)
+        self._callback = callback
+        self._stop = False
+        self._thread = threading.Thread(target=self._run, name=f'{owner.get_name()} input',
+                                        daemon=True)
+        self._thread.start()
+
+    def _run(self):
+        sub, context = self.subscription, self._context
+        try:
+            wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, context.handle)
+            while not self._stop and context.ok():
+                with sub.handle, context.handle:
+                    wait_set.clear_entities()
+                    wait_set.add_subscription(sub.handle)
+                    wait_set.wait(int(WAKE_S * 1e9))
+                while not self._stop:
+                    with sub.handle:
+                        taken = sub.handle.take_message(sub.msg_type, True)
+                    if taken is None:
+                        break
+                    self._callback(taken[0])
+        except Exception:  # shut down or destroyed under us: nothing more to take
+            return
+
+    def close(self):
+        """Stop the thread and destroy the helper node."""
+        self._stop = True
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=5 * WAKE_S + 1.0)
+        self._node.destroy_node()
