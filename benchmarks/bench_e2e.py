@@ -113,9 +113,9 @@ def stop(*procs):
                 proc.kill()
 
 
-def run_rate(rate_hz, seconds, reliable):
+def run_rate(rate_hz, seconds, reliable, extra=()):
     """One run at ``rate_hz``; returns a dict of figures."""
-    params = ['joint_states_reliability:=reliable'] if reliable else []
+    params = (['joint_states_reliability:=reliable'] if reliable else []) + list(extra)
     node_proc = start_node(params)
     rclpy.init(args=LOG)
     probe = rclpy.create_node('dq_fk_bench_e2e')
@@ -182,9 +182,9 @@ def run_rate(rate_hz, seconds, reliable):
             'cpu': 100.0 * cpu / wall}
 
 
-def capacity(seconds):
+def capacity(seconds, input_thread='true'):
     """Flood the node; return (published updates per second, node CPU % of a core)."""
-    node_proc = start_node(['publish_unread_topics:=true'])
+    node_proc = start_node(['publish_unread_topics:=true', f'input_thread:={input_thread}'])
     rclpy.init(args=LOG)
     probe = rclpy.create_node('dq_fk_bench_capacity')
     executor = SingleThreadedExecutor()
@@ -221,6 +221,8 @@ def main(argv=None):
     parser.add_argument('--rates', type=float, nargs='+', default=[100, 1000, 5000])
     parser.add_argument('--seconds', type=float, default=10.0)
     parser.add_argument('--repeat', type=int, default=3)
+    parser.add_argument('--input-thread', choices=('true', 'false'), default='true',
+                        help="the node's input_thread parameter (default true)")
     parser.add_argument('--capacity', type=float, default=10.0, metavar='S',
                         help='seconds of flood for the capacity figure (0: skip)')
     parser.add_argument('--publish', nargs=3, metavar=('RATE', 'COUNT', 'RELIABLE'),
@@ -233,11 +235,13 @@ def main(argv=None):
                            args.publish[2] == '1')
         except (KeyboardInterrupt, RCLError):  # the flood ends with SIGINT (context gone)
             return 0
-    rows = [run_rate(rate, args.seconds, rate >= 5000) for rate in args.rates
+    extra = [f'input_thread:={args.input_thread}']
+    rows = [run_rate(rate, args.seconds, rate >= 5000, extra) for rate in args.rates
             for _ in range(args.repeat)]
     print(f'# end to end: raw publisher -> dq_fk_node -> raw /tf subscriber, RL15, '
           f'{args.seconds:g} s per run, {os.cpu_count()} CPUs, loopback; node on CPU 1, '
-          f'publisher on CPU 0 (taskset), this subscriber unpinned; nothing else running')
+          f'publisher on CPU 0 (taskset), this subscriber unpinned; nothing else running; '
+          f'input_thread:={args.input_thread}')
     print('| rate Hz | input | sent | node published | received on /tf | lost | latency '
           'p50 ms | p99 ms | max ms | node CPU % of a core |')
     print('|---|---|---|---|---|---|---|---|---|---|')
@@ -247,7 +251,7 @@ def main(argv=None):
               f"| {r['p50']:.3f} "
               f"| {r['p99']:.3f} | {r['max']:.3f} | {r['cpu']:.0f} |")
     if args.capacity:
-        rate, cpu = capacity(args.capacity)
+        rate, cpu = capacity(args.capacity, args.input_thread)
         print('\n# capacity: a flood of pre-serialized joint states (best effort), every '
               'output published, node pinned to one core')
         print(f'sustained updates published: {rate:,.0f} per second, node CPU {cpu:.0f} % '
