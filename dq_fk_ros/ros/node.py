@@ -390,15 +390,19 @@ class DqFkNode(Node):
                     pub.publish(out.twist(sec, nanosec, v_k.tolist(), w.tolist()))
 
     def _refresh_readers(self):
-        """Note which pose and twist topics have subscribers (nobody reads: not filled)."""
-        with self._lock:
-            self._count_readers()
+        """
+        Note which pose and twist topics have subscribers (nobody reads: not filled).
 
-    def _count_readers(self):
-        always = self._publish_unread
-        self._pose_read = [always or pub.get_subscription_count() > 0 for pub in self._pose_pubs]
-        self._twist_read = [always or pub.get_subscription_count() > 0
-                            for pub in self._twist_pubs]
+        Counted outside the node's lock (asking DDS for matched readers can take long
+        enough to stall the input thread: 5 kHz input lost messages that way), then set
+        under it if the publishers are still the same ones.
+        """
+        pose_pubs, twist_pubs, always = self._pose_pubs, self._twist_pubs, self._publish_unread
+        pose = [always or pub.get_subscription_count() > 0 for pub in pose_pubs]
+        twist = [always or pub.get_subscription_count() > 0 for pub in twist_pubs]
+        with self._lock:
+            if pose_pubs is self._pose_pubs and twist_pubs is self._twist_pubs:
+                self._pose_read, self._twist_read = pose, twist
 
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self):
