@@ -92,7 +92,6 @@ class McapStreamBag:
         self._by_channel = {}       # (file index, channel id) -> Connection
         self.damage = None          # one line: what was damaged and skipped, or None
         self.note = None            # one line for the user about how the bag is read
-        self.skipped = Counter()    # topic -> messages lost in damaged chunks
         counts = Counter()
         self.start_time = None      # earliest log time (ns), as rosbags' Reader.start_time
         self.end_time = 0           # latest log time (ns), as rosbags' Reader.end_time
@@ -171,7 +170,6 @@ class McapStreamBag:
             for channel_id, count in per_channel.items():
                 conn = self._by_channel.get((file_index, channel_id))
                 topics[conn.topic if conn is not None else f'channel {channel_id}'] += count
-            self.skipped.update(topics)
             from dq_fk_ros.bag.reading import printable
             held = f'{sum(topics.values())} messages (' + ', '.join(
                 f'{printable(topic)}: {n}' for topic, n in sorted(topics.items())) + ')'

@@ -195,25 +195,21 @@ class HelperFrames:
     def __init__(self, model):
         """Find the helper links of ``model``'s URDF and their offsets."""
         self.model = model
-        self.static, self.moving, self.names = [], [], []
+        self.static, self.moving = [], []
         try:
             self._joints = urdf_joints(model)
         except ValueError:  # no URDF for this robot (a scale other than +-1): no helpers
             return
-        helpers = [(j.child, j.anchor, j.kind, j.mimic) for j in self._joints
-                   if j.anchor is not None]
         # a helper ends one motion of its row; only the row's last motion's helper is fixed
         # to the DH frame (the fixed 'post' transform follows it)
-        names = [h[0] for h in helpers]
         zero = link_poses(model, np.zeros(model.chain.dof), self._joints)
-        self.static, self.moving = [], []
-        for name, anchor, _, _ in helpers:
+        for name, anchor in ((j.child, j.anchor) for j in self._joints
+                             if j.anchor is not None):
             if name.endswith('_dh_z'):
                 frame = model.frame_names[anchor]
                 self.static.append((name, anchor, zero[frame].inverse() * zero[name]))
             else:
                 self.moving.append((name, anchor))
-        self.names = names
 
     def moving_poses(self, q):
         """Return the offsets ``(x, y, z, qx, qy, qz, qw)`` of the moving helpers at ``q``."""

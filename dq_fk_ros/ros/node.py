@@ -22,7 +22,7 @@ from dq_fk_ros.messages.joint_states import (
 from dq_fk_ros.ros.conversions import (
     FrameBytes, FrameMessages, joint_state_fields, NS_PER_S)
 from dq_fk_ros.ros.executables import spin_until_shutdown
-from dq_fk_ros.ros.raw_input import RawSubscriptionThread
+from dq_fk_ros.ros.raw_input import RawSubscriptionThread, take_queued
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -289,16 +289,10 @@ class DqFkNode(Node):
         an update, so a burst is worked through without paying it per message.
         """
         self._on_joint_state(raw)
-        sub = self._joint_state_sub
-        for _ in range(DRAIN_MAX):
-            try:
-                with sub.handle:
-                    taken = sub.handle.take_message(sub.msg_type, True)
-            except Exception:  # destroyed meanwhile (a shutdown): the executor decides
-                return
-            if taken is None:
-                return
-            self._on_joint_state(taken[0])
+        try:
+            take_queued(self._joint_state_sub, self._on_joint_state, DRAIN_MAX)
+        except Exception:  # destroyed meanwhile (a shutdown): the executor decides
+            return
 
     def _on_raw(self, raw):
         try:

@@ -17,6 +17,23 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 WAKE_S = 0.1  # the longest a stop request waits for the thread
 
 
+def take_queued(subscription, callback, limit=None):
+    """
+    Hand every message already queued on a raw subscription to ``callback``, in order.
+
+    At most ``limit`` (None: all); returns when the queue is empty. Raises what the
+    subscription's handle raises once it is destroyed (a shutdown).
+    """
+    count = 0
+    while limit is None or count < limit:
+        with subscription.handle:
+            taken = subscription.handle.take_message(subscription.msg_type, True)
+        if taken is None:
+            return
+        callback(taken[0])
+        count += 1
+
+
 class RawSubscriptionThread:
     """
     Call ``callback(raw_bytes)`` for every message of one topic, from a thread of its own.
@@ -48,12 +65,7 @@ class RawSubscriptionThread:
                     wait_set.clear_entities()
                     wait_set.add_subscription(sub.handle)
                     wait_set.wait(int(WAKE_S * 1e9))
-                while not self._stop:
-                    with sub.handle:
-                        taken = sub.handle.take_message(sub.msg_type, True)
-                    if taken is None:
-                        break
-                    self._callback(taken[0])
+                take_queued(sub, self._callback)
         except Exception:  # shut down or destroyed under us: nothing more to take
             return
 
