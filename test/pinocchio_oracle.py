@@ -25,6 +25,8 @@ def configuration(model, values):
         if name not in values:
             continue
         value = values[name]
+        if joint.nq == 0:  # a mimic joint (mimic=True): pinocchio moves it with its joint
+            continue
         if joint.nq == 1:
             q[joint.idx_q] = value
         elif joint.nq == 2:  # continuous: cos, sin
@@ -38,4 +40,5 @@ def link_placements(model, q, links):
     """Return ``{link: 4x4}`` of each link's frame in the root, by pinocchio's FK."""
     data = model.createData()
     pin.framesForwardKinematics(model, data, q)
-    return {link: data.oMf[model.getFrameId(link)].homogeneous for link in links}
+    return {link: data.oMf[model.getFrameId(link, pin.FrameType.BODY)].homogeneous
+            for link in links}

@@ -43,17 +43,18 @@ class BagOutputs:
         self.writer = writer
         self.typestore = typestore
         self.frame_ids = [frame_prefix + name for name in model.frame_names]
-        parents = [model.fixed_frame] + self.frame_ids[:-1]
-        n_rows = len(model.chain.joints)
-        self.moving_rows = [k - 1 for k in range(1, n_rows + 1) if model.moving[k]]
-        self.static_frames = [k for k in range(len(self.frame_ids)) if not model.moving[k]]
+        parents = [p if p == model.fixed_frame else frame_prefix + p
+                   for p in model.parent_frames]
+        self.moving_edges = model.moving_edges
+        self.static = model.static_transforms()
         add = writer.add_connection
         self.tf = add('/tf', 'tf2_msgs/msg/TFMessage', typestore=typestore,
                       offered_qos_profiles=qos(100, volatile))
         self.tf_static = add('/tf_static', 'tf2_msgs/msg/TFMessage', typestore=typestore,
                              offered_qos_profiles=qos(1, latched))
         n_frames = len(model.frame_names)
-        self.pose_frames = {'all': list(range(n_frames)), 'end': [n_frames - 1],
+        self.end = model.end_effector_index
+        self.pose_frames = {'all': list(range(n_frames)), 'end': [self.end],
                             'none': []}[poses]
         self.poses = [add(f'{pose_namespace}/pose/{model.frame_names[k]}',
                           'geometry_msgs/msg/PoseStamped', typestore=typestore,
@@ -61,11 +62,11 @@ class BagOutputs:
         # the URDF's helper links, as the node publishes them (children of their DH frames)
         self.helpers = HelperFrames(model)
         self.tf_template = tf_message_template(
-            [(parents[row + 1], self.frame_ids[row + 1]) for row in self.moving_rows]
+            [(parents[k], self.frame_ids[k]) for k, _ in self.moving_edges]
             + [(self.frame_ids[k], frame_prefix + name) for name, k in self.helpers.moving])
         self.pose_template = pose_stamped_template(model.fixed_frame)
         self.static_template = tf_message_template(
-            [(parents[k], self.frame_ids[k]) for k in self.static_frames]
+            [(parents[k], self.frame_ids[k]) for k, _ in self.static]
             + [(self.frame_ids[k], frame_prefix + name) for name, k, _ in self.helpers.static])
         try:
             self.urdf = robot_to_urdf(model)
@@ -80,21 +81,8 @@ class BagOutputs:
         self.static_written = False
 
     def write_static(self, time_ns):
-        """Write /tf_static once: base, fixed rows and tool, stamped ``time_ns``."""
-        chain = self.model.chain
-        q0 = np.zeros((1, chain.dof))
-        frames = dq_to_pose_xyzw(chain.forward_all_batch(q0)[0])
-        # static transforms relative to their parent: base (absolute = relative), fixed
-        # rows (the row operator), tool
-        rel = dq_to_pose_xyzw(chain.relative_all_batch(q0)[0])
-        values = []
-        for k in self.static_frames:
-            if k == 0:
-                values.append(frames[0])
-            elif k <= len(chain.joints):
-                values.append(rel[k - 1])
-            else:
-                values.append(chain.tool.to_pose_xyzw())
+        """Write /tf_static once: base, fixed rows, tool and links, stamped ``time_ns``."""
+        values = [np.array(pose) for _, pose in self.static]
         values += [offset.to_pose_xyzw() for _, _, offset in self.helpers.static]
         row = self.static_template.fill([time_ns], np.concatenate(values)[None, :])[0]
         self.writer.write(self.tf_static, time_ns, memoryview(row))
@@ -106,9 +94,10 @@ class BagOutputs:
 
     def write_chunk(self, q, stamps_ns, log_times_ns):
         """FK of a chunk of configurations, serialized and written as arrays."""
-        chain = self.model.chain
-        absolute = dq_to_pose_xyzw(chain.forward_all_batch(q))           # (N, frames, 7)
-        relative = dq_to_pose_xyzw(chain.relative_all_batch(q)[:, self.moving_rows])
+        model = self.model
+        absolute = dq_to_pose_xyzw(model.forward_all_batch(q))           # (N, frames, 7)
+        relative = dq_to_pose_xyzw(
+            model.relative_batch(q)[:, [k for _, k in self.moving_edges]])
         n = len(q)
         relative = relative.reshape(n, -1)
         if self.helpers.moving:  # (a cylindrical row's first motion: rare, per message)
@@ -118,7 +107,7 @@ class BagOutputs:
         pose_rows = [self.pose_template.fill(stamps_ns, absolute[:, k])
                      for k in self.pose_frames]
         self.writer.write_rows([self.tf] + self.poses, log_times_ns, [tf_rows] + pose_rows)
-        return absolute[:, -1]
+        return absolute[:, self.end]
 
     def copy(self, conn, time_ns, raw):
         """Copy an input message through unchanged."""
@@ -347,7 +336,7 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
                 outputs.write_static(int(out_times[0]))
             ee = outputs.write_chunk(q, stamps, out_times)
         else:
-            ee = dq_to_pose_xyzw(model.chain.forward_batch(q))
+            ee = dq_to_pose_xyzw(model.end_effector_batch(q))
         if csv:
             line = '%d,' + ','.join(['%.17g'] * 7) + '\n'
             csv.writelines(line % (s, *p) for s, p in zip(stamps.tolist(), ee.tolist()))

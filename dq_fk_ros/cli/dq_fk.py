@@ -85,7 +85,7 @@ def frames_table(model, q):
 
     The pose is absolute (in the fixed frame), not relative to ``tf_parent``.
     """
-    poses = model.chain.forward_all(q)
+    poses = model.forward_all(q)
     rows = []
     for name, parent, h in zip(model.frame_names, model.parent_frames, poses):
         dq = DualQuaternion(h)

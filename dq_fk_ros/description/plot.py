@@ -31,7 +31,7 @@ def draw_robot(model, q, view=DEFAULT_VIEW, size_in=(8.0, 7.0), dpi=100):
     fig = Figure(figsize=size_in, dpi=dpi)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(projection='3d')
-    frames = [model.chain.forward_all(q)[k] for k in range(len(model.frame_names))]
+    frames = list(model.forward_all(q))
     origins = np.array([_matrix(h)[:3, 3] for h in frames])
     segments = link_segments(model, q)
     points = np.vstack([origins, np.zeros((1, 3))] + [np.array(s) for s in segments])

@@ -13,6 +13,8 @@ Plain Python (PyYAML + numpy), no ROS. The file format is documented in
       - {frame: shoulder_seg1, joint: joint_1, theta: 0, d: 0, a: 200, alpha: 90}
       ...
     tool: {frame: tcp, xyz: [0, 0, 100], quaternion: [0, 0, 0, 1]}   # x y z w
+    links:                      # named frames fixed to the others (URDF links, sensors)
+      - {frame: flange, parent: tcp, xyz: [0, 0, 10], rpy: [0, 0, 0]}
 
 Every length and angle in the file is in the file's ``units``; the model holds metres and
 radians only (REP 103). Any mistake raises :class:`RobotDescriptionError` with a single
@@ -21,12 +23,15 @@ is allowed.
 """
 
 from dataclasses import dataclass
+from functools import cached_property
 import math
 import os
 import re
 
 from dq_fk_ros.kinematics.dh import CONVENTIONS, DHJoint, KinematicChain
-from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion, quat_from_matrix
+from dq_fk_ros.kinematics.dual_quaternion import (
+    dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, DualQuaternion,
+    pose_xyzw_from_coeffs, quat_from_matrix)
 import numpy as np
 import yaml
 
@@ -45,7 +50,10 @@ MAX_FILE_BYTES = 1 << 20        # a robot description file is at most 1 MiB ...
 MAX_ROWS = 256                  # ... and at most this many DH rows
 
 TOP_FIELDS = ('robot', 'description', 'convention', 'units', 'fixed_frame', 'base', 'chain',
-              'tool')
+              'tool', 'links', 'end_effector')
+LINK_FIELDS = ('frame', 'parent', 'tf_parent', 'xyz', 'rpy', 'quaternion', 'type', 'axis',
+               'mimic')
+LINK_TYPES = ('fixed', 'revolute', 'prismatic')
 UNIT_FIELDS = ('length', 'angle')
 TRANSFORM_FIELDS = ('frame', 'xyz', 'rpy', 'quaternion')
 ROW_FIELDS = ('frame', 'joint', 'type', 'theta', 'd', 'a', 'alpha', 'scale', 'limits',
@@ -58,15 +66,37 @@ class RobotDescriptionError(ValueError):
 
 
 @dataclass(frozen=True)
+class LinkFrame:
+    """
+    A named frame fixed to another frame of the robot: a URDF link, a flange, a sensor.
+
+    ``offset`` is its pose in ``parent`` (a :class:`DualQuaternion`; ``parent`` is a DH
+    frame, the tool, an earlier link or the fixed frame). TF carries it under ``tf_parent``
+    (by default ``parent``; ``dq_fk from-urdf`` sets the URDF's parent link).
+    ``motion``, if given, is ``(kind, unit axis, joint, multiplier, offset)``: the link
+    moves with a chain joint as a URDF mimic joint does, its pose ``parent * offset *
+    M(multiplier * q[joint] + offset)`` with ``M`` a rotation about (``revolute``) or a
+    translation along (``prismatic``) ``axis``, in rad or m.
+    """
+
+    frame: str
+    parent: str
+    offset: DualQuaternion
+    tf_parent: str
+    motion: tuple = None
+
+
+@dataclass(frozen=True)
 class RobotModel:
     """
     A validated robot: its kinematic chain and the names ROS needs.
 
-    ``frame_names`` are frame 0 (``base.frame``), the row frames and the tool frame if
-    any, in the order of :meth:`KinematicChain.forward_all`. ``parent_frames[i]`` is the
-    parent of ``frame_names[i]`` (frame 0's parent is ``fixed_frame``); ``moving[i]`` says
-    whether that parent -> child transform depends on joint values (else it is static).
-    Lengths are metres, angles radians.
+    ``frame_names`` are the chain's frames (frame 0 = ``base.frame``, the row frames, the
+    tool frame if any; the order of :meth:`KinematicChain.forward_all`), then the ``links``.
+    ``parent_frames[i]`` is the TF parent of ``frame_names[i]`` (frame 0's is
+    ``fixed_frame``); ``moving[i]`` says whether that parent -> child transform depends on
+    joint values (else it is static). ``end_effector`` names the frame a user means by
+    "the end effector" (default: the last chain frame). Lengths are metres, angles radians.
     """
 
     name: str
@@ -77,6 +107,8 @@ class RobotModel:
     moving: tuple
     chain: KinematicChain
     max_velocity: np.ndarray
+    links: tuple = ()
+    end_effector: str = ''
 
     @property
     def joint_names(self):
@@ -97,6 +129,169 @@ class RobotModel:
             if j.joint_type in ('revolute', 'cylindrical') and not j.follows:
                 mask[index[j.name]] = True
         return mask
+
+    @property
+    def n_chain_frames(self):
+        """Count the chain's frames (base, rows, tool): the first ones of ``frame_names``."""
+        return self.chain.n_frames
+
+    @property
+    def end_effector_index(self):
+        """Index of ``end_effector`` in ``frame_names``."""
+        return self.frame_names.index(self.end_effector or self.frame_names[
+            self.n_chain_frames - 1])
+
+    @cached_property
+    def _link_plan(self):
+        """
+        Per link: (attachment index, TF-parent index, offset 8-tuple, motion); -1 = fixed frame.
+
+        ``motion`` is None or ``(prismatic?, axis tuple, q index, multiplier, offset)``.
+        """
+        index = {name: k for k, name in enumerate(self.frame_names)}
+        index[self.fixed_frame] = -1
+        joints = {name: k for k, name in enumerate(self.joint_names)}
+        plan = []
+        for link in self.links:
+            motion = None
+            if link.motion is not None:
+                kind, axis, joint, multiplier, offset = link.motion
+                motion = (kind == 'prismatic', tuple(float(v) for v in axis), joints[joint],
+                          float(multiplier), float(offset))
+            plan.append((index[link.parent], index[link.tf_parent],
+                         tuple(link.offset.coeffs.tolist()), motion))
+        return tuple(plan)
+
+    @cached_property
+    def moving_edges(self):
+        """``(frame index, index in frame_poses' relative)`` of every moving TF transform."""
+        n_rows = len(self.chain.joints)
+        edges = [(k, k - 1) for k in range(1, n_rows + 1) if self.moving[k]]
+        start = self.n_chain_frames
+        edges += [(start + j, n_rows + j) for j in range(len(self.links))
+                  if self.moving[start + j]]
+        return tuple(edges)
+
+    def frame_poses(self, q):
+        """
+        Poses for publishing, tuples ``(x, y, z, qx, qy, qz, qw)`` (``qw >= 0``), at ``q``.
+
+        Returns ``(absolute, relative)``: every frame of ``frame_names`` in the fixed frame,
+        and the TF transforms: every DH row's (frame i-1 -> frame i), then every link's
+        (``tf_parent`` -> link).
+        """
+        if not self.links:
+            return self.chain.frame_poses(q)
+        coeffs = self.chain.frame_coeffs(q)
+        absolute = [pose_xyzw_from_coeffs(h) for h in coeffs]
+        relative = self.chain.row_poses(q)
+        qs = None
+        for attach, tf_parent, offset, motion in self._link_plan:
+            parent = coeffs[attach] if attach >= 0 else _IDENTITY
+            if motion is not None:
+                if qs is None:
+                    qs = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
+                offset = dq_multiply_coeffs(offset, _motion(motion, qs, math.cos, math.sin))
+            pose = dq_multiply_coeffs(parent, offset)
+            coeffs.append(pose)
+            absolute.append(pose_xyzw_from_coeffs(pose))
+            if tf_parent == attach:
+                relative.append(pose_xyzw_from_coeffs(offset))
+            else:
+                above = coeffs[tf_parent] if tf_parent >= 0 else _IDENTITY
+                relative.append(pose_xyzw_from_coeffs(
+                    dq_multiply_coeffs(dq_inverse_coeffs(above), pose)))
+        return absolute, relative
+
+    def forward_all(self, q):
+        """Every frame of ``frame_names`` in the fixed frame: ``(n, 8)``, ``w >= 0``."""
+        return self.forward_all_batch(np.asarray(q, dtype=float)[None, :])[0] if self.links \
+            else self.chain.forward_all(q)
+
+    def forward_all_batch(self, q):
+        """Every frame of ``frame_names`` for N configurations: ``(N, n, 8)``, ``w >= 0``."""
+        absolute, _ = self._batch(q, relative=False)
+        return absolute
+
+    def end_effector_batch(self, q):
+        """Return the end effector's pose for N configurations: ``(N, 8)``, ``w >= 0``."""
+        k = self.end_effector_index
+        if k == self.n_chain_frames - 1:
+            return self.chain.forward_batch(q)
+        return self.forward_all_batch(q)[:, k]
+
+    def relative_batch(self, q):
+        """``frame_poses``' relative transforms for N configurations: ``(N, rows + links, 8)``."""
+        _, relative = self._batch(q, relative=True)
+        return relative
+
+    def _batch(self, q, relative):
+        chain = self.chain
+        absolute = chain.forward_all_batch(q)
+        rel = chain.relative_all_batch(q) if relative else None
+        if not self.links:
+            return absolute, rel
+        n = absolute.shape[0]
+        frames = [absolute[:, k] for k in range(absolute.shape[1])]
+        extra = []
+        identity = np.broadcast_to(np.array(_IDENTITY), (n, 8))
+        columns = np.asarray(q, dtype=float).T
+        for attach, tf_parent, offset, motion in self._link_plan:
+            offset = np.broadcast_to(np.array(offset), (n, 8))
+            if motion is not None:
+                offset = dq_multiply_array(offset, np.stack(
+                    np.broadcast_arrays(*_motion(motion, columns, np.cos, np.sin)), axis=-1))
+            pose = dq_multiply_array(frames[attach] if attach >= 0 else identity, offset)
+            frames.append(pose)
+            if relative:
+                if tf_parent == attach:
+                    extra.append(offset)
+                else:
+                    above = frames[tf_parent] if tf_parent >= 0 else identity
+                    extra.append(dq_multiply_array(above * _CONJUGATE, pose))
+        absolute = np.stack(frames, axis=1)
+        absolute[absolute[..., 0] < 0.0] *= -1.0
+        if relative:
+            rel = np.concatenate([rel, np.stack(extra, axis=1)], axis=1)
+        return absolute, rel
+
+    def static_transforms(self):
+        """``[(frame index, (x, y, z, qx, qy, qz, qw)), ...]``: every static TF transform."""
+        chain = self.chain
+        n_rows = len(chain.joints)
+        _, relative = self.frame_poses([0.0] * chain.dof)
+        out = []
+        for k in range(len(self.frame_names)):
+            if self.moving[k]:
+                continue
+            if k == 0:
+                pose = chain.base.to_pose_xyzw()
+            elif k <= n_rows:
+                pose = relative[k - 1]
+            elif k < self.n_chain_frames:
+                pose = chain.tool.to_pose_xyzw()
+            else:
+                pose = relative[n_rows + k - self.n_chain_frames]
+            out.append((k, tuple(float(v) for v in pose)))
+        return out
+
+
+_IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def _motion(motion, q, cos, sin):
+    """Return the coefficients of a link's mimic motion at ``q`` (floats, or arrays)."""
+    prismatic, (ax, ay, az), k, multiplier, offset = motion
+    value = multiplier * q[k] + offset
+    zero = 0.0 * value
+    if prismatic:  # 1 + eps t/2
+        half = 0.5 * value
+        return (1.0 + zero, zero, zero, zero, zero, half * ax, half * ay, half * az)
+    c, s = cos(0.5 * value), sin(0.5 * value)
+    return (c, s * ax, s * ay, s * az, zero, zero, zero, zero)
+
+
+_CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
@@ -258,6 +453,13 @@ class _Parser:
         parsed = [self.row(row, k) for k, row in enumerate(rows)]
         tool_frame, tool = (self.transform(data['tool'], 'tool') if 'tool' in data
                             else (None, None))
+        link_rows = data.get('links', [])
+        if not isinstance(link_rows, list):
+            self.fail('links', f'expected a list of {{frame, parent, xyz, rpy | quaternion}}, '
+                      f'got {_describe(link_rows)}')
+        if len(link_rows) > MAX_ROWS:
+            self.fail('links', f'{len(link_rows)} links; a robot description has at most '
+                      f'{MAX_ROWS}')
 
         frames = [base_frame] + [p['frame'] for p in parsed]
         if tool_frame:
@@ -270,21 +472,87 @@ class _Parser:
                 self.fail(place, f'frame {frame!r} is already used by {seen[frame]}; '
                           f'frame names must be unique')
             seen[frame] = place
+        # the rigid body each frame moves with: a moving row starts a new one
+        body = {fixed_frame: 0, base_frame: 0}
+        for k, p in enumerate(parsed):
+            body[p['frame']] = k + 1 if p['type'] != 'fixed' else body[frames[k]]
+        if tool_frame:
+            body[tool_frame] = body[frames[len(parsed)]]
+        links = []
+        for k, row in enumerate(link_rows):
+            link = self.link(row, k, seen)
+            seen[link.frame] = f'links[{k}]'
+            # a link that moves (a mimic) is a rigid body of its own
+            body[link.frame] = body[link.parent] if link.motion is None else f'links[{k}]'
+            links.append(link)
+        end_effector = frames[-1]
+        if 'end_effector' in data:
+            end_effector = self.frame(data['end_effector'], '', 'end_effector')
+            if end_effector not in seen or end_effector == fixed_frame:
+                self.fail('', f"field 'end_effector' names {end_effector!r}, which is not a "
+                          f'frame of the robot; frames: {_listing(list(seen)[1:])}')
 
         joints = self.joints(parsed)
         try:
             chain = KinematicChain(joints, convention, base=base, tool=tool)
         except ValueError as exc:  # anything the core refuses that the checks above missed
             self.fail('chain', str(exc))
+        for k, link in enumerate(links):
+            if link.motion is not None and link.motion[2] not in chain.joint_names:
+                self.fail(f'links[{k}] (frame {_short(link.frame)}) mimic',
+                          f"field 'joint' names {link.motion[2]!r}, which no row reads; "
+                          f'joints: {_listing(chain.joint_names)}')
         velocity = {}
         for p in parsed:
             velocity.update(p['velocity'])
         moving = [False] + [p['type'] != 'fixed' for p in parsed] + ([False] if tool else [])
+        moving += [body[link.frame] != body[link.tf_parent] for link in links]
         return RobotModel(
-            name=name, source=self.source, fixed_frame=fixed_frame, frame_names=tuple(frames),
-            parent_frames=tuple([fixed_frame] + frames[:-1]), moving=tuple(moving),
-            chain=chain,
-            max_velocity=np.array([velocity.get(n, math.inf) for n in chain.joint_names]))
+            name=name, source=self.source, fixed_frame=fixed_frame,
+            frame_names=tuple(frames + [link.frame for link in links]),
+            parent_frames=tuple([fixed_frame] + frames[:-1] + [link.tf_parent for link in links]),
+            moving=tuple(moving), chain=chain,
+            max_velocity=np.array([velocity.get(n, math.inf) for n in chain.joint_names]),
+            links=tuple(links), end_effector=end_effector)
+
+    def link(self, row, k, seen):
+        """One entry of ``links``: a frame fixed to an earlier frame (``seen``: name -> place)."""
+        where = f'links[{k}]'
+        if isinstance(row, dict) and isinstance(row.get('frame'), str):
+            where = f"links[{k}] (frame {_short(row['frame'])})"
+        row = self.mapping(row, where, LINK_FIELDS, required=('frame', 'parent'))
+        frame, offset = self.transform({f: v for f, v in row.items() if f in TRANSFORM_FIELDS},
+                                       where)
+        if frame in seen:
+            self.fail(where, f'frame {frame!r} is already used by {seen[frame]}; frame names '
+                      f'must be unique')
+        parents = {}
+        for field in ('parent', 'tf_parent'):
+            parents[field] = self.frame(row.get(field, row['parent']), where, field)
+            if parents[field] not in seen:
+                self.fail(where, f'field {field!r} names {parents[field]!r}, which is not an '
+                          f'earlier frame; frames so far: {_listing(seen)}')
+        kind = self.choice(row.get('type', 'fixed'), where, 'type', LINK_TYPES)
+        if kind == 'fixed':
+            for field in ('axis', 'mimic'):
+                if field in row:
+                    self.fail(where, f'field {field!r} applies only to a link of type revolute '
+                              f'or prismatic')
+            return LinkFrame(frame, parents['parent'], offset, parents['tf_parent'])
+        if 'mimic' not in row:
+            self.fail(where, f"missing field 'mimic' (a {kind} link moves with a chain joint: "
+                      f'{{joint, multiplier, offset}})')
+        axis = np.array(self.vector(row.get('axis', [0, 0, 1]), where, 'axis', 3))
+        if not np.linalg.norm(axis) > 1e-9:
+            self.fail(where, "field 'axis' must not be all zeros")
+        mimic = self.mapping(row['mimic'], where + ' mimic', MIMIC_FIELDS, required=('joint',))
+        joint = self.name(mimic['joint'], where + ' mimic', 'joint', JOINT_NAME, 'a joint name')
+        multiplier = self.number(mimic.get('multiplier', 1.0), where + ' mimic', 'multiplier')
+        value_offset = self.number(mimic.get('offset', 0.0), where + ' mimic', 'offset',
+                                   self.length if kind == 'prismatic' else self.angle)
+        return LinkFrame(frame, parents['parent'], offset, parents['tf_parent'],
+                         (kind, tuple((axis / np.linalg.norm(axis)).tolist()), joint,
+                          multiplier, value_offset))
 
     def transform(self, value, where):
         value = self.mapping(value, where, TRANSFORM_FIELDS, required=('frame',))
@@ -434,6 +702,13 @@ def _describe(value):
         except ValueError:  # beyond Python's int-to-text limit
             return f'an integer of about {int(value.bit_length() * 0.30103)} digits'
     return f'{_short(value)} ({type(value).__name__})'
+
+
+def _listing(names, at_most=20):
+    """Join names for an error message: at most ``at_most`` of them, then how many more."""
+    names = list(names)
+    text = ', '.join(names[:at_most])
+    return text + (f' ... ({len(names) - at_most} more)' if len(names) > at_most else '')
 
 
 def _short(value):

@@ -70,7 +70,8 @@ class UrdfJoint:
     ``origin`` is the joint frame in the parent link (a :class:`DualQuaternion`); ``kind``
     is ``fixed``, ``revolute``, ``continuous`` or ``prismatic``; ``variable`` names the
     joint value that moves it (the followed joint for a mimic joint); ``limits`` is
-    ``(lower, upper, velocity, effort)`` or None; ``mimic`` is ``(joint, multiplier)``.
+    ``(lower, upper, velocity, effort)`` or None; ``mimic`` is ``(joint, multiplier)`` or
+    ``(joint, multiplier, offset)``.
     ``anchor`` is the index (in ``model.frame_names``) of the DH frame a helper link
     belongs to, or None when ``child`` is itself a published frame.
     """
@@ -153,9 +154,23 @@ def urdf_joints(model):
             link, origin = target, DualQuaternion.identity()
         if has_post:
             joints.append(UrdfJoint(f'{child}_dh_x', 'fixed', link, child, post))
+    n_chain = model.n_chain_frames
     if chain.tool is not None:
-        joints.append(UrdfJoint(f'{model.frame_names[-1]}_fixed', 'fixed',
-                                model.frame_names[-2], model.frame_names[-1], chain.tool))
+        joints.append(UrdfJoint(f'{model.frame_names[n_chain - 1]}_fixed', 'fixed',
+                                model.frame_names[n_chain - 2], model.frame_names[n_chain - 1],
+                                chain.tool))
+    for link in model.links:  # fixed to the frame they are attached to, or its mimic
+        if link.motion is None:
+            joints.append(UrdfJoint(f'{link.frame}_fixed', 'fixed', link.parent, link.frame,
+                                    link.offset))
+            continue
+        kind, axis, variable, multiplier, offset = link.motion
+        limits = None
+        if kind == 'prismatic':
+            limits = (-NO_LIMIT_STROKE_M, NO_LIMIT_STROKE_M, NO_LIMIT_SPEED, NO_LIMIT_SPEED)
+        joints.append(UrdfJoint(f'{link.frame}_joint', 'continuous' if kind == 'revolute'
+                                else kind, link.parent, link.frame, link.offset, axis, limits,
+                                (variable, multiplier, offset), variable))
     return joints
 
 
@@ -172,7 +187,8 @@ def link_poses(model, q, joints=None):
     for j in joints:
         pose = poses[j.parent] * j.origin
         if j.kind != 'fixed':
-            amount = value[j.variable] * (j.mimic[1] if j.mimic else 1.0)
+            amount = value[j.variable] * (j.mimic[1] if j.mimic else 1.0) + \
+                (j.mimic[2] if j.mimic and len(j.mimic) > 2 else 0.0)
             if j.kind == 'prismatic':
                 pose = pose * DualQuaternion.from_translation(np.multiply(j.axis, amount))
             else:
@@ -241,8 +257,9 @@ def robot_to_urdf(model):
             out.append(f'    <limit lower="{_num(lower)}" upper="{_num(upper)}" '
                        f'effort="{_num(effort)}" velocity="{_num(velocity)}"/>')
         if j.mimic is not None:
+            offset = j.mimic[2] if len(j.mimic) > 2 else 0.0
             out.append(f'    <mimic joint={quoteattr(j.mimic[0])} '
-                       f'multiplier="{_num(j.mimic[1])}" offset="0"/>')
+                       f'multiplier="{_num(j.mimic[1])}" offset="{_num(offset)}"/>')
         out.append('  </joint>')
         lines.append('\n'.join(out))
         segment = _segment(j.origin)

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import math
 
 from dq_fk_ros.kinematics.dual_quaternion import (
-    canonical, dq_multiply_array, dq_translation_array, DualQuaternion, pose_xyzw_from_coeffs,
-    quat_conjugate, quat_to_matrix)
+    canonical, dq_multiply_array, dq_multiply_coeffs, dq_translation_array, DualQuaternion,
+    pose_xyzw_from_coeffs, quat_conjugate, quat_to_matrix)
 import numpy as np
 
 CONVENTIONS = ('standard', 'modified')
@@ -89,22 +89,6 @@ def _row_modified(ca, sa, a, theta, d):
     return (ca * ct, sa * ct, -sa * st, ca * st,
             -hd * ca * st - ha * sa * ct, -hd * sa * st + ha * ca * ct,
             -hd * sa * ct - ha * ca * st, hd * ca * ct - ha * sa * st)
-
-
-def _mul(a, b):
-    """[Zivkovic2023] eq. (12) on two 8-tuples (floats, or equal-length arrays each)."""
-    aw, ax, ay, az, bw_, bx_, by_, bz_ = a
-    cw, cx, cy, cz, dw, dx, dy, dz = b
-    return (
-        aw * cw - ax * cx - ay * cy - az * cz,
-        aw * cx + ax * cw + ay * cz - az * cy,
-        aw * cy - ax * cz + ay * cw + az * cx,
-        aw * cz + ax * cy - ay * cx + az * cw,
-        aw * dw - ax * dx - ay * dy - az * dz + bw_ * cw - bx_ * cx - by_ * cy - bz_ * cz,
-        aw * dx + ax * dw + ay * dz - az * dy + bw_ * cx + bx_ * cw + by_ * cz - bz_ * cy,
-        aw * dy - ax * dz + ay * dw + az * dx + bw_ * cy - bx_ * cz + by_ * cw + bz_ * cx,
-        aw * dz + ax * dy - ay * dx + az * dw + bw_ * cz + bx_ * cy - by_ * cx + bz_ * cw,
-    )
 
 
 # The sparse factorisation of a DH row ([Zivkovic2023] eqs. (13)-(15)): the z factor
@@ -297,8 +281,17 @@ class KinematicChain:
         q = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
         frames = _run_program(self._program, self._base_t, q, math.cos, math.sin)
         if self._tool_t is not None:
-            frames.append(_mul(frames[-1], self._tool_t))
+            frames.append(dq_multiply_coeffs(frames[-1], self._tool_t))
         return frames
+
+    def frame_coeffs(self, q):
+        """Frames 0..n (and the tool) as 8-tuples of plain floats, not made ``w >= 0``."""
+        return self._absolute_tuples(q)
+
+    def row_poses(self, q):
+        """Every row's transform frame i-1 -> frame i as ``(x, y, z, qx, qy, qz, qw)``."""
+        qs = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
+        return [pose_xyzw_from_coeffs(h) for h in self._relative_tuples(qs)]
 
     def frame_poses(self, q):
         """
@@ -308,9 +301,7 @@ class KinematicChain:
         :meth:`forward_all`), and every row's transform frame i-1 -> frame i.
         """
         absolute = [pose_xyzw_from_coeffs(h) for h in self._absolute_tuples(q)]
-        qs = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
-        relative = [pose_xyzw_from_coeffs(h) for h in self._relative_tuples(qs)]
-        return absolute, relative
+        return absolute, self.row_poses(q)
 
     def relative_all(self, q):
         """Relative transform of every row, frame i-1 -> frame i, as an ``(n, 8)`` array."""
@@ -373,7 +364,7 @@ class KinematicChain:
             cols = np.ascontiguousarray(q[part].T)
             frames = _run_program(self._program, self._base_t, cols, np.cos, np.sin)
             if self._tool_t is not None:
-                frames.append(_mul(frames[-1], self._tool_t))
+                frames.append(dq_multiply_coeffs(frames[-1], self._tool_t))
             yield part, frames
 
     def forward_all_batch(self, q):

@@ -162,6 +162,28 @@ def pose_xyzw_from_coeffs(h):
             x, y, z, w)
 
 
+def dq_multiply_coeffs(a, b):
+    """[Zivkovic2023] eq. (12) on two 8-tuples (floats, or equal-length arrays each)."""
+    aw, ax, ay, az, bw_, bx_, by_, bz_ = a
+    cw, cx, cy, cz, dw, dx, dy, dz = b
+    return (
+        aw * cw - ax * cx - ay * cy - az * cz,
+        aw * cx + ax * cw + ay * cz - az * cy,
+        aw * cy - ax * cz + ay * cw + az * cx,
+        aw * cz + ax * cy - ay * cx + az * cw,
+        aw * dw - ax * dx - ay * dy - az * dz + bw_ * cw - bx_ * cx - by_ * cy - bz_ * cz,
+        aw * dx + ax * dw + ay * dz - az * dy + bw_ * cx + bx_ * cw + by_ * cz - bz_ * cy,
+        aw * dy - ax * dz + ay * dw + az * dx + bw_ * cy - bx_ * cz + by_ * cw + bz_ * cx,
+        aw * dz + ax * dy - ay * dx + az * dw + bw_ * cz + bx_ * cy - by_ * cx + bz_ * cw,
+    )
+
+
+def dq_inverse_coeffs(h):
+    """Inverse of a unit dual quaternion given as 8 plain floats: both parts conjugated."""
+    w, x, y, z, dw, dx, dy, dz = h
+    return (w, -x, -y, -z, dw, -dx, -dy, -dz)
+
+
 def dq_normalize_array(h):
     """
     Project ``(..., 8)`` arrays onto unit dual quaternions.

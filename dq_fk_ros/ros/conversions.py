@@ -2,7 +2,7 @@
 The one place where kinematics become ROS messages, and ROS messages become numbers.
 
 Poses arrive as tuples ``(x, y, z, qx, qy, qz, qw)`` (metres, the ROS quaternion order,
-``qw >= 0``) from :meth:`dq_fk_ros.kinematics.dh.KinematicChain.frame_poses`.
+``qw >= 0``) from :meth:`dq_fk_ros.description.robot_model.RobotModel.frame_poses`.
 :class:`FrameMessages` builds the messages of one robot once as message objects;
 :class:`FrameBytes` writes the same messages already serialized (CDR, the bytes
 ``rclpy.serialization.serialize_message`` gives), filled in place for every update, for
@@ -68,26 +68,26 @@ class FrameMessages:
         self.prefix = frame_prefix
         fixed = model.fixed_frame
         self.frame_ids = [frame_prefix + name for name in model.frame_names]
-        parent_ids = [fixed] + self.frame_ids[:-1]
-        # frame k (k >= 1) is the child of DH row k - 1; frame 0 and the tool are static
-        n_rows = len(model.chain.joints)
-        self.moving_rows = [k - 1 for k in range(1, n_rows + 1) if model.moving[k]]
+        self._parent_ids = [p if p == fixed else frame_prefix + p for p in model.parent_frames]
+        # moving TF transforms: DH rows and links on other bodies than their TF parents
+        self.moving_edges = model.moving_edges
         self.helpers = HelperFrames(model)
         self.tf = TFMessage(transforms=[
-            _transform_stamped(parent_ids[row + 1], self.frame_ids[row + 1])
-            for row in self.moving_rows] + [
+            _transform_stamped(self._parent_ids[k], self.frame_ids[k])
+            for k, _ in self.moving_edges] + [
             _transform_stamped(self.frame_ids[anchor], frame_prefix + name)
             for name, anchor in self.helpers.moving])
-        self._helper_transforms = self.tf.transforms[len(self.moving_rows):]
+        self._helper_transforms = self.tf.transforms[len(self.moving_edges):]
         self.poses = []
         for _ in self.frame_ids:
             msg = PoseStamped()
             msg.header.frame_id = fixed
             self.poses.append(msg)
-        self._static_rows = [k - 1 for k in range(1, n_rows + 1) if not model.moving[k]]
-        self._parent_ids = parent_ids
-        # end effector and, if there is one, the tool: their twists
-        self.twist_frames = list(range(len(self.frame_ids)))[-1 - (model.chain.tool is not None):]
+        # the chain's end and, if there is one, the tool; and the end effector if a link
+        n_chain = model.n_chain_frames
+        self.twist_frames = list(range(n_chain))[-1 - (model.chain.tool is not None):]
+        if model.end_effector_index >= n_chain:
+            self.twist_frames.append(model.end_effector_index)
         self.twists = []
         for _ in self.twist_frames:
             msg = TwistStamped()
@@ -96,9 +96,9 @@ class FrameMessages:
 
     def fill(self, stamp, absolute, relative, q=None):
         """Refill /tf and pose messages for one update at joints ``q``; ``(tf, poses)``."""
-        for transform, row in zip(self.tf.transforms, self.moving_rows):
+        for transform, (_, k) in zip(self.tf.transforms, self.moving_edges):
             transform.header.stamp = stamp
-            set_transform(transform.transform, relative[row])
+            set_transform(transform.transform, relative[k])
         if self._helper_transforms:
             for transform, pose in zip(self._helper_transforms, self.helpers.moving_poses(q)):
                 transform.header.stamp = stamp
@@ -118,18 +118,9 @@ class FrameMessages:
         return self.twists
 
     def static_tf(self, stamp):
-        """Return one TFMessage with every static transform: base, fixed rows, tool."""
-        model = self.model
-        chain = model.chain
-        _, relative = chain.frame_poses([0.0] * chain.dof)
-        transforms = [_transform_stamped(self._parent_ids[0], self.frame_ids[0], stamp,
-                                         chain.base.to_pose_xyzw())]
-        for row in self._static_rows:
-            transforms.append(_transform_stamped(self._parent_ids[row + 1],
-                                                 self.frame_ids[row + 1], stamp, relative[row]))
-        if chain.tool is not None:
-            transforms.append(_transform_stamped(self._parent_ids[-1], self.frame_ids[-1],
-                                                 stamp, chain.tool.to_pose_xyzw()))
+        """Return one TFMessage with every static transform: base, fixed rows, tool, links."""
+        transforms = [_transform_stamped(self._parent_ids[k], self.frame_ids[k], stamp, pose)
+                      for k, pose in self.model.static_transforms()]
         for name, anchor, offset in self.helpers.static:
             transforms.append(_transform_stamped(self.frame_ids[anchor], self.prefix + name, stamp,
                                                  offset.to_pose_xyzw()))
@@ -160,7 +151,7 @@ class FrameBytes:
         """Lay out the messages of a :class:`FrameMessages` (same robot, same prefix)."""
         model = messages.model
         self.helpers = messages.helpers
-        self.moving_rows = messages.moving_rows
+        self.moving_edges = messages.moving_edges
         edges = [(t.header.frame_id, t.child_frame_id) for t in messages.tf.transforms]
         tf = tf_message_template(edges)
         self.templates = {'tf': tf}  # their layouts (padding offsets), for the tests
@@ -177,7 +168,7 @@ class FrameBytes:
     def tf(self, sec, nanosec, relative, q=None):
         """Return the serialized /tf message: every moving row's (and helper's) transform."""
         buf = self._tf
-        poses = [relative[row] for row in self.moving_rows]
+        poses = [relative[k] for _, k in self.moving_edges]
         if self.helpers.moving:
             poses += self.helpers.moving_poses(q)
         for (stamp_at, floats_at), pose in zip(self._tf_fields, poses):

@@ -81,7 +81,7 @@ def main(argv=None):
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     watcher = PoseWatcher(node, model)
-    ee = model.frame_names[-1]
+    ee = model.end_effector or model.frame_names[-1]
     rc = 0
     try:
         deadline = time.monotonic() + args.timeout

@@ -363,8 +363,8 @@ class DqFkNode(Node):
 
     def _publish(self, stamp_ns, q, qdot):
         """Publish /tf and the read pose and twist topics, serialized, stamped ``stamp_ns``."""
-        chain = self._model.chain
-        absolute, relative = chain.frame_poses(q)
+        model = self._model
+        absolute, relative = model.frame_poses(q)
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self._bytes
         if self._publish_tf:
@@ -374,8 +374,8 @@ class DqFkNode(Node):
                 if read:
                     pub.publish(out.pose(sec, nanosec, pose))
         if self._publish_twist and qdot is not None and any(self._twist_read):
-            v, w = chain.twist(q, qdot)
-            p_end = np.array(absolute[-1][:3])
+            v, w = model.chain.twist(q, qdot)
+            p_end = np.array(absolute[model.n_chain_frames - 1][:3])
             for pub, read, k in zip(self._twist_pubs, self._twist_read,
                                     self._messages.twist_frames):
                 if read:

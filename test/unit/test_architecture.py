@@ -18,7 +18,7 @@ LAYERS = ('kinematics', 'description', 'messages', 'bag', 'ros', 'cli')
 # what each layer may import from outside the standard library and the package
 THIRD_PARTY = {
     'kinematics': {'numpy'},
-    'description': {'numpy', 'yaml', 'ament_index_python', 'matplotlib'},
+    'description': {'numpy', 'yaml', 'ament_index_python', 'matplotlib', 'xacro'},
     'messages': {'numpy'},
     'bag': {'numpy', 'rosbags', 'mcap'},
     'ros': {'numpy', 'rclpy', 'builtin_interfaces', 'diagnostic_msgs', 'geometry_msgs',

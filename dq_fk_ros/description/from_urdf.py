@@ -1,0 +1,627 @@
+"""
+A DH robot description from a URDF: ``dq_fk from-urdf`` and the node's URDF input.
+
+Plain Python (xml.etree, numpy; ``xacro`` from PyPI for ``.xacro`` files), no ROS.
+
+The serial chain from ``base`` to ``tip`` is read at zero joint values: every moving joint
+is a line in space (its axis through its origin). The DH frames are built on those lines
+by their common normals ([Radavelli2014] Sec. 2, Spong's or Craig's rules):
+
+* skew axes: the unique common normal; ``x`` points from one axis to the next;
+* intersecting axes: ``x = z_prev x z_next`` through the intersection (``a = 0``);
+* parallel axes: the normal through the previous frame's origin (``d = 0``);
+* coincident axes: ``x`` kept from the previous frame (``a = alpha = 0``);
+* frame 0 sits on the first axis where it passes closest to the base link's origin, with
+  ``theta_1 = 0``; the last frame keeps the previous one's axes (``a_n = alpha_n = 0``).
+
+``z`` always points along the URDF axis, so every row has ``scale: 1``; a row's zero value
+(``theta`` or ``d``) is its offset at the URDF's zero. The base transform places frame 0 in
+the base link; every URDF link of the chain, and every link fixed to it, becomes a
+``links`` entry (its pose in the DH frame it moves with, published under its URDF parent),
+so TF carries the URDF's own tree. A moving side branch whose joint is a mimic of a chain
+joint is a moving link; other moving side branches are skipped and named.
+"""
+
+from dataclasses import dataclass
+import json
+import math
+import os
+import xml.etree.ElementTree as ElementTree
+
+from dq_fk_ros.description.robot_model import (
+    FRAME_ID, JOINT_NAME, MAX_FILE_BYTES, MAX_NAME_CHARS, MAX_ROWS, parse_robot_description,
+    RobotDescriptionError, rpy_matrix)
+from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
+import numpy as np
+
+MOVING = ('revolute', 'continuous', 'prismatic')
+PARALLEL_TOL = 1e-9         # |sin| of the angle between two axes below which they are parallel
+LENGTH_TOL_M = 1e-9         # distances below which two points (or lines) meet
+
+
+@dataclass(frozen=True)
+class UrdfJointSpec:
+    """One ``<joint>`` of a URDF: origin as a 4x4 matrix, axis a unit 3-vector."""
+
+    name: str
+    kind: str
+    parent: str
+    child: str
+    origin: np.ndarray
+    axis: np.ndarray
+    lower: float = None
+    upper: float = None
+    velocity: float = None
+    mimic: tuple = None          # (joint, multiplier, offset)
+
+
+@dataclass(frozen=True)
+class UrdfTree:
+    """The links and joints of a URDF: ``joints`` by child link, ``children`` by parent."""
+
+    name: str
+    source: str
+    links: tuple
+    joints: dict
+    children: dict
+
+    @property
+    def roots(self):
+        """Links that are no joint's child."""
+        return [link for link in self.links if link not in self.joints]
+
+
+def read_urdf_text(path):
+    """Return the URDF XML of a ``.urdf`` file, or of a ``.xacro`` file expanded by xacro."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise RobotDescriptionError(f'{path}: no such file' if not os.path.exists(path) else
+                                    f'{path}: not a file')
+    if os.path.getsize(path) > 8 * MAX_FILE_BYTES:
+        raise RobotDescriptionError(f'{path}: larger than {8 * MAX_FILE_BYTES // 1024} KiB; a '
+                                    f'URDF is at most that big')
+    if path.endswith('.xacro'):
+        try:
+            import xacro
+        except ImportError:
+            raise RobotDescriptionError(f'{path}: a .xacro file needs the xacro package '
+                                        f'(pip install xacro)') from None
+        try:
+            return xacro.process_file(path).toxml()
+        except Exception as exc:  # xacro raises many kinds; one line for the user
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else \
+                type(exc).__name__
+            raise RobotDescriptionError(f'{path}: xacro failed: {first}') from None
+    try:
+        with open(path, encoding='utf-8') as stream:
+            return stream.read()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RobotDescriptionError(f'{path}: cannot be read ({exc})') from None
+
+
+def parse_urdf(text, source='<string>'):
+    """Parse URDF XML into a :class:`UrdfTree`; any problem is one RobotDescriptionError."""
+    if len(text) > 8 * MAX_FILE_BYTES:
+        raise RobotDescriptionError(f'{source}: larger than {8 * MAX_FILE_BYTES // 1024} KiB; '
+                                    f'a URDF is at most that big')
+    if '<!ENTITY' in text:
+        raise RobotDescriptionError(f'{source}: XML entity declarations are not accepted in a '
+                                    f'URDF')
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as exc:
+        raise RobotDescriptionError(f'{source}: not valid XML: {exc}') from None
+    if root.tag != 'robot':
+        raise RobotDescriptionError(f'{source}: the root element is <{root.tag[:40]}>, not '
+                                    f'<robot>; is this a URDF?')
+    name = root.get('name', '') or 'robot'
+    links = []
+    for element in root.findall('link'):
+        link = element.get('name')
+        if not link:
+            raise RobotDescriptionError(f'{source}: a <link> without a name')
+        if link in links:
+            raise RobotDescriptionError(f'{source}: link {link!r} is defined twice')
+        links.append(link)
+    if not links:
+        raise RobotDescriptionError(f'{source}: no <link> elements')
+    joints, children, names = {}, {}, set()
+    for element in root.findall('joint'):
+        joint = _joint(element, source, set(links))
+        if joint.name in names:
+            raise RobotDescriptionError(f'{source}: joint {joint.name!r} is defined twice')
+        names.add(joint.name)
+        if joint.child in joints:
+            raise RobotDescriptionError(
+                f'{source}: link {joint.child!r} is the child of two joints '
+                f'({joints[joint.child].name!r} and {joint.name!r}); a URDF is a tree')
+        joints[joint.child] = joint
+        children.setdefault(joint.parent, []).append(joint)
+    tree = UrdfTree(name, source, tuple(links), joints, children)
+    if not tree.roots:
+        raise RobotDescriptionError(f'{source}: every link has a parent joint: the joints '
+                                    f'form a cycle')
+    for link in links:  # a cycle below a root: walking up never ends at a root
+        seen, at = set(), link
+        while at in joints:
+            if at in seen:
+                raise RobotDescriptionError(f'{source}: the joints form a cycle through link '
+                                            f'{at!r}')
+            seen.add(at)
+            at = joints[at].parent
+    return tree
+
+
+def _joint(element, source, links):
+    name = element.get('name') or ''
+    kind = element.get('type') or ''
+    where = f'{source}: joint {name!r}'
+    if not name:
+        raise RobotDescriptionError(f'{source}: a <joint> without a name')
+    if kind not in MOVING + ('fixed', 'floating', 'planar'):
+        raise RobotDescriptionError(f'{where}: type {kind!r}; allowed: revolute, continuous, '
+                                    f'prismatic, fixed, floating, planar')
+    ends = {}
+    for tag in ('parent', 'child'):
+        node = element.find(tag)
+        link = node.get('link') if node is not None else None
+        if not link:
+            raise RobotDescriptionError(f'{where}: no <{tag} link="...">')
+        if link not in links:
+            raise RobotDescriptionError(f'{where}: {tag} link {link!r} is not defined (no '
+                                        f'<link name="{link[:60]}">)')
+        ends[tag] = link
+    origin = np.eye(4)
+    node = element.find('origin')
+    if node is not None:
+        xyz = _numbers(node.get('xyz', '0 0 0'), 3, f'{where}: origin xyz')
+        rpy = _numbers(node.get('rpy', '0 0 0'), 3, f'{where}: origin rpy')
+        origin[:3, :3] = rpy_matrix(*rpy)
+        origin[:3, 3] = xyz
+    axis = np.array([1.0, 0.0, 0.0])  # URDF's default axis
+    node = element.find('axis')
+    if node is not None:
+        axis = np.array(_numbers(node.get('xyz', '1 0 0'), 3, f'{where}: axis xyz'))
+    if kind in MOVING:
+        norm = np.linalg.norm(axis)
+        if not norm > 1e-12:
+            raise RobotDescriptionError(f'{where}: axis xyz is all zeros')
+        axis = axis / norm
+    lower = upper = velocity = None
+    node = element.find('limit')
+    if node is not None and kind in ('revolute', 'prismatic'):
+        lower = _numbers(node.get('lower', '0'), 1, f'{where}: limit lower')[0]
+        upper = _numbers(node.get('upper', '0'), 1, f'{where}: limit upper')[0]
+        if lower > upper:
+            raise RobotDescriptionError(f'{where}: limit lower {lower:g} is above upper '
+                                        f'{upper:g}')
+    if node is not None and node.get('velocity') is not None and kind in MOVING:
+        velocity = _numbers(node.get('velocity'), 1, f'{where}: limit velocity')[0]
+    mimic = None
+    node = element.find('mimic')
+    if node is not None and kind in MOVING:
+        followed = node.get('joint')
+        if not followed:
+            raise RobotDescriptionError(f'{where}: <mimic> without a joint')
+        mimic = (followed,
+                 _numbers(node.get('multiplier', '1'), 1, f'{where}: mimic multiplier')[0],
+                 _numbers(node.get('offset', '0'), 1, f'{where}: mimic offset')[0])
+    return UrdfJointSpec(name, kind, ends['parent'], ends['child'], origin, axis, lower, upper,
+                         velocity, mimic)
+
+
+def _numbers(text, size, where):
+    try:
+        values = [float(v) for v in text.split()]
+    except ValueError:
+        raise RobotDescriptionError(f'{where}: {text[:60]!r} is not {size} numbers') from None
+    if len(values) != size or not all(math.isfinite(v) for v in values):
+        raise RobotDescriptionError(f'{where}: {text[:60]!r} is not {size} finite numbers')
+    return values
+
+
+# -- the chain ---------------------------------------------------------------------------
+def chain_joints(tree, base=None, tip=None):
+    """
+    Return ``(base, tip, joints)``: the joints from ``base`` down to ``tip``.
+
+    Defaults: ``base`` is the root link; ``tip`` the child link of the last moving joint on
+    the longest chains below ``base`` (mimic joints not counted; links fixed below it are
+    published anyway). Chains that end in different joints: an error that lists them.
+    """
+    source = tree.source
+    for name, value in (('--base', base), ('--tip', tip)):
+        if value is not None and value not in tree.links:
+            raise RobotDescriptionError(f'{source}: {name} {value!r} is not a link of the URDF; '
+                                        f'links: {_listing(tree.links)}')
+    if base is None:
+        roots = tree.roots
+        if len(roots) > 1:
+            raise RobotDescriptionError(f'{source}: several root links ({_listing(roots)}); '
+                                        f'choose one with --base')
+        base = roots[0]
+    if tip is None:
+        tip = _default_tip(tree, base)
+    joints, at = [], tip
+    while at != base:
+        if at not in tree.joints:
+            raise RobotDescriptionError(f'{source}: --tip {tip!r} is not below --base {base!r}')
+        joints.append(tree.joints[at])
+        at = tree.joints[at].parent
+    joints.reverse()
+    for joint in joints:
+        if joint.kind in ('floating', 'planar'):
+            raise RobotDescriptionError(f'{source}: joint {joint.name!r} on the chain is '
+                                        f'{joint.kind}; a DH chain takes revolute, continuous, '
+                                        f'prismatic and fixed joints')
+    if not any(j.kind in MOVING for j in joints):
+        raise RobotDescriptionError(f'{source}: no moving joint between {base!r} and {tip!r}; '
+                                    f'a DH chain needs at least one')
+    return base, tip, joints
+
+
+def _default_tip(tree, base):
+    """Return the child link of the last moving joint of the longest chain(s) below ``base``."""
+    best, tips = -1, set()
+    stack = [(base, 0, None)]
+    while stack:
+        link, count, last = stack.pop()
+        below = [j for j in tree.children.get(link, []) if j.kind not in ('floating', 'planar')]
+        if not below:
+            if count > best:
+                best, tips = count, {last}
+            elif count == best:
+                tips.add(last)
+            continue
+        for joint in below:
+            counts = joint.kind in MOVING and joint.mimic is None
+            stack.append((joint.child, count + counts, joint.child if counts else last))
+    if len(tips) > 1:
+        raise RobotDescriptionError(
+            f'{tree.source}: {len(tips)} links end chains of {best} moving joints below '
+            f'{base!r}: {_listing(sorted(tips))}; choose one with --tip')
+    tip = tips.pop()
+    if tip is None:
+        raise RobotDescriptionError(f'{tree.source}: no moving joint below {base!r}; a DH '
+                                    f'chain needs at least one')
+    return tip
+
+
+# -- DH frames on the joint axes -----------------------------------------------------------
+def _unit(v):
+    return v / np.linalg.norm(v)
+
+
+def _perpendicular(z):
+    """Return a unit vector perpendicular to ``z`` (x when it can, else y)."""
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    v = helper - np.dot(helper, z) * z
+    return _unit(v)
+
+
+def _common_normal(p1, u1, p2, u2, through, x_before):
+    """
+    Return ``(foot on line 1, foot on line 2, x, kind)`` of the common normal of two lines.
+
+    Parallel lines: the normal through ``through`` (a point on line 1); coincident ones:
+    ``x_before``.
+    """
+    cross = np.cross(u1, u2)
+    sin = np.linalg.norm(cross)
+    w = p1 - p2
+    if sin < PARALLEL_TOL:
+        foot2 = p2 + np.dot(through - p2, u2) * u2
+        gap = foot2 - through
+        if np.linalg.norm(gap) < LENGTH_TOL_M:
+            return through, through, x_before, 'coincident'
+        return through, foot2, _unit(gap), 'parallel'
+    b = np.dot(u1, u2)
+    d, e = np.dot(u1, w), np.dot(u2, w)
+    denominator = 1.0 - b * b
+    s = (b * e - d) / denominator
+    t = (e - b * d) / denominator
+    foot1, foot2 = p1 + s * u1, p2 + t * u2
+    gap = foot2 - foot1
+    if np.linalg.norm(gap) < LENGTH_TOL_M:
+        middle = 0.5 * (foot1 + foot2)
+        return middle, middle, cross / sin, 'intersecting'
+    return foot1, foot2, _unit(gap), 'skew'
+
+
+def _frames_on_axes(lines, convention):
+    """
+    Return the DH frames 0..n as 4x4 matrices (base link coordinates) and each axis' case.
+
+    ``lines``: ``(point, unit direction)`` of the n joint axes at zero.
+    """
+    n = len(lines)
+    p1, u1 = lines[0]
+    reference = p1 + np.dot(-p1, u1) * u1   # on axis 1, closest to the base link's origin
+    normals, kinds = [], ['first']
+    through, x = reference, None
+    for i in range(n - 1):
+        (pa, ua), (pb, ub) = lines[i], lines[i + 1]
+        x_before = x if x is not None else _perpendicular(ua)
+        foot1, foot2, x, kind = _common_normal(pa, ua, pb, ub, through, x_before)
+        normals.append((foot1, foot2, x))
+        kinds.append(kind)
+        through = foot2
+    x_last = normals[-1][2] if normals else _perpendicular(u1)
+
+    def frame(origin, x_axis, z_axis):
+        m = np.eye(4)
+        x_axis = _unit(x_axis - np.dot(x_axis, z_axis) * z_axis)
+        m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x_axis, np.cross(z_axis, x_axis), z_axis, origin
+        return m
+
+    if convention == 'standard':  # frame i (0..n-1): z on axis i+1, x on the normal i/i+1
+        frames = [frame(reference, normals[0][2] if normals else x_last, u1)]
+        for i in range(1, n):
+            frames.append(frame(normals[i - 1][1], normals[i - 1][2], lines[i][1]))
+        frames.append(frames[-1].copy())
+    else:  # modified: frame i (1..n): z on axis i, x on the normal i/i+1; frame 0 = frame 1
+        frames = []
+        for i in range(n - 1):
+            frames.append(frame(normals[i][0], normals[i][2], lines[i][1]))
+        last_origin = normals[-1][1] if normals else reference
+        frames.append(frame(last_origin, x_last, lines[-1][1]))
+        frames.insert(0, frames[0].copy())
+    return frames, kinds
+
+
+def _angle(a, b, about):
+    return math.atan2(float(np.dot(np.cross(a, b), about)), float(np.dot(a, b)))
+
+
+def _dh_row(before, after, convention):
+    """Return ``(theta, d, a, alpha)`` taking DH frame ``before`` to ``after`` (4x4 each)."""
+    x0, z0, o0 = before[:3, 0], before[:3, 2], before[:3, 3]
+    x1, z1, o1 = after[:3, 0], after[:3, 2], after[:3, 3]
+    step = o1 - o0
+    if convention == 'standard':  # Rz(theta) Tz(d) Tx(a) Rx(alpha)
+        return (_angle(x0, x1, z0), float(np.dot(step, z0)), float(np.dot(step, x1)),
+                _angle(z0, z1, x1))
+    # modified: Rx(alpha) Tx(a) Rz(theta) Tz(d)
+    return (_angle(x0, x1, z1), float(np.dot(step, z1)), float(np.dot(step, x0)),
+            _angle(z0, z1, x0))
+
+
+# -- the robot description ---------------------------------------------------------------
+@dataclass(frozen=True)
+class Conversion:
+    """What :func:`urdf_to_description` made: the YAML text and what it left out."""
+
+    text: str
+    base: str
+    tip: str
+    skipped: tuple          # moving side-branch joints not published (one line each)
+
+
+def urdf_to_description(text, source='<string>', base=None, tip=None, convention='standard'):
+    """
+    Convert URDF XML into the YAML text of a DH robot description (see the module doc).
+
+    :param base: the link the chain starts at (default: the root); it is the fixed frame.
+    :param tip: the link the chain ends at (default: the leaf of the longest moving chain).
+    :param convention: ``standard`` (Spong, distal) or ``modified`` (Craig, proximal).
+    :returns: a :class:`Conversion`; raises :class:`RobotDescriptionError` (one line).
+    """
+    if convention not in ('standard', 'modified'):
+        raise RobotDescriptionError(f'convention {convention!r}; allowed: standard, modified')
+    tree = parse_urdf(text, source)
+    base, tip, path = chain_joints(tree, base, tip)
+    for link in [base] + [j.child for j in path]:
+        _check_frame(link, source)
+    moving = [j for j in path if j.kind in MOVING]
+    if len(moving) > MAX_ROWS:
+        raise RobotDescriptionError(f'{source}: {len(moving)} moving joints; a robot '
+                                    f'description has at most {MAX_ROWS} rows')
+    chain_names = {j.name for j in moving}
+    for j in moving:
+        _check_joint(j.name, source)
+        if j.mimic is not None and j.mimic[0] not in chain_names - {j.name}:
+            raise RobotDescriptionError(
+                f'{source}: joint {j.name!r} on the chain mimics {j.mimic[0]!r}, which is not '
+                f'a moving joint of the chain {base!r} -> {tip!r}')
+        if j.mimic is not None and tree_joint(tree, j.mimic[0]).mimic is not None:
+            raise RobotDescriptionError(f'{source}: joint {j.name!r} mimics {j.mimic[0]!r}, '
+                                        f'itself a mimic joint')
+
+    # poses at zero, in the base link, of every link on the chain; the joint axes as lines
+    pose = {base: np.eye(4)}
+    body = {base: 0}
+    lines = []
+    for j in path:
+        frame = pose[j.parent] @ j.origin
+        pose[j.child] = frame
+        if j.kind in MOVING:
+            lines.append((frame[:3, 3], frame[:3, :3] @ j.axis))
+            body[j.child] = len(lines)
+        else:
+            body[j.child] = body[j.parent]
+    frames, kinds = _frames_on_axes(lines, convention)
+    dh_names = _dh_frame_names(len(frames), set(tree.links))
+
+    rows = []
+    for i, j in enumerate(moving):
+        theta, d, a, alpha = _dh_row(frames[i], frames[i + 1], convention)
+        row = {'frame': dh_names[i + 1]}
+        if j.kind == 'prismatic':
+            row['type'] = 'prismatic'
+        if j.mimic is not None:
+            row['mimic'] = {'joint': j.mimic[0], 'multiplier': j.mimic[1],
+                            'offset': j.mimic[2]}
+        else:
+            row['joint'] = j.name
+        row.update(theta=theta, d=d, a=a, alpha=alpha)
+        if j.mimic is None and j.kind != 'continuous' and j.lower is not None:
+            row['limits'] = [j.lower, j.upper]
+        if j.mimic is None and j.velocity is not None and j.velocity > 0:
+            row['max_velocity'] = j.velocity
+        note = (f'URDF joint {j.name} ({j.kind}{", mimic" if j.mimic else ""}): '
+                f'{j.parent} -> {j.child}; axis {kinds[i]}{" to the previous" if i else ""}')
+        rows.append((row, note))
+
+    # every link of the chain and everything fixed to it (or moving with a chain joint)
+    links, skipped = [], []
+    order = [base]
+    path_names = {j.name for j in path}
+    for link in order:
+        for j in tree.children.get(link, []):
+            on_path = j.name in path_names
+            if on_path:
+                pass
+            elif j.kind == 'fixed':
+                pose[j.child] = pose[link] @ j.origin
+                body[j.child] = body[link]
+            elif j.kind in MOVING and j.mimic is not None and j.mimic[0] in chain_names:
+                pose[j.child] = pose[link] @ j.origin
+                body[j.child] = j.name       # a rigid body of its own
+            else:
+                skipped.append(j)
+                continue
+            try:
+                _check_frame(j.child, source)
+            except RobotDescriptionError:
+                if on_path:
+                    raise
+                skipped.append(j)
+                continue
+            order.append(j.child)
+            links.append(_link_entry(j, link, pose, body, frames, dh_names, base, on_path))
+    end_effector = tip
+    text = _yaml(tree, source, base, tip, convention, frames[0], dh_names, rows, links,
+                 skipped, end_effector)
+    parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here
+    return Conversion(text, base, tip, tuple(skipped))
+
+
+def tree_joint(tree, name):
+    """Return the joint called ``name`` (a :class:`UrdfJointSpec`)."""
+    for joint in tree.joints.values():
+        if joint.name == name:
+            return joint
+    raise RobotDescriptionError(f'{tree.source}: no joint {name!r}')
+
+
+def _link_entry(joint, parent_link, pose, body, frames, dh_names, base, on_path):
+    """One ``links`` entry: the child link of ``joint``, in the DH frame it moves with."""
+    child = joint.child
+    entry = {'frame': child}
+    if isinstance(body[child], str):  # on a mimic side branch: posed in its URDF parent
+        entry['parent'] = parent_link
+        offset = joint.origin
+        if joint.kind in MOVING:
+            entry['type'] = 'revolute' if joint.kind != 'prismatic' else 'prismatic'
+            entry['axis'] = joint.axis.tolist()
+            entry['mimic'] = {'joint': joint.mimic[0], 'multiplier': joint.mimic[1],
+                              'offset': joint.mimic[2]}
+    elif body[child] == 0:
+        entry['parent'] = base
+        offset = pose[child]
+    else:
+        k = body[child]
+        entry['parent'] = dh_names[k]
+        offset = np.linalg.solve(frames[k], pose[child])
+    if entry['parent'] != parent_link:
+        entry['tf_parent'] = parent_link
+    entry['xyz'] = offset[:3, 3].tolist()
+    w, x, y, z = quat_from_matrix(offset[:3, :3])
+    entry['quaternion'] = [x, y, z, w]
+    note = (f'URDF link {child}: child of {joint.name} ({joint.kind}'
+            f'{", mimic" if joint.mimic else ""}) on {parent_link}')
+    return entry, note
+
+
+def _dh_frame_names(count, taken):
+    """``dh0``, ``dh1``... (``dh_0``... if the URDF already has such links)."""
+    for pattern in ('dh{}', 'dh_{}', 'dq_fk_dh{}'):
+        names = [pattern.format(k) for k in range(count)]
+        if not taken.intersection(names):
+            return names
+    raise RobotDescriptionError('the URDF uses every DH frame name dq_fk would give')
+
+
+def _check_frame(link, source):
+    if len(link) > MAX_NAME_CHARS or not FRAME_ID.fullmatch(link):
+        raise RobotDescriptionError(
+            f'{source}: link name {link[:70]!r} is not a ROS frame id this package can '
+            f'publish (letters, digits, underscores, inner slashes; at most {MAX_NAME_CHARS})')
+
+
+def _check_joint(name, source):
+    if len(name) > MAX_NAME_CHARS or not JOINT_NAME.fullmatch(name):
+        raise RobotDescriptionError(f'{source}: joint name {name[:70]!r} is not usable (a '
+                                    f'letter or underscore, then letters, digits, _ . / -)')
+
+
+def _listing(names, at_most=20):
+    names = list(names)
+    text = ', '.join(names[:at_most])
+    return text + (f' ... ({len(names) - at_most} more)' if len(names) > at_most else '')
+
+
+def _flow(mapping):
+    """Write a YAML flow mapping of numbers, names and small lists (JSON is valid YAML)."""
+    parts = []
+    for key, value in mapping.items():
+        parts.append(f'{key}: {_value(value)}')
+    return '{' + ', '.join(parts) + '}'
+
+
+def _value(value):
+    if isinstance(value, dict):
+        return _flow(value)
+    if isinstance(value, (list, tuple)):
+        return '[' + ', '.join(_value(v) for v in value) + ']'
+    if isinstance(value, str):
+        return json.dumps(value)
+    value = float(value)
+    value = 0.0 if value == 0.0 else value  # no -0.0
+    return repr(value)
+
+
+def _comment(text):
+    """Make user text a one-line YAML comment (no line breaks, printable only)."""
+    return ''.join(c if c.isprintable() else '?' for c in str(text))[:300]
+
+
+def _yaml(tree, source, base, tip, convention, frame0, dh_names, rows, links, skipped,
+          end_effector):
+    w, x, y, z = quat_from_matrix(frame0[:3, :3])
+    lines = [
+        f'# Converted by `dq_fk from-urdf` from {_comment(source)}: the chain {_comment(base)} '
+        f'-> {_comment(tip)}.',
+        f'# {convention} DH frames on the joint axes by their common normals (docs/'
+        f'robot_description.md, "From a URDF"); the DH frames are published as '
+        f'{dh_names[0]}..{dh_names[-1]}, the URDF links under their URDF parents.',
+    ]
+    for joint in skipped:
+        lines.append(f'# skipped: moving side branch {_comment(joint.name)} ({joint.kind}) -> '
+                     f'{_comment(joint.child)}, not a mimic of a chain joint')
+    lines += [
+        f'robot: {json.dumps(_comment(tree.name)[:128])}',
+        f'convention: {convention}',
+        f'fixed_frame: {base}',
+        '# frame 0 of the DH chain, in the base link',
+        'base: ' + _flow({'frame': dh_names[0], 'xyz': frame0[:3, 3].tolist(),
+                          'quaternion': [x, y, z, w]}),
+        'chain:']
+    for row, note in rows:
+        lines += [f'  # {_comment(note)}', f'  - {_flow(row)}']
+    if links:
+        lines.append('links:')
+        for entry, note in links:
+            lines += [f'  # {_comment(note)}', f'  - {_flow(entry)}']
+    lines.append(f'end_effector: {end_effector}')
+    return '\n'.join(lines) + '\n'
+
+
+def load_urdf_description(path, base=None, tip=None, convention='standard'):
+    """Read a ``.urdf``/``.xacro`` file and convert it: ``(Conversion, urdf text)``."""
+    text = read_urdf_text(path)
+    return urdf_to_description(text, os.fspath(path), base, tip, convention), text
+
+
+__all__ = ['chain_joints', 'Conversion', 'load_urdf_description', 'parse_urdf',
+           'read_urdf_text', 'urdf_to_description', 'UrdfJointSpec', 'UrdfTree']

@@ -1,0 +1,159 @@
+"""
+``from-urdf``: vendor URDFs nobody here wrote, against pinocchio's FK of the same URDF.
+
+The URDFs come from the ``example-robot-data`` wheel (a dev requirement); pinocchio
+(urdfdom's parser) computes every link's pose in the test, sharing no code with the
+package. Every frame the converted robot publishes under a URDF link name must agree.
+"""
+
+import glob
+import os
+import sys
+import sysconfig
+import xml.etree.ElementTree as ElementTree
+
+from dq_fk_ros.description.from_urdf import load_urdf_description, read_urdf_text
+from dq_fk_ros.description.robot_model import parse_robot_description
+from dq_fk_ros.kinematics.dh import homogeneous_from_dq
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import pinocchio_oracle  # noqa: E402, I100 (the test folder's own helper)
+
+SAMPLES = 1000
+TOL = 1e-9
+
+
+def robots_dir():
+    """Return the URDF folder of the example-robot-data wheel; one clear line if it is missing."""
+    pattern = os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share',
+                           'example-robot-data', 'robots')
+    found = glob.glob(pattern)
+    assert found, ('example-robot-data is not installed in this environment: '
+                   'pip install -r requirements/dev.txt (make setup does)')
+    return found[0]
+
+
+# (URDF under example-robot-data/robots, --base, --tip, what it exercises)
+VENDOR_ARMS = [
+    ('ur_description/urdf/ur5_robot.urdf', None, 'tool0', 'Universal Robots: parallel axes'),
+    ('panda_description/urdf/panda.urdf', None, 'panda_leftfinger',
+     'Franka: prismatic finger in the chain, mimic finger as a moving link'),
+    ('kinova_description/robots/kinova.urdf', None, None,
+     'Kinova Jaco 2: continuous joints, default tip, fixed finger links'),
+    ('xarm_description/urdf/xarm7.urdf', None, None, 'UFactory xArm7: 7 axes'),
+    ('z1_description/urdf/z1.urdf', None, 'link06', 'Unitree Z1: gripper joint skipped'),
+    ('so_arm_description/urdf/so100.urdf', None, None, 'SO-100: rotated joint origins'),
+]
+
+
+def mimic_values(urdf_text, values):
+    """Add the value of every URDF mimic joint whose followed joint has one."""
+    full = dict(values)
+    for joint in ElementTree.fromstring(urdf_text).findall('joint'):
+        mimic = joint.find('mimic')
+        if mimic is not None and mimic.get('joint') in values:
+            full[joint.get('name')] = float(mimic.get('multiplier', '1')) * \
+                values[mimic.get('joint')] + float(mimic.get('offset', '0'))
+    return full
+
+
+def random_configurations(model, count, seed):
+    """Joint values within limits (+-pi where a joint has none)."""
+    limits = model.limits.copy()
+    limits[~np.isfinite(limits)] = np.pi * np.sign(limits[~np.isfinite(limits)])
+    rng = np.random.default_rng(seed)
+    return rng.uniform(limits[:, 0], limits[:, 1], size=(count, model.chain.dof))
+
+
+def assert_matches_pinocchio(model, urdf_text, base, samples, seed=0):
+    """Every frame named like a URDF link equals pinocchio's pose of that link (1e-9)."""
+    oracle = pinocchio_oracle.urdf_model(urdf_text, mimic=True)
+    urdf_links = {link.get('name') for link in ElementTree.fromstring(urdf_text).findall('link')}
+    names = [n for n in model.frame_names if n in urdf_links]
+    assert len(names) >= len(model.joint_names), names
+    index = [model.frame_names.index(n) for n in names]
+    qs = random_configurations(model, samples, seed)
+    ours = homogeneous_from_dq(model.forward_all_batch(qs))
+    worst = 0.0
+    for q, frames in zip(qs, ours):
+        values = mimic_values(urdf_text, dict(zip(model.joint_names, q.tolist())))
+        placements = pinocchio_oracle.link_placements(
+            oracle, pinocchio_oracle.configuration(oracle, values), names + [base])
+        in_base = np.linalg.inv(placements[base])
+        for name, k in zip(names, index):
+            worst = max(worst, float(np.abs(frames[k] - in_base @ placements[name]).max()))
+    assert worst < TOL, f'largest difference from pinocchio: {worst:.3g}'
+    return names
+
+
+@pytest.mark.parametrize('convention', ['standard', 'modified'])
+@pytest.mark.parametrize('path, base, tip, what', VENDOR_ARMS,
+                         ids=[os.path.basename(a[0]) for a in VENDOR_ARMS])
+def test_vendor_urdf_matches_pinocchio(path, base, tip, what, convention):
+    conversion, text = load_urdf_description(os.path.join(robots_dir(), path), base, tip,
+                                             convention)
+    model = parse_robot_description(conversion.text)
+    samples = SAMPLES if convention == 'standard' else SAMPLES // 10
+    names = assert_matches_pinocchio(model, text, conversion.base, samples)
+    # every link of the chain is published under its URDF name
+    assert conversion.tip in names and model.end_effector == conversion.tip
+
+
+def test_panda_mimic_finger_moves_with_the_chain_finger():
+    conversion, text = load_urdf_description(
+        os.path.join(robots_dir(), 'panda_description/urdf/panda.urdf'), tip='panda_leftfinger')
+    model = parse_robot_description(conversion.text)
+    assert 'panda_finger_joint1' in model.joint_names
+    assert 'panda_finger_joint2' not in model.joint_names  # a mimic: no variable of its own
+    right = model.frame_names.index('panda_rightfinger')
+    assert model.moving[right] and model.parent_frames[right] == 'panda_hand'
+    q = np.zeros(model.chain.dof)
+    poses = [homogeneous_from_dq(model.forward_all(q + d))[right]
+             for d in (0.0, 0.01 * (np.array(model.joint_names) == 'panda_finger_joint1'))]
+    assert np.linalg.norm(poses[1][:3, 3] - poses[0][:3, 3]) == pytest.approx(0.01)
+
+
+def test_z1_gripper_joint_is_skipped_and_named():
+    conversion, _ = load_urdf_description(
+        os.path.join(robots_dir(), 'z1_description/urdf/z1.urdf'), tip='link06')
+    assert [j.name for j in conversion.skipped] == ['jointGripper']
+    assert '# skipped: moving side branch jointGripper' in conversion.text
+    assert 'gripperMover' not in parse_robot_description(conversion.text).frame_names
+
+
+def test_converted_text_says_where_every_row_came_from():
+    conversion, _ = load_urdf_description(
+        os.path.join(robots_dir(), 'ur_description/urdf/ur5_robot.urdf'), tip='tool0')
+    lines = conversion.text.splitlines()
+    assert lines[0].startswith('# Converted by `dq_fk from-urdf` from ')
+    assert 'ur5_robot.urdf: the chain world -> tool0' in lines[0]
+    rows = [k for k, line in enumerate(lines) if line.startswith('  - {frame: "dh')]
+    assert len(rows) == 6
+    for k in rows:
+        assert lines[k - 1].startswith('  # URDF joint ')
+    assert '# URDF joint shoulder_lift_joint (revolute): shoulder_link -> upper_arm_link; ' \
+        'axis intersecting to the previous' in conversion.text
+    assert 'axis parallel to the previous' in conversion.text  # UR's shoulder, elbow, wrist
+
+
+def test_xacro_is_expanded(tmp_path):
+    xacro_file = tmp_path / 'arm.urdf.xacro'
+    xacro_file.write_text(
+        '<?xml version="1.0"?>\n<robot name="two" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
+        '  <xacro:property name="seg_len" value="0.4"/>\n'
+        '  <xacro:macro name="seg" params="n parent">\n'
+        '    <link name="l${n}"/>\n'
+        '    <joint name="j${n}" type="revolute"><parent link="${parent}"/>'
+        '<child link="l${n}"/><origin xyz="0 0 ${seg_len}"/><axis xyz="0 1 0"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="2"/></joint>\n'
+        '  </xacro:macro>\n  <link name="base"/>\n'
+        '  <xacro:seg n="1" parent="base"/>\n  <xacro:seg n="2" parent="l1"/>\n</robot>\n')
+    conversion, text = load_urdf_description(xacro_file)
+    assert '${' not in text and read_urdf_text(xacro_file) == text
+    model = parse_robot_description(conversion.text)
+    assert model.joint_names == ('j1', 'j2')
+    assert model.max_velocity.tolist() == [2.0, 2.0]
+    assert model.limits.tolist() == [[-1.0, 1.0], [-1.0, 1.0]]
+    assert_matches_pinocchio(model, text, 'base', 200)
