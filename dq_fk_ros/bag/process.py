@@ -13,8 +13,8 @@ import shutil
 from dq_fk_ros.bag.progress import Progress
 from dq_fk_ros.bag.reading import (
     BagError, joint_state_connections, open_reader, printable, Ros1Bag)
-from dq_fk_ros.description.robot_model import load_robot_description
-from dq_fk_ros.description.urdf import HelperFrames, robot_to_urdf
+from dq_fk_ros.description.loading import load_robot
+from dq_fk_ros.description.urdf import description_urdf, HelperFrames
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
 from dq_fk_ros.messages.cdr import (
     JointStateNames, JointStateRun, parse_joint_states, pose_stamped_template,
@@ -69,7 +69,7 @@ class BagOutputs:
             [(parents[k], self.frame_ids[k]) for k, _ in self.static]
             + [(self.frame_ids[k], frame_prefix + name) for name, k, _ in self.helpers.static])
         try:
-            self.urdf = robot_to_urdf(model)
+            self.urdf = description_urdf(model)
         except ValueError:  # a robot URDF cannot express: no /robot_description
             self.urdf = None
         self.description = add('/robot_description', 'std_msgs/msg/String',
@@ -206,8 +206,7 @@ def process_bag(in_path, out_path, robot, topic=None, storage='mcap', overwrite=
     was damaged, or that no message could be used (the output is then removed). Raises
     :class:`BagError` for a command that cannot run (paths, topics, refused outputs).
     """
-    model = robot if not isinstance(robot, (str, os.PathLike)) else \
-        load_robot_description(robot)
+    model = robot if not isinstance(robot, (str, os.PathLike)) else load_robot(robot).model
     if csv_only and not csv_path:
         raise BagError('--csv-only needs --csv FILE')
     check_output_paths(in_path, out_path, csv_path, overwrite, csv_only)

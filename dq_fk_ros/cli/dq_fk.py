@@ -2,7 +2,9 @@
 ``dq_fk``: the robot description on the command line, without any ROS process.
 
 ``dq_fk validate FILE...``, ``dq_fk fk FILE --joints ...``, ``dq_fk urdf FILE``,
-``dq_fk list``. FILE is a path, or the name of a shipped robot (``rl15``, ``puma560``...).
+``dq_fk plot FILE``, ``dq_fk from-urdf ROBOT.urdf -o robot.yaml``, ``dq_fk list``. FILE is a
+DH YAML file, a URDF or xacro file (converted on the way, as ``from-urdf`` does), or the name
+of a shipped robot (``rl15``, ``puma560``...).
 """
 
 import argparse
@@ -11,6 +13,8 @@ import math
 import os
 import sys
 
+from dq_fk_ros.description.from_urdf import load_urdf_description
+from dq_fk_ros.description.loading import load_robot, resolve_robot
 from dq_fk_ros.description.robot_model import (
     load_robot_description, RobotDescriptionError, shipped_robot_path, shipped_robots)
 from dq_fk_ros.description.urdf import matrix_to_rpy, robot_to_urdf
@@ -20,16 +24,6 @@ import numpy as np
 
 class UsageError(Exception):
     """A command-line mistake; the message is one line for the user."""
-
-
-def resolve_robot_file(name):
-    """Return ``name`` if it is a file, else the shipped robot of that name if there is one."""
-    if os.path.exists(name) or os.sep in name or name.endswith('.yaml'):
-        return name
-    try:
-        return shipped_robot_path(name)
-    except FileNotFoundError:
-        return name  # loading it reports "no such file"
 
 
 def parse_joint_values(model, tokens, degrees):
@@ -100,21 +94,24 @@ def frames_table(model, q):
 def cmd_validate(args):
     failed = 0
     for name in args.files:
-        path = resolve_robot_file(name)
+        path = resolve_robot(name)
         try:
-            model = load_robot_description(path)
+            robot = load_robot(path)
         except RobotDescriptionError as exc:
             print(exc, file=sys.stderr)
             failed += 1
             continue
+        model = robot.model
         print(f'{path}: ok ({model.name}, {model.chain.convention} DH, '
               f'{len(model.chain.joints)} rows, {model.chain.dof} joints, '
               f'{len(model.frame_names)} frames)')
+        if robot.conversion is not None:
+            print(f'  {robot.summary()}')
     return 1 if failed else 0
 
 
 def cmd_fk(args):
-    model = load_robot_description(resolve_robot_file(args.file))
+    model = load_robot(args.file).model
     q = parse_joint_values(model, args.joints, args.deg)
     lower, upper = model.limits[:, 0], model.limits[:, 1]
     for n, v, lo, hi in zip(model.joint_names, q, lower, upper):
@@ -161,7 +158,7 @@ def _tidy(value):
 
 
 def cmd_urdf(args):
-    model = load_robot_description(resolve_robot_file(args.file))
+    model = load_robot(args.file).model
     text = robot_to_urdf(model)
     if args.output in (None, '-'):
         sys.stdout.write(text)
@@ -184,7 +181,7 @@ def cmd_plot(args):
     folder = os.path.dirname(os.path.abspath(args.output))
     if not os.path.isdir(folder):
         raise UsageError(f'-o {args.output}: folder {folder} does not exist')
-    model = load_robot_description(resolve_robot_file(args.file))
+    model = load_robot(args.file).model
     q = parse_joint_values(model, args.joints, args.deg)
     try:
         save_robot_plot(model, q, args.output, view)
@@ -192,6 +189,24 @@ def cmd_plot(args):
         raise UsageError('dq_fk plot needs matplotlib (pip install matplotlib; on a ROS '
                          'install: apt install python3-matplotlib)') from None
     print(f'wrote {args.output} ({model.name})', file=sys.stderr)
+    return 0
+
+
+def cmd_from_urdf(args):
+    conversion, _ = load_urdf_description(args.file, args.base, args.tip, args.convention)
+    if args.output in (None, '-'):
+        sys.stdout.write(conversion.text)
+    else:
+        if os.path.isdir(args.output):
+            raise UsageError(f'-o {args.output} is a folder; give a file name')
+        with open(args.output, 'w', encoding='utf-8') as stream:
+            stream.write(conversion.text)
+    for joint in conversion.skipped:
+        print(f'skipped moving side branch {joint.name} ({joint.kind}) -> {joint.child}: not '
+              f'a mimic of a chain joint', file=sys.stderr)
+    where = 'standard output' if args.output in (None, '-') else args.output
+    print(f'wrote {where}: {args.convention} DH chain {conversion.base} -> {conversion.tip} '
+          f'of {args.file}', file=sys.stderr)
     return 0
 
 
@@ -234,6 +249,17 @@ def build_parser():
     p.add_argument('--view', nargs=2, type=float, metavar=('AZIMUTH', 'ELEVATION'),
                    default=None, help='camera direction in degrees (default -60 25)')
     p.set_defaults(func=cmd_plot)
+    p = sub.add_parser('from-urdf', help='write the DH robot description of a URDF chain')
+    p.add_argument('file', metavar='ROBOT.urdf|ROBOT.urdf.xacro')
+    p.add_argument('--base', metavar='LINK', help='first link of the chain (default: the root)')
+    p.add_argument('--tip', metavar='LINK',
+                   help='last link of the chain (default: the child of the last moving joint '
+                        'of the longest chain; links fixed below it are kept anyway)')
+    p.add_argument('--convention', choices=('standard', 'modified'), default='standard',
+                   help='DH convention of the table (default: standard, Spong)')
+    p.add_argument('-o', '--output', metavar='robot.yaml',
+                   help='output file (default: standard output)')
+    p.set_defaults(func=cmd_from_urdf)
     p = sub.add_parser('list', help='list the shipped robots')
     p.set_defaults(func=cmd_list)
     return parser

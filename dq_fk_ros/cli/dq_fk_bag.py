@@ -12,12 +12,11 @@
 
 import argparse
 import math
-import os
 import sys
 
 from dq_fk_ros.bag.process import process_bag
 from dq_fk_ros.bag.reading import BagDamaged, BagError, printable
-from dq_fk_ros.description.robot_model import RobotDescriptionError, shipped_robot_path
+from dq_fk_ros.description.robot_model import RobotDescriptionError
 
 
 def summary_line(path, s):
@@ -43,8 +42,8 @@ def build_parser():
     p.add_argument('in_bag', metavar='IN_BAG')
     p.add_argument('out_bag', metavar='OUT_BAG')
     p.add_argument('--robot', required=True,
-                   help='robot description file or shipped robot name (e.g. rl15, ur5e); '
-                   'required: a bag does not say which robot recorded it')
+                   help='DH robot file, URDF/xacro file or shipped robot name (e.g. rl15, '
+                   'ur5e); required: a bag does not say which robot recorded it')
     p.add_argument('--topic', help='JointState topic (default: the only one in the bag)')
     p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
     p.add_argument('--overwrite', action='store_true', help='replace OUT_BAG if it exists')
@@ -94,10 +93,7 @@ def main(argv=None):
     args = build_parser().parse_args(argv)
     try:
         if args.command == 'process':
-            robot = args.robot
-            if not os.path.exists(robot) and os.sep not in robot:
-                robot = shipped_robot_path(robot)
-            s = process_bag(args.in_bag, args.out_bag, robot, topic=args.topic,
+            s = process_bag(args.in_bag, args.out_bag, args.robot, topic=args.topic,
                             storage=args.storage, overwrite=args.overwrite, csv_path=args.csv,
                             csv_only=args.csv_only, copy_input=args.copy_input,
                             pose_namespace=args.pose_namespace, frame_prefix=args.frame_prefix,

@@ -96,7 +96,8 @@ class RobotModel:
     ``parent_frames[i]`` is the TF parent of ``frame_names[i]`` (frame 0's is
     ``fixed_frame``); ``moving[i]`` says whether that parent -> child transform depends on
     joint values (else it is static). ``end_effector`` names the frame a user means by
-    "the end effector" (default: the last chain frame). Lengths are metres, angles radians.
+    "the end effector" (default: the last chain frame). ``urdf`` is the URDF XML the robot
+    was converted from (None for a DH file). Lengths are metres, angles radians.
     """
 
     name: str
@@ -109,6 +110,7 @@ class RobotModel:
     max_velocity: np.ndarray
     links: tuple = ()
     end_effector: str = ''
+    urdf: str = None
 
     @property
     def joint_names(self):

@@ -278,6 +278,16 @@ def robot_to_urdf(model):
     return '\n'.join(out + lines + ['</robot>']) + '\n'
 
 
+def description_urdf(model):
+    """
+    Return the URDF to publish as ``robot_description`` for ``model``.
+
+    The URDF a robot was converted from (its meshes and names as the vendor wrote them),
+    else :func:`robot_to_urdf`'s (ValueError if a URDF cannot express the robot).
+    """
+    return model.urdf if model.urdf is not None else robot_to_urdf(model)
+
+
 def link_segments(model, q, joints=None):
     """
     Return ``[(start, end), ...]``: the segments the URDF draws, in the fixed frame at ``q``.
@@ -313,5 +323,5 @@ def _segment(origin):
             f'      <material name="dq_fk_grey"/>\n    </visual>')
 
 
-__all__ = ['HelperFrames', 'link_poses', 'link_segments', 'matrix_to_rpy', 'robot_to_urdf',
-           'urdf_joints', 'UrdfJoint']
+__all__ = ['description_urdf', 'HelperFrames', 'link_poses', 'link_segments', 'matrix_to_rpy',
+           'robot_to_urdf', 'urdf_joints', 'UrdfJoint']

@@ -10,8 +10,8 @@ stream, for robustness tests. The motion itself is plain Python (:class:`JointMo
 import math
 import sys
 
-from dq_fk_ros.description.robot_model import (
-    load_robot_description, RobotDescriptionError, shipped_robot_path)
+from dq_fk_ros.description.loading import load_robot
+from dq_fk_ros.description.robot_model import RobotDescriptionError
 from dq_fk_ros.ros.executables import MATCH_SETTLE_S, spin_until_shutdown
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
@@ -100,7 +100,10 @@ class FakeJointPublisher(Node):
             return self.declare_parameter(
                 name, default, ParameterDescriptor(description=description)).value
         path = declare('robot_description_file', '',
-                       'YAML DH robot description; empty: the shipped RL15')
+                       'the robot whose joints to publish: DH YAML, URDF/xacro or a shipped '
+                       'name; empty: rl15')
+        base = declare('urdf_base_link', '', 'for a URDF: first link of the chain')
+        tip = declare('urdf_tip_link', '', 'for a URDF: last link of the chain')
         mode = declare('mode', 'sine', f'one of {", ".join(MODES)}')
         rate_hz = declare('rate_hz', 50.0, 'messages per second')
         positions = declare('positions', [0.0], 'joint positions for fixed mode (rad, m)')
@@ -117,7 +120,7 @@ class FakeJointPublisher(Node):
             raise ValueError(f'fault_fraction must be in [0, 1], got {self._fault_fraction}')
         if not rate_hz > 0.0:
             raise ValueError(f'rate_hz must be positive, got {rate_hz}')
-        model = load_robot_description(path or shipped_robot_path('rl15'))
+        model = load_robot(path or 'rl15', base or None, tip or None).model
         self._names = list(model.joint_names)
         self._motion = JointMotion(mode, model.limits,
                                    fixed=positions if mode == 'fixed' else None,

@@ -12,9 +12,9 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from dq_fk_ros.description.robot_model import (
-    FRAME_ID, load_robot_description, RobotDescriptionError, shipped_robot_path)
-from dq_fk_ros.description.urdf import robot_to_urdf
+from dq_fk_ros.description.loading import load_robot, robot_from_urdf_text
+from dq_fk_ros.description.robot_model import FRAME_ID, RobotDescriptionError
+from dq_fk_ros.description.urdf import description_urdf
 from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
     INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH,
@@ -32,6 +32,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
+# the parameters that say which robot: changing any of them reloads it
+ROBOT_PARAMETERS = ('robot_description_file', 'robot_description', 'urdf_base_link',
+                    'urdf_tip_link')
 RELIABILITY = {'best_effort': ReliabilityPolicy.BEST_EFFORT,
                'reliable': ReliabilityPolicy.RELIABLE}
 WARN_EVERY_S = 5.0
@@ -62,8 +65,12 @@ class DqFkNode(Node):
                             'frame_prefix': self._frame_prefix})
         reliability = get('joint_states_reliability').value
         self._check_choice('joint_states_reliability', reliability, tuple(RELIABILITY))
-        model = load_robot_description(self._description_path(
-            get('robot_description_file').value))
+        self._robot_inputs = {name: get(name).value for name in ROBOT_PARAMETERS}
+        model = self._load_robot(self._robot_inputs)
+        self._publish_frequency = get('publish_frequency').value
+        self._ignore_timestamp = get('ignore_timestamp').value
+        self._check_values({'publish_frequency': self._publish_frequency})
+        self._last_stamp_ns = None
 
         self._tf_pub = self.create_publisher(
             TFMessage, '/tf', QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
@@ -115,8 +122,21 @@ class DqFkNode(Node):
             self.declare_parameter(name, default, ParameterDescriptor(
                 description=description, read_only=read_only))
         declare('robot_description_file', '',
-                'YAML DH robot description; empty: the shipped RL15 (config/rl15.yaml). '
-                'Setting it at run time reloads the robot if the file is valid.')
+                'the robot: a DH YAML file, a URDF or xacro file (converted on load), or a '
+                'shipped robot name (rl15, ur5e...); empty: rl15. Setting it at run time '
+                'reloads the robot if it is valid.')
+        declare('robot_description', '',
+                'URDF XML, as robot_state_publisher takes it; if set, used instead of '
+                'robot_description_file')
+        declare('urdf_base_link', '', 'for a URDF: the link the DH chain starts at (fixed '
+                'frame); empty: the root link')
+        declare('urdf_tip_link', '', 'for a URDF: the link the DH chain ends at; empty: the '
+                'child of the last moving joint of the longest chain')
+        declare('publish_frequency', 0.0,
+                'as robot_state_publisher: at most this many /tf updates per second of '
+                'JointState stamps; 0: every update (robot_state_publisher defaults to 20)')
+        declare('ignore_timestamp', False,
+                'as robot_state_publisher: publish every update whatever publish_frequency says')
         declare('frame_prefix', '', 'prepended to every frame id except the fixed frame')
         declare('publish_tf', True, 'publish /tf and /tf_static')
         declare('publish_poses', True, 'publish ~/pose/<frame> (PoseStamped in the fixed frame)')
@@ -156,15 +176,28 @@ class DqFkNode(Node):
         if not (math.isfinite(rate) and rate >= 0.0):
             raise RobotDescriptionError(f'parameter max_publish_rate_hz must be a finite number '
                                         f'>= 0 (0: publish every update), got {rate}')
+        frequency = new.get('publish_frequency', 0.0)
+        if not (math.isfinite(frequency) and frequency >= 0.0):
+            raise RobotDescriptionError(f'parameter publish_frequency must be a finite number '
+                                        f'>= 0 (0: publish every update), got {frequency}')
         prefix = new.get('frame_prefix', '')
         if prefix and (len(prefix) > 64 or not FRAME_ID.fullmatch(prefix + 'x')):
             raise RobotDescriptionError(
                 f'parameter frame_prefix {prefix[:70]!r} would not give valid frame ids: use '
                 f'letters, digits, underscores and inner slashes, e.g. robot1/ (at most 64)')
 
-    @staticmethod
-    def _description_path(value):
-        return value or shipped_robot_path('rl15')
+    def _load_robot(self, inputs):
+        """Load the robot the parameters name (RobotDescriptionError: one line)."""
+        base = inputs['urdf_base_link'] or None
+        tip = inputs['urdf_tip_link'] or None
+        if inputs['robot_description'].strip():
+            robot = robot_from_urdf_text(inputs['robot_description'],
+                                         'parameter robot_description', base, tip)
+        else:
+            robot = load_robot(inputs['robot_description_file'] or 'rl15', base, tip)
+        if robot.conversion is not None:
+            self.get_logger().info(robot.summary())
+        return robot.model
 
     def _on_set_parameters(self, params):
         """Validate and apply a parameter change, under the node's lock."""
@@ -182,9 +215,10 @@ class DqFkNode(Node):
         model = outputs = None
         try:
             self._check_values(new)
-            if 'robot_description_file' in new:
-                model = load_robot_description(self._description_path(
-                    new['robot_description_file']))
+            if any(name in new for name in ROBOT_PARAMETERS):
+                inputs = dict(self._robot_inputs)
+                inputs.update({k: v for k, v in new.items() if k in ROBOT_PARAMETERS})
+                model = self._load_robot(inputs)
             if model is not None or 'frame_prefix' in new:
                 outputs = self._build_outputs(model or self._model,
                                               new.get('frame_prefix', self._frame_prefix))
@@ -200,6 +234,9 @@ class DqFkNode(Node):
             and not self._publish_description
         self._publish_description = new.get('publish_robot_description',
                                             self._publish_description)
+        self._robot_inputs.update({k: v for k, v in new.items() if k in ROBOT_PARAMETERS})
+        self._publish_frequency = new.get('publish_frequency', self._publish_frequency)
+        self._ignore_timestamp = new.get('ignore_timestamp', self._ignore_timestamp)
         self._publish_tf = new.get('publish_tf', self._publish_tf)
         self._publish_poses = new.get('publish_poses', self._publish_poses)
         self._publish_twist = new.get('publish_twist', self._publish_twist)
@@ -269,7 +306,7 @@ class DqFkNode(Node):
         if not self._publish_description:
             return
         try:
-            text = robot_to_urdf(self._model)
+            text = description_urdf(self._model)
         except ValueError as exc:  # a robot URDF cannot express (a scale other than +-1)
             self.get_logger().warn(f'no robot_description: {exc}')
             return
@@ -332,6 +369,15 @@ class DqFkNode(Node):
                 now_ns - self._last_publish_ns < 1e9 / self._max_rate_hz:
             self._merger.counts['rate_limited'] += 1
             return
+        stamp = stamp_ns or now_ns
+        if self._publish_frequency > 0 and not self._ignore_timestamp:
+            # robot_state_publisher's throttle: by the stamps, not the clock (bags replay
+            # alike at any rate); a stamp back in time publishes and starts over
+            last = self._last_stamp_ns
+            if last is not None and last <= stamp < last + 1e9 / self._publish_frequency:
+                self._merger.counts['rate_limited'] += 1
+                return
+        self._last_stamp_ns = stamp
         self._publish(stamp_ns if (self._use_joint_state_stamp and stamp_ns) else now_ns,
                       result.q, result.qdot)
         self._last_publish_ns = now_ns

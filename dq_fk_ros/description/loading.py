@@ -1,0 +1,95 @@
+"""
+One way in for every tool: a robot from a YAML DH file, a URDF/xacro file or a shipped name.
+
+``load_robot('rl15')``, ``load_robot('config/mine.yaml')``, ``load_robot('ur5.urdf')``
+and ``robot_from_urdf_text(xml)`` all give a :class:`LoadedRobot`; a URDF is converted by
+:mod:`dq_fk_ros.description.from_urdf` on the way (its own link names kept).
+"""
+
+from dataclasses import dataclass, replace
+import os
+
+from dq_fk_ros.description.from_urdf import load_urdf_description, urdf_to_description
+from dq_fk_ros.description.robot_model import (
+    load_robot_description, parse_robot_description, RobotDescriptionError, shipped_robot_path,
+    shipped_robots)
+
+URDF_SUFFIXES = ('.urdf', '.xacro')
+
+
+@dataclass(frozen=True)
+class LoadedRobot:
+    """
+    A robot ready to use, and where it came from.
+
+    ``urdf`` is the URDF XML it was converted from (xacro expanded; also ``model.urdf``), or
+    None for a DH file; ``conversion`` the
+    :class:`~dq_fk_ros.description.from_urdf.Conversion` (None alike).
+    """
+
+    model: object
+    urdf: str = None
+    conversion: object = None
+
+    def summary(self):
+        """Describe in one line how a URDF became this robot (empty for a DH file)."""
+        if self.conversion is None:
+            return ''
+        c = self.conversion
+        skipped = (f'; skipped moving side branches: '
+                   f'{", ".join(f"{j.name} -> {j.child}" for j in c.skipped)}'
+                   if c.skipped else '')
+        return (f'converted URDF {self.model.source}: chain {c.base} -> {c.tip}, '
+                f'{len(self.model.chain.joints)} DH rows ({self.model.chain.convention}), '
+                f'{len(self.model.links)} URDF links{skipped}')
+
+
+def resolve_robot(spec):
+    """
+    Return ``spec`` if it is a path, else the file of the shipped robot of that name.
+
+    A name that is neither: :class:`RobotDescriptionError` listing the shipped robots.
+    """
+    spec = os.fspath(spec)
+    if os.path.exists(spec) or os.sep in spec or spec.endswith(('.yaml',) + URDF_SUFFIXES):
+        return spec
+    try:
+        return shipped_robot_path(spec)
+    except FileNotFoundError:
+        raise RobotDescriptionError(f'{spec}: no such file, and no shipped robot of that name '
+                                    f'(shipped: {", ".join(shipped_robots())})') from None
+
+
+def is_urdf(path):
+    """Say whether ``path`` names a URDF (``.urdf``, ``.xacro``, ``.urdf.xacro``)."""
+    return os.fspath(path).lower().endswith(URDF_SUFFIXES)
+
+
+def load_robot(spec, base=None, tip=None, convention='standard'):
+    """
+    Load a robot from a DH YAML file, a URDF/xacro file or a shipped robot's name.
+
+    :param base: for a URDF: the link the chain starts at (default: the root).
+    :param tip: for a URDF: the link it ends at (default: see ``dq_fk from-urdf``).
+    :param convention: for a URDF: the DH convention of the table made from it.
+    Raises :class:`RobotDescriptionError` (one line) for anything unusable.
+    """
+    path = resolve_robot(spec)
+    if not is_urdf(path):
+        return LoadedRobot(load_robot_description(path))
+    conversion, text = load_urdf_description(path, base, tip, convention)
+    return LoadedRobot(replace(parse_robot_description(conversion.text, path), urdf=text), text,
+                       conversion)
+
+
+def robot_from_urdf_text(text, source='robot_description', base=None, tip=None,
+                         convention='standard'):
+    """Convert URDF XML given as text (robot_state_publisher's ``robot_description``)."""
+    if not isinstance(text, str) or not text.strip():
+        raise RobotDescriptionError(f'{source}: empty; give URDF XML')
+    conversion = urdf_to_description(text, source, base, tip, convention)
+    return LoadedRobot(replace(parse_robot_description(conversion.text, source), urdf=text),
+                       text, conversion)
+
+
+__all__ = ['is_urdf', 'load_robot', 'LoadedRobot', 'resolve_robot', 'robot_from_urdf_text']
