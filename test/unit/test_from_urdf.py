@@ -7,13 +7,20 @@ package. Every frame the converted robot publishes under a URDF link name must a
 """
 
 import glob
+import json
 import os
+import re
 import sys
 import sysconfig
 import xml.etree.ElementTree as ElementTree
 
-from dq_fk_ros.description.from_urdf import load_urdf_description, read_urdf_text
-from dq_fk_ros.description.robot_model import parse_robot_description
+from dq_fk_ros.cli import dq_fk
+from dq_fk_ros.description.from_urdf import (
+    load_urdf_description, read_urdf_text, urdf_to_description)
+from dq_fk_ros.description.robot_model import (
+    load_robot_description, parse_robot_description, RobotDescriptionError, shipped_robot_path,
+    shipped_robots)
+from dq_fk_ros.description.urdf import robot_to_urdf
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 import numpy as np
 import pytest
@@ -157,3 +164,164 @@ def test_xacro_is_expanded(tmp_path):
     assert model.max_velocity.tolist() == [2.0, 2.0]
     assert model.limits.tolist() == [[-1.0, 1.0], [-1.0, 1.0]]
     assert_matches_pinocchio(model, text, 'base', 200)
+
+
+# -- round trip: the shipped DH robots, out as URDF and back --------------------------------
+def shipped_with_urdf():
+    """Shipped robots a URDF can express (every one today)."""
+    return [name for name in shipped_robots()
+            if robot_to_urdf(load_robot_description(shipped_robot_path(name)))]
+
+
+@pytest.mark.parametrize('convention', ['standard', 'modified'])
+@pytest.mark.parametrize('name', shipped_with_urdf())
+def test_round_trip_of_every_shipped_robot(name, convention):
+    original = load_robot_description(shipped_robot_path(name))
+    conversion = urdf_to_description(robot_to_urdf(original), name, convention=convention)
+    again = parse_robot_description(conversion.text)
+    assert again.joint_names == original.joint_names
+    assert set(original.frame_names) <= set(again.frame_names)
+    qs = random_configurations(original, 500, seed=3)
+    before = homogeneous_from_dq(original.forward_all_batch(qs))
+    after = homogeneous_from_dq(again.forward_all_batch(qs))
+    for k, frame in enumerate(original.frame_names):
+        np.testing.assert_allclose(after[:, again.frame_names.index(frame)], before[:, k],
+                                   rtol=0, atol=1e-12, err_msg=frame)
+    assert conversion.tip == original.frame_names[-1] or \
+        original.frame_names[-1] in again.frame_names
+
+
+# -- hand-made URDFs for the cases a DH table finds hard ------------------------------------
+def serial_urdf(joints, name='hand_made'):
+    """
+    URDF text of a serial chain ``base -> l1 -> l2 ...``.
+
+    ``joints``: ``(type, xyz, rpy, axis)`` per joint; limits +-2 (rad or m).
+    """
+    out = [f'<robot name="{name}">', '  <link name="base"/>']
+    for k, (kind, xyz, rpy, axis) in enumerate(joints, start=1):
+        parent = 'base' if k == 1 else f'l{k - 1}'
+        limit = '<limit lower="-2" upper="2" effort="1" velocity="1"/>' \
+            if kind in ('revolute', 'prismatic') else ''
+        out += [f'  <link name="l{k}"/>',
+                f'  <joint name="j{k}" type="{kind}"><parent link="{parent}"/>'
+                f'<child link="l{k}"/><origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="{axis}"/>'
+                f'{limit}</joint>']
+    return '\n'.join(out + ['</robot>']) + '\n'
+
+
+DEGENERATE = {
+    'parallel axes (planar 3R)': [('revolute', '0 0 0.3', '0 0 0', '0 1 0'),
+                                  ('revolute', '0.4 0 0', '0 0 0', '0 1 0'),
+                                  ('revolute', '0.3 0 0.1', '0 0 0', '0 1 0')],
+    'intersecting axes (spherical wrist)': [('revolute', '0 0 0.5', '0 0 0', '0 0 1'),
+                                            ('revolute', '0 0 0', '0 0 0', '0 1 0'),
+                                            ('revolute', '0 0 0', '0 0 0', '1 0 0')],
+    'coincident axes': [('revolute', '0 0 0.2', '0 0 0', '0 0 1'),
+                        ('revolute', '0 0 0.3', '0 0 0', '0 0 1'),
+                        ('prismatic', '0 0 0.1', '0 0 0', '0 0 1')],
+    'axes along -z and along x': [('revolute', '0.1 0 0.2', '0 0 0', '0 0 -1'),
+                                  ('revolute', '0 0.2 0.3', '0 0 0', '1 0 0'),
+                                  ('revolute', '0.3 0 0', '0 0 0', '0 0 -1')],
+    'prismatic axis not along z': [('revolute', '0 0 0.3', '0 0 0', '0 0 1'),
+                                   ('prismatic', '0.2 0 0', '0 0 0', '1 1 0'),
+                                   ('revolute', '0 0.1 0', '0 0 0', '0 1 0')],
+    'joint origins with rotations': [('revolute', '0 0 0.3', '0.3 -0.2 1.1', '0 0 1'),
+                                     ('continuous', '0.2 0.1 0', '1.5707963 0 0.4', '0 1 0'),
+                                     ('fixed', '0 0 0.1', '0 0.7 0', '1 0 0'),
+                                     ('revolute', '0.1 0 0.2', '-0.4 0.9 2.0', '0.3 0.4 0.5')],
+    'skew axes': [('revolute', '0 0 0.3', '0 0 0', '0 0 1'),
+                  ('revolute', '0.1 0.2 0', '0 0 0', '1 0 0'),
+                  ('revolute', '0 0.3 0.4', '0 0 0', '0 1 0')],
+}
+
+
+@pytest.mark.parametrize('convention', ['standard', 'modified'])
+@pytest.mark.parametrize('case', sorted(DEGENERATE))
+def test_degenerate_chains_match_pinocchio(case, convention):
+    text = serial_urdf(DEGENERATE[case])
+    conversion = urdf_to_description(text, case, convention=convention)
+    model = parse_robot_description(conversion.text)
+    names = assert_matches_pinocchio(model, text, 'base', 300)
+    assert names[-1] == conversion.tip
+    words = {'parallel axes (planar 3R)': 'axis parallel',
+             'intersecting axes (spherical wrist)': 'axis intersecting',
+             'coincident axes': 'axis coincident', 'skew axes': 'axis skew'}
+    if case in words:
+        assert words[case] in conversion.text
+
+
+def test_parallel_axes_take_the_normal_through_the_previous_origin():
+    model = parse_robot_description(urdf_to_description(
+        serial_urdf(DEGENERATE['parallel axes (planar 3R)'])).text)
+    # the documented choice: d = 0 on every row after a parallel pair, a = the axis distance
+    d = [j.d for j in model.chain.joints]
+    a = [j.a for j in model.chain.joints]
+    assert d[1] == pytest.approx(0.0, abs=1e-12) and d[2] == pytest.approx(0.0, abs=1e-12)
+    assert a[0] == pytest.approx(0.4) and a[1] == pytest.approx(0.1 ** 0.5)
+    assert a[2] == pytest.approx(0.0, abs=1e-12)  # the last frame keeps the previous axes
+
+
+def test_cli_writes_a_file_that_validates(tmp_path, capsys):
+    urdf = tmp_path / 'arm.urdf'
+    urdf.write_text(serial_urdf(DEGENERATE['skew axes']))
+    out = tmp_path / 'arm.yaml'
+    assert dq_fk.main(['from-urdf', str(urdf), '--convention', 'modified', '-o',
+                       str(out)]) == 0
+    assert 'modified DH chain base -> l3' in capsys.readouterr().err
+    assert dq_fk.main(['validate', str(out)]) == 0
+    assert ': ok (hand_made, modified DH, 3 rows, 3 joints' in capsys.readouterr().out
+    # and the URDF itself is a robot for every command
+    assert dq_fk.main(['fk', str(urdf), '--json']) == 0
+    frames = [f['frame'] for f in json.loads(capsys.readouterr().out)['frames']]
+    assert frames == ['dh0', 'dh1', 'dh2', 'dh3', 'l1', 'l2', 'l3']
+
+
+BROKEN = {
+    'only fixed joints': (serial_urdf([('fixed', '0 0 1', '0 0 0', '1 0 0')]),
+                          "no moving joint below 'base'"),
+    'two tips': ('<robot name="y"><link name="b"/><link name="t1"/><link name="t2"/>'
+                 '<joint name="a" type="continuous"><parent link="b"/><child link="t1"/>'
+                 '</joint><joint name="c" type="continuous"><parent link="b"/>'
+                 '<child link="t2"/></joint></robot>',
+                 "2 links end chains of 1 moving joints below 'b': t1, t2; choose one with "
+                 '--tip'),
+    'a cycle': ('<robot name="c"><link name="r"/><link name="a"/><link name="b"/>'
+                '<joint name="j1" type="fixed"><parent link="r"/><child link="a"/></joint>'
+                '<joint name="j2" type="fixed"><parent link="a"/><child link="b"/></joint>'
+                '<joint name="j3" type="fixed"><parent link="b"/><child link="a"/></joint>'
+                '</robot>', "link 'a' is the child of two joints"),
+    'a pure cycle': ('<robot name="c"><link name="a"/><link name="b"/>'
+                     '<joint name="j1" type="fixed"><parent link="a"/><child link="b"/></joint>'
+                     '<joint name="j2" type="fixed"><parent link="b"/><child link="a"/></joint>'
+                     '</robot>', 'every link has a parent joint: the joints form a cycle'),
+    'a missing link': ('<robot name="m"><link name="a"/><joint name="j" type="revolute">'
+                       '<parent link="a"/><child link="ghost"/></joint></robot>',
+                       "joint 'j': child link 'ghost' is not defined"),
+    'not XML': ('<robot', 'not valid XML'),
+    'not a URDF': ('<sdf version="1.6"/>', 'the root element is <sdf>, not <robot>'),
+    'a zero axis': (serial_urdf([('revolute', '0 0 0', '0 0 0', '0 0 0')]),
+                    "joint 'j1': axis xyz is all zeros"),
+    'a bad number': (serial_urdf([('revolute', '0 0 nan', '0 0 0', '0 0 1')]),
+                     "joint 'j1': origin xyz: '0 0 nan' is not 3 finite numbers"),
+}
+
+
+@pytest.mark.parametrize('case', sorted(BROKEN))
+def test_broken_urdfs_are_one_line_errors(case):
+    text, expected = BROKEN[case]
+    with pytest.raises(RobotDescriptionError) as caught:
+        urdf_to_description(text, 'mine.urdf')
+    message = str(caught.value)
+    assert message.startswith('mine.urdf: ') and '\n' not in message
+    assert expected in message
+
+
+def test_bad_base_and_tip_are_named():
+    text = serial_urdf(DEGENERATE['skew axes'])
+    for kwargs, expected in (({'tip': 'nope'}, "--tip 'nope' is not a link of the URDF; "
+                              'links: base, l1, l2, l3'),
+                             ({'base': 'l2', 'tip': 'l1'}, "--tip 'l1' is not below --base "
+                              "'l2'")):
+        with pytest.raises(RobotDescriptionError, match=re.escape(expected)):
+            urdf_to_description(text, 'mine.urdf', **kwargs)
