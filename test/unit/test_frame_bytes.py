@@ -1,5 +1,8 @@
 """The node's serialized output equals the message objects it replaces, field by field."""
 
+import os
+import sys
+
 from builtin_interfaces.msg import Time
 from dq_fk_ros.description.robot_model import (
     load_robot_description, shipped_robot_path, shipped_robots)
@@ -9,6 +12,9 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from tf2_msgs.msg import TFMessage
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from vendor_urdfs import PANDA, UR5, vendor_robot  # noqa: E402, I100 (the tests' helper)
 
 STAMPS = [(0, 0), (1, 999_999_999), (1_800_000_000, 123_456_789), (2**31 - 1, 5)]
 
@@ -22,16 +28,24 @@ def same_outside_padding(ours, theirs, template):
     assert differ == [], differ[:10]
 
 
-@pytest.mark.parametrize('robot', shipped_robots())
+def robot_model(robot):
+    """Load a shipped robot, or a vendor URDF converted (URDF links, a mimic finger)."""
+    vendor = {'ur5.urdf': UR5, 'panda.urdf': PANDA}
+    if robot in vendor:
+        return vendor_robot(vendor[robot]).model
+    return load_robot_description(shipped_robot_path(robot))
+
+
+@pytest.mark.parametrize('robot', shipped_robots() + ['ur5.urdf', 'panda.urdf'])
 @pytest.mark.parametrize('prefix', ['', 'left/'])
 def test_serialized_output_equals_the_message_objects(robot, prefix):
-    model = load_robot_description(shipped_robot_path(robot))
+    model = robot_model(robot)
     objects = FrameMessages(model, prefix)
     raw = FrameBytes(objects)
     rng = np.random.default_rng(len(robot) + len(prefix))
     for sec, nanosec in STAMPS:
         q = rng.uniform(-2, 2, model.chain.dof)
-        absolute, relative = model.chain.frame_poses(q)
+        absolute, relative = model.frame_poses(q)
         stamp = Time(sec=sec, nanosec=nanosec)
         tf, poses = objects.fill(stamp, absolute, relative, q)
         ours = raw.tf(sec, nanosec, relative, q)

@@ -6,12 +6,10 @@ The URDFs come from the ``example-robot-data`` wheel (a dev requirement); pinocc
 package. Every frame the converted robot publishes under a URDF link name must agree.
 """
 
-import glob
 import json
 import os
 import re
 import sys
-import sysconfig
 import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.cli import dq_fk
@@ -26,20 +24,11 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-import pinocchio_oracle  # noqa: E402, I100 (the test folder's own helper)
+import pinocchio_oracle  # noqa: E402, I100 (the test folder's own helpers)
+from vendor_urdfs import robots_dir  # noqa: E402, I100
 
 SAMPLES = 1000
 TOL = 1e-9
-
-
-def robots_dir():
-    """Return the URDF folder of the example-robot-data wheel; one clear line if it is missing."""
-    pattern = os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share',
-                           'example-robot-data', 'robots')
-    found = glob.glob(pattern)
-    assert found, ('example-robot-data is not installed in this environment: '
-                   'pip install -r requirements/dev.txt (make setup does)')
-    return found[0]
 
 
 # (URDF under example-robot-data/robots, --base, --tip, what it exercises)

@@ -1,0 +1,165 @@
+"""``links:``: named frames fixed to the chain (or moving with one of its joints)."""
+
+import math
+
+from builtin_interfaces.msg import Time
+from dq_fk_ros.description.robot_model import parse_robot_description, RobotDescriptionError
+from dq_fk_ros.description.urdf import link_poses, urdf_joints
+from dq_fk_ros.kinematics.dh import homogeneous_from_dq
+from dq_fk_ros.ros.conversions import FrameMessages
+import homogeneous as hm
+import numpy as np
+import pytest
+
+ARM = """
+robot: two_link
+units: {length: mm, angle: deg}
+base: {frame: base0, xyz: [0, 0, 100]}
+chain:
+  - {frame: upper, joint: j1, theta: 0, d: 0, a: 300, alpha: 90}
+  - {frame: lower, joint: j2, theta: 0, d: 0, a: 200, alpha: 0}
+tool: {frame: tcp, xyz: [0, 0, 50]}
+links:
+  - {frame: flange, parent: tcp, xyz: [0, 0, 10], rpy: [0, 90, 0]}
+  - {frame: camera, parent: flange, xyz: [30, 0, 0], quaternion: [0, 0, 1, 1]}
+  - {frame: upper_link, parent: upper, tf_parent: base0, xyz: [-150, 0, 0]}
+  - {frame: finger, parent: flange, type: prismatic, axis: [1, 2, 2],
+     mimic: {joint: j2, multiplier: 0.01, offset: 5}, xyz: [0, 0, 20]}
+  - {frame: pad, parent: finger, xyz: [0, 0, 5]}
+  - {frame: knuckle, parent: camera, type: revolute, axis: [1, 0, 0],
+     mimic: {joint: j1, multiplier: -2}}
+end_effector: flange
+"""
+
+
+def expected_frames(q):
+    """Every frame of ARM at ``q``, by 4x4 matrices written from the file's numbers."""
+    base = hm.trans(z=0.1)
+    upper, lower = hm.chain_frames([(q[0], 0, 0.3, math.pi / 2), (q[1], 0, 0.2, 0)],
+                                   'standard', base)[1:]
+    tcp = lower @ hm.trans(z=0.05)
+    flange = tcp @ hm.trans(z=0.01) @ hm.rot_y(math.pi / 2)
+    camera = flange @ hm.trans(x=0.03) @ hm.rot_z(math.pi / 2)
+    stroke = 0.01 * q[1] + 0.005    # along the unit axis (1, 2, 2) / 3
+    finger = flange @ hm.trans(z=0.02) @ hm.trans(stroke / 3, 2 * stroke / 3, 2 * stroke / 3)
+    pad = finger @ hm.trans(z=0.005)
+    knuckle = camera @ hm.rot_x(-2 * q[0])
+    return {'base0': base, 'upper': upper, 'lower': lower, 'tcp': tcp, 'flange': flange,
+            'camera': camera, 'upper_link': upper @ hm.trans(x=-0.15), 'finger': finger,
+            'pad': pad, 'knuckle': knuckle}
+
+
+def test_links_follow_the_chain_frames_they_are_fixed_to():
+    model = parse_robot_description(ARM, 'arm.yaml')
+    assert model.frame_names == ('base0', 'upper', 'lower', 'tcp', 'flange', 'camera',
+                                 'upper_link', 'finger', 'pad', 'knuckle')
+    assert model.parent_frames == ('world', 'base0', 'upper', 'lower', 'tcp', 'flange',
+                                   'base0', 'flange', 'finger', 'camera')
+    # static: fixed to their TF parent; moving: another body (upper_link under base0) or a
+    # mimic motion (finger, knuckle)
+    assert model.moving == (False, True, True, False, False, False, True, True, False, True)
+    assert model.end_effector == 'flange' and model.end_effector_index == 4
+    rng = np.random.default_rng(5)
+    qs = rng.uniform(-3, 3, size=(40, 2))
+    batch = homogeneous_from_dq(model.forward_all_batch(qs))
+    for q, frames in zip(qs, batch):
+        expected = expected_frames(q)
+        single = homogeneous_from_dq(model.forward_all(q))
+        for k, name in enumerate(model.frame_names):
+            np.testing.assert_allclose(frames[k], expected[name], atol=1e-12, err_msg=name)
+            np.testing.assert_allclose(single[k], expected[name], atol=1e-12, err_msg=name)
+
+
+def test_tf_transforms_are_relative_to_the_tf_parent():
+    model = parse_robot_description(ARM, 'arm.yaml')
+    q = np.array([0.7, -1.1])
+    expected = expected_frames(q)
+    absolute, relative = model.frame_poses(q)
+    assert len(absolute) == len(model.frame_names)
+    assert len(relative) == len(model.chain.joints) + len(model.links)
+    rows = len(model.chain.joints)
+    for j, link in enumerate(model.links):
+        ours = hm.matrix_of_pose(relative[rows + j][:3], relative[rows + j][3:])
+        want = np.linalg.inv(expected[link.tf_parent]) @ expected[link.frame]
+        np.testing.assert_allclose(ours, want, atol=1e-12, err_msg=link.frame)
+    batch = model.relative_batch(q[None, :])[0]
+    for k, pose in enumerate(relative):
+        np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]),
+                                   homogeneous_from_dq(batch[k]), atol=1e-12)
+    # the moving transforms are exactly the moving frames' (rows first, then links)
+    names = [model.frame_names[k] for k, _ in model.moving_edges]
+    assert names == ['upper', 'lower', 'upper_link', 'finger', 'knuckle']
+
+
+def test_static_links_go_to_tf_static_under_their_parent():
+    model = parse_robot_description(ARM, 'arm.yaml')
+    messages = FrameMessages(model, 'r1/')
+    static = {t.child_frame_id: t for t in messages.static_tf(Time()).transforms}
+    assert {'r1/base0', 'r1/tcp', 'r1/flange', 'r1/camera', 'r1/pad'} <= set(static)
+    assert static['r1/base0'].header.frame_id == 'world'  # the fixed frame: no prefix
+    assert static['r1/camera'].header.frame_id == 'r1/flange'
+    t = static['r1/camera'].transform
+    assert (t.translation.x, t.rotation.z, t.rotation.w) == pytest.approx(
+        (0.03, math.sqrt(0.5), math.sqrt(0.5)))
+    moving = [(t.header.frame_id, t.child_frame_id) for t in messages.tf.transforms]
+    assert moving == [('r1/base0', 'r1/upper'), ('r1/upper', 'r1/lower'),
+                      ('r1/base0', 'r1/upper_link'), ('r1/flange', 'r1/finger'),
+                      ('r1/camera', 'r1/knuckle')]
+    # the end effector's twist is published too when it is a link
+    assert [model.frame_names[k] for k in messages.twist_frames] == ['lower', 'tcp', 'flange']
+
+
+def test_the_urdf_of_a_robot_with_links_poses_them_alike():
+    model = parse_robot_description(ARM, 'arm.yaml')
+    joints = {j.child: j for j in urdf_joints(model)}
+    assert joints['finger'].kind == 'prismatic' and joints['finger'].mimic == ('j2', 0.01,
+                                                                               0.005)
+    assert joints['knuckle'].kind == 'continuous'
+    q = np.array([0.3, 0.9])
+    poses = link_poses(model, q)
+    expected = expected_frames(q)
+    for name in model.frame_names:
+        np.testing.assert_allclose(poses[name].to_matrix(), expected[name], atol=1e-12)
+
+
+BAD = {
+    'unknown parent': ('parent: tcp, xyz: [0, 0, 10]', 'parent: nowhere, xyz: [0, 0, 10]',
+                       "links[0] (frame 'flange'): field 'parent' names 'nowhere', which is "
+                       'not an earlier frame; frames so far: world, base0, upper, lower, tcp'),
+    'a later frame as parent': ('parent: tcp, xyz: [0, 0, 10]', 'parent: camera, xyz: [0, 0, 10]',
+                                "field 'parent' names 'camera', which is not an earlier frame"),
+    'a frame used twice': ('frame: camera, parent', 'frame: upper, parent',
+                           "links[1] (frame 'upper'): frame 'upper' is already used by chain[0]"),
+    'a motion without mimic': ('mimic: {joint: j1, multiplier: -2}}', 'xyz: [0, 0, 0]}',
+                               "links[5] (frame 'knuckle'): missing field 'mimic'"),
+    'mimic of no chain joint': ('joint: j1, multiplier: -2', 'joint: j9, multiplier: -2',
+                                "links[5] (frame 'knuckle') mimic: field 'joint' names 'j9', "
+                                'which no row reads; joints: j1, j2'),
+    'a zero axis': ('axis: [1, 0, 0]', 'axis: [0, 0, 0]', "field 'axis' must not be all zeros"),
+    'axis on a fixed link': ('quaternion: [0, 0, 1, 1]}',
+                             'quaternion: [0, 0, 1, 1], axis: [1, 0, 0]}',
+                             "field 'axis' applies only to a link of type revolute or "
+                             'prismatic'),
+    'an unknown type': ('type: revolute', 'type: planar', "field 'type' is 'planar'; allowed: "
+                        'fixed, revolute, prismatic'),
+    'an unknown end effector': ('end_effector: flange', 'end_effector: hand',
+                                "field 'end_effector' names 'hand', which is not a frame of "
+                                'the robot'),
+    'links not a list': ('links:\n', 'links: 3\nx:\n', "unknown field 'x'"),
+}
+
+
+@pytest.mark.parametrize('case', sorted(BAD))
+def test_bad_links_are_one_line_errors(case):
+    old, new, expected = BAD[case]
+    assert old in ARM
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description(ARM.replace(old, new, 1), 'arm.yaml')
+    assert str(caught.value).startswith('arm.yaml: ') and '\n' not in str(caught.value)
+    assert expected in str(caught.value)
+
+
+def test_links_must_be_a_list():
+    text = ARM[:ARM.index('links:')] + 'links: {frame: x}\n'
+    with pytest.raises(RobotDescriptionError, match='links: expected a list of'):
+        parse_robot_description(text, 'arm.yaml')
