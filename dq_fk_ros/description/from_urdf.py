@@ -11,8 +11,10 @@ by their common normals ([Radavelli2014] Sec. 2, Spong's or Craig's rules):
 * intersecting axes: ``x = z_prev x z_next`` through the intersection (``a = 0``);
 * parallel axes: the normal through the previous frame's origin (``d = 0``);
 * coincident axes: ``x`` kept from the previous frame (``a = alpha = 0``);
-* frame 0 sits on the first axis where it passes closest to the base link's origin, with
-  ``theta_1 = 0``; the last frame keeps the previous one's axes (``a_n = alpha_n = 0``).
+* intersecting axes take the sign of ``x`` nearer the previous frame's ``x``;
+* frame 0 sits on the first axis where it passes closest to the base link's origin, its
+  ``x`` along the base link's x (or y) as far as the axis allows; the last frame keeps the
+  previous one's axes (``a_n = alpha_n = 0``); in modified DH frame 0 is frame 1 at zero.
 
 ``z`` always points along the URDF axis, so every row has ``scale: 1``; a row's zero value
 (``theta`` or ``d``) is its offset at the URDF's zero. The base transform places frame 0 in
@@ -37,6 +39,7 @@ import numpy as np
 MOVING = ('revolute', 'continuous', 'prismatic')
 PARALLEL_TOL = 1e-9         # |sin| of the angle between two axes below which they are parallel
 LENGTH_TOL_M = 1e-9         # distances below which two points (or lines) meet
+NOISE = 1e-15               # numbers written as 0 (m or rad; far below the tests' 1e-12)
 
 
 @dataclass(frozen=True)
@@ -304,7 +307,7 @@ def _common_normal(p1, u1, p2, u2, through, x_before):
     Return ``(foot on line 1, foot on line 2, x, kind)`` of the common normal of two lines.
 
     Parallel lines: the normal through ``through`` (a point on line 1); coincident ones:
-    ``x_before``.
+    ``x_before``; intersecting ones: ``+-(u1 x u2)``, the sign nearer ``x_before``.
     """
     cross = np.cross(u1, u2)
     sin = np.linalg.norm(cross)
@@ -324,7 +327,8 @@ def _common_normal(p1, u1, p2, u2, through, x_before):
     gap = foot2 - foot1
     if np.linalg.norm(gap) < LENGTH_TOL_M:
         middle = 0.5 * (foot1 + foot2)
-        return middle, middle, cross / sin, 'intersecting'
+        x = cross / sin
+        return middle, middle, (-x if np.dot(x, x_before) < 0.0 else x), 'intersecting'
     return foot1, foot2, _unit(gap), 'skew'
 
 
@@ -337,16 +341,24 @@ def _frames_on_axes(lines, convention):
     n = len(lines)
     p1, u1 = lines[0]
     reference = p1 + np.dot(-p1, u1) * u1   # on axis 1, closest to the base link's origin
+    # frame 0's x: the base link's x (else y) where the first axis allows, so that the base
+    # transform is as plain as the URDF
+    x = None
+    for axis in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])):
+        projected = axis - np.dot(axis, u1) * u1
+        if np.linalg.norm(projected) > 1e-6:
+            x = _unit(projected)
+            break
+    x0 = x
     normals, kinds = [], ['first']
-    through, x = reference, None
+    through = reference
     for i in range(n - 1):
         (pa, ua), (pb, ub) = lines[i], lines[i + 1]
-        x_before = x if x is not None else _perpendicular(ua)
-        foot1, foot2, x, kind = _common_normal(pa, ua, pb, ub, through, x_before)
+        foot1, foot2, x, kind = _common_normal(pa, ua, pb, ub, through, x)
         normals.append((foot1, foot2, x))
         kinds.append(kind)
         through = foot2
-    x_last = normals[-1][2] if normals else _perpendicular(u1)
+    x_last = normals[-1][2] if normals else x0
 
     def frame(origin, x_axis, z_axis):
         m = np.eye(4)
@@ -355,7 +367,7 @@ def _frames_on_axes(lines, convention):
         return m
 
     if convention == 'standard':  # frame i (0..n-1): z on axis i+1, x on the normal i/i+1
-        frames = [frame(reference, normals[0][2] if normals else x_last, u1)]
+        frames = [frame(reference, x0, u1)]
         for i in range(1, n):
             frames.append(frame(normals[i - 1][1], normals[i - 1][2], lines[i][1]))
         frames.append(frames[-1].copy())
@@ -577,7 +589,7 @@ def _value(value):
     if isinstance(value, str):
         return json.dumps(value)
     value = float(value)
-    value = 0.0 if value == 0.0 else value  # no -0.0
+    value = 0.0 if abs(value) < NOISE else value  # rounding noise (and -0.0) written as 0
     return repr(value)
 
 
