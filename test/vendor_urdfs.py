@@ -9,6 +9,7 @@ from dq_fk_ros.description.loading import load_robot
 # the arms the tests drive through the node and the message layer: (path, tip)
 UR5 = ('ur_description/urdf/ur5_robot.urdf', 'tool0')
 PANDA = ('panda_description/urdf/panda.urdf', 'panda_leftfinger')
+Z1 = ('z1_description/urdf/z1.urdf', 'link06')  # its gripper: a side branch
 
 
 def robots_dir():

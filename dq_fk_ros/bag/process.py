@@ -61,6 +61,25 @@ class BagOutputs:
                           offered_qos_profiles=qos(10, volatile)) for k in self.pose_frames]
         # the URDF's helper links, as the node publishes them (children of their DH frames)
         self.helpers = HelperFrames(model)
+        # side-branch links (their joints optional) go in /tf messages of their own, written
+        # for the messages whose joint states have named their joints, as the node does
+        needs = dict(zip(model.frame_names, model.frame_needs))
+        needs[model.fixed_frame] = frozenset()
+        edge_needs = {k: needs[model.frame_names[k]] | needs[model.parent_frames[k]]
+                      for k in range(n_frames)}
+        base = [(k, r) for k, r in self.moving_edges if not edge_needs[k]]
+        self.base_poses = [i for i, k in enumerate(self.pose_frames) if not edge_needs[k]]
+        self.branches = []
+        index = {name: i for i, name in enumerate(model.joint_names)}
+        for group in sorted({edge_needs[k] for k in range(n_frames)} - {frozenset()}, key=sorted):
+            edges = [(k, r) for k, r in self.moving_edges if edge_needs[k] == group]
+            self.branches.append((
+                [index[name] for name in sorted(group)],
+                tf_message_template([(parents[k], self.frame_ids[k]) for k, _ in edges])
+                if edges else None,
+                [r for _, r in edges],
+                [i for i, k in enumerate(self.pose_frames) if edge_needs[k] == group]))
+        self.moving_edges = base
         self.tf_template = tf_message_template(
             [(parents[k], self.frame_ids[k]) for k, _ in self.moving_edges]
             + [(self.frame_ids[k], frame_prefix + name) for name, k in self.helpers.moving])
@@ -92,21 +111,43 @@ class BagOutputs:
                               self.typestore.serialize_cdr(text, 'std_msgs/msg/String'))
         self.static_written = True
 
-    def write_chunk(self, q, stamps_ns, log_times_ns):
-        """FK of a chunk of configurations, serialized and written as arrays."""
+    def write_chunk(self, q, stamps_ns, log_times_ns, seen=None):
+        """
+        FK of a chunk of configurations, serialized and written as arrays.
+
+        ``seen``: ``(N, dof)`` mask of the joints each message's state had (the merger's
+        ``last_seen``); side-branch links are written where their joints were seen.
+        """
         model = self.model
         absolute = dq_to_pose_xyzw(model.forward_all_batch(q))           # (N, frames, 7)
-        relative = dq_to_pose_xyzw(
-            model.relative_batch(q)[:, [k for _, k in self.moving_edges]])
+        all_relative = dq_to_pose_xyzw(model.relative_batch(q))
+        relative = all_relative[:, [k for _, k in self.moving_edges]]
         n = len(q)
         relative = relative.reshape(n, -1)
         if self.helpers.moving:  # (a cylindrical row's first motion: rare, per message)
             moving = np.array([np.concatenate(self.helpers.moving_poses(row)) for row in q])
             relative = np.concatenate([relative, moving], axis=1)
         tf_rows = self.tf_template.fill(stamps_ns, relative)
-        pose_rows = [self.pose_template.fill(stamps_ns, absolute[:, k])
-                     for k in self.pose_frames]
-        self.writer.write_rows([self.tf] + self.poses, log_times_ns, [tf_rows] + pose_rows)
+        pose_rows = [self.pose_template.fill(stamps_ns, absolute[:, self.pose_frames[i]])
+                     for i in self.base_poses]
+        self.writer.write_rows([self.tf] + [self.poses[i] for i in self.base_poses],
+                               log_times_ns, [tf_rows] + pose_rows)
+        for columns, template, edges, poses in self.branches:
+            rows = np.ones(n, bool) if seen is None else seen[:, columns].all(axis=1)
+            if not rows.any():
+                continue
+            stamps, times = np.asarray(stamps_ns)[rows], np.asarray(log_times_ns)[rows]
+            channels, payloads = [], []
+            if template is not None:
+                channels.append(self.tf)
+                payloads.append(template.fill(stamps, all_relative[rows][:, edges].reshape(
+                    int(rows.sum()), -1)))
+            for i in poses:
+                channels.append(self.poses[i])
+                payloads.append(self.pose_template.fill(stamps,
+                                                        absolute[rows, self.pose_frames[i]]))
+            if channels:
+                self.writer.write_rows(channels, times, payloads)
         return absolute[:, self.end]
 
     def copy(self, conn, time_ns, raw):
@@ -292,7 +333,8 @@ def _process_with(reader, model, topic, storage, out_path, csv_path, csv_only, c
 def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_of_limits,
                       progress, chunk, in_path):
     """Read, merge, compute and write chunk by chunk; return the summary dict."""
-    merger = JointStateMerger(model.joint_names, model.limits, out_of_limits)
+    merger = JointStateMerger(model.joint_names, model.limits, out_of_limits,
+                              required=model.chain.dof)
     cache = JointStateNames()
     ids = {c.id for c in conns}
     meter = Progress(sum(c.msgcount for c in conns), 'dq_fk_bag process', enabled=progress)
@@ -333,7 +375,7 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
         if outputs is not None:
             if not outputs.static_written:
                 outputs.write_static(int(out_times[0]))
-            ee = outputs.write_chunk(q, stamps, out_times)
+            ee = outputs.write_chunk(q, stamps, out_times, merger.last_seen)
         else:
             ee = dq_to_pose_xyzw(model.end_effector_batch(q))
         if csv:

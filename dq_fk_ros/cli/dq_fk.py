@@ -91,6 +91,21 @@ def frames_table(model, q):
     return rows
 
 
+def _robot(args):
+    """Load FILE of a command (a URDF with its --urdf-base/--urdf-tip)."""
+    return load_robot(args.file, getattr(args, 'urdf_base', None),
+                      getattr(args, 'urdf_tip', None)).model
+
+
+def add_urdf_chain_options(parser):
+    """Add ``--urdf-base``/``--urdf-tip``: where a URDF's chain starts and ends."""
+    parser.add_argument('--urdf-base', metavar='LINK',
+                        help='for a URDF: the link the DH chain starts at (default: the root)')
+    parser.add_argument('--urdf-tip', metavar='LINK',
+                        help='for a URDF: the link the DH chain ends at (default: see '
+                        'from-urdf --tip)')
+
+
 def cmd_validate(args):
     failed = 0
     for name in args.files:
@@ -111,7 +126,7 @@ def cmd_validate(args):
 
 
 def cmd_fk(args):
-    model = load_robot(args.file).model
+    model = _robot(args)
     q = parse_joint_values(model, args.joints, args.deg)
     lower, upper = model.limits[:, 0], model.limits[:, 1]
     for n, v, lo, hi in zip(model.joint_names, q, lower, upper):
@@ -158,7 +173,7 @@ def _tidy(value):
 
 
 def cmd_urdf(args):
-    model = load_robot(args.file).model
+    model = _robot(args)
     text = robot_to_urdf(model)
     if args.output in (None, '-'):
         sys.stdout.write(text)
@@ -181,7 +196,7 @@ def cmd_plot(args):
     folder = os.path.dirname(os.path.abspath(args.output))
     if not os.path.isdir(folder):
         raise UsageError(f'-o {args.output}: folder {folder} does not exist')
-    model = load_robot(args.file).model
+    model = _robot(args)
     q = parse_joint_values(model, args.joints, args.deg)
     try:
         save_robot_plot(model, q, args.output, view)
@@ -202,8 +217,8 @@ def cmd_from_urdf(args):
         with open(args.output, 'w', encoding='utf-8') as stream:
             stream.write(conversion.text)
     for joint in conversion.skipped:
-        print(f'skipped moving side branch {joint.name} ({joint.kind}) -> {joint.child}: not '
-              f'a mimic of a chain joint', file=sys.stderr)
+        print(f'skipped side branch {joint.name} ({joint.kind}) -> {joint.child}',
+              file=sys.stderr)
     where = 'standard output' if args.output in (None, '-') else args.output
     print(f'wrote {where}: {args.convention} DH chain {conversion.base} -> {conversion.tip} '
           f'of {args.file}', file=sys.stderr)
@@ -234,10 +249,12 @@ def build_parser():
     p.add_argument('--rpy', action='store_true', help='also print roll, pitch, yaw (rad)')
     p.add_argument('--matrix', action='store_true', help='also print the 4x4 matrix')
     p.add_argument('--json', action='store_true', help='print JSON instead of a table')
+    add_urdf_chain_options(p)
     p.set_defaults(func=cmd_fk)
     p = sub.add_parser('urdf', help='write a URDF whose links are the published frames')
     p.add_argument('file', metavar='FILE')
     p.add_argument('-o', '--output', help='output file (default: standard output)')
+    add_urdf_chain_options(p)
     p.set_defaults(func=cmd_urdf)
     p = sub.add_parser('plot', help='draw the robot at given joint values (PNG or SVG)')
     p.add_argument('file', metavar='FILE')
@@ -248,6 +265,7 @@ def build_parser():
                    help='the picture to write (.png or .svg)')
     p.add_argument('--view', nargs=2, type=float, metavar=('AZIMUTH', 'ELEVATION'),
                    default=None, help='camera direction in degrees (default -60 25)')
+    add_urdf_chain_options(p)
     p.set_defaults(func=cmd_plot)
     p = sub.add_parser('from-urdf', help='write the DH robot description of a URDF chain')
     p.add_argument('file', metavar='ROBOT.urdf|ROBOT.urdf.xacro')

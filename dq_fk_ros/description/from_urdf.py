@@ -20,8 +20,10 @@ by their common normals ([Radavelli2014] Sec. 2, Spong's or Craig's rules):
 (``theta`` or ``d``) is its offset at the URDF's zero. The base transform places frame 0 in
 the base link; every URDF link of the chain, and every link fixed to it, becomes a
 ``links`` entry (its pose in the DH frame it moves with, published under its URDF parent),
-so TF carries the URDF's own tree. A moving side branch whose joint is a mimic of a chain
-joint is a moving link; other moving side branches are skipped and named.
+so TF carries the URDF's own tree. A moving side branch (a gripper) becomes moving links:
+a mimic joint moves with the joint it follows, any other joint is a joint of its own that
+joint states may name (optional: its links are published once they do). Floating and
+planar joints, and mimics of joints that are not published, are skipped and named.
 """
 
 from dataclasses import dataclass
@@ -406,7 +408,7 @@ class Conversion:
     text: str
     base: str
     tip: str
-    skipped: tuple          # moving side-branch joints not published (one line each)
+    skipped: tuple          # side-branch joints not published (one line each)
 
 
 def urdf_to_description(text, source='<string>', base=None, tip=None, convention='standard'):
@@ -474,38 +476,59 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
                 f'{j.parent} -> {j.child}; axis {kinds[i]}{" to the previous" if i else ""}')
         rows.append((row, note))
 
-    # every link of the chain and everything fixed to it (or moving with a chain joint)
-    links, skipped = [], []
-    order = [base]
-    path_names = {j.name for j in path}
-    for link in order:
-        for j in tree.children.get(link, []):
-            on_path = j.name in path_names
-            if on_path:
-                pass
-            elif j.kind == 'fixed':
-                pose[j.child] = pose[link] @ j.origin
-                body[j.child] = body[link]
-            elif j.kind in MOVING and j.mimic is not None and j.mimic[0] in chain_names:
-                pose[j.child] = pose[link] @ j.origin
-                body[j.child] = j.name       # a rigid body of its own
-            else:
-                skipped.append(j)
-                continue
-            try:
-                _check_frame(j.child, source)
-            except RobotDescriptionError:
-                if on_path:
-                    raise
-                skipped.append(j)
-                continue
-            order.append(j.child)
-            links.append(_link_entry(j, link, pose, body, frames, dh_names, base, on_path))
+    # every link of the chain and everything hanging off it: fixed, mimic or with a joint
+    # of its own (a side branch, optional in joint states); a mimic of a joint that is not
+    # published is skipped, so the walk repeats until that settles
+    sources = chain_names | {j.name for j in tree.joints.values()
+                             if j.kind in MOVING and j.mimic is None}
+    while True:
+        links, skipped, owned = _walk_links(tree, base, path, pose, body, frames, dh_names,
+                                            sources)
+        if sources == chain_names | owned:
+            break
+        sources = chain_names | owned
     end_effector = tip
     text = _yaml(tree, source, base, tip, convention, frames[0], dh_names, rows, links,
                  skipped, end_effector)
     parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here
     return Conversion(text, base, tip, tuple(skipped))
+
+
+def _walk_links(tree, base, path, pose, body, frames, dh_names, sources):
+    """
+    Return ``(links entries, skipped joints, own joints)`` of everything below ``base``.
+
+    ``sources``: the joints a mimic joint may follow to be published.
+    """
+    pose, body = dict(pose), dict(body)
+    links, skipped, owned = [], [], set()
+    order = [base]
+    path_names = {j.name for j in path}
+    for link in order:
+        for j in tree.children.get(link, []):
+            on_path = j.name in path_names
+            usable = True
+            if on_path:
+                pass
+            elif j.kind == 'fixed':
+                pose[j.child] = pose[link] @ j.origin
+                body[j.child] = body[link]
+            elif j.kind in MOVING and (j.mimic is None or j.mimic[0] in sources):
+                pose[j.child] = pose[link] @ j.origin
+                body[j.child] = j.name       # a rigid body of its own
+                usable = j.mimic is not None or JOINT_NAME.fullmatch(j.name) is not None
+            else:
+                usable = False
+            if usable and not on_path:
+                usable = len(j.child) <= MAX_NAME_CHARS and FRAME_ID.fullmatch(j.child)
+            if not usable:
+                skipped.append(j)
+                continue
+            if j.kind in MOVING and not on_path and j.mimic is None:
+                owned.add(j.name)
+            order.append(j.child)
+            links.append(_link_entry(j, link, pose, body, frames, dh_names, base, on_path))
+    return links, skipped, owned
 
 
 def tree_joint(tree, name):
@@ -520,14 +543,21 @@ def _link_entry(joint, parent_link, pose, body, frames, dh_names, base, on_path)
     """One ``links`` entry: the child link of ``joint``, in the DH frame it moves with."""
     child = joint.child
     entry = {'frame': child}
-    if isinstance(body[child], str):  # on a mimic side branch: posed in its URDF parent
+    if isinstance(body[child], str):  # on a side branch: posed in its URDF parent
         entry['parent'] = parent_link
         offset = joint.origin
         if joint.kind in MOVING:
             entry['type'] = 'revolute' if joint.kind != 'prismatic' else 'prismatic'
             entry['axis'] = joint.axis.tolist()
-            entry['mimic'] = {'joint': joint.mimic[0], 'multiplier': joint.mimic[1],
-                              'offset': joint.mimic[2]}
+            if joint.mimic is not None:
+                entry['mimic'] = {'joint': joint.mimic[0], 'multiplier': joint.mimic[1],
+                                  'offset': joint.mimic[2]}
+            else:
+                entry['joint'] = joint.name
+                if joint.kind != 'continuous' and joint.lower is not None:
+                    entry['limits'] = [joint.lower, joint.upper]
+                if joint.velocity is not None and joint.velocity > 0:
+                    entry['max_velocity'] = joint.velocity
     elif body[child] == 0:
         entry['parent'] = base
         offset = pose[child]
@@ -543,6 +573,15 @@ def _link_entry(joint, parent_link, pose, body, frames, dh_names, base, on_path)
     note = (f'URDF link {child}: child of {joint.name} ({joint.kind}'
             f'{", mimic" if joint.mimic else ""}) on {parent_link}')
     return entry, note
+
+
+def _why_skipped(joint):
+    """Say in a few words why a side-branch joint is not published."""
+    if joint.kind in ('floating', 'planar'):
+        return f'a {joint.kind} joint (a DH description takes one-axis joints)'
+    if joint.mimic is not None:
+        return f'mimics {joint.mimic[0]}, which is not published'
+    return 'a name this package cannot publish'
 
 
 def _dh_frame_names(count, taken):
@@ -609,8 +648,8 @@ def _yaml(tree, source, base, tip, convention, frame0, dh_names, rows, links, sk
         f'{dh_names[0]}..{dh_names[-1]}, the URDF links under their URDF parents.',
     ]
     for joint in skipped:
-        lines.append(f'# skipped: moving side branch {_comment(joint.name)} ({joint.kind}) -> '
-                     f'{_comment(joint.child)}, not a mimic of a chain joint')
+        lines.append(f'# skipped: side branch {_comment(joint.name)} ({joint.kind}) -> '
+                     f'{_comment(joint.child)}: {_why_skipped(joint)}')
     lines += [
         f'robot: {json.dumps(_comment(tree.name)[:128])}',
         f'convention: {convention}',

@@ -36,12 +36,14 @@ class LoadedRobot:
         if self.conversion is None:
             return ''
         c = self.conversion
-        skipped = (f'; skipped moving side branches: '
+        skipped = (f'; skipped side branches: '
                    f'{", ".join(f"{j.name} -> {j.child}" for j in c.skipped)}'
                    if c.skipped else '')
+        optional = (f'; optional side-branch joints: {", ".join(self.model.optional_joints)}'
+                    if self.model.optional_joints else '')
         return (f'converted URDF {self.model.source}: chain {c.base} -> {c.tip}, '
                 f'{len(self.model.chain.joints)} DH rows ({self.model.chain.convention}), '
-                f'{len(self.model.links)} URDF links{skipped}')
+                f'{len(self.model.links)} URDF links{optional}{skipped}')
 
 
 def resolve_robot(spec):

@@ -52,7 +52,7 @@ MAX_ROWS = 256                  # ... and at most this many DH rows
 TOP_FIELDS = ('robot', 'description', 'convention', 'units', 'fixed_frame', 'base', 'chain',
               'tool', 'links', 'end_effector')
 LINK_FIELDS = ('frame', 'parent', 'tf_parent', 'xyz', 'rpy', 'quaternion', 'type', 'axis',
-               'mimic')
+               'joint', 'limits', 'max_velocity', 'mimic')
 LINK_TYPES = ('fixed', 'revolute', 'prismatic')
 UNIT_FIELDS = ('length', 'angle')
 TRANSFORM_FIELDS = ('frame', 'xyz', 'rpy', 'quaternion')
@@ -74,9 +74,12 @@ class LinkFrame:
     frame, the tool, an earlier link or the fixed frame). TF carries it under ``tf_parent``
     (by default ``parent``; ``dq_fk from-urdf`` sets the URDF's parent link).
     ``motion``, if given, is ``(kind, unit axis, joint, multiplier, offset)``: the link
-    moves with a chain joint as a URDF mimic joint does, its pose ``parent * offset *
-    M(multiplier * q[joint] + offset)`` with ``M`` a rotation about (``revolute``) or a
-    translation along (``prismatic``) ``axis``, in rad or m.
+    moves with a joint, its pose ``parent * offset * M(multiplier * q[joint] + offset)``
+    with ``M`` a rotation about (``revolute``) or a translation along (``prismatic``)
+    ``axis``, in rad or m. The joint is a chain joint or another link's (a mimic), or the
+    link's own: ``joint`` then names it (a side-branch joint, such as a gripper's, with
+    ``limits`` and ``max_velocity``; optional in joint states, see
+    :attr:`RobotModel.optional_joints`).
     """
 
     frame: str
@@ -84,6 +87,9 @@ class LinkFrame:
     offset: DualQuaternion
     tf_parent: str
     motion: tuple = None
+    joint: str = ''
+    limits: tuple = (-math.inf, math.inf)
+    max_velocity: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -112,15 +118,31 @@ class RobotModel:
     end_effector: str = ''
     urdf: str = None
 
-    @property
+    @cached_property
     def joint_names(self):
-        """Joint names in the order the chain takes joint values."""
-        return self.chain.joint_names
+        """
+        Joint names in the order ``q`` is given: the chain's, then the links' own joints.
+
+        The chain's are required (nothing is published until each has a value); the links'
+        own (:attr:`optional_joints`, side branches such as a gripper) are not.
+        """
+        return self.chain.joint_names + self.optional_joints
+
+    @cached_property
+    def optional_joints(self):
+        """Joints of side-branch links (after the chain's in ``joint_names``)."""
+        return tuple(link.joint for link in self.links if link.joint)
 
     @property
+    def dof(self):
+        """Count the joint values of ``q``: chain joints, then optional ones."""
+        return len(self.joint_names)
+
+    @cached_property
     def limits(self):
         """Joint limits ``(dof, 2)``, lower and upper, in rad or m (+-inf: none given)."""
-        return self.chain.limits
+        own = [link.limits for link in self.links if link.joint]
+        return np.vstack([self.chain.limits, np.array(own, dtype=float).reshape(-1, 2)])
 
     @property
     def angular(self):
@@ -130,7 +152,21 @@ class RobotModel:
         for j in self.chain.joints:
             if j.joint_type in ('revolute', 'cylindrical') and not j.follows:
                 mask[index[j.name]] = True
+        for link in self.links:
+            if link.joint and link.motion[0] == 'revolute':
+                mask[index[link.joint]] = True
         return mask
+
+    @cached_property
+    def frame_needs(self):
+        """Per frame: the optional joints its pose depends on (a frozenset, mostly empty)."""
+        needs = {name: frozenset() for name in self.frame_names[:self.n_chain_frames]}
+        needs[self.fixed_frame] = frozenset()
+        optional = set(self.optional_joints)
+        for link in self.links:
+            own = {link.motion[2]} & optional if link.motion is not None else set()
+            needs[link.frame] = needs[link.parent] | own
+        return tuple(needs[name] for name in self.frame_names)
 
     @property
     def n_chain_frames(self):
@@ -184,9 +220,13 @@ class RobotModel:
         """
         if not self.links:
             return self.chain.frame_poses(q)
-        coeffs = self.chain.frame_coeffs(q)
+        if len(q) != self.dof:
+            raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
+                             f'got {len(q)}')
+        q_chain = q[:self.chain.dof]
+        coeffs = self.chain.frame_coeffs(q_chain)
         absolute = [pose_xyzw_from_coeffs(h) for h in coeffs]
-        relative = self.chain.row_poses(q)
+        relative = self.chain.row_poses(q_chain)
         qs = None
         for attach, tf_parent, offset, motion in self._link_plan:
             parent = coeffs[attach] if attach >= 0 else _IDENTITY
@@ -219,7 +259,7 @@ class RobotModel:
         """Return the end effector's pose for N configurations: ``(N, 8)``, ``w >= 0``."""
         k = self.end_effector_index
         if k == self.n_chain_frames - 1:
-            return self.chain.forward_batch(q)
+            return self.chain.forward_batch(np.asarray(q, dtype=float)[:, :self.chain.dof])
         return self.forward_all_batch(q)[:, k]
 
     def relative_batch(self, q):
@@ -229,8 +269,12 @@ class RobotModel:
 
     def _batch(self, q, relative):
         chain = self.chain
-        absolute = chain.forward_all_batch(q)
-        rel = chain.relative_all_batch(q) if relative else None
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.dof:
+            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
+                             f'got shape {q.shape}')
+        absolute = chain.forward_all_batch(q[:, :chain.dof])
+        rel = chain.relative_all_batch(q[:, :chain.dof]) if relative else None
         if not self.links:
             return absolute, rel
         n = absolute.shape[0]
@@ -261,7 +305,7 @@ class RobotModel:
         """``[(frame index, (x, y, z, qx, qy, qz, qw)), ...]``: every static TF transform."""
         chain = self.chain
         n_rows = len(chain.joints)
-        _, relative = self.frame_poses([0.0] * chain.dof)
+        _, relative = self.frame_poses([0.0] * self.dof)
         out = []
         for k in range(len(self.frame_names)):
             if self.moving[k]:
@@ -499,11 +543,20 @@ class _Parser:
             chain = KinematicChain(joints, convention, base=base, tool=tool)
         except ValueError as exc:  # anything the core refuses that the checks above missed
             self.fail('chain', str(exc))
+        joint_names = list(chain.joint_names)
         for k, link in enumerate(links):
-            if link.motion is not None and link.motion[2] not in chain.joint_names:
+            if link.joint:
+                if link.joint in joint_names:
+                    self.fail(f'links[{k}] (frame {_short(link.frame)})',
+                              f'joint {link.joint!r} is already a joint of the robot; joint '
+                              f'names must be unique')
+                joint_names.append(link.joint)
+        for k, link in enumerate(links):
+            if link.motion is not None and not link.joint and \
+                    link.motion[2] not in joint_names:
                 self.fail(f'links[{k}] (frame {_short(link.frame)}) mimic',
-                          f"field 'joint' names {link.motion[2]!r}, which no row reads; "
-                          f'joints: {_listing(chain.joint_names)}')
+                          f"field 'joint' names {link.motion[2]!r}, which no row or link "
+                          f'has; joints: {_listing(joint_names)}')
         velocity = {}
         for p in parsed:
             velocity.update(p['velocity'])
@@ -514,7 +567,8 @@ class _Parser:
             frame_names=tuple(frames + [link.frame for link in links]),
             parent_frames=tuple([fixed_frame] + frames[:-1] + [link.tf_parent for link in links]),
             moving=tuple(moving), chain=chain,
-            max_velocity=np.array([velocity.get(n, math.inf) for n in chain.joint_names]),
+            max_velocity=np.array([velocity.get(n, math.inf) for n in chain.joint_names]
+                                  + [link.max_velocity for link in links if link.joint]),
             links=tuple(links), end_effector=end_effector)
 
     def link(self, row, k, seen):
@@ -536,25 +590,38 @@ class _Parser:
                           f'earlier frame; frames so far: {_listing(seen)}')
         kind = self.choice(row.get('type', 'fixed'), where, 'type', LINK_TYPES)
         if kind == 'fixed':
-            for field in ('axis', 'mimic'):
+            for field in ('axis', 'joint', 'limits', 'max_velocity', 'mimic'):
                 if field in row:
                     self.fail(where, f'field {field!r} applies only to a link of type revolute '
                               f'or prismatic')
             return LinkFrame(frame, parents['parent'], offset, parents['tf_parent'])
-        if 'mimic' not in row:
-            self.fail(where, f"missing field 'mimic' (a {kind} link moves with a chain joint: "
-                      f'{{joint, multiplier, offset}})')
+        if ('mimic' in row) == ('joint' in row):
+            given = 'both' if 'mimic' in row else 'neither'
+            self.fail(where, f"a {kind} link takes either 'joint' (a joint of its own) or "
+                      f"'mimic' (moving with another joint), not {given}")
         axis = np.array(self.vector(row.get('axis', [0, 0, 1]), where, 'axis', 3))
         if not np.linalg.norm(axis) > 1e-9:
             self.fail(where, "field 'axis' must not be all zeros")
+        axis = tuple((axis / np.linalg.norm(axis)).tolist())
+        unit = self.length if kind == 'prismatic' else self.angle
+        if 'joint' in row:
+            joint = self.name(row['joint'], where, 'joint', JOINT_NAME, 'a joint name')
+            speed = {}
+            self.max_velocity(row, where, 'max_velocity', unit, joint, {'velocity': speed})
+            return LinkFrame(frame, parents['parent'], offset, parents['tf_parent'],
+                             (kind, axis, joint, 1.0, 0.0), joint,
+                             self.limits(row, where, 'limits', unit) or (-math.inf, math.inf),
+                             speed.get(joint, math.inf))
+        for field in ('limits', 'max_velocity'):
+            if field in row:
+                self.fail(where, f"field {field!r} does not go with 'mimic' (the link moves "
+                          f'with its source joint)')
         mimic = self.mapping(row['mimic'], where + ' mimic', MIMIC_FIELDS, required=('joint',))
         joint = self.name(mimic['joint'], where + ' mimic', 'joint', JOINT_NAME, 'a joint name')
         multiplier = self.number(mimic.get('multiplier', 1.0), where + ' mimic', 'multiplier')
-        value_offset = self.number(mimic.get('offset', 0.0), where + ' mimic', 'offset',
-                                   self.length if kind == 'prismatic' else self.angle)
+        value_offset = self.number(mimic.get('offset', 0.0), where + ' mimic', 'offset', unit)
         return LinkFrame(frame, parents['parent'], offset, parents['tf_parent'],
-                         (kind, tuple((axis / np.linalg.norm(axis)).tolist()), joint,
-                          multiplier, value_offset))
+                         (kind, axis, joint, multiplier, value_offset))
 
     def transform(self, value, where):
         value = self.mapping(value, where, TRANSFORM_FIELDS, required=('frame',))

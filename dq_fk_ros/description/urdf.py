@@ -165,12 +165,18 @@ def urdf_joints(model):
                                     link.offset))
             continue
         kind, axis, variable, multiplier, offset = link.motion
+        lower, upper = link.limits
+        bounded = math.isfinite(lower) and math.isfinite(upper)
+        speed = link.max_velocity if math.isfinite(link.max_velocity) else NO_LIMIT_SPEED
         limits = None
-        if kind == 'prismatic':
-            limits = (-NO_LIMIT_STROKE_M, NO_LIMIT_STROKE_M, NO_LIMIT_SPEED, NO_LIMIT_SPEED)
-        joints.append(UrdfJoint(f'{link.frame}_joint', 'continuous' if kind == 'revolute'
-                                else kind, link.parent, link.frame, link.offset, axis, limits,
-                                (variable, multiplier, offset), variable))
+        if link.joint and bounded:
+            limits = (float(lower), float(upper), float(speed), NO_LIMIT_SPEED)
+        elif kind == 'prismatic':
+            limits = (-NO_LIMIT_STROKE_M, NO_LIMIT_STROKE_M, float(speed), NO_LIMIT_SPEED)
+        joints.append(UrdfJoint(
+            link.joint or f'{link.frame}_joint', kind if limits else 'continuous', link.parent,
+            link.frame, link.offset, axis, limits,
+            None if link.joint else (variable, multiplier, offset), variable))
     return joints
 
 
@@ -182,7 +188,7 @@ def link_poses(model, q, joints=None):
     URDF consumer such as robot_state_publisher would; ``q`` in chain order.
     """
     joints = urdf_joints(model) if joints is None else joints
-    value = dict(zip(model.chain.joint_names, np.asarray(q, dtype=float).tolist()))
+    value = dict(zip(model.joint_names, np.asarray(q, dtype=float).tolist()))
     poses = {model.fixed_frame: DualQuaternion.identity()}
     for j in joints:
         pose = poses[j.parent] * j.origin
@@ -218,7 +224,7 @@ class HelperFrames:
             return
         # a helper ends one motion of its row; only the row's last motion's helper is fixed
         # to the DH frame (the fixed 'post' transform follows it)
-        zero = link_poses(model, np.zeros(model.chain.dof), self._joints)
+        zero = link_poses(model, np.zeros(model.dof), self._joints)
         for name, anchor in ((j.child, j.anchor) for j in self._joints
                              if j.anchor is not None):
             if name.endswith('_dh_z'):

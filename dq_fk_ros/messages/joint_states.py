@@ -65,9 +65,12 @@ class JointStateMerger:
     and counted in ``counts['velocities_non_finite']``; positions decide acceptance.
     ``unknown`` holds at most :data:`MAX_UNKNOWN_LISTED` names not of this robot.
 
-    :param joint_names: the chain's joint names, in the order ``q`` is returned.
+    :param joint_names: the robot's joint names, in the order ``q`` is returned.
     :param limits: ``(dof, 2)`` lower/upper limits (+-inf for none).
     :param out_of_limits: ``'warn'`` (publish as is), ``'clamp'`` or ``'reject'``.
+    :param required: how many of the first ``joint_names`` must have a value before a
+        message completes the vector (default: all); the others are optional (side-branch
+        joints): 0.0 until given, see :attr:`seen_optional`.
     """
 
     joint_names: tuple
@@ -75,6 +78,7 @@ class JointStateMerger:
     out_of_limits: str = 'warn'
     counts: Counter = field(default_factory=Counter)
     unknown: set = field(default_factory=set)
+    required: int = None
 
     def __post_init__(self):
         """Set up the per-joint state."""
@@ -82,6 +86,8 @@ class JointStateMerger:
             raise ValueError(f'out_of_limits must be one of {OUT_OF_LIMITS_POLICIES}, '
                              f'got {self.out_of_limits!r}')
         self._index = {name: k for k, name in enumerate(self.joint_names)}
+        if self.required is None:
+            self.required = len(self.joint_names)
         # the last message layout that names every joint once and nothing else, and where
         # each of its values goes: such messages take the short path (_merge_complete)
         self._complete_names = None
@@ -118,8 +124,14 @@ class JointStateMerger:
 
     @property
     def never_seen(self):
-        """Joints that no accepted message has given a value yet."""
-        return tuple(n for n, s in zip(self.joint_names, self._seen) if not s)
+        """Name the required joints that no accepted message has given a value yet."""
+        return tuple(n for n, s in zip(self.joint_names[:self.required], self._seen) if not s)
+
+    @property
+    def seen_optional(self):
+        """Name the optional joints an accepted message gave a value (since the last reset)."""
+        n = self.required
+        return tuple(name for name, s in zip(self.joint_names[n:], self._seen[n:]) if s)
 
     def merge(self, names, positions, velocities=(), stamp_ns=0):
         """Merge one message's content; returns a :class:`MergeResult` (never raises)."""
@@ -147,7 +159,8 @@ class JointStateMerger:
         Returns ``(published, q, qdot)``: indices (into all the runs' messages, in order) of
         the messages that completed the joint vector, their ``(p, dof)`` joint values and
         ``(p, dof)`` velocities (a NaN row where :meth:`merge` gives no ``qdot``). Counts and
-        the merged state are updated as :meth:`merge` would.
+        the merged state are updated as :meth:`merge` would; ``last_seen`` is then the
+        ``(p, dof)`` mask of joints that had a value at each published message.
         """
         n = len(self.joint_names)
         total = sum(len(run[3]) for run in runs)
@@ -196,6 +209,7 @@ class JointStateMerger:
         resets = stamped[jumps]
         q_out, qdot_out = np.empty((total, n)), np.empty((total, n))
         complete = np.zeros(total, bool)
+        self._seen_rows = []
         bounds = zip(np.concatenate([[0], resets]), np.concatenate([resets, [total]]))
         for segment, (a, b) in enumerate(bounds):
             if segment:
@@ -207,7 +221,11 @@ class JointStateMerger:
         self.counts[PUBLISH] += len(published)
         self.counts[INCOMPLETE] += int((accepted & ~complete).sum())
         qdot = qdot_out[published]
-        qdot[~np.isfinite(qdot).all(axis=1)] = math.nan  # as merge: all joints, or none
+        # as merge: every required joint's velocity, or none
+        qdot[~np.isfinite(qdot[:, :self.required]).all(axis=1)] = math.nan
+        seen_rows = np.concatenate(self._seen_rows) if self._seen_rows else \
+            np.zeros((0, n), bool)
+        self.last_seen = seen_rows[published]
         return published, q_out[published], qdot
 
     def _run_columns(self, names, positions, velocities, k):
@@ -278,7 +296,8 @@ class JointStateMerger:
         q_out[:] = np.where(has, values[pick], self._q)
         qdot_out[:] = np.where(has, rates[pick], self._qdot)
         seen = has | np.array(self._seen)
-        complete[:] = seen.all(axis=1)
+        complete[:] = seen[:, :self.required].all(axis=1)
+        self._seen_rows.append(seen)
         self._q, self._qdot, self._seen = q_out[-1].tolist(), qdot_out[-1].tolist(), \
             seen[-1].tolist()
 
@@ -290,8 +309,9 @@ class JointStateMerger:
         """
         Merge a message of the cached complete layout: the outcome :meth:`_merge` gives.
 
-        Every joint is named once and nothing else, so there are no unknown names, no
-        duplicates, and a valid message always completes the joint vector.
+        Every required joint is named once (optional ones may be) and nothing else, so there
+        are no unknown names, no duplicates, and a valid message always completes the joint
+        vector.
         """
         order = self._complete_order          # chain index of each message column
         n = len(order)
@@ -321,10 +341,11 @@ class JointStateMerger:
             rates = None
         time_jump = self._track_stamp(stamp_ns)
         q, qdot = self._q, self._qdot
+        seen = self._seen
         for k, i in enumerate(order):
             q[i] = values[k]
             qdot[i] = rates[k] if rates is not None else math.nan
-        self._seen = [True] * n
+            seen[i] = True
         return MergeResult(PUBLISH, q=np.array(q),
                            qdot=np.array(qdot) if rates is not None else None,
                            stamp_ns=stamp_ns, out_of_limits=tuple(outside),
@@ -401,11 +422,14 @@ class JointStateMerger:
         base = {'stamp_ns': stamp_ns, 'new_unknown': tuple(new_unknown),
                 'unknown_overflow': overflow,
                 'out_of_limits': tuple(outside), 'time_jump': time_jump}
-        if not all(seen):
+        required = self.required
+        if not all(seen[:required]):
             return MergeResult(INCOMPLETE, missing=self.never_seen, **base)
-        if len(ours) == n_msg == len(self.joint_names):  # every joint once, nothing else
+        order = tuple(i for i, _, _ in ours)
+        if len(ours) == n_msg and sum(i < required for i in order) == required:
+            # every required joint once, nothing unknown: the short path from now on
             self._complete_names = tuple(names)
-            self._complete_order = tuple(i for i, _, _ in ours)
-        has_velocity = all(math.isfinite(v) for v in qdot)
+            self._complete_order = order
+        has_velocity = all(math.isfinite(v) for v in qdot[:required])
         return MergeResult(PUBLISH, q=np.array(q), qdot=np.array(qdot) if has_velocity else None,
                            **base)

@@ -62,15 +62,21 @@ class FrameMessages:
     as children of their DH frames: constant ones on /tf_static, moving ones on /tf.
     """
 
-    def __init__(self, model, frame_prefix=''):
-        """Build the message objects for ``model``."""
+    def __init__(self, model, frame_prefix='', shown_optional=()):
+        """
+        Build the message objects for ``model``.
+
+        :param shown_optional: the optional (side-branch) joints whose links are published;
+            the links of the others are left out of /tf and the poses (``hidden``).
+        """
         self.model = model
         self.prefix = frame_prefix
         fixed = model.fixed_frame
         self.frame_ids = [frame_prefix + name for name in model.frame_names]
         self._parent_ids = [p if p == fixed else frame_prefix + p for p in model.parent_frames]
+        self.hidden = hidden_frames(model, shown_optional)
         # moving TF transforms: DH rows and links on other bodies than their TF parents
-        self.moving_edges = model.moving_edges
+        self.moving_edges = tuple(e for e in model.moving_edges if e[0] not in self.hidden)
         self.helpers = HelperFrames(model)
         self.tf = TFMessage(transforms=[
             _transform_stamped(self._parent_ids[k], self.frame_ids[k])
@@ -125,6 +131,18 @@ class FrameMessages:
             transforms.append(_transform_stamped(self.frame_ids[anchor], self.prefix + name, stamp,
                                                  offset.to_pose_xyzw()))
         return TFMessage(transforms=transforms)
+
+
+def hidden_frames(model, shown_optional):
+    """Return the indices of the frames whose pose (or TF parent's) needs a joint not shown."""
+    if not model.optional_joints:
+        return frozenset()
+    shown = frozenset(shown_optional)
+    needs = dict(zip(model.frame_names, model.frame_needs))
+    needs[model.fixed_frame] = frozenset()
+    return frozenset(k for k, (name, parent) in enumerate(zip(model.frame_names,
+                                                              model.parent_frames))
+                     if not (needs[name] | needs[parent]) <= shown)
 
 
 def _transform_stamped(parent, child, stamp=None, pose=None):

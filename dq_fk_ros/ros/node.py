@@ -287,7 +287,8 @@ class DqFkNode(Node):
         counts = self._merger.counts if self._merger is not None else None
         unknown = self._merger.unknown if self._merger is not None else set()
         self._model = model
-        self._merger = JointStateMerger(model.joint_names, model.limits, self._out_of_limits)
+        self._merger = JointStateMerger(model.joint_names, model.limits, self._out_of_limits,
+                                        required=model.chain.dof)
         if counts is not None:
             self._merger.counts = counts
         self._merger.unknown = {n for n in unknown if n not in model.joint_names}
@@ -296,7 +297,12 @@ class DqFkNode(Node):
                 self.destroy_publisher(pub)
             self._messages, self._pose_pubs, self._twist_pubs = outputs
             self._bytes = FrameBytes(self._messages)
+            self._shown_optional = ()
             self._refresh_readers()
+            if model.optional_joints:
+                self.get_logger().info(
+                    f'side-branch joints {", ".join(model.optional_joints)}: their links are '
+                    f'published once joint states name them')
         if self._publish_tf:
             self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
         self._send_description()
@@ -407,9 +413,26 @@ class DqFkNode(Node):
             return False
         return True
 
+    def _show_branches(self, seen):
+        """Publish the links of the side-branch joints ``seen`` from now on (rare: rebuild)."""
+        model = self._model
+        new = [name for name in seen if name not in self._shown_optional]
+        self._messages = FrameMessages(model, self._frame_prefix, seen)
+        self._bytes = FrameBytes(self._messages)
+        self._shown_optional = seen
+        hidden = self._messages.hidden
+        self._pose_read = [read and k not in hidden for k, read in enumerate(self._pose_read)]
+        if new:
+            self.get_logger().info(f'joint states name side-branch joints {", ".join(new)}: '
+                                   f'publishing their links')
+
     def _publish(self, stamp_ns, q, qdot):
         """Publish /tf and the read pose and twist topics, serialized, stamped ``stamp_ns``."""
         model = self._model
+        if model.optional_joints:
+            seen = self._merger.seen_optional
+            if seen != self._shown_optional:
+                self._show_branches(seen)
         absolute, relative = model.frame_poses(q)
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self._bytes
@@ -420,7 +443,8 @@ class DqFkNode(Node):
                 if read:
                     pub.publish(out.pose(sec, nanosec, pose))
         if self._publish_twist and qdot is not None and any(self._twist_read):
-            v, w = model.chain.twist(q, qdot)
+            dof = model.chain.dof
+            v, w = model.chain.twist(q[:dof], qdot[:dof])
             p_end = np.array(absolute[model.n_chain_frames - 1][:3])
             for pub, read, k in zip(self._twist_pubs, self._twist_read,
                                     self._messages.twist_frames):
@@ -442,7 +466,9 @@ class DqFkNode(Node):
         twist = [always or pub.get_subscription_count() > 0 for pub in twist_pubs]
         with self._lock:
             if pose_pubs is self._pose_pubs and twist_pubs is self._twist_pubs:
-                self._pose_read, self._twist_read = pose, twist
+                hidden = self._messages.hidden  # side-branch links not named yet
+                self._pose_read = [read and k not in hidden for k, read in enumerate(pose)]
+                self._twist_read = twist
 
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self):

@@ -18,7 +18,7 @@ from rclpy.parameter import Parameter
 from ros_harness import Harness, TF_STATIC_QOS
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
-from vendor_urdfs import PANDA, UR5, vendor_path, vendor_robot
+from vendor_urdfs import PANDA, UR5, vendor_path, vendor_robot, Z1
 
 pytestmark = pytest.mark.integration
 
@@ -135,3 +135,66 @@ def test_publish_frequency_throttles_by_stamps_unless_ignore_timestamp(ros_domai
             assert got == expected_ms, params
         finally:
             harness.close()
+
+
+def test_a_side_branch_joint_is_published_once_joint_states_name_it(ros_domain_id):
+    robot = vendor_robot(Z1)
+    model = robot.model
+    assert model.optional_joints == ('jointGripper',)
+    chain = list(model.joint_names[:6])
+    harness = Harness()
+    try:
+        harness.start_node(robot_description_file=vendor_path(Z1), urdf_tip_link=Z1[1])
+        tf = harness.listen(TFMessage, '/tf', 100)
+        static = harness.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+        arm = harness.joint_state(chain, [0.1, 0.5, -0.4, 0.2, 0.3, -0.6])
+        assert harness.spin_until(lambda: static and tf and tf[-1].transforms[0].header.stamp
+                                  == arm.header.stamp, publish=arm)
+        published = {t.child_frame_id for t in static[-1].transforms + tf[-1].transforms}
+        assert 'link06' in published and 'gripperStator' in published  # fixed: static
+        assert 'gripperMover' not in published  # its joint was never named
+        gripper = harness.joint_state(['jointGripper'], [-0.8])
+        assert harness.spin_until(lambda: any(
+            t.child_frame_id == 'gripperMover' for t in tf[-1].transforms), publish=gripper)
+        # the same tree as the vendor's URDF, gripper and all, by pinocchio
+        check_tf_tree(harness, model, robot.urdf, np.random.default_rng(2), rounds=2)
+    finally:
+        harness.close()
+
+
+def test_a_bag_writes_a_side_branch_from_the_message_that_names_it(tmp_path):
+    from rosbags.rosbag2 import Reader, Writer
+    from rosbags.typesys import get_typestore, Stores
+    from dq_fk_ros.bag.process import process_bag
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = store.types
+    model = vendor_robot(Z1).model
+    t0 = 1_700_000_000_000_000_000
+
+    def joint_state(names, positions, stamp):
+        header = types['std_msgs/msg/Header'](stamp=types['builtin_interfaces/msg/Time'](
+            sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id='')
+        msg = types['sensor_msgs/msg/JointState'](
+            header=header, name=list(names), position=np.asarray(positions, dtype=float),
+            velocity=np.zeros(0), effort=np.zeros(0))
+        return bytes(store.serialize_cdr(msg, 'sensor_msgs/msg/JointState'))
+
+    with Writer(tmp_path / 'in', version=9) as writer:
+        conn = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState',
+                                     typestore=store)
+        for k in range(20):  # the gripper's joint appears from message 12 on
+            stamp = t0 + k * 10_000_000
+            names = list(model.joint_names) if k >= 12 else list(model.joint_names[:6])
+            writer.write(conn, stamp, joint_state(names, [0.01 * k] * len(names), stamp))
+    summary = process_bag(tmp_path / 'in', tmp_path / 'out', model, progress=False)
+    assert summary['written'] == 20
+    with Reader(tmp_path / 'out') as reader:
+        tf = [(t, store.deserialize_cdr(raw, c.msgtype)) for c, t, raw in reader.messages(
+            connections=[c for c in reader.connections if c.topic == '/tf'])]
+        mover = [c for c in reader.connections
+                 if c.topic == '/dq_fk_node/pose/gripperMover']
+        poses = [t for _, t, _ in reader.messages(connections=mover)]
+    stamps = sorted(t for t, msg in tf
+                    if any(x.child_frame_id == 'gripperMover' for x in msg.transforms))
+    assert stamps == [t0 + k * 10_000_000 for k in range(12, 20)]
+    assert sorted(poses) == stamps

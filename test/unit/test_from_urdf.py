@@ -39,7 +39,7 @@ VENDOR_ARMS = [
     ('kinova_description/robots/kinova.urdf', None, None,
      'Kinova Jaco 2: continuous joints, default tip, fixed finger links'),
     ('xarm_description/urdf/xarm7.urdf', None, None, 'UFactory xArm7: 7 axes'),
-    ('z1_description/urdf/z1.urdf', None, 'link06', 'Unitree Z1: gripper joint skipped'),
+    ('z1_description/urdf/z1.urdf', None, 'link06', 'Unitree Z1: gripper as a side branch'),
     ('so_arm_description/urdf/so100.urdf', None, None, 'SO-100: rotated joint origins'),
 ]
 
@@ -60,7 +60,7 @@ def random_configurations(model, count, seed):
     limits = model.limits.copy()
     limits[~np.isfinite(limits)] = np.pi * np.sign(limits[~np.isfinite(limits)])
     rng = np.random.default_rng(seed)
-    return rng.uniform(limits[:, 0], limits[:, 1], size=(count, model.chain.dof))
+    return rng.uniform(limits[:, 0], limits[:, 1], size=(count, model.dof))
 
 
 def assert_matches_pinocchio(model, urdf_text, base, samples, seed=0):
@@ -111,12 +111,35 @@ def test_panda_mimic_finger_moves_with_the_chain_finger():
     assert np.linalg.norm(poses[1][:3, 3] - poses[0][:3, 3]) == pytest.approx(0.01)
 
 
-def test_z1_gripper_joint_is_skipped_and_named():
-    conversion, _ = load_urdf_description(
+def test_z1_gripper_is_a_side_branch_with_an_optional_joint():
+    conversion, text = load_urdf_description(
         os.path.join(robots_dir(), 'z1_description/urdf/z1.urdf'), tip='link06')
-    assert [j.name for j in conversion.skipped] == ['jointGripper']
-    assert '# skipped: moving side branch jointGripper' in conversion.text
-    assert 'gripperMover' not in parse_robot_description(conversion.text).frame_names
+    model = parse_robot_description(conversion.text)
+    assert conversion.skipped == ()
+    assert model.optional_joints == ('jointGripper',)
+    assert model.joint_names[-1] == 'jointGripper' and model.chain.dof == 6
+    mover = model.frame_names.index('gripperMover')
+    assert model.moving[mover] and model.parent_frames[mover] == 'gripperStator'
+    assert model.frame_needs[mover] == frozenset({'jointGripper'})
+    assert model.frame_needs[model.frame_names.index('link06')] == frozenset()
+    assert_matches_pinocchio(model, text, conversion.base, 200)
+
+
+def test_floating_side_branches_and_orphan_mimics_are_skipped_and_named():
+    text = serial_urdf(DEGENERATE['skew axes'])[:-len('</robot>\n')] + (
+        '  <link name="drone"/><joint name="free" type="floating"><parent link="l2"/>'
+        '<child link="drone"/></joint>\n'
+        '  <link name="pad"/><joint name="pad_joint" type="revolute"><parent link="l3"/>'
+        '<child link="pad"/><mimic joint="free"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>\n</robot>\n')
+    conversion = urdf_to_description(text, 'mine.urdf', tip='l3')
+    assert [j.name for j in conversion.skipped] == ['free', 'pad_joint']
+    assert '# skipped: side branch free (floating) -> drone: a floating joint' in \
+        conversion.text
+    assert '# skipped: side branch pad_joint (revolute) -> pad: mimics free, which is not ' \
+        'published' in conversion.text
+    model = parse_robot_description(conversion.text)
+    assert 'drone' not in model.frame_names and 'pad' not in model.frame_names
 
 
 def test_converted_text_says_where_every_row_came_from():

@@ -134,7 +134,7 @@ def random_batch(rng, names, k):
 
 
 def merge_one_by_one(merger, runs):
-    published, qs, qdots = [], [], []
+    published, qs, qdots, optional = [], [], [], []
     at = 0
     for names, positions, velocities, stamps in runs:
         for i in range(len(stamps)):
@@ -143,16 +143,18 @@ def merge_one_by_one(merger, runs):
                 published.append(at + i)
                 qs.append(r.q)
                 qdots.append(r.qdot if r.qdot is not None else np.full(3, np.nan))
+                optional.append('c' in merger.seen_optional)
         at += len(stamps)
-    return published, np.array(qs).reshape(-1, 3), np.array(qdots).reshape(-1, 3)
+    return published, np.array(qs).reshape(-1, 3), np.array(qdots).reshape(-1, 3), optional
 
 
+@pytest.mark.parametrize('required', [3, 2])  # 2: joint c is optional (a side branch)
 @pytest.mark.parametrize('policy', ['warn', 'clamp', 'reject'])
 @pytest.mark.parametrize('seed', range(6))
-def test_merge_many_equals_merging_one_by_one(policy, seed):
+def test_merge_many_equals_merging_one_by_one(policy, seed, required):
     rng = np.random.default_rng(seed)
-    batched = JointStateMerger(NAMES, LIMITS, policy)
-    single = JointStateMerger(NAMES, LIMITS, policy)
+    batched = JointStateMerger(NAMES, LIMITS, policy, required=required)
+    single = JointStateMerger(NAMES, LIMITS, policy, required=required)
     for _ in range(25):
         runs = []
         for _ in range(int(rng.integers(1, 8))):  # several publishers, interleaved
@@ -166,6 +168,9 @@ def test_merge_many_equals_merging_one_by_one(policy, seed):
         assert published.tolist() == expected[0]
         np.testing.assert_array_equal(q, expected[1])
         np.testing.assert_array_equal(qdot, expected[2])
+        if required == 2:
+            assert batched.last_seen[:, 2].tolist() == expected[3]
+            assert batched.last_seen[:, :2].all()
         assert batched.counts == single.counts
         assert batched.unknown == single.unknown
         # the state left behind is the same: a partial message completes alike
@@ -277,9 +282,10 @@ class NoShortPath(JointStateMerger):
                                    max_size=4),
                           st.sampled_from([0, 1, 2, 5, -3])),
                 max_size=30),
-       st.sampled_from(['warn', 'clamp', 'reject']))
-def test_the_short_path_for_complete_messages_changes_nothing(messages, policy):
-    fast, slow = JointStateMerger(NAMES, LIMITS, policy), NoShortPath(NAMES, LIMITS, policy)
+       st.sampled_from(['warn', 'clamp', 'reject']), st.sampled_from([3, 2]))
+def test_the_short_path_for_complete_messages_changes_nothing(messages, policy, required):
+    fast = JointStateMerger(NAMES, LIMITS, policy, required=required)
+    slow = NoShortPath(NAMES, LIMITS, policy, required=required)
     stamp = 10 * TIME_JUMP_BACK_NS
     for names, positions, velocities, step in messages:
         stamp += step * TIME_JUMP_BACK_NS // 2
@@ -288,6 +294,7 @@ def test_the_short_path_for_complete_messages_changes_nothing(messages, policy):
         assert (a.status, a.reason, a.detail, a.out_of_limits, a.time_jump, a.missing) == \
             (b.status, b.reason, b.detail, b.out_of_limits, b.time_jump, b.missing)
         assert str(a.q) == str(b.q) and str(a.qdot) == str(b.qdot)
+        assert fast.seen_optional == slow.seen_optional
     assert fast.counts == slow.counts
 
 
@@ -296,3 +303,19 @@ def test_a_message_of_foreign_joints_says_which_names_it_had(merger):
     assert r.detail == "none of 'x', 'y' is a joint of this robot"
     r = merger.merge([f'u{k}' for k in range(7)], [0.0] * 7)
     assert r.detail == "none of 'u0', 'u1', 'u2', 'u3', 'u4' ... is a joint of this robot"
+
+
+def test_optional_joints_never_hold_back_an_update():
+    merger = JointStateMerger(NAMES, LIMITS, required=2)  # c: a gripper on another topic
+    r = merger.merge(['b', 'a'], [0.5, 0.25], [1.0, 2.0])
+    assert r.status == PUBLISH and r.q.tolist() == [0.25, 0.5, 0.0]
+    assert r.qdot[:2].tolist() == [2.0, 1.0] and math.isnan(r.qdot[2])
+    assert merger.never_seen == () and merger.seen_optional == ()
+    r = merger.merge(['c'], [1.5])
+    assert r.status == PUBLISH and r.q.tolist() == [0.25, 0.5, 1.5]
+    assert merger.seen_optional == ('c',)
+    r = merger.merge(['b', 'a'], [0.0, 0.0], [1.0, 2.0])  # the short path keeps c
+    assert r.q.tolist() == [0.0, 0.0, 1.5] and merger.seen_optional == ('c',)
+    merger.reset()
+    assert merger.seen_optional == () and merger.never_seen == ('a', 'b')
+    assert merger.merge(['c'], [0.1]).status == INCOMPLETE

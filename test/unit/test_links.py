@@ -28,6 +28,10 @@ links:
   - {frame: pad, parent: finger, xyz: [0, 0, 5]}
   - {frame: knuckle, parent: camera, type: revolute, axis: [1, 0, 0],
      mimic: {joint: j1, multiplier: -2}}
+  - {frame: jaw, parent: flange, type: revolute, axis: [0, 1, 0], joint: grip,
+     limits: [-30, 60], max_velocity: 90, xyz: [0, 10, 0]}
+  - {frame: jaw_tip, parent: jaw, xyz: [0, 0, 40]}
+  - {frame: jaw2, parent: flange, type: prismatic, mimic: {joint: grip, multiplier: 2}}
 end_effector: flange
 """
 
@@ -44,23 +48,37 @@ def expected_frames(q):
     finger = flange @ hm.trans(z=0.02) @ hm.trans(stroke / 3, 2 * stroke / 3, 2 * stroke / 3)
     pad = finger @ hm.trans(z=0.005)
     knuckle = camera @ hm.rot_x(-2 * q[0])
+    jaw = flange @ hm.trans(y=0.01) @ hm.rot_y(q[2])
     return {'base0': base, 'upper': upper, 'lower': lower, 'tcp': tcp, 'flange': flange,
             'camera': camera, 'upper_link': upper @ hm.trans(x=-0.15), 'finger': finger,
-            'pad': pad, 'knuckle': knuckle}
+            'pad': pad, 'knuckle': knuckle, 'jaw': jaw, 'jaw_tip': jaw @ hm.trans(z=0.04),
+            'jaw2': flange @ hm.trans(z=2 * q[2])}
 
 
 def test_links_follow_the_chain_frames_they_are_fixed_to():
     model = parse_robot_description(ARM, 'arm.yaml')
     assert model.frame_names == ('base0', 'upper', 'lower', 'tcp', 'flange', 'camera',
-                                 'upper_link', 'finger', 'pad', 'knuckle')
+                                 'upper_link', 'finger', 'pad', 'knuckle', 'jaw', 'jaw_tip',
+                                 'jaw2')
     assert model.parent_frames == ('world', 'base0', 'upper', 'lower', 'tcp', 'flange',
-                                   'base0', 'flange', 'finger', 'camera')
+                                   'base0', 'flange', 'finger', 'camera', 'flange', 'jaw',
+                                   'flange')
     # static: fixed to their TF parent; moving: another body (upper_link under base0) or a
-    # mimic motion (finger, knuckle)
-    assert model.moving == (False, True, True, False, False, False, True, True, False, True)
+    # motion (finger, knuckle, jaw2: mimics; jaw: its own joint)
+    assert model.moving == (False, True, True, False, False, False, True, True, False, True,
+                            True, False, True)
     assert model.end_effector == 'flange' and model.end_effector_index == 4
+    # the jaw's joint: optional, after the chain's, in degrees in the file
+    assert model.joint_names == ('j1', 'j2', 'grip') and model.optional_joints == ('grip',)
+    assert model.chain.dof == 2 and model.dof == 3
+    np.testing.assert_allclose(model.limits[2], np.radians([-30, 60]))
+    assert model.max_velocity[2] == pytest.approx(math.radians(90))
+    assert model.angular.tolist() == [True, True, True]
+    needs = dict(zip(model.frame_names, model.frame_needs))
+    assert needs['jaw'] == needs['jaw_tip'] == needs['jaw2'] == {'grip'}
+    assert needs['knuckle'] == needs['flange'] == frozenset()
     rng = np.random.default_rng(5)
-    qs = rng.uniform(-3, 3, size=(40, 2))
+    qs = rng.uniform(-3, 3, size=(40, 3))
     batch = homogeneous_from_dq(model.forward_all_batch(qs))
     for q, frames in zip(qs, batch):
         expected = expected_frames(q)
@@ -72,7 +90,7 @@ def test_links_follow_the_chain_frames_they_are_fixed_to():
 
 def test_tf_transforms_are_relative_to_the_tf_parent():
     model = parse_robot_description(ARM, 'arm.yaml')
-    q = np.array([0.7, -1.1])
+    q = np.array([0.7, -1.1, 0.4])
     expected = expected_frames(q)
     absolute, relative = model.frame_poses(q)
     assert len(absolute) == len(model.frame_names)
@@ -88,7 +106,7 @@ def test_tf_transforms_are_relative_to_the_tf_parent():
                                    homogeneous_from_dq(batch[k]), atol=1e-12)
     # the moving transforms are exactly the moving frames' (rows first, then links)
     names = [model.frame_names[k] for k, _ in model.moving_edges]
-    assert names == ['upper', 'lower', 'upper_link', 'finger', 'knuckle']
+    assert names == ['upper', 'lower', 'upper_link', 'finger', 'knuckle', 'jaw', 'jaw2']
 
 
 def test_static_links_go_to_tf_static_under_their_parent():
@@ -102,9 +120,14 @@ def test_static_links_go_to_tf_static_under_their_parent():
     assert (t.translation.x, t.rotation.z, t.rotation.w) == pytest.approx(
         (0.03, math.sqrt(0.5), math.sqrt(0.5)))
     moving = [(t.header.frame_id, t.child_frame_id) for t in messages.tf.transforms]
+    # the jaw's joint was never named: its links are left out until it is
     assert moving == [('r1/base0', 'r1/upper'), ('r1/upper', 'r1/lower'),
                       ('r1/base0', 'r1/upper_link'), ('r1/flange', 'r1/finger'),
                       ('r1/camera', 'r1/knuckle')]
+    assert sorted(model.frame_names[k] for k in messages.hidden) == ['jaw', 'jaw2', 'jaw_tip']
+    shown = FrameMessages(model, 'r1/', shown_optional=('grip',))
+    assert shown.hidden == frozenset()
+    assert [t.child_frame_id for t in shown.tf.transforms][-2:] == ['r1/jaw', 'r1/jaw2']
     # the end effector's twist is published too when it is a link
     assert [model.frame_names[k] for k in messages.twist_frames] == ['lower', 'tcp', 'flange']
 
@@ -115,7 +138,11 @@ def test_the_urdf_of_a_robot_with_links_poses_them_alike():
     assert joints['finger'].kind == 'prismatic' and joints['finger'].mimic == ('j2', 0.01,
                                                                                0.005)
     assert joints['knuckle'].kind == 'continuous'
-    q = np.array([0.3, 0.9])
+    assert joints['jaw'].name == 'grip' and joints['jaw'].mimic is None
+    assert joints['jaw'].limits == pytest.approx(
+        (math.radians(-30), math.radians(60), math.radians(90), 1e9))
+    assert joints['jaw2'].mimic == ('grip', 2.0, 0.0)
+    q = np.array([0.3, 0.9, -0.2])
     poses = link_poses(model, q)
     expected = expected_frames(q)
     for name in model.frame_names:
@@ -131,10 +158,21 @@ BAD = {
     'a frame used twice': ('frame: camera, parent', 'frame: upper, parent',
                            "links[1] (frame 'upper'): frame 'upper' is already used by chain[0]"),
     'a motion without mimic': ('mimic: {joint: j1, multiplier: -2}}', 'xyz: [0, 0, 0]}',
-                               "links[5] (frame 'knuckle'): missing field 'mimic'"),
-    'mimic of no chain joint': ('joint: j1, multiplier: -2', 'joint: j9, multiplier: -2',
-                                "links[5] (frame 'knuckle') mimic: field 'joint' names 'j9', "
-                                'which no row reads; joints: j1, j2'),
+                               "links[5] (frame 'knuckle'): a revolute link takes either "
+                               "'joint' (a joint of its own) or 'mimic' (moving with another "
+                               'joint), not neither'),
+    'joint and mimic': ('joint: grip,', 'joint: grip, mimic: {joint: j1},',
+                        "links[6] (frame 'jaw'): a revolute link takes either 'joint'"),
+    'mimic of no joint': ('joint: j1, multiplier: -2', 'joint: j9, multiplier: -2',
+                          "links[5] (frame 'knuckle') mimic: field 'joint' names 'j9', "
+                          'which no row or link has; joints: j1, j2, grip'),
+    'a link joint named as a chain joint': ('joint: grip,', 'joint: j2,',
+                                            "links[6] (frame 'jaw'): joint 'j2' is already a "
+                                            'joint of the robot'),
+    'limits with mimic': ('multiplier: 2}}', 'multiplier: 2}, limits: [0, 1]}',
+                          "links[8] (frame 'jaw2'): field 'limits' does not go with 'mimic'"),
+    'limits upside down': ('limits: [-30, 60]', 'limits: [60, -30]',
+                           "links[6] (frame 'jaw'): field 'limits' has lower 60 above upper"),
     'a zero axis': ('axis: [1, 0, 0]', 'axis: [0, 0, 0]', "field 'axis' must not be all zeros"),
     'axis on a fixed link': ('quaternion: [0, 0, 1, 1]}',
                              'quaternion: [0, 0, 1, 1], axis: [1, 0, 0]}',
