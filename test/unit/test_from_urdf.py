@@ -6,6 +6,7 @@ The URDFs come from the ``example-robot-data`` wheel (a dev requirement); pinocc
 package. Every frame the converted robot publishes under a URDF link name must agree.
 """
 
+import copy
 import json
 import os
 import re
@@ -20,6 +21,7 @@ from dq_fk_ros.description.robot_model import (
     shipped_robots)
 from dq_fk_ros.description.urdf import robot_to_urdf
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
+from hypothesis import given, strategies as st
 import numpy as np
 import pytest
 
@@ -337,3 +339,38 @@ def test_bad_base_and_tip_are_named():
                               "'l2'")):
         with pytest.raises(RobotDescriptionError, match=re.escape(expected)):
             urdf_to_description(text, 'mine.urdf', **kwargs)
+
+
+# -- fuzzing: whatever a URDF holds, a robot or one line ---------------------------------
+FUZZ_BASE = serial_urdf(DEGENERATE['joint origins with rotations'])
+NASTY = st.one_of(st.text(max_size=12), st.sampled_from(
+    ['nan', 'inf', '1e400', '', '0 0', '1 2 3 4', 'a b c', '-0', '1e-320', '"', '<', '&amp;',
+     'base', 'l1', 'l3', 'j1', 'revolute', 'floating', 'continuous', 'fixed', 'x' * 200]))
+
+
+@given(st.lists(st.tuples(st.sampled_from(['attribute', 'delete', 'duplicate', 'cut']),
+                          st.integers(0, 10_000), NASTY), min_size=1, max_size=4))
+def test_mutated_urdfs_give_a_robot_or_one_line(mutations):
+    root = ElementTree.fromstring(FUZZ_BASE)
+    for kind, where, text in mutations:
+        elements = list(root.iter())
+        element = elements[where % len(elements)]
+        if kind == 'attribute' and element.attrib:
+            keys = sorted(element.attrib)
+            element.set(keys[where % len(keys)], text)
+        elif kind == 'delete' and element is not root:
+            parent = next(p for p in root.iter() if element in list(p))
+            parent.remove(element)
+        elif kind == 'duplicate' and element is not root:
+            parent = next(p for p in root.iter() if element in list(p))
+            parent.append(copy.deepcopy(element))
+    xml = ElementTree.tostring(root, encoding='unicode')
+    if any(kind == 'cut' for kind, _, _ in mutations):
+        xml = xml[:mutations[0][1] % max(len(xml), 1)]
+    try:
+        conversion = urdf_to_description(xml, 'fuzz.urdf')
+    except RobotDescriptionError as exc:
+        assert '\n' not in str(exc) and str(exc).startswith('fuzz.urdf')
+        return
+    model = parse_robot_description(conversion.text)
+    assert np.isfinite(model.forward_all(np.zeros(model.dof))).all()
