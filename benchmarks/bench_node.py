@@ -1,5 +1,5 @@
 """
-Per-update cost of dq_fk_node for the 6-DoF RL15, in-process, split into its parts.
+Per-update cost of dq_fk_node (the RL15 by default), in-process, split into its parts.
 
 One "update" is what the node does with a serialized JointState (its subscription is raw):
 read it, merge it, compute every frame (FK), serialize /tf (6 transforms) and the pose
@@ -11,7 +11,8 @@ percentile microseconds per update and per part, and the same for the message-ob
 the node used before (for comparison).
 
 Run with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a private ROS_DOMAIN_ID
-(``make bench`` sets both): ``python benchmarks/bench_node.py [--updates 20000]``.
+(``make bench`` sets both): ``python benchmarks/bench_node.py [--updates 20000] [--robot
+ROBOT] [--urdf-tip LINK]`` (ROBOT: a DH file, a URDF, a shipped name).
 """
 
 import argparse
@@ -40,9 +41,13 @@ def percentiles(samples_s):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--updates', type=int, default=20000, help='updates timed per row')
+    parser.add_argument('--robot', default='rl15', help='DH file, URDF or shipped name')
+    parser.add_argument('--urdf-tip', default='', help='for a URDF: the chain\'s last link')
     args = parser.parse_args(argv)
     rclpy.init(args=['--ros-args', '--log-level', 'warn'])
-    node = DqFkNode()
+    node = DqFkNode(parameter_overrides=[
+        Parameter('robot_description_file', value=args.robot),
+        Parameter('urdf_tip_link', value=args.urdf_tip)])
     probe = rclpy.create_node('dq_fk_bench_probe')
     rows = []
     try:
@@ -54,7 +59,8 @@ def main(argv=None):
             msg.header.stamp = node.get_clock().now().to_msg()
             msgs.append(msg)
             raws.append(serialize_message(msg))
-        chain, merger, out = node._model.chain, node._merger, node._bytes
+        model, merger, out = node._model, node._merger, node._bytes
+        n_frames = len(model.frame_names)
 
         def timed(label, fn, items):
             for item in items[:500]:  # warm up
@@ -75,21 +81,21 @@ def main(argv=None):
             *_fields(parse_joint_state(raw, cache))), raws)
         qs = [np.array(m.position) for m in msgs]
         it = iter(qs * 2)
-        timed('  FK, every frame (frame_poses)', lambda m: chain.frame_poses(next(it)), msgs)
-        poses = [chain.frame_poses(q) for q in qs]
+        timed('  FK, every frame (frame_poses)', lambda m: model.frame_poses(next(it)), msgs)
+        poses = [model.frame_poses(q) for q in qs]
         it = iter(poses * 2)
 
         def serialize(_):
             absolute, relative = next(it)
             return [out.tf(1, 2, relative)] + [out.pose(1, 2, p) for p in absolute]
-        timed('  serialize /tf + 7 poses (bytes)', serialize, msgs)
+        timed(f'  serialize /tf + {n_frames} poses (bytes)', serialize, msgs)
         payloads = serialize(None)
 
         def publish_all(_):
             node._tf_pub.publish(payloads[0])
             for pub, payload in zip(node._pose_pubs, payloads[1:]):
                 pub.publish(payload)
-        timed('  publish /tf + 7 poses (bytes)', publish_all, msgs)
+        timed(f'  publish /tf + {n_frames} poses (bytes)', publish_all, msgs)
         node.set_parameters([Parameter('publish_unread_topics', value=False)])
 
         probe.create_subscription(TFMessage, '/tf', lambda _: None, 10, raw=True)
@@ -110,7 +116,7 @@ def main(argv=None):
 
         def object_update(msg):
             result = merger.merge(*joint_state_fields(msg))
-            absolute, relative = chain.frame_poses(result.q)
+            absolute, relative = model.frame_poses(result.q)
             tf_msg, pose_list = messages.fill(msg.header.stamp, absolute, relative)
             node._tf_pub.publish(tf_msg)
             for pub, pm in zip(node._pose_pubs, pose_list):
@@ -121,8 +127,8 @@ def main(argv=None):
         node.destroy_node()
         rclpy.try_shutdown()
 
-    print(f'# dq_fk_node per-update cost, RL15 (6 joints, 7 frames), {args.updates} updates '
-          'per row, in-process')
+    print(f'# dq_fk_node per-update cost, {model.name} ({model.dof} joints, {n_frames} frames, '
+          f'{len(model.links)} of them links), {args.updates} updates per row, in-process')
     print(f"| {'part':40s} | median us | p90 us | p99 us |")
     print('|---|---|---|---|')
     for label, p50, p90, p99 in rows:

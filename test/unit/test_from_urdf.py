@@ -93,8 +93,7 @@ def test_vendor_urdf_matches_pinocchio(path, base, tip, what, convention):
     conversion, text = load_urdf_description(os.path.join(robots_dir(), path), base, tip,
                                              convention)
     model = parse_robot_description(conversion.text)
-    samples = SAMPLES if convention == 'standard' else SAMPLES // 10
-    names = assert_matches_pinocchio(model, text, conversion.base, samples)
+    names = assert_matches_pinocchio(model, text, conversion.base, SAMPLES)
     # every link of the chain is published under its URDF name
     assert conversion.tip in names and model.end_effector == conversion.tip
 
