@@ -9,9 +9,10 @@ each mutant is written into a copy of the package (the repository stays untouche
 module's unit tests run against it (``PYTHONPATH`` puts the copy first). A mutant is
 *killed* when the tests fail or hang (time limit), and *survives* when they pass. Mutants
 judged equivalent (they change nothing a caller can see) are listed in
-``scripts/mutate_equivalent.txt`` and skipped.
+``scripts/mutate_equivalent.txt`` by module, source line and mutation (so that they stay
+found when lines move) and skipped.
 
-    scripts/mutate.py [--modules dh cdr ...] [--per-module 60] [--seed 1]
+    scripts/mutate.py [--modules dh cdr ...] [--per-module 60] [--seed 1] [--jobs 2]
 
 Prints the kill rate per module and every survivor (file:line, what changed). Exit code 0
 (a report, not a gate). ``make mutate`` runs it on every module; it is not part of
@@ -20,6 +21,7 @@ Prints the kill rate per module and every survivor (file:line, what changed). Ex
 
 import argparse
 import ast
+from concurrent.futures import ThreadPoolExecutor
 import os
 import random
 import shutil
@@ -37,14 +39,16 @@ MODULES = {
     'dh': ('dq_fk_ros/kinematics/dh.py',
            ['test_dh.py', 'test_papers.py', 'test_shipped_robots.py']),
     'robot_model': ('dq_fk_ros/description/robot_model.py',
-                    ['test_robot_model.py', 'test_shipped_robots.py',
+                    ['test_robot_model.py', 'test_links.py', 'test_shipped_robots.py',
                      'test_fuzz_robot_description.py']),
-    'urdf': ('dq_fk_ros/description/urdf.py', ['test_urdf.py']),
+    'urdf': ('dq_fk_ros/description/urdf.py', ['test_urdf.py', 'test_links.py']),
+    'from_urdf': ('dq_fk_ros/description/from_urdf.py', ['test_from_urdf.py']),
+    'loading': ('dq_fk_ros/description/loading.py', ['test_from_urdf.py', 'test_cli.py']),
     'plot': ('dq_fk_ros/description/plot.py', ['test_plot.py']),
     'joint_states': ('dq_fk_ros/messages/joint_states.py', ['test_joint_states.py']),
     'cdr': ('dq_fk_ros/messages/cdr.py', ['test_cdr.py', 'test_frame_bytes.py']),
     'conversions': ('dq_fk_ros/ros/conversions.py',
-                    ['test_ros_conversions.py', 'test_frame_bytes.py']),
+                    ['test_ros_conversions.py', 'test_frame_bytes.py', 'test_links.py']),
 }
 COMPARE_SWAPS = {ast.Lt: ast.LtE, ast.LtE: ast.Lt, ast.Gt: ast.GtE, ast.GtE: ast.Gt,
                  ast.Eq: ast.NotEq, ast.NotEq: ast.Eq, ast.Is: ast.IsNot, ast.IsNot: ast.Is,
@@ -138,12 +142,20 @@ def _replace_statement(tree, target):
                 return
 
 
+def site_key(name, source_lines, line, description):
+    """Name a mutant by module, its line's code (no inline comment) and what it changes."""
+    code = source_lines[line - 1].split('  #')[0].strip() if 0 < line <= len(source_lines) \
+        else ''
+    return f'{name} | {code} | {description}'
+
+
 def load_equivalent():
-    """The reviewed equivalent mutants: ``module:line:description`` per line."""
+    """Return the reviewed equivalent mutants: ``module | code | what || reason`` per line."""
     if not os.path.exists(EQUIVALENT):
         return set()
     with open(EQUIVALENT, encoding='utf-8') as stream:
-        return {line.split('#')[0].strip() for line in stream if line.split('#')[0].strip()}
+        return {line.split(' || ')[0].strip() for line in stream
+                if line.strip() and not line.startswith('#')}
 
 
 def run_tests(copy, tests, timeout_s):
@@ -166,37 +178,53 @@ def main(argv=None):
     parser.add_argument('--per-module', type=int, default=60)
     parser.add_argument('--seed', type=int, default=1)
     parser.add_argument('--timeout', type=int, default=120, help='seconds per test run')
+    parser.add_argument('--jobs', type=int, default=os.cpu_count() or 1,
+                        help='mutants tested at once (one package copy each)')
     args = parser.parse_args(argv)
     equivalent = load_equivalent()
-    work = tempfile.mkdtemp(prefix='dq_fk_mutate-')
+    works = [tempfile.mkdtemp(prefix='dq_fk_mutate-') for _ in range(max(args.jobs, 1))]
+    free = list(works)
     try:
-        shutil.copytree(os.path.join(ROOT, 'dq_fk_ros'), os.path.join(work, 'dq_fk_ros'))
-        shutil.copytree(os.path.join(ROOT, 'config'), os.path.join(work, 'config'))
+        for work in works:
+            shutil.copytree(os.path.join(ROOT, 'dq_fk_ros'), os.path.join(work, 'dq_fk_ros'))
+            shutil.copytree(os.path.join(ROOT, 'config'), os.path.join(work, 'config'))
         report = []
         for name in args.modules:
             path, tests = MODULES[name]
             with open(os.path.join(ROOT, path), encoding='utf-8') as stream:
                 source = stream.read()
-            target = os.path.join(work, path)
-            if run_tests(work, tests, args.timeout) != 'survived':
+            lines = source.splitlines()
+            if run_tests(works[0], tests, args.timeout) != 'survived':
                 raise SystemExit(f'mutate: the tests of {name} fail without any mutant')
-            candidates = [s for s in sites(ast.parse(source))
-                          if f'{name}:{s[2]}:{s[3]}' not in equivalent]
-            skipped = sum(1 for s in sites(ast.parse(source))) - len(candidates)
+            every = list(sites(ast.parse(source)))
+            candidates = [s for s in every
+                          if site_key(name, lines, s[2], s[3]) not in equivalent]
+            skipped = len(every) - len(candidates)
             sample = random.Random(f'{args.seed}:{name}').sample(
                 candidates, min(args.per_module, len(candidates)))
+            start = time.monotonic()
+
+            def attempt(site):
+                index, kind, line, what = site
+                work = free.pop()
+                try:
+                    with open(os.path.join(work, path), 'w', encoding='utf-8') as stream:
+                        stream.write(mutate(source, index))
+                    return site, run_tests(work, tests, args.timeout)
+                finally:
+                    with open(os.path.join(work, path), 'w', encoding='utf-8') as stream:
+                        stream.write(source)
+                    free.append(work)
+
+            with ThreadPoolExecutor(len(works)) as pool:
+                results = list(pool.map(attempt, sorted(sample, key=lambda s: s[2])))
             outcome = {'killed': 0, 'hang': 0, 'survived': 0}
             survivors = []
-            start = time.monotonic()
-            for index, kind, line, what in sorted(sample, key=lambda s: s[2]):
-                with open(target, 'w', encoding='utf-8') as stream:
-                    stream.write(mutate(source, index))
-                result = run_tests(work, tests, args.timeout)
+            for (index, kind, line, what), result in results:
                 outcome[result] += 1
                 if result == 'survived':
-                    survivors.append(f'{path}:{line}: {kind}: {what}')
-            with open(target, 'w', encoding='utf-8') as stream:
-                stream.write(source)
+                    survivors.append((f'{path}:{line}: {kind}: {what}',
+                                      site_key(name, lines, line, what)))
             tried = len(sample)
             killed = outcome['killed'] + outcome['hang']
             report.append((name, tried, killed, outcome['hang'], skipped, survivors,
@@ -204,10 +232,11 @@ def main(argv=None):
             print(f'{name}: {killed}/{tried} killed ({100.0 * killed / max(tried, 1):.1f} %, '
                   f'{outcome["hang"]} by the time limit), {skipped} equivalent skipped, '
                   f'{time.monotonic() - start:.0f} s', flush=True)
-            for survivor in survivors:
-                print(f'  survived: {survivor}', flush=True)
+            for where, key in survivors:
+                print(f'  survived: {where}\n    key: {key}', flush=True)
     finally:
-        shutil.rmtree(work, ignore_errors=True)
+        for work in works:
+            shutil.rmtree(work, ignore_errors=True)
     print('\n| module | mutants | killed | kill rate | equivalent skipped |')
     print('|---|---|---|---|---|')
     for name, tried, killed, _, skipped, _, _ in report:
