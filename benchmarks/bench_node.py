@@ -42,7 +42,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--updates', type=int, default=20000, help='updates timed per row')
     parser.add_argument('--robot', default='rl15', help='DH file, URDF or shipped name')
-    parser.add_argument('--urdf-tip', default='', help='for a URDF: the chain\'s last link')
+    parser.add_argument('--urdf-tip', default='', help="for a URDF: the chain's last link")
     args = parser.parse_args(argv)
     rclpy.init(args=['--ros-args', '--log-level', 'warn'])
     node = DqFkNode(parameter_overrides=[

@@ -297,13 +297,6 @@ def _unit(v):
     return v / np.linalg.norm(v)
 
 
-def _perpendicular(z):
-    """Return a unit vector perpendicular to ``z`` (x when it can, else y)."""
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    v = helper - np.dot(helper, z) * z
-    return _unit(v)
-
-
 def _common_normal(p1, u1, p2, u2, through, x_before):
     """
     Return ``(foot on line 1, foot on line 2, x, kind)`` of the common normal of two lines.

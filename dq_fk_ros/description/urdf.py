@@ -247,8 +247,7 @@ def robot_to_urdf(model):
     """Return URDF XML text for ``model``; joint names are the model's joint names."""
     links = {model.fixed_frame: []}
     lines = []
-    for j in urdf_joints(model):
-        links.setdefault(j.parent, [])
+    for j in urdf_joints(model):  # parents before children: every parent is known
         links.setdefault(j.child, [])
         out = [f'  <joint name={quoteattr(j.name)} type="{j.kind}">']
         if j.note:

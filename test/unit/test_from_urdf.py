@@ -17,8 +17,8 @@ from dq_fk_ros.cli import dq_fk
 from dq_fk_ros.description.from_urdf import (
     load_urdf_description, read_urdf_text, urdf_to_description)
 from dq_fk_ros.description.robot_model import (
-    load_robot_description, parse_robot_description, RobotDescriptionError, shipped_robot_path,
-    shipped_robots)
+    load_robot_description, MAX_FILE_BYTES, parse_robot_description, RobotDescriptionError,
+    shipped_robot_path, shipped_robots)
 from dq_fk_ros.description.urdf import robot_to_urdf
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 from hypothesis import given, strategies as st
@@ -373,3 +373,74 @@ def test_mutated_urdfs_give_a_robot_or_one_line(mutations):
         return
     model = parse_robot_description(conversion.text)
     assert np.isfinite(model.forward_all(np.zeros(model.dof))).all()
+
+
+def test_a_joint_without_axis_turns_about_x_as_urdf_says():
+    text = serial_urdf(DEGENERATE['skew axes']).replace('<axis xyz="1 0 0"/>', '')
+    assert '<axis xyz="1 0 0"/>' not in text
+    model = parse_robot_description(urdf_to_description(text).text)
+    assert_matches_pinocchio(model, text, 'base', 100)
+
+
+def test_frame_0_sits_on_the_first_axis_closest_to_the_base_origin():
+    text = serial_urdf(DEGENERATE['axes along -z and along x'])  # axis 1: (0.1, 0, z), -z
+    model = parse_robot_description(urdf_to_description(text).text)
+    base = homogeneous_from_dq(model.chain.base.coeffs)
+    np.testing.assert_allclose(base[:3, 3], [0.1, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(base[:3, 2], [0.0, 0.0, -1.0], atol=1e-12)
+    np.testing.assert_allclose(base[:3, 0], [1.0, 0.0, 0.0], atol=1e-12)  # the base link's x
+
+
+def test_a_side_branch_mimicking_a_side_branch_joint_moves_with_it():
+    text = serial_urdf(DEGENERATE['skew axes'])[:-len('</robot>\n')] + (
+        '  <link name="jaw_a"/><joint name="grip" type="prismatic"><parent link="l3"/>'
+        '<child link="jaw_a"/><origin xyz="0 0.05 0.1"/><axis xyz="0 1 0"/>'
+        '<limit lower="0" upper="0.04" effort="1" velocity="0.1"/></joint>\n'
+        '  <link name="jaw_b"/><joint name="grip_mirror" type="prismatic"><parent link="l3"/>'
+        '<child link="jaw_b"/><origin xyz="0 -0.05 0.1"/><axis xyz="0 1 0"/>'
+        '<mimic joint="grip" multiplier="-1"/>'
+        '<limit lower="-0.04" upper="0" effort="1" velocity="0.1"/></joint>\n</robot>\n')
+    conversion = urdf_to_description(text, tip='l3')
+    model = parse_robot_description(conversion.text)
+    assert conversion.skipped == () and model.optional_joints == ('grip',)
+    assert model.limits[-1].tolist() == [0.0, 0.04] and model.max_velocity[-1] == 0.1
+    assert {'jaw_a', 'jaw_b'} <= set(model.frame_names)
+    assert_matches_pinocchio(model, text, 'base', 200)
+
+
+def test_a_chain_joint_with_an_unusable_name_is_refused():
+    text = serial_urdf(DEGENERATE['skew axes']).replace('name="j2"', 'name="j 2"')
+    with pytest.raises(RobotDescriptionError, match=re.escape(
+            "mine.urdf: joint name 'j 2' is not usable (a letter or underscore, then "
+            'letters, digits, _ . / -)')):
+        urdf_to_description(text, 'mine.urdf')
+
+
+def test_a_chain_link_with_an_unusable_name_is_refused_with_its_name_cut():
+    bad = 'l' + '-' * 99
+    text = serial_urdf(DEGENERATE['skew axes']).replace('"l2"', f'"{bad}"')
+    with pytest.raises(RobotDescriptionError) as caught:
+        urdf_to_description(text, 'mine.urdf')
+    assert str(caught.value) == (
+        f'mine.urdf: link name {bad[:70]!r} is not a ROS frame id this package can publish '
+        '(letters, digits, underscores, inner slashes; at most 128)')
+
+
+def test_the_source_in_the_first_comment_is_printable_and_cut():
+    source = 'dir\n/' + 'x' * 400 + '.urdf'
+    lines = urdf_to_description(serial_urdf(DEGENERATE['skew axes']), source).text.split('\n')
+    assert lines[0] == f'# Converted by `dq_fk from-urdf` from dir?/{"x" * 295}: the chain ' \
+        'base -> l3.'
+
+
+def test_a_urdf_as_big_as_allowed_loads_and_a_bigger_one_does_not(tmp_path):
+    text = serial_urdf(DEGENERATE['skew axes'])
+    limit = 8 * MAX_FILE_BYTES
+    exact = tmp_path / 'exact.urdf'
+    exact.write_text(text + ' ' * (limit - len(text)))
+    assert os.path.getsize(exact) == limit
+    load_urdf_description(exact)
+    bigger = tmp_path / 'bigger.urdf'
+    bigger.write_text(text + ' ' * (limit + 1 - len(text)))
+    with pytest.raises(RobotDescriptionError, match='larger than 8192 KiB'):
+        load_urdf_description(bigger)

@@ -23,6 +23,7 @@ links:
   - {frame: flange, parent: tcp, xyz: [0, 0, 10], rpy: [0, 90, 0]}
   - {frame: camera, parent: flange, xyz: [30, 0, 0], quaternion: [0, 0, 1, 1]}
   - {frame: upper_link, parent: upper, tf_parent: base0, xyz: [-150, 0, 0]}
+  - {frame: plate, parent: base0, xyz: [0, 0, -50], rpy: [90, 0, 0]}
   - {frame: finger, parent: flange, type: prismatic, axis: [1, 2, 2],
      mimic: {joint: j2, multiplier: 0.01, offset: 5}, xyz: [0, 0, 20]}
   - {frame: pad, parent: finger, xyz: [0, 0, 5]}
@@ -50,7 +51,8 @@ def expected_frames(q):
     knuckle = camera @ hm.rot_x(-2 * q[0])
     jaw = flange @ hm.trans(y=0.01) @ hm.rot_y(q[2])
     return {'base0': base, 'upper': upper, 'lower': lower, 'tcp': tcp, 'flange': flange,
-            'camera': camera, 'upper_link': upper @ hm.trans(x=-0.15), 'finger': finger,
+            'camera': camera, 'upper_link': upper @ hm.trans(x=-0.15),
+            'plate': base @ hm.trans(z=-0.05) @ hm.rot_x(math.pi / 2), 'finger': finger,
             'pad': pad, 'knuckle': knuckle, 'jaw': jaw, 'jaw_tip': jaw @ hm.trans(z=0.04),
             'jaw2': flange @ hm.trans(z=2 * q[2])}
 
@@ -58,15 +60,15 @@ def expected_frames(q):
 def test_links_follow_the_chain_frames_they_are_fixed_to():
     model = parse_robot_description(ARM, 'arm.yaml')
     assert model.frame_names == ('base0', 'upper', 'lower', 'tcp', 'flange', 'camera',
-                                 'upper_link', 'finger', 'pad', 'knuckle', 'jaw', 'jaw_tip',
-                                 'jaw2')
+                                 'upper_link', 'plate', 'finger', 'pad', 'knuckle', 'jaw',
+                                 'jaw_tip', 'jaw2')
     assert model.parent_frames == ('world', 'base0', 'upper', 'lower', 'tcp', 'flange',
-                                   'base0', 'flange', 'finger', 'camera', 'flange', 'jaw',
-                                   'flange')
+                                   'base0', 'base0', 'flange', 'finger', 'camera', 'flange',
+                                   'jaw', 'flange')
     # static: fixed to their TF parent; moving: another body (upper_link under base0) or a
     # motion (finger, knuckle, jaw2: mimics; jaw: its own joint)
-    assert model.moving == (False, True, True, False, False, False, True, True, False, True,
-                            True, False, True)
+    assert model.moving == (False, True, True, False, False, False, True, False, True, False,
+                            True, True, False, True)
     assert model.end_effector == 'flange' and model.end_effector_index == 4
     # the jaw's joint: optional, after the chain's, in degrees in the file
     assert model.joint_names == ('j1', 'j2', 'grip') and model.optional_joints == ('grip',)
@@ -113,7 +115,22 @@ def test_static_links_go_to_tf_static_under_their_parent():
     model = parse_robot_description(ARM, 'arm.yaml')
     messages = FrameMessages(model, 'r1/')
     static = {t.child_frame_id: t for t in messages.static_tf(Time()).transforms}
-    assert {'r1/base0', 'r1/tcp', 'r1/flange', 'r1/camera', 'r1/pad'} <= set(static)
+    assert set(static) == {'r1/base0', 'r1/tcp', 'r1/flange', 'r1/camera', 'r1/plate',
+                           'r1/pad', 'r1/jaw_tip', 'r1/upper_dh_z', 'r1/lower_dh_z'}
+    # every static transform is the child's pose in its parent, from the file's numbers
+    expected = expected_frames(np.zeros(3))
+    expected['world'] = np.eye(4)
+    for child, t in static.items():
+        if child.endswith('_dh_z'):  # the URDF's helper links: test_urdf.py
+            continue
+        parent = t.header.frame_id.replace('r1/', '')
+        ours = hm.matrix_of_pose(
+            [t.transform.translation.x, t.transform.translation.y, t.transform.translation.z],
+            [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
+             t.transform.rotation.w])
+        np.testing.assert_allclose(
+            ours, np.linalg.inv(expected[parent]) @ expected[child.replace('r1/', '')],
+            atol=1e-12, err_msg=child)
     assert static['r1/base0'].header.frame_id == 'world'  # the fixed frame: no prefix
     assert static['r1/camera'].header.frame_id == 'r1/flange'
     t = static['r1/camera'].transform
@@ -158,21 +175,21 @@ BAD = {
     'a frame used twice': ('frame: camera, parent', 'frame: upper, parent',
                            "links[1] (frame 'upper'): frame 'upper' is already used by chain[0]"),
     'a motion without mimic': ('mimic: {joint: j1, multiplier: -2}}', 'xyz: [0, 0, 0]}',
-                               "links[5] (frame 'knuckle'): a revolute link takes either "
+                               "links[6] (frame 'knuckle'): a revolute link takes either "
                                "'joint' (a joint of its own) or 'mimic' (moving with another "
                                'joint), not neither'),
     'joint and mimic': ('joint: grip,', 'joint: grip, mimic: {joint: j1},',
-                        "links[6] (frame 'jaw'): a revolute link takes either 'joint'"),
+                        "links[7] (frame 'jaw'): a revolute link takes either 'joint'"),
     'mimic of no joint': ('joint: j1, multiplier: -2', 'joint: j9, multiplier: -2',
-                          "links[5] (frame 'knuckle') mimic: field 'joint' names 'j9', "
+                          "links[6] (frame 'knuckle') mimic: field 'joint' names 'j9', "
                           'which no row or link has; joints: j1, j2, grip'),
     'a link joint named as a chain joint': ('joint: grip,', 'joint: j2,',
-                                            "links[6] (frame 'jaw'): joint 'j2' is already a "
+                                            "links[7] (frame 'jaw'): joint 'j2' is already a "
                                             'joint of the robot'),
     'limits with mimic': ('multiplier: 2}}', 'multiplier: 2}, limits: [0, 1]}',
-                          "links[8] (frame 'jaw2'): field 'limits' does not go with 'mimic'"),
+                          "links[9] (frame 'jaw2'): field 'limits' does not go with 'mimic'"),
     'limits upside down': ('limits: [-30, 60]', 'limits: [60, -30]',
-                           "links[6] (frame 'jaw'): field 'limits' has lower 60 above upper"),
+                           "links[7] (frame 'jaw'): field 'limits' has lower 60 above upper"),
     'a zero axis': ('axis: [1, 0, 0]', 'axis: [0, 0, 0]', "field 'axis' must not be all zeros"),
     'axis on a fixed link': ('quaternion: [0, 0, 1, 1]}',
                              'quaternion: [0, 0, 1, 1], axis: [1, 0, 0]}',
@@ -201,3 +218,15 @@ def test_links_must_be_a_list():
     text = ARM[:ARM.index('links:')] + 'links: {frame: x}\n'
     with pytest.raises(RobotDescriptionError, match='links: expected a list of'):
         parse_robot_description(text, 'arm.yaml')
+
+
+def test_a_long_list_of_frames_is_cut_in_messages():
+    links = ''.join(f'  - {{frame: extra{k}, parent: tcp}}\n' for k in range(25))
+    text = ARM[:ARM.index('links:\n') + len('links:\n')] + links + \
+        '  - {frame: lost, parent: nowhere}\n'
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description(text, 'arm.yaml')
+    assert str(caught.value).endswith(
+        'frames so far: world, base0, upper, lower, tcp, extra0, extra1, extra2, extra3, '
+        'extra4, extra5, extra6, extra7, extra8, extra9, extra10, extra11, extra12, extra13, '
+        'extra14 ... (10 more)')

@@ -1,9 +1,11 @@
 """The robot description file: units, structure, and one clear line for every mistake."""
 
+import dataclasses
 import math
 
 from dq_fk_ros.description.robot_model import (
-    load_robot_description, parse_robot_description, RobotDescriptionError, shipped_robot_path)
+    load_robot_description, MAX_ROWS, parse_robot_description, RobotDescriptionError,
+    shipped_robot_path)
 import homogeneous as hm
 import numpy as np
 import pytest
@@ -97,12 +99,15 @@ BAD_CASES = [
     ('leading slash in a frame id', edit(GOOD, 'frame: link1', 'frame: /link1'),
      ["field 'frame' must be a ROS frame id", "'/link1'"]),
     ('negative speed', edit(GOOD, 'max_velocity: 250', 'max_velocity: -1'),
-     ["field 'max_velocity' must be a positive speed"]),
+     ["chain[1] (frame 'link2'): field 'max_velocity' must be a positive speed (per second), "
+      'got -1']),
+    ('d_joint on a revolute row', edit(GOOD, 'joint: j1,', 'joint: j1, d_joint: j1d,'),
+     ["chain[0] (frame 'link1'): field 'd_joint' applies only to a cylindrical row"]),
     ('limits upside down', edit(GOOD, 'limits: [0, 300]', 'limits: [300, 0]'),
      ["field 'limits' has lower 300 above upper 0"]),
     ('zero scale', edit(GOOD, ROW1, ROW1[:-1] + ', scale: 0}'), ["field 'scale' must not be 0"]),
     ('mimic of an unknown joint', edit(GOOD, 'mimic: {joint: j1', 'mimic: {joint: j9'),
-     ["chain[3] (frame 'link4') mimic", "names 'j9', which no row reads"]),
+     ["chain[3] (frame 'link4') mimic", "names 'j9', which no row reads; joints: j1, j2"]),
     ('joint field on a fixed row', edit(GOOD, '{frame: link3, type: fixed,',
                                         '{frame: link3, type: fixed, joint: j3,'),
      ["field 'joint' does not apply to a fixed row"]),
@@ -177,3 +182,30 @@ def test_a_joint_without_limits_has_none():
     """The default limits are (-inf, inf): (inf, inf) would make 'reject' refuse everything."""
     model = load_robot_description(shipped_robot_path('rl15'))
     assert model.limits.tolist() == [[-math.inf, math.inf]] * 6
+
+
+def test_a_chain_of_the_largest_allowed_size_loads():
+    rows = ''.join(f'  - {{frame: f{k}, joint: j{k}, theta: 0, d: 0, a: 1, alpha: 0}}\n'
+                   for k in range(MAX_ROWS))
+    model = parse_robot_description(f'robot: big\nbase: {{frame: b}}\nchain:\n{rows}')
+    assert model.chain.dof == MAX_ROWS
+    with pytest.raises(RobotDescriptionError, match=f'{MAX_ROWS + 1} rows; a robot description '
+                                                    f'has at most {MAX_ROWS}'):
+        parse_robot_description(f'robot: big\nbase: {{frame: b}}\nchain:\n{rows}'
+                                f'  - {{frame: extra, joint: jx, theta: 0, d: 0, a: 1, '
+                                f'alpha: 0}}\n')
+
+
+def test_long_values_are_shortened_at_both_ends_in_messages():
+    name = 'a' * 50 + 'b' * 50
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description(edit(GOOD, 'convention: standard', f'convention: {name}'),
+                                'r.yaml')
+    shown = repr(name)
+    assert f"field 'convention' is {shown[:40]}...{shown[-12:]}; allowed" in str(caught.value)
+
+
+def test_a_robot_model_cannot_be_changed():
+    model = parse_robot_description(GOOD)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        model.name = 'other'

@@ -6,7 +6,8 @@ import xml.etree.ElementTree as ET
 
 from dq_fk_ros.description.robot_model import (
     load_robot_description, parse_robot_description, shipped_robot_path, shipped_robots)
-from dq_fk_ros.description.urdf import NO_LIMIT_SPEED, robot_to_urdf
+from dq_fk_ros.description.urdf import (
+    description_urdf, HelperFrames, link_poses, link_segments, NO_LIMIT_SPEED, robot_to_urdf)
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 import homogeneous as hm
 import numpy as np
@@ -208,3 +209,62 @@ def test_rpy_at_gimbal_lock_still_gives_the_rotation(pitch):
     roll, p, yaw = matrix_to_rpy(m[:3, :3])
     assert p == pytest.approx(pitch) and roll == 0.0
     np.testing.assert_allclose(hm.rot_z(yaw) @ hm.rot_y(p) @ hm.rot_x(roll), m, atol=1e-12)
+
+
+def test_helper_frames_are_children_of_their_dh_frames():
+    """Each helper's offset from its DH frame is the URDF's, constant or at the joints."""
+    for name, q in (('rl15', [0.3, -0.2, 0.5, 0.1, -0.7, 0.9]), ('rrc', [0.2, -0.4, 1.1, 0.05])):
+        model = load_robot_description(shipped_robot_path(name))
+        helpers = HelperFrames(model)
+        poses = link_poses(model, q)
+        frames = model.frame_names
+        for helper, anchor, offset in helpers.static:
+            assert helper == frames[anchor] + '_dh_z'
+            for at in (np.zeros(model.dof), np.asarray(q)):
+                at_poses = link_poses(model, at)
+                np.testing.assert_allclose(
+                    (at_poses[frames[anchor]].inverse() * at_poses[helper]).to_matrix(),
+                    offset.to_matrix(), atol=1e-12)
+        for (helper, anchor), pose in zip(helpers.moving, helpers.moving_poses(q)):
+            assert helper == frames[anchor] + '_dh_z0'
+            expected = (poses[frames[anchor]].inverse() * poses[helper]).to_matrix()
+            np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]), expected,
+                                       atol=1e-12)
+        every = {j.get('name') for j in ET.fromstring(robot_to_urdf(model)).iter('link')}
+        named = {h for h, _, _ in helpers.static} | {h for h, _ in helpers.moving}
+        assert named == {link for link in every if '_dh_z' in link}
+        assert bool(helpers.moving) == (name == 'rrc')
+    rl15 = HelperFrames(load_robot_description(shipped_robot_path('rl15')))
+    assert len(rl15.static) == 5 and rl15.moving == [] and rl15.moving_poses([0] * 6) == []
+
+
+def test_description_urdf_is_the_source_urdf_when_there_is_one():
+    import dataclasses
+    model = load_robot_description(shipped_robot_path('rl15'))
+    assert description_urdf(model) == robot_to_urdf(model)
+    assert description_urdf(dataclasses.replace(model, urdf='<robot name="x"/>')) == \
+        '<robot name="x"/>'
+
+
+def test_link_segments_run_between_link_origins():
+    model = load_robot_description(shipped_robot_path('puma560'))
+    q = [0.1, -0.5, 0.3, 0.2, 0.4, -0.3]
+    poses = link_poses(model, q)
+    segments = link_segments(model, q)
+    assert segments
+    origins = [p.translation for p in poses.values()]
+    for start, end in segments:
+        assert min(np.linalg.norm(start - o) for o in origins) < 1e-12
+        assert np.linalg.norm(end - start) > 1e-9
+
+
+def test_a_mimic_link_with_an_offset_keeps_it_in_the_urdf():
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b}\nchain:\n'
+        '  - {frame: l1, joint: j1, theta: 0, d: 0.1, a: 0.3, alpha: 0.2}\n'
+        'links:\n  - {frame: f, parent: l1, type: prismatic, mimic: {joint: j1, multiplier: 2, '
+        'offset: 0.25}}\n', 'm.yaml')
+    mimic = [j for j in ET.fromstring(robot_to_urdf(model)).iter('joint')
+             if j.get('name') == 'f_joint'][0].find('mimic')
+    assert (mimic.get('joint'), mimic.get('multiplier'), mimic.get('offset')) == \
+        ('j1', '2.0', '0.25')

@@ -1,0 +1,63 @@
+"""One way in: a DH file, a URDF (file or text) or a shipped robot's name."""
+
+import dataclasses
+import os
+
+from dq_fk_ros.description.loading import (
+    is_urdf, load_robot, LoadedRobot, resolve_robot, robot_from_urdf_text)
+from dq_fk_ros.description.robot_model import (
+    RobotDescriptionError, shipped_robot_path, shipped_robots)
+import pytest
+
+URDF = ('<robot name="two"><link name="b"/><link name="l1"/><link name="l2"/>'
+        '<joint name="j1" type="continuous"><parent link="b"/><child link="l1"/>'
+        '<axis xyz="0 0 1"/></joint>'
+        '<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>'
+        '<origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
+
+
+def test_names_and_paths_resolve(tmp_path):
+    assert resolve_robot('rl15') == shipped_robot_path('rl15')
+    assert resolve_robot('config/rl15.yaml') == 'config/rl15.yaml'
+    assert resolve_robot('mine.urdf') == 'mine.urdf'  # a path: loading says what is wrong
+    assert resolve_robot(tmp_path) == str(tmp_path)  # exists
+    with pytest.raises(RobotDescriptionError) as caught:
+        resolve_robot('rl16')
+    assert str(caught.value) == (f'rl16: no such file, and no shipped robot of that name '
+                                 f'(shipped: {", ".join(shipped_robots())})')
+    assert is_urdf('a.URDF') and is_urdf('a.urdf.xacro') and not is_urdf('a.yaml')
+
+
+def test_a_dh_file_loads_as_it_is():
+    robot = load_robot('rl15')
+    assert robot.urdf is None and robot.conversion is None and robot.summary() == ''
+    assert robot.model.source == shipped_robot_path('rl15') and robot.model.urdf is None
+
+
+def test_a_urdf_file_and_a_urdf_text_convert_alike(tmp_path):
+    path = tmp_path / 'two.urdf'
+    path.write_text(URDF)
+    from_file = load_robot(path, tip='l2', convention='modified')
+    from_text = robot_from_urdf_text(URDF, 'parameter robot_description', tip='l2',
+                                     convention='modified')
+    for robot, source in ((from_file, str(path)), (from_text, 'parameter robot_description')):
+        assert robot.urdf == URDF and robot.model.urdf == URDF
+        assert robot.model.source == source and robot.model.chain.convention == 'modified'
+        assert robot.conversion.base == 'b' and robot.conversion.tip == 'l2'
+        assert robot.summary() == (f'converted URDF {source}: chain b -> l2, 2 DH rows '
+                                   f'(modified), 2 URDF links')
+    assert from_file.model.frame_names == from_text.model.frame_names
+
+
+@pytest.mark.parametrize('text', ['', '   \n', None, 3])
+def test_an_empty_robot_description_is_one_line(text):
+    with pytest.raises(RobotDescriptionError, match='^robot_description: empty; give URDF XML$'):
+        robot_from_urdf_text(text)
+
+
+def test_a_loaded_robot_cannot_be_changed():
+    robot = load_robot('rl15')
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        robot.urdf = 'x'
+    assert isinstance(robot, LoadedRobot) and os.path.isfile(robot.model.source)
