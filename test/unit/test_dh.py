@@ -272,3 +272,9 @@ def test_a_joint_without_limits_is_unbounded():
     chain = KinematicChain([DHJoint(a=1.0, name='j1'),
                             DHJoint(joint_type='prismatic', name='j2', limits=(0, 1))])
     assert chain.limits.tolist() == [[-math.inf, math.inf], [0.0, 1.0]]
+
+
+def test_rows_without_names_get_numbered_joint_names():
+    chain = KinematicChain([DHJoint(a=0.1), DHJoint(joint_type='prismatic'),
+                            DHJoint(joint_type='cylindrical'), DHJoint(joint_type='fixed')])
+    assert chain.joint_names == ('joint_1', 'joint_2', 'joint_3', 'joint_3_d')

@@ -242,3 +242,17 @@ def test_normalising_a_batch_makes_each_row_a_unit_pose(rng):
         np.testing.assert_allclose(np.linalg.norm(row[:4]), 1.0, atol=1e-15)
         np.testing.assert_allclose(np.dot(row[:4], row[4:]), 0.0, atol=1e-15)
         np.testing.assert_allclose(row, dq_normalize_array(h), atol=1e-15)
+
+
+def test_the_plain_float_product_and_inverse_match_the_class():
+    from dq_fk_ros.kinematics.dual_quaternion import dq_inverse_coeffs, dq_multiply_coeffs
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        a = DualQuaternion.from_pose(rng.normal(size=4), rng.normal(size=3))
+        b = DualQuaternion.from_pose(rng.normal(size=4), rng.normal(size=3))
+        product = dq_multiply_coeffs(tuple(a.coeffs), tuple(b.coeffs))
+        np.testing.assert_allclose(product, (a * b).coeffs, atol=1e-14)
+        inverse = dq_inverse_coeffs(tuple(a.coeffs))
+        np.testing.assert_allclose(inverse, a.inverse().coeffs, atol=1e-14)
+        np.testing.assert_allclose(dq_multiply_coeffs(inverse, tuple(a.coeffs)),
+                                   [1, 0, 0, 0, 0, 0, 0, 0], atol=1e-14)

@@ -209,3 +209,28 @@ def test_a_robot_model_cannot_be_changed():
     model = parse_robot_description(GOOD)
     with pytest.raises(dataclasses.FrozenInstanceError):
         model.name = 'other'
+
+
+def test_static_transforms_are_base_fixed_rows_and_tool():
+    model = parse_robot_description(GOOD)
+    static = dict(model.static_transforms())
+    assert sorted(static) == [0, 3, 5]  # base0, link3 (a fixed row), tcp
+    rows = model.chain.relative_all(np.zeros(model.chain.dof))
+    expected = {0: model.chain.base.coeffs, 3: rows[2], 5: model.chain.tool.coeffs}
+    for k, pose in static.items():
+        np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]),
+                                   hm_of(expected[k]), atol=1e-12, err_msg=k)
+
+
+def hm_of(h):
+    from dq_fk_ros.kinematics.dh import homogeneous_from_dq
+    return homogeneous_from_dq(h)
+
+
+def test_an_integer_too_long_to_print_is_described_by_its_size():
+    # 4000 hex digits (YAML reads them; Python cannot write them in decimal: 4816 digits,
+    # beyond its int-to-text limit of 4300)
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description(edit(GOOD, 'a: 200', 'a: 0x' + 'f' * 4000), 'r.yaml')
+    assert "field 'a' must be a finite number, got an integer of about 4816 digits" in \
+        str(caught.value)

@@ -95,6 +95,8 @@ def test_mimic_and_negative_scale_rows():
         '  - {frame: l3, type: prismatic, joint: j3, theta: 0.3, d: 0.2, a: 0.1, alpha: 1}\n',
         'inline.yaml')
     text = robot_to_urdf(model)
+    for axis in ET.fromstring(text).iter('axis'):  # unit axes, as URDF readers expect
+        assert np.linalg.norm([float(v) for v in axis.get('xyz').split()]) == 1.0
     for q in np.random.default_rng(1).uniform(-1, 1, size=(20, 2)):
         poses, _ = urdf_link_poses(text, dict(zip(model.joint_names, q)))
         for frame, m in zip(model.frame_names, homogeneous_from_dq(model.chain.forward_all(q))):
@@ -158,8 +160,10 @@ def test_limits_never_say_a_joint_cannot_move():
     assert float(limits['j3'].get('velocity')) == NO_LIMIT_SPEED  # none given
     # a prismatic joint without limits: +-1000 m, said in a comment next to the joint
     assert [float(limits['j3'].get(k)) for k in ('lower', 'upper')] == [-1000.0, 1000.0]
-    assert '<!-- no limits in the description: +-1000 m stands for none' in \
-        robot_to_urdf(model)
+    text = robot_to_urdf(model)
+    note = text.index('<!-- no limits in the description: +-1000 m stands for none')
+    assert text.index('<joint name="j3"') > note  # the comment comes right before its joint
+    assert '<joint' not in text[note:text.index('<joint name="j3"')]
 
 
 def test_a_fixed_row_is_a_fixed_joint_from_its_parent_frame():
