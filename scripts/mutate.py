@@ -142,11 +142,29 @@ def _replace_statement(tree, target):
                 return
 
 
-def site_key(name, source_lines, line, description):
-    """Name a mutant by module, its line's code (no inline comment) and what it changes."""
+def site_key(name, source_lines, line, description, occurrence=0):
+    """
+    Name a mutant by module, its line's code (no inline comment) and what it changes.
+
+    ``occurrence`` tells apart the same change at several places of one line (the n-th in
+    the syntax tree's walk order, from 0; written as ``[n]`` from the second on).
+    """
     code = source_lines[line - 1].split('  #')[0].strip() if 0 < line <= len(source_lines) \
         else ''
-    return f'{name} | {code} | {description}'
+    return f'{name} | {code} | {description}' + (f' [{occurrence}]' if occurrence else '')
+
+
+def keyed_sites(name, source):
+    """Return ``[(site, key)]`` for every mutation site of a module's source."""
+    lines = source.splitlines()
+    seen = {}
+    out = []
+    for site in sites(ast.parse(source)):
+        _, _, line, what = site
+        occurrence = seen.get((line, what), 0)
+        seen[(line, what)] = occurrence + 1
+        out.append((site, site_key(name, lines, line, what, occurrence)))
+    return out
 
 
 def load_equivalent():
@@ -180,7 +198,17 @@ def main(argv=None):
     parser.add_argument('--timeout', type=int, default=120, help='seconds per test run')
     parser.add_argument('--jobs', type=int, default=os.cpu_count() or 1,
                         help='mutants tested at once (one package copy each)')
+    parser.add_argument('--keys', metavar='LINE', type=int,
+                        help='only print the keys of every mutant on this line of the first '
+                        'module (to review and list equivalents)')
     args = parser.parse_args(argv)
+    if args.keys is not None:
+        name = args.modules[0]
+        with open(os.path.join(ROOT, MODULES[name][0]), encoding='utf-8') as stream:
+            for (_, kind, line, what), key in keyed_sites(name, stream.read()):
+                if line == args.keys:
+                    print(f'{kind}: {key}')
+        return 0
     equivalent = load_equivalent()
     works = [tempfile.mkdtemp(prefix='dq_fk_mutate-') for _ in range(max(args.jobs, 1))]
     free = list(works)
@@ -193,12 +221,11 @@ def main(argv=None):
             path, tests = MODULES[name]
             with open(os.path.join(ROOT, path), encoding='utf-8') as stream:
                 source = stream.read()
-            lines = source.splitlines()
             if run_tests(works[0], tests, args.timeout) != 'survived':
                 raise SystemExit(f'mutate: the tests of {name} fail without any mutant')
-            every = list(sites(ast.parse(source)))
-            candidates = [s for s in every
-                          if site_key(name, lines, s[2], s[3]) not in equivalent]
+            every = keyed_sites(name, source)
+            keys = dict((site, key) for site, key in every)
+            candidates = [site for site, key in every if key not in equivalent]
             skipped = len(every) - len(candidates)
             sample = random.Random(f'{args.seed}:{name}').sample(
                 candidates, min(args.per_module, len(candidates)))
@@ -224,7 +251,7 @@ def main(argv=None):
                 outcome[result] += 1
                 if result == 'survived':
                     survivors.append((f'{path}:{line}: {kind}: {what}',
-                                      site_key(name, lines, line, what)))
+                                      keys[(index, kind, line, what)]))
             tried = len(sample)
             killed = outcome['killed'] + outcome['hang']
             report.append((name, tried, killed, outcome['hang'], skipped, survivors,

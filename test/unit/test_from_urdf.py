@@ -8,6 +8,7 @@ package. Every frame the converted robot publishes under a URDF link name must a
 
 import copy
 import json
+import math
 import os
 import re
 import sys
@@ -149,6 +150,7 @@ def test_converted_text_says_where_every_row_came_from():
     lines = conversion.text.splitlines()
     assert lines[0].startswith('# Converted by `dq_fk from-urdf` from ')
     assert 'ur5_robot.urdf: the chain world -> tool0' in lines[0]
+    assert 'the DH frames are published as dh0..dh6, the URDF links' in lines[1]
     rows = [k for k, line in enumerate(lines) if line.startswith('  - {frame: "dh')]
     assert len(rows) == 6
     for k in rows:
@@ -444,3 +446,66 @@ def test_a_urdf_as_big_as_allowed_loads_and_a_bigger_one_does_not(tmp_path):
     bigger.write_text(text + ' ' * (limit + 1 - len(text)))
     with pytest.raises(RobotDescriptionError, match='larger than 8192 KiB'):
         load_urdf_description(bigger)
+
+
+def test_a_mimic_joint_on_the_chain_is_a_mimic_row():
+    joints = DEGENERATE['skew axes'] + [('revolute', '0.2 0 0', '0 0 0', '0 0 1')]
+    text = serial_urdf(joints).replace(
+        '<child link="l4"/>', '<child link="l4"/><mimic joint="j2" multiplier="-1.5" '
+        'offset="0.25"/>')
+    # by default the chain ends at l3 (a mimic joint does not lengthen it): l4 would be a
+    # moving link; ending at l4 makes the mimic joint a row
+    assert parse_robot_description(urdf_to_description(text).text).chain.n_frames == 4
+    model = parse_robot_description(urdf_to_description(text, tip='l4').text)
+    assert model.joint_names == ('j1', 'j2', 'j3')
+    row = model.chain.joints[3]
+    assert (row.follows, row.scale) == ('j2', -1.5)
+    oracle = pinocchio_oracle.urdf_model(text, mimic=True)
+    for q in random_configurations(model, 50, seed=4):
+        placements = pinocchio_oracle.link_placements(
+            oracle, pinocchio_oracle.configuration(oracle, dict(zip(model.joint_names, q))),
+            ['l4'])
+        ours = homogeneous_from_dq(model.forward_all(q)[model.frame_names.index('l4')])
+        np.testing.assert_allclose(ours, placements['l4'], atol=1e-9)
+
+
+def test_a_first_axis_along_the_base_x_takes_the_base_y_for_frame_0():
+    text = serial_urdf([('revolute', '0 0 0.1', '0 0 0', '1 0 0'),
+                        ('revolute', '0 0 0.3', '0 0 0', '0 1 0')])
+    model = parse_robot_description(urdf_to_description(text).text)
+    base = homogeneous_from_dq(model.chain.base.coeffs)
+    np.testing.assert_allclose(base[:3, 2], [1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(base[:3, 0], [0.0, 1.0, 0.0], atol=1e-12)
+    assert_matches_pinocchio(model, text, 'base', 50)
+
+
+def test_a_continuous_side_branch_without_limits():
+    text = serial_urdf(DEGENERATE['skew axes'])[:-len('</robot>\n')] + (
+        '  <link name="spinner"/><joint name="spin" type="continuous"><parent link="l3"/>'
+        '<child link="spinner"/><origin xyz="0 0 0.1"/><axis xyz="0 0 1"/></joint>\n'
+        '</robot>\n')
+    model = parse_robot_description(urdf_to_description(text, tip='l3').text)
+    assert model.optional_joints == ('spin',)
+    assert model.limits[-1].tolist() == [-math.inf, math.inf]
+    assert model.max_velocity[-1] == math.inf
+
+
+def test_the_conversions_results_cannot_be_changed():
+    import dataclasses
+    from dq_fk_ros.description.from_urdf import parse_urdf
+    conversion, _ = load_urdf_description(
+        os.path.join(robots_dir(), 'ur_description/urdf/ur5_robot.urdf'))
+    tree = parse_urdf(serial_urdf(DEGENERATE['skew axes']))
+    for thing, field in ((conversion, 'tip'), (tree, 'name'),
+                         (tree.joints['l1'], 'name')):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(thing, field, 'x')
+
+
+def test_a_long_bad_number_is_cut_in_the_message():
+    junk = '1 2 3' + ' 4' * 50  # 53 numbers for 3
+    text = serial_urdf(DEGENERATE['skew axes']).replace('xyz="0.1 0.2 0"', f'xyz="{junk}"')
+    with pytest.raises(RobotDescriptionError) as caught:
+        urdf_to_description(text, 'mine.urdf')
+    assert str(caught.value) == (f"mine.urdf: joint 'j2': origin xyz: {junk[:60]!r} is not 3 "
+                                 'finite numbers')
