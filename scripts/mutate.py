@@ -43,7 +43,7 @@ MODULES = {
                      'test_fuzz_robot_description.py']),
     'urdf': ('dq_fk_ros/description/urdf.py', ['test_urdf.py', 'test_links.py']),
     'from_urdf': ('dq_fk_ros/description/from_urdf.py', ['test_from_urdf.py']),
-    'loading': ('dq_fk_ros/description/loading.py', ['test_from_urdf.py', 'test_cli.py']),
+    'loading': ('dq_fk_ros/description/loading.py', ['test_loading.py', 'test_cli.py']),
     'plot': ('dq_fk_ros/description/plot.py', ['test_plot.py']),
     'joint_states': ('dq_fk_ros/messages/joint_states.py', ['test_joint_states.py']),
     'cdr': ('dq_fk_ros/messages/cdr.py', ['test_cdr.py', 'test_frame_bytes.py']),

@@ -97,3 +97,106 @@ def test_bad_arguments_are_one_line(tmp_path, capsys, monkeypatch, args, words):
     err = capsys.readouterr().err
     assert err.startswith('dq_fk: ') and err.count('\n') == 1 and words in err, err
     assert not (tmp_path / 'x.png').exists()
+
+
+def lines_of(ax, colour):
+    """Return the 3-D points of every line drawn in ``colour``: ``[(3, 2) arrays]``."""
+    return [np.array(line.get_data_3d()) for line in ax.lines
+            if colors.to_hex(line.get_color()) == colors.to_hex(colour)]
+
+
+def test_the_grid_lies_on_the_fixed_frames_xy_plane_in_round_steps():
+    from dq_fk_ros.description.plot import _nice_step
+    fig = draw_robot(load_robot_description(shipped_robot_path('rl15')), np.zeros(6))
+    ax = fig.axes[0]
+    grid = lines_of(ax, '#bdbdbd')
+    assert grid and all(np.all(line[2] == 0.0) for line in grid)  # z = 0
+    half = np.ptp(ax.get_xlim()) / 2
+    step = _nice_step(2 * half / 8)
+    along_y = [line for line in grid if line[0][0] == line[0][1]]  # constant x
+    along_x = [line for line in grid if line[1][0] == line[1][1]]  # constant y
+    assert len(along_x) + len(along_y) == len(grid)
+    xs = sorted(line[0][0] for line in along_y)
+    ys = sorted(line[1][0] for line in along_x)
+    for values, (low, high) in ((xs, ax.get_xlim()), (ys, ax.get_ylim())):
+        np.testing.assert_allclose(np.diff(values), step, rtol=1e-9)
+        np.testing.assert_allclose(np.array(values) / step, np.round(np.array(values) / step),
+                                   atol=1e-9)  # on multiples of the step
+        # from the step at or below the lower limit to within half a step of the upper one
+        assert low - step < values[0] <= low + 1e-9
+        assert high - step / 2 - 1e-9 <= values[-1] <= high + step / 2 + 1e-9
+    for line in along_y:  # each line spans the grid
+        assert (line[1].min(), line[1].max()) == (ys[0], ys[-1])
+    for line in along_x:
+        assert (line[0].min(), line[0].max()) == (xs[0], xs[-1])
+
+
+@pytest.mark.parametrize('raw, step', [(0.23, 0.2), (0.7, 0.5), (0.08, 0.1), (3.3, 2.0),
+                                       (9.0, 10.0), (0.0013, 0.001), (40.0, 50.0)])
+def test_grid_steps_are_1_2_or_5_times_a_power_of_ten(raw, step):
+    from dq_fk_ros.description.plot import _nice_step
+    assert _nice_step(raw) == pytest.approx(step)
+
+
+def test_links_and_axes_are_drawn_where_the_kinematics_put_them():
+    from dq_fk_ros.description.plot import SEGMENT_COLOUR
+    from dq_fk_ros.description.urdf import link_segments
+    from dq_fk_ros.kinematics.dh import homogeneous_from_dq
+    model = load_robot_description(shipped_robot_path('puma560'))
+    q = np.array([0.3, -0.6, 0.4, 0.2, -0.5, 0.9])
+    ax = draw_robot(model, q).axes[0]
+    drawn = lines_of(ax, SEGMENT_COLOUR)
+    expected = link_segments(model, q)
+    assert len(drawn) == len(expected)
+    for line, (start, end) in zip(drawn, expected):
+        np.testing.assert_allclose(line.T, [start, end], atol=1e-12)
+    span = np.ptp(ax.get_xlim()) / 1.2  # the limits are 0.6 span either side
+    frames = homogeneous_from_dq(model.forward_all(q))
+    for k, colour in enumerate(AXIS_COLOURS):  # x, y, z of the fixed frame, then each frame
+        axes = lines_of(ax, colour)
+        assert len(axes) == 1 + len(frames)
+        for line, m in zip(axes, [np.eye(4)] + list(frames)):
+            np.testing.assert_allclose(line.T, [m[:3, 3], m[:3, 3] + 0.12 * span * m[:3, k]],
+                                       atol=1e-9)
+
+
+def test_frames_closer_than_a_thousandth_of_the_picture_share_a_label():
+    from dq_fk_ros.description.robot_model import parse_robot_description
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b}\nchain:\n'
+        '  - {frame: l1, joint: j1, theta: 0, d: 2.0, a: 2.0, alpha: 0}\n'
+        'links:\n  - {frame: close, parent: l1, xyz: [0, 0, 0.001]}\n'
+        '  - {frame: apart, parent: l1, xyz: [0, 0, 0.01]}\n')  # the picture spans 2 m
+    texts = [t.get_text().split() for t in draw_robot(model, [0.0]).axes[0].texts]
+    assert ['l1', 'close'] in texts and ['apart'] in texts
+
+
+def test_the_look_of_the_picture():
+    """The documented look: sizes, drawing order, axis names, the camera, the layout."""
+    from dq_fk_ros.description.plot import SEGMENT_COLOUR
+    fig = draw_robot(load_robot_description(shipped_robot_path('rl15')), np.zeros(6),
+                     view=(-90.0, 10.0))
+    ax = fig.axes[0]
+    assert tuple(fig.get_size_inches() * fig.dpi) == (800.0, 700.0)  # 8 x 7 in at 100 dpi
+    assert (ax.azim, ax.elev) == (-90.0, 10.0)
+    assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_zlabel()) == ('x (m)', 'y (m)', 'z (m)')
+    style = {}
+    for line in ax.lines:
+        style.setdefault(colors.to_hex(line.get_color()), set()).add(
+            (line.get_linewidth(), line.get_zorder()))
+    assert style['#bdbdbd'] == {(0.7, 0)}               # the grid: thin, underneath
+    assert style[colors.to_hex(SEGMENT_COLOUR)] == {(4.0, 1)}  # links: thick
+    for colour in AXIS_COLOURS:
+        assert style[colors.to_hex(colour)] == {(2.0, 3)}  # axes: above the links
+    assert {(t.get_fontsize(), t.get_zorder()) for t in ax.texts} == {(7.0, 4)}  # on top
+    # laid out to use the figure: more of it than matplotlib's default subplot
+    left, bottom, width, height = ax.get_position().bounds
+    assert width > 0.7 and height > 0.85
+
+
+def test_a_long_title_wraps_and_keeps_every_joint():
+    model = load_robot_description(shipped_robot_path('panda'))
+    title = draw_robot(model, np.full(7, 0.25)).axes[0].get_title()
+    lines = title.split('\n')
+    assert len(lines) == 2 and all(len(line) <= 100 for line in lines)
+    assert all(title.count(f'{name}=14.3°') == 1 for name in model.joint_names)
