@@ -319,3 +319,30 @@ def test_optional_joints_never_hold_back_an_update():
     merger.reset()
     assert merger.seen_optional == () and merger.never_seen == ('a', 'b')
     assert merger.merge(['c'], [0.1]).status == INCOMPLETE
+
+
+def test_a_value_exactly_at_a_limit_is_inside_on_both_paths():
+    merger = JointStateMerger(NAMES, LIMITS, 'reject')
+    for _ in range(3):  # the first message takes the general path, the next the short one
+        r = merger.merge(['a', 'b', 'c'], [-1.0, 5.0, 2.0])
+        assert r.status == PUBLISH and r.out_of_limits == ()
+        r = merger.merge(['a', 'b', 'c'], [1.0, 5.0, 0.0])
+        assert r.status == PUBLISH and r.out_of_limits == ()
+
+
+def test_a_stamp_exactly_one_jump_back_is_not_a_jump_on_both_paths():
+    t = 10 * TIME_JUMP_BACK_NS
+    single, batched = JointStateMerger(NAMES, LIMITS), JointStateMerger(NAMES, LIMITS)
+    stamps = [t, t - TIME_JUMP_BACK_NS, t - TIME_JUMP_BACK_NS - 1 - TIME_JUMP_BACK_NS]
+    for stamp in stamps:
+        single.merge(NAMES, [0.0, 0.0, 1.0], stamp_ns=stamp)
+    batched.merge_many([(NAMES, np.tile([0.0, 0.0, 1.0], (3, 1)), np.zeros((3, 0)),
+                         np.array(stamps))])
+    # t - 1 s merges; 1 s and 1 ns before the latest stamp (t) is a jump
+    assert single.counts['time_jumps'] == batched.counts['time_jumps'] == 1
+
+
+def test_counting_a_rejection_counts_one_by_default():
+    merger = JointStateMerger(NAMES, LIMITS)
+    merger.count_rejected('malformed_cdr')
+    assert merger.counts['rejected'] == merger.counts['rejected_malformed_cdr'] == 1
