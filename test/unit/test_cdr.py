@@ -169,3 +169,36 @@ def test_the_layout_cache_reads_every_message_as_a_fresh_parse_does(layouts):
             np.testing.assert_array_equal(a, b)
         np.testing.assert_array_equal(cached[2], msg.position)
         np.testing.assert_array_equal(cached[3], msg.velocity)
+
+
+def joint_state_with_efforts(names, positions, velocities, efforts):
+    msg = JointState(header=Header(stamp=Time(sec=1, nanosec=2), frame_id='f'),
+                     name=list(names), position=np.array(positions, dtype=float),
+                     velocity=np.array(velocities, dtype=float),
+                     effort=np.array(efforts, dtype=float))
+    return bytes(TS.serialize_cdr(msg, 'sensor_msgs/msg/JointState'))
+
+
+def test_a_sequence_ending_at_the_last_byte_is_read():
+    raw = joint_state_with_efforts(['a', 'b'], [1.0, 2.0], [], [5.0, 6.0])
+    _, names, positions, velocities = parse_joint_state(raw)
+    assert names == ('a', 'b') and positions.tolist() == [1.0, 2.0] and len(velocities) == 0
+
+
+def test_same_size_messages_with_other_sequence_lengths_are_not_one_layout():
+    """One velocity and two efforts, or two velocities and one effort: same size (padding)."""
+    one = joint_state_with_efforts(['a', 'b'], [1.0, 2.0], [3.0], [5.0, 6.0])
+    two = joint_state_with_efforts(['a', 'b'], [1.0, 2.0], [3.0, 4.0], [5.0])
+    assert len(one) == len(two)
+    cache = JointStateNames()
+    for raw, rates in ((one, [3.0]), (two, [3.0, 4.0]), (one, [3.0])):
+        _, _, positions, velocities = parse_joint_state(raw, cache)
+        assert positions.tolist() == [1.0, 2.0] and velocities.tolist() == rates
+
+
+@pytest.mark.parametrize('length', [0, 10**6])
+def test_a_string_length_of_zero_or_past_the_end_is_malformed(length):
+    raw = bytearray(joint_state_bytes(['a'], [1.0], frame_id='f'))
+    raw[12:16] = length.to_bytes(4, 'little')  # the frame id's length (with its NUL)
+    with pytest.raises(CdrError, match='string runs past the end'):
+        parse_joint_state(bytes(raw))

@@ -27,6 +27,8 @@ def compose_tf(transforms, root, frame):
 
 def test_stamps_round_trip():
     assert stamp_to_ns(ns_to_stamp(1_234_567_890_123)) == 1_234_567_890_123
+    stamp = ns_to_stamp(1_234_567_890_123)
+    assert (stamp.sec, stamp.nanosec) == (1234, 567_890_123)
 
 
 def test_rl15_messages_at_zero_are_fig4_and_tf_composes_to_the_pose():
@@ -96,3 +98,10 @@ def test_fixed_rows_go_to_tf_static_and_mimic_rows_to_tf():
     assert [(t.header.frame_id, t.child_frame_id) for t in static] == [
         ('world', 'b'), ('l1', 'l2'), ('l1', 'l1_dh_z'), ('l3', 'l3_dh_z')]
     assert all(t.header.stamp == stamp for t in static)
+
+
+def test_a_cylindrical_rows_moving_helper_goes_on_tf_under_its_dh_frame():
+    model = load_robot_description(shipped_robot_path('rrc'))
+    messages = FrameMessages(model, 'r/')
+    last = messages.tf.transforms[-1]
+    assert (last.header.frame_id, last.child_frame_id) == ('r/rrc_link3', 'r/rrc_link3_dh_z0')
