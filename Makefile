@@ -15,15 +15,16 @@ DEMO_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 80) + 20 )))
 
 BENCH_VENV ?= .venv-bench
 
-.PHONY: help setup demo demo-live test bench mutate clean
+.PHONY: help setup demo demo-live test bench mutate screenshot clean
 
 help:
 	@echo 'make setup  create .venv with ROS 2 Jazzy (PyPI), tf2_msgs and dq_fk_ros'
 	@echo 'make demo   setup, then node + fake joint publisher: print every RL15 frame pose'
-	@echo 'make demo-live  the same, sweeping the joints, printing the end effector (Ctrl-C)'
+	@echo 'make demo-live  the same, sweeping the joints, and dq_fk_view: the robot in a browser (Ctrl-C)'
 	@echo 'make test   setup, then run linters, unit and integration tests'
 	@echo 'make bench  benchmarks: the core against its peers (installed in .venv-bench)'
 	@echo 'make mutate mutation testing of the pure modules (minutes; not part of make test)'
+	@echo 'make screenshot  the README picture of dq_fk_view, made by its browser test'
 	@echo 'make clean  remove .venv, .venv-bench and build leftovers'
 
 setup: $(STAMPS)/project
@@ -53,7 +54,14 @@ $(STAMPS)/tf2_msgs: vendor/tf2_msgs/CMakeLists.txt vendor/tf2_msgs/package.xml \
 	  scripts/ensure_tf2_msgs.sh $(VENV)
 	@touch $@
 
-$(STAMPS)/project: setup.py setup.cfg package.xml $(STAMPS)/dev $(STAMPS)/tf2_msgs
+$(STAMPS)/web: web/package.json web/package-lock.json $(STAMPS)/python
+	@echo 'setup: installing the page of dq_fk_view (three.js, urdf-loader: npm ci in web/)'
+	@$(STEP) "find npm (Node.js; Debian: apt-get install nodejs npm)" $(LOGS)/npm.log npm --version
+	@$(STEP) "npm ci in web/ (web/package-lock.json)" $(LOGS)/web.log \
+	  npm ci --prefix web --no-audit --no-fund
+	@touch $@
+
+$(STAMPS)/project: setup.py setup.cfg package.xml $(STAMPS)/dev $(STAMPS)/tf2_msgs $(STAMPS)/web
 	@echo 'setup: installing dq_fk_ros (editable)'
 	@$(STEP) "install dq_fk_ros in editable mode" $(LOGS)/project.log \
 	  $(PIP) --no-deps --no-build-isolation -e .
@@ -66,7 +74,7 @@ demo: setup
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.ros.demo
 
 demo-live: setup
-	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.ros.demo --live
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.ros.demo --live --view
 
 test: setup
 	@scripts/run_tests $(PY)
@@ -95,5 +103,11 @@ bench: setup $(BENCH_VENV)/.stamp
 mutate: setup
 	@$(PY) scripts/mutate.py
 
+# The README's picture of dq_fk_view, taken by its browser test (headless Chromium)
+screenshot: setup
+	@DQ_FK_VIEW_SCREENSHOT=$(CURDIR)/docs/dq_fk_view.png $(PY) -m pytest -q -p no:cacheprovider \
+	  test/integration/test_view.py -k kinematics_put_it
+
 clean:
-	rm -rf $(VENV) $(BENCH_VENV) $(BENCH_VENV)-logs build install log .pytest_cache
+	rm -rf $(VENV) $(BENCH_VENV) $(BENCH_VENV)-logs build install log .pytest_cache \
+	  web/node_modules

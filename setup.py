@@ -14,6 +14,8 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/web', ['web/index.html', 'web/app.js', 'web/package.json',
+                                            'web/package-lock.json']),
     ],
     install_requires=['setuptools', 'numpy', 'PyYAML'],
     zip_safe=True,
@@ -28,6 +30,7 @@ setup(
             'dq_fk = dq_fk_ros.cli.dq_fk:main',
             'fake_joint_publisher = dq_fk_ros.ros.fake_joint_publisher:main',
             'dq_fk_bag = dq_fk_ros.cli.dq_fk_bag:main',
+            'dq_fk_view = dq_fk_ros.ros.view:main',
         ],
     },
 )

@@ -4,7 +4,8 @@ Headless demo: dq_fk_node and fake_joint_publisher as separate processes, poses 
 Starts the node with the shipped RL15 and the fake publisher in ``zeros`` mode, waits for the
 first poses, prints one line per frame as received (frame, parent from TF, position,
 quaternion x y z w) and stops. With ``--live`` the publisher sweeps the joints (``sine``) and
-the end-effector pose is printed twice a second until Ctrl-C.
+the end-effector pose is printed twice a second until Ctrl-C; with ``--view`` dq_fk_view
+shows the robot in a browser too (it prints the address to open).
 
 The caller sets ``ROS_DOMAIN_ID`` and ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
 (``make demo`` does).
@@ -60,6 +61,9 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--live', action='store_true',
                         help='keep running in sine mode, printing the end-effector pose')
+    parser.add_argument('--view', action='store_true',
+                        help='also start dq_fk_view (the robot in a browser; prints its URL)')
+    parser.add_argument('--port', type=int, default=8765, help='dq_fk_view port (8765)')
     parser.add_argument('--timeout', type=float, default=30.0,
                         help='seconds to wait for the first poses (default 30)')
     args = parser.parse_args(argv)
@@ -76,6 +80,10 @@ def main(argv=None):
             '-p', f"mode:={'sine' if args.live else 'zeros'}", '-p', 'rate_hz:=50.0'],
             start_new_session=True),
     ]
+    if args.view:
+        procs.append(subprocess.Popen(executable('dq_fk_view') + [
+            '--port', str(args.port), '--select', 'eeCarry_seg6'] + log_args,
+            start_new_session=True))
     rclpy.init(args=log_args)
     node = rclpy.create_node('dq_fk_demo')
     executor = SingleThreadedExecutor()

@@ -9,6 +9,7 @@ MATCH_SETTLE_S = 0.5
 
 MODULES = {'dq_fk_node': 'dq_fk_ros.ros.node',
            'fake_joint_publisher': 'dq_fk_ros.ros.fake_joint_publisher',
+           'dq_fk_view': 'dq_fk_ros.ros.view',
            'dq_fk': 'dq_fk_ros.cli.dq_fk',
            'dq_fk_bag': 'dq_fk_ros.cli.dq_fk_bag'}
 

@@ -21,7 +21,8 @@ THIRD_PARTY = {
     'description': {'numpy', 'yaml', 'ament_index_python', 'matplotlib', 'xacro'},
     'messages': {'numpy'},
     'bag': {'numpy', 'rosbags', 'mcap'},
-    'ros': {'numpy', 'rclpy', 'builtin_interfaces', 'diagnostic_msgs', 'geometry_msgs',
+    'ros': {'numpy', 'rclpy', 'aiohttp', 'ament_index_python', 'builtin_interfaces',
+            'diagnostic_msgs', 'geometry_msgs',
             'rcl_interfaces', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'tf2_msgs'},
     'cli': {'numpy'},
 }

@@ -278,3 +278,15 @@ def test_rows_without_names_get_numbered_joint_names():
     chain = KinematicChain([DHJoint(a=0.1), DHJoint(joint_type='prismatic'),
                             DHJoint(joint_type='cylindrical'), DHJoint(joint_type='fixed')])
     assert chain.joint_names == ('joint_1', 'joint_2', 'joint_3', 'joint_3_d')
+
+
+def test_batches_longer_than_one_chunk_equal_single_configurations():
+    from dq_fk_ros.kinematics.dh import BATCH_CHUNK
+    chain = KinematicChain([DHJoint(a=0.3, alpha=0.5, name='j1'),
+                            DHJoint(d=0.2, alpha=-0.4, name='j2', joint_type='prismatic')])
+    q = np.random.default_rng(3).uniform(-1, 1, size=(BATCH_CHUNK + 3, 2))
+    batch = chain.forward_all_batch(q)
+    ends = chain.forward_batch(q)
+    for k in (0, BATCH_CHUNK - 1, BATCH_CHUNK, BATCH_CHUNK + 2):
+        np.testing.assert_allclose(batch[k], chain.forward_all(q[k]), atol=1e-15)
+        np.testing.assert_allclose(ends[k], chain.forward(q[k]).coeffs, atol=1e-15)

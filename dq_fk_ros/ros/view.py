@@ -1,0 +1,352 @@
+"""
+dq_fk_view: the robot and every TF frame, live in a browser (no RViz needed).
+
+An rclpy node takes /tf, /tf_static and /robot_description from any publisher; a local web
+server (aiohttp) serves one page (three.js and urdf-loader, from npm) and streams every
+frame's pose in the fixed frame to it over a WebSocket, at most ``--rate`` times a second
+and only the latest poses, whatever the TF rate. The page draws the URDF placed by TF, each
+frame's axes and name, a grid, and a panel with the selected frame's pose.
+
+    dq_fk_view [--host 127.0.0.1] [--port 8765] [--fixed-frame F] [--select F] [--rate 30]
+
+Messages to the page are JSON: ``{"type": "robot", "urdf": ...}`` when the description
+changes, and ``{"type": "frames", "fixed_frame": ..., "select": ..., "frames": [[name,
+parent, x, y, z, qx, qy, qz, qw, stale], ...]}``. Messages from pages are read and, but for
+``{"type": "hello"}``, ignored; anything else (not JSON, binary, too big) is counted in
+``/status``.
+"""
+
+import argparse
+import asyncio
+import json
+import os
+import signal
+import sys
+import threading
+import time
+
+from dq_fk_ros.kinematics.tree import compose_tree, depths, roots
+
+DEFAULT_PORT = 8765
+DEFAULT_RATE_HZ = 30.0
+STALE_AFTER_S = 1.0
+MAX_CLIENT_MESSAGE_BYTES = 64 * 1024
+HELPER_SUFFIXES = ('_dh_z', '_dh_z0')  # dq_fk_node's URDF helper frames: never the default
+VENDOR_PACKAGES = ('three', 'urdf-loader')
+
+
+def web_root():
+    """Return the folder of the page (``web/``: installed share directory, or source tree)."""
+    candidates = []
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        candidates.append(os.path.join(get_package_share_directory('dq_fk_ros'), 'web'))
+    except Exception:  # not installed through ament: the source tree
+        pass
+    here = os.path.dirname(os.path.abspath(__file__))
+    candidates.append(os.path.join(os.path.dirname(os.path.dirname(here)), 'web'))
+    pages = [f for f in candidates if os.path.isfile(os.path.join(f, 'index.html'))]
+    for folder in pages:  # one with three.js and urdf-loader installed (npm ci) first
+        if os.path.isdir(os.path.join(folder, 'node_modules', 'three')):
+            return folder
+    if pages:
+        return pages[0]
+    raise FileNotFoundError(f'the page of dq_fk_view is not in {" or ".join(candidates)}')
+
+
+class ViewState:
+    """What the page shows, shared by the ROS callbacks and the web server (under a lock)."""
+
+    def __init__(self, fixed_frame='', select='', stale_after_s=STALE_AFTER_S):
+        """Start empty; ``fixed_frame`` and ``select`` empty: chosen from the TF tree."""
+        self.lock = threading.Lock()
+        self.edges = {}          # child -> (parent, pose, static, monotonic time received)
+        self.urdf = None
+        self.urdf_version = 0
+        self.fixed_frame = fixed_frame
+        self.select = select
+        self.stale_after_s = stale_after_s
+        self.counts = {'tf_messages': 0, 'bad_input': 0, 'frames_sent': 0, 'skipped_sends': 0,
+                       'clients': 0, 'clients_total': 0}
+
+    def take_transforms(self, transforms, static):
+        """Record ``[(parent, child, (x, y, z, qx, qy, qz, qw)), ...]`` as received now."""
+        now = time.monotonic()
+        with self.lock:
+            self.counts['tf_messages'] += 1
+            for parent, child, pose in transforms:
+                if parent and child and parent != child:
+                    self.edges[child] = (parent, pose, static, now)
+
+    def take_description(self, text):
+        """Record a new robot description (URDF XML)."""
+        with self.lock:
+            if text != self.urdf:
+                self.urdf = text
+                self.urdf_version += 1
+
+    def frames_message(self):
+        """Return the JSON text of every frame's pose in the fixed frame (None: no frames)."""
+        with self.lock:
+            edges = {child: (parent, pose) for child, (parent, pose, _, _) in self.edges.items()}
+            ages = {child: (static, received) for child, (_, _, static, received)
+                    in self.edges.items()}
+        if not edges:
+            return None
+        root = self.fixed_frame or _largest_root(edges)
+        poses = compose_tree(edges, root)
+        below = depths(edges, root)
+        select = self.select or _deepest(below)
+        now = time.monotonic()
+        frames = []
+        for name in sorted(poses):
+            static, received = ages[name]
+            stale = not static and now - received > self.stale_after_s
+            frames.append([name, edges[name][0], *poses[name], stale])
+        return json.dumps({'type': 'frames', 'fixed_frame': root, 'select': select,
+                           'frames': frames})
+
+
+def _largest_root(edges):
+    """Return the root with most frames below it ('world' on a tie)."""
+    candidates = roots(edges) or [next(iter(edges))]
+    return max(candidates, key=lambda r: (len(depths(edges, r)), r == 'world', r))
+
+
+def _deepest(below):
+    """Return the frame farthest from the root, not a URDF helper (the end effector, often)."""
+    names = [n for n in below if not n.endswith(HELPER_SUFFIXES)] or list(below)
+    return min(names, key=lambda n: (-below[n], n)) if names else ''
+
+
+def make_node(state, context=None):
+    """Return the rclpy node that feeds ``state`` from /tf, /tf_static, /robot_description."""
+    from rclpy.node import Node
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+    from tf2_msgs.msg import TFMessage
+
+    def take(msg, static):
+        state.take_transforms([
+            (t.header.frame_id, t.child_frame_id,
+             (t.transform.translation.x, t.transform.translation.y, t.transform.translation.z,
+              t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
+              t.transform.rotation.w)) for t in msg.transforms], static)
+
+    node = Node('dq_fk_view', context=context)
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    # best effort matches reliable and best-effort /tf publishers alike
+    node.create_subscription(TFMessage, '/tf', lambda m: take(m, False),
+                             QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT))
+    node.create_subscription(TFMessage, '/tf_static', lambda m: take(m, True),
+                             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                                        durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    node.create_subscription(String, 'robot_description',
+                             lambda m: state.take_description(m.data), latched)
+    return node
+
+
+def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None):
+    """Return the aiohttp application: the page, its scripts, /ws and /status."""
+    from aiohttp import web, WebSocketError, WSMsgType
+    root = root or web_root()
+    clients = {}  # websocket -> task of its send in progress (only the latest is sent)
+
+    async def index(_):
+        return web.FileResponse(os.path.join(root, 'index.html'))
+
+    async def app_js(_):
+        return web.FileResponse(os.path.join(root, 'app.js'),
+                                headers={'Content-Type': 'text/javascript'})
+
+    async def status(_):
+        with state.lock:
+            body = dict(state.counts, frames=len(state.edges), robot=state.urdf is not None)
+        return web.json_response(body)
+
+    async def socket(request):
+        ws = web.WebSocketResponse(max_msg_size=MAX_CLIENT_MESSAGE_BYTES, heartbeat=10.0)
+        await ws.prepare(request)
+        clients[ws] = None
+        with state.lock:
+            state.counts['clients'] = len(clients)
+            state.counts['clients_total'] += 1
+            urdf = state.urdf
+        try:
+            if urdf is not None:
+                await ws.send_str(json.dumps({'type': 'robot', 'urdf': urdf}))
+            text = state.frames_message()
+            if text is not None:
+                await ws.send_str(text)
+            async for msg in ws:
+                if msg.type == WSMsgType.ERROR:
+                    break
+                if not _good_client_message(msg, WSMsgType):
+                    with state.lock:
+                        state.counts['bad_input'] += 1
+        finally:
+            clients.pop(ws, None)
+            with state.lock:
+                state.counts['clients'] = len(clients)
+        if isinstance(ws.exception(), WebSocketError):  # too big, not a WebSocket frame
+            with state.lock:
+                state.counts['bad_input'] += 1
+        return ws
+
+    async def send(ws, text):
+        try:
+            await ws.send_str(text)
+        except Exception:  # the page went away meanwhile: its handler cleans up
+            pass
+
+    async def broadcast(app):
+        last_text, last_urdf = None, 0
+        period = 1.0 / rate_hz
+        while True:
+            await asyncio.sleep(period)
+            with state.lock:
+                urdf, urdf_version = state.urdf, state.urdf_version
+            messages = []
+            if urdf_version != last_urdf:
+                messages.append(json.dumps({'type': 'robot', 'urdf': urdf}))
+                last_urdf = urdf_version
+            text = state.frames_message()
+            if text is not None and text != last_text:
+                messages.append(text)
+                last_text = text
+            for message in messages:
+                for ws, task in list(clients.items()):
+                    if task is not None and not task.done():
+                        with state.lock:
+                            state.counts['skipped_sends'] += 1
+                        continue
+                    clients[ws] = asyncio.ensure_future(send(ws, message))
+                if message is text:
+                    with state.lock:
+                        state.counts['frames_sent'] += 1
+
+    async def start_broadcast(app):
+        app['broadcast'] = asyncio.ensure_future(broadcast(app))
+
+    async def stop_broadcast(app):
+        app['broadcast'].cancel()
+        for ws in list(clients):
+            await ws.close()
+
+    app = web.Application()
+    app.router.add_get('/', index)
+    app.router.add_get('/app.js', app_js)
+    app.router.add_get('/status', status)
+    app.router.add_get('/ws', socket)
+    for package in VENDOR_PACKAGES:
+        folder = os.path.join(root, 'node_modules', package)
+        if os.path.isdir(folder):
+            app.router.add_static(f'/vendor/{package}/', folder)
+    app.on_startup.append(start_broadcast)
+    app.on_cleanup.append(stop_broadcast)
+    return app
+
+
+def _good_client_message(msg, kinds):
+    """Whether a page's message is one the protocol has (``{"type": "hello"}``)."""
+    if msg.type != kinds.TEXT:
+        return False
+    try:
+        data = json.loads(msg.data)
+    except ValueError:
+        return False
+    return isinstance(data, dict) and data.get('type') == 'hello'
+
+
+def parse_args(argv):
+    """Return the command line's options (ROS arguments already removed)."""
+    parser = argparse.ArgumentParser(
+        prog='dq_fk_view', description='The robot and every TF frame, live in a browser.')
+    parser.add_argument('--host', default='127.0.0.1',
+                        help='address to listen on (default 127.0.0.1: this machine only)')
+    parser.add_argument('--port', type=int, default=DEFAULT_PORT,
+                        help=f'port (default {DEFAULT_PORT}; 0: any free one)')
+    parser.add_argument('--fixed-frame', default='',
+                        help='frame the poses are shown in (default: the root of the tree)')
+    parser.add_argument('--select', default='',
+                        help='frame selected at start (default: the deepest frame)')
+    parser.add_argument('--rate', type=float, default=DEFAULT_RATE_HZ,
+                        help=f'poses sent to pages per second at most (default '
+                        f'{DEFAULT_RATE_HZ:g})')
+    parser.add_argument('--stale-after', type=float, default=STALE_AFTER_S,
+                        help='seconds without an update after which a frame is greyed')
+    args = parser.parse_args(argv)
+    if not (0 <= args.port <= 65535):
+        parser.error(f'--port {args.port}: give 0..65535')
+    if not (0 < args.rate <= 1000):
+        parser.error(f'--rate {args.rate:g}: give more than 0 and at most 1000')
+    if not (args.stale_after > 0):
+        parser.error('--stale-after: give a positive number of seconds')
+    return args
+
+
+async def serve(args, state, ready=None):
+    """Run the web server until SIGINT/SIGTERM; print the address to open."""
+    from aiohttp import web
+    app = make_app(state, args.rate)
+    runner = web.AppRunner(app, handle_signals=False)
+    await runner.setup()
+    site = web.TCPSite(runner, args.host, args.port)
+    try:
+        await site.start()
+        host, port = runner.addresses[0][:2]
+        shown = f'[{host}]' if ':' in host else host
+        print(f'dq_fk_view: open http://{shown}:{port}/', flush=True)
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, stop.set)
+        await stop.wait()
+    finally:
+        await runner.cleanup()
+
+
+def main(argv=None):
+    """Run dq_fk_view (as ``ros2 run dq_fk_ros dq_fk_view``); return the exit code."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+    from rclpy.utilities import remove_ros_args
+    argv = sys.argv if argv is None else argv
+    args = parse_args(remove_ros_args(argv)[1:])
+    try:
+        web_root()
+        import aiohttp  # noqa: F401 (say plainly if it is missing)
+    except (FileNotFoundError, ImportError) as exc:
+        print(f'dq_fk_view: {exc} (make setup installs what it needs)', file=sys.stderr)
+        return 1
+    state = ViewState(args.fixed_frame, args.select, args.stale_after)
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    node = make_node(state)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+
+    def spin():
+        try:
+            executor.spin()
+        except (ExternalShutdownException, Exception):  # shutting down
+            pass
+    thread = threading.Thread(target=spin, name='dq_fk_view ROS', daemon=True)
+    thread.start()
+    try:
+        asyncio.run(serve(args, state))
+    except OSError as exc:  # the port is taken, the address is not ours
+        print(f'dq_fk_view: cannot listen on {args.host}:{args.port}: {exc.strerror or exc}',
+              file=sys.stderr)
+        return 1
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        node.destroy_node()
+        rclpy.try_shutdown()
+        thread.join(timeout=2.0)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

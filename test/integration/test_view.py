@@ -1,0 +1,229 @@
+"""
+dq_fk_view in a real browser (Debian's headless Chromium) and against WebSocket clients.
+
+Every program runs as its own process on this run's private DDS domain: dq_fk_node, the
+fake joint publisher and dq_fk_view; the page's state (``window.dqFkView``) is read through
+Selenium and compared with the core FK of the published joints.
+"""
+
+import asyncio
+import json
+import os
+import select
+import shutil
+import time
+import xml.etree.ElementTree as ElementTree
+
+from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.description.urdf import robot_to_urdf
+from dq_fk_ros.kinematics.dh import homogeneous_from_dq
+from dq_fk_ros.ros.executables import executable
+import homogeneous_tf as htf
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from ros_harness import start
+
+pytestmark = pytest.mark.integration
+
+RL15_Q = [0.2, 0.3, -0.2, 0.1, 0.4, -0.5]
+CHROMIUM, CHROMEDRIVER = '/usr/bin/chromium', '/usr/bin/chromedriver'
+SCREENSHOT_ENV = 'DQ_FK_VIEW_SCREENSHOT'  # also save the screenshot there (README picture)
+
+
+def start_view(processes, *args):
+    """Start dq_fk_view on a free port; return ``(process, base URL)`` once it listens."""
+    proc = processes.start(executable('dq_fk_view') + ['--port', '0', *args])
+    deadline = time.monotonic() + 20
+    seen = []
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([proc.stdout], [], [], 0.2)
+        if ready:
+            line = proc.stdout.readline()
+            seen.append(line)
+            if line.startswith('dq_fk_view: open '):
+                return proc, line.split('open ', 1)[1].strip().rstrip('/')
+        if proc.poll() is not None:
+            break
+    raise AssertionError(f'dq_fk_view did not start: {"".join(seen)}')
+
+
+@pytest.fixture
+def browser():
+    """Headless Chromium through chromedriver (Debian's packages); quit at teardown."""
+    missing = [p for p in (CHROMIUM, CHROMEDRIVER) if not shutil.which(p)]
+    if missing:
+        pytest.fail(f"the browser tests need Debian's chromium and chromium-driver (missing: "
+                    f'{", ".join(missing)}): apt-get install chromium chromium-driver')
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in ('--headless=new', '--no-sandbox', '--disable-gpu', '--use-angle=swiftshader',
+                 '--enable-unsafe-swiftshader', '--disable-background-networking',
+                 '--disable-component-update', '--disable-sync', '--no-first-run',
+                 '--window-size=1280,800', '--force-device-scale-factor=1'):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+def wait_for(driver, script, timeout_s=20.0):
+    """Run ``script`` in the page until it returns something true; return that."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = driver.execute_script(script)
+        if value:
+            return value
+        time.sleep(0.1)
+    raise AssertionError(f'the page never gave {script!r}')
+
+
+def test_the_page_shows_every_frame_where_the_kinematics_put_it(processes, browser, tmp_path):
+    model = load_robot_description(shipped_robot_path('rl15'))
+    start(processes, 'dq_fk_node')
+    fake = start(processes, 'fake_joint_publisher', 'mode:=fixed',
+                 f'positions:=[{", ".join(str(v) for v in RL15_Q)}]', 'rate_hz:=20.0')
+    _, url = start_view(processes, '--stale-after', '0.6')
+    browser.get(url + '/')
+    urdf_links = sorted(link.get('name') for link in
+                        ElementTree.fromstring(robot_to_urdf(model)).iter('link'))
+    wait_for(browser, f'return window.dqFkView && window.dqFkView.robotLinks.length == '
+                      f'{len(urdf_links)} && Object.keys(window.dqFkView.frames).length == '
+                      f'{len(urdf_links) - 1}')
+    state = browser.execute_script('return window.dqFkView')
+    assert sorted(state['robotLinks']) == urdf_links  # the URDF, placed by TF
+    assert state['fixedFrame'] == 'world' and state['selected'] == 'eeCarry_seg6'
+    expected = homogeneous_from_dq(model.chain.forward_all(np.array(RL15_Q)))
+    for name, m in zip(model.frame_names, expected):
+        frame = state['frames'][name]
+        np.testing.assert_allclose(htf.pose_matrix_of_tuple(frame['position'] +
+                                                            frame['quaternion']),
+                                   m, atol=1e-9, err_msg=name)
+        assert not frame['stale']
+    # the panel: the end effector's pose, as the paper's RViz panel shows it
+    pose = state['frames']['eeCarry_seg6']
+    lines = browser.find_element('id', 'selected-pose').text.split('\n')
+    assert lines == ['position x y z', ' '.join(f'{v:.6f}' for v in pose['position']),
+                     'quaternion x y z w', ' '.join(f'{v:.6f}' for v in pose['quaternion'])]
+    assert browser.find_element('id', 'selected-name').text == 'eeCarry_seg6'
+    # the picture: not blank, and the end effector's name where the camera puts its origin
+    time.sleep(0.5)  # a few frames drawn
+    shot = tmp_path / 'view.png'
+    browser.save_screenshot(str(shot))
+    if os.environ.get(SCREENSHOT_ENV):
+        shutil.copy(shot, os.environ[SCREENSHOT_ENV])
+    from matplotlib.image import imread
+    image = imread(shot)[:, :, :3]
+    assert (np.abs(image - image[5, 5]).max(axis=2) > 0.1).mean() > 0.02, 'a blank picture'
+    where = browser.execute_script("return window.dqFkView.project('eeCarry_seg6')")
+    label = browser.execute_script(
+        "const r = document.querySelector('.frame-label[data-frame=\"eeCarry_seg6\"]')"
+        '.getBoundingClientRect(); return {left: r.left, top: r.top, bottom: r.bottom};')
+    assert abs(label['left'] - where['x']) < 2.0
+    assert abs((label['top'] + label['bottom']) / 2 - where['y']) < 2.0
+    row, col = int(where['y']), int(where['x'])
+    text = image[row - 6:row + 6, col + 2:col + 90]
+    assert (text.max(axis=2) < 0.35).sum() > 15, 'the name is not drawn there'
+    # clicking another frame's name selects it
+    browser.execute_script(
+        "document.querySelector('.frame-label[data-frame=\"elbow_seg3\"]')"
+        ".dispatchEvent(new PointerEvent('pointerdown', {bubbles: true}))")
+    assert wait_for(browser, "return window.dqFkView.selected == 'elbow_seg3' && "
+                             "document.getElementById('selected-name').textContent")
+    # joint states stop: the moving frames grey out, the static ones do not
+    fake.send_signal(2)
+    fake.wait(timeout=10)
+    wait_for(browser, "return window.dqFkView.frames['eeCarry_seg6'].stale")
+    state = browser.execute_script('return window.dqFkView.frames')
+    assert not state['base_seg0']['stale'] and not state['wrist_seg5_dh_z']['stale']
+    assert 'stale' in browser.find_element(
+        'css selector', '.frame-label[data-frame="eeCarry_seg6"]').get_attribute('class')
+
+
+async def _client(session, url, count=1, timeout_s=15.0):
+    """Connect to the view's WebSocket; return it and its first ``count`` messages."""
+    ws = await session.ws_connect(url.replace('http', 'ws') + '/ws')
+    messages = []
+    deadline = time.monotonic() + timeout_s
+    while len(messages) < count and time.monotonic() < deadline:
+        msg = await ws.receive(timeout=max(deadline - time.monotonic(), 0.1))
+        messages.append(json.loads(msg.data))
+    return ws, messages
+
+
+async def _until(ws, predicate, timeout_s=15.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        msg = await ws.receive(timeout=max(deadline - time.monotonic(), 0.1))
+        data = json.loads(msg.data)
+        if predicate(data):
+            return data
+    raise AssertionError('no such message')
+
+
+async def _status(session, url):
+    async with session.get(url + '/status') as response:
+        return await response.json()
+
+
+def test_the_server_with_many_rude_and_early_clients(processes, listener):
+    import aiohttp
+    _, url = start_view(processes)
+    port = int(url.rsplit(':', 1)[1])
+
+    async def scenario():
+        async with aiohttp.ClientSession() as session:
+            # a page opened before any robot is known: it gets both once they come
+            early, none = await _client(session, url, count=0)
+            assert none == []
+            start(processes, 'dq_fk_node')
+            start(processes, 'fake_joint_publisher', 'rate_hz:=100.0')
+            robot = await _until(early, lambda m: m['type'] == 'robot')
+            assert 'eeCarry_seg6' in robot['urdf']
+            await _until(early, lambda m: m['type'] == 'frames' and len(m['frames']) == 12)
+            # 20 pages at once: each has the robot and the frames
+            many = [await _client(session, url, count=2) for _ in range(20)]
+            for _, first in many:
+                assert sorted(m['type'] for m in first) == ['frames', 'robot']
+            assert (await _status(session, url))['clients'] == 21
+            # one goes away mid-stream without closing: the others go on
+            many[0][0]._response.connection.transport.abort()
+            for ws, _ in many[1:]:
+                await _until(ws, lambda m: m['type'] == 'frames')
+            # rude input: binary, not JSON, unknown, too big; counted, nobody harmed
+            rude = many[1][0]
+            await rude.send_bytes(b'\x00\x01')
+            await rude.send_str('not json')
+            await rude.send_str('{"type": "shutdown"}')
+            await many[2][0].send_str('x' * 100_000)
+            await rude.send_str('{"type": "hello"}')
+            for _ in range(50):
+                counts = await _status(session, url)
+                if counts['bad_input'] >= 4 and counts['clients'] <= 19:
+                    break
+                await asyncio.sleep(0.1)
+            assert counts['bad_input'] == 4 and counts['clients'] == 19
+            await _until(rude, lambda m: m['type'] == 'frames')
+            # a robot reload: the pages get the new description
+            client = AsyncParameterClient(listener.probe, 'dq_fk_node')
+            assert client.wait_for_services(timeout_sec=10.0)
+            future = client.set_parameters([Parameter(
+                'robot_description_file', value=shipped_robot_path('panda'))])
+            listener.spin_until(future.done)
+            assert future.result().results[0].successful
+            robot = await _until(early, lambda m: m['type'] == 'robot')
+            assert 'panda_link7' in robot['urdf']
+            for ws in [early] + [ws for ws, _ in many[1:]]:
+                await ws.close()
+
+    asyncio.run(scenario())
+    # it listens on the loopback address only
+    with open('/proc/net/tcp', encoding='ascii') as table:
+        listening = [line.split()[1] for line in table.readlines()[1:]
+                     if line.split()[3] == '0A' and line.split()[1].endswith(f':{port:04X}')]
+    assert listening == [f'0100007F:{port:04X}']

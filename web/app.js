@@ -1,0 +1,261 @@
+// dq_fk_view's page: the robot placed by TF, every frame's axes and name, a panel with the
+// selected frame's pose. State for tests and tools: window.dqFkView.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { CSS2DObject, CSS2DRenderer } from 'three/addons/renderers/CSS2DRenderer.js';
+import URDFLoader from 'urdf-loader';
+
+const GREY = new THREE.Color(0xb0b0b0);
+const AXIS_LENGTH_M = 0.1;
+
+const view = {
+  frames: {},          // name -> {parent, position: [x, y, z], quaternion: [x, y, z, w], stale}
+  selected: null,
+  fixedFrame: null,
+  robotLinks: [],      // the URDF's links, placed by TF
+  robotVersion: 0,
+  messages: 0,
+  connected: false,
+  webgl: true,
+  project,             // (frame name) -> {x, y}: where the camera puts its origin, in pixels
+  select,
+};
+window.dqFkView = view;
+
+const container = document.getElementById('view');
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0xf4f4f6);
+const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 200);
+camera.up.set(0, 0, 1);  // ROS: z up
+camera.position.set(2.5, -2.5, 1.8);
+
+let renderer = null;
+try {
+  renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  container.appendChild(renderer.domElement);
+} catch (error) {
+  view.webgl = false;  // no WebGL here: frames, labels and the panel still work
+  console.warn('dq_fk_view: no WebGL', error);
+}
+const labelRenderer = new CSS2DRenderer();
+labelRenderer.domElement.id = 'labels';
+container.appendChild(labelRenderer.domElement);
+const controls = new OrbitControls(camera, container);
+controls.target.set(0, 0, 0.5);
+
+const grid = new THREE.GridHelper(4, 40, 0x888888, 0xcccccc);
+grid.rotation.x = Math.PI / 2;  // on the fixed frame's xy plane
+scene.add(grid);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x777777, 2.0));
+const sun = new THREE.DirectionalLight(0xffffff, 1.5);
+sun.position.set(3, -2, 5);
+scene.add(sun);
+
+const frameObjects = {};   // name -> {object, axes, label}
+const linkGroups = {};     // URDF link -> group of its visuals
+let framed = false;
+
+function resize() {
+  const width = container.clientWidth;
+  const height = container.clientHeight;
+  camera.aspect = width / Math.max(height, 1);
+  camera.updateProjectionMatrix();
+  if (renderer) renderer.setSize(width, height);
+  labelRenderer.setSize(width, height);
+}
+window.addEventListener('resize', resize);
+resize();
+
+function frameObject(name) {
+  let entry = frameObjects[name];
+  if (entry) return entry;
+  const object = new THREE.Object3D();
+  object.matrixAutoUpdate = true;
+  const axes = new THREE.AxesHelper(AXIS_LENGTH_M);
+  object.add(axes);
+  const element = document.createElement('div');
+  element.className = 'frame-label';
+  element.textContent = name;
+  element.dataset.frame = name;
+  element.addEventListener('pointerdown', (event) => { event.stopPropagation(); select(name); });
+  const label = new CSS2DObject(element);
+  label.center.set(0, 0.5);  // the name starts at the frame's origin, to its right
+  object.add(label);
+  scene.add(object);
+  entry = frameObjects[name] = { object, axes, label, element, stale: null };
+  return entry;
+}
+
+function onFrames(message) {
+  view.fixedFrame = message.fixed_frame;
+  const seen = new Set();
+  for (const [name, parent, x, y, z, qx, qy, qz, qw, stale] of message.frames) {
+    seen.add(name);
+    view.frames[name] = { parent, position: [x, y, z], quaternion: [qx, qy, qz, qw], stale };
+    const entry = frameObject(name);
+    entry.object.position.set(x, y, z);
+    entry.object.quaternion.set(qx, qy, qz, qw);
+    if (entry.stale !== stale) {  // greyed when it stops updating, as RViz does
+      if (stale) entry.axes.setColors(GREY, GREY, GREY);
+      else entry.axes.setColors(new THREE.Color(0xff0000), new THREE.Color(0x00ff00),
+                                new THREE.Color(0x0000ff));
+      entry.element.classList.toggle('stale', stale);
+      entry.stale = stale;
+    }
+  }
+  for (const name of Object.keys(view.frames)) {
+    if (!seen.has(name)) {
+      scene.remove(frameObjects[name].object);
+      frameObjects[name].element.remove();
+      delete frameObjects[name];
+      delete view.frames[name];
+    }
+  }
+  if ((!view.selected || !view.frames[view.selected]) && message.select &&
+      view.frames[message.select]) {
+    select(message.select);
+  }
+  if (!framed) frameTheRobot();
+  placeRobot();
+  updatePanel();
+}
+
+function frameTheRobot() {
+  const points = Object.values(view.frames).map((f) => new THREE.Vector3(...f.position));
+  if (points.length === 0) return;
+  const box = new THREE.Box3().setFromPoints(points.concat([new THREE.Vector3()]));
+  const centre = box.getCenter(new THREE.Vector3());
+  const size = Math.max(box.getSize(new THREE.Vector3()).length(), 0.5);
+  controls.target.copy(centre);
+  camera.position.copy(centre).add(new THREE.Vector3(1.0, -1.2, 0.8).multiplyScalar(size));
+  grid.position.set(centre.x, centre.y, 0);
+  grid.scale.setScalar(Math.max(size / 2, 0.5));
+  controls.update();
+  framed = true;
+}
+
+function onRobot(message) {
+  for (const group of Object.values(linkGroups)) scene.remove(group);
+  for (const name of Object.keys(linkGroups)) delete linkGroups[name];
+  view.robotLinks = [];
+  let robot;
+  try {
+    const loader = new URDFLoader();
+    loader.loadMeshCb = (path, manager, done) => {  // meshes the page cannot fetch: none
+      loader.defaultMeshLoader(path, manager, (mesh, error) => done(error ? null : mesh));
+    };
+    robot = loader.parse(message.urdf);
+  } catch (error) {
+    console.warn('dq_fk_view: the robot description could not be read', error);
+    view.robotVersion += 1;
+    return;
+  }
+  for (const [name, link] of Object.entries(robot.links)) {
+    const group = new THREE.Group();
+    group.name = `link:${name}`;
+    for (const visual of link.children.filter((child) => child.isURDFVisual)) {
+      group.add(visual);  // placed by TF, not by the URDF's joints
+    }
+    linkGroups[name] = group;
+    scene.add(group);
+  }
+  view.robotLinks = Object.keys(robot.links);
+  view.robotVersion += 1;
+  placeRobot();
+}
+
+function placeRobot() {
+  for (const [name, group] of Object.entries(linkGroups)) {
+    const frame = view.frames[name];
+    if (frame) {
+      group.visible = true;
+      group.position.set(...frame.position);
+      group.quaternion.set(...frame.quaternion);
+    } else {
+      group.visible = name === view.fixedFrame;  // the fixed frame itself sits at the origin
+      group.position.set(0, 0, 0);
+      group.quaternion.set(0, 0, 0, 1);
+    }
+  }
+}
+
+function select(name) {
+  view.selected = name;
+  for (const [frame, entry] of Object.entries(frameObjects)) {
+    entry.element.classList.toggle('selected', frame === name);
+  }
+  updatePanel();
+}
+
+function fixed(value) {
+  const text = value.toFixed(6);
+  return text === '-0.000000' ? '0.000000' : text;
+}
+
+function updatePanel() {
+  const name = view.selected;
+  const frame = name ? view.frames[name] : null;
+  document.getElementById('selected-name').textContent = name || '(no frame)';
+  document.getElementById('selected-parent').textContent =
+    frame ? `parent ${frame.parent}; in ${view.fixedFrame}${frame.stale ? ' (stale)' : ''}` : '';
+  document.getElementById('selected-pose').textContent = frame
+    ? `position x y z\n${frame.position.map(fixed).join(' ')}\n` +
+      `quaternion x y z w\n${frame.quaternion.map(fixed).join(' ')}`
+    : '';
+  const list = document.getElementById('frame-list');
+  const names = Object.keys(view.frames).sort();
+  if (list.dataset.names !== names.join('\n')) {
+    list.replaceChildren(...names.map((frameName) => {
+      const item = document.createElement('li');
+      item.textContent = frameName;
+      item.dataset.frame = frameName;
+      item.addEventListener('click', () => select(frameName));
+      return item;
+    }));
+    list.dataset.names = names.join('\n');
+  }
+  for (const item of list.children) {
+    const itemFrame = view.frames[item.dataset.frame];
+    item.classList.toggle('selected', item.dataset.frame === name);
+    item.classList.toggle('stale', Boolean(itemFrame && itemFrame.stale));
+  }
+}
+
+function project(name) {
+  const entry = frameObjects[name];
+  if (!entry) return null;
+  const point = entry.object.getWorldPosition(new THREE.Vector3()).project(camera);
+  const rect = container.getBoundingClientRect();
+  return { x: rect.left + (point.x + 1) / 2 * rect.width,
+           y: rect.top + (1 - point.y) / 2 * rect.height };
+}
+
+function connect() {
+  const socket = new WebSocket(`ws://${location.host}/ws`);
+  socket.addEventListener('open', () => {
+    view.connected = true;
+    document.getElementById('status').textContent = 'connected';
+    socket.send(JSON.stringify({ type: 'hello' }));
+  });
+  socket.addEventListener('message', (event) => {
+    view.messages += 1;
+    const message = JSON.parse(event.data);
+    if (message.type === 'frames') onFrames(message);
+    else if (message.type === 'robot') onRobot(message);
+  });
+  socket.addEventListener('close', () => {
+    view.connected = false;
+    document.getElementById('status').textContent = 'disconnected: retrying...';
+    setTimeout(connect, 1000);
+  });
+}
+
+function render() {
+  requestAnimationFrame(render);
+  controls.update();
+  if (renderer) renderer.render(scene, camera);
+  labelRenderer.render(scene, camera);
+}
+
+connect();
+render();
