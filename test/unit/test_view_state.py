@@ -1,0 +1,69 @@
+"""dq_fk_view's state: what the page gets, without any ROS or web process."""
+
+import json
+import time
+
+from dq_fk_ros.ros.view import parse_args, ViewState
+import pytest
+
+IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+
+
+def frames(state):
+    message = json.loads(state.frames_message())
+    return message, {f[0]: f for f in message['frames']}
+
+
+def test_the_root_with_most_frames_is_the_fixed_frame_and_the_deepest_is_selected():
+    state = ViewState(stale_after_s=0.2)
+    assert state.frames_message() is None
+    state.take_transforms([('world', 'base', (0, 0, 1.0, 0, 0, 0, 1.0))], static=True)
+    state.take_transforms([('base', 'link1', (0.5, 0, 0, 0, 0, 0, 1.0)),
+                           ('link1', 'tool', (0.25, 0, 0, 0, 0, 0, 1.0)),
+                           ('link1', 'link1_dh_z', (0.1, 0, 0, 0, 0, 0, 1.0)),
+                           ('link1', 'camera', IDENTITY),
+                           ('odom', 'robot2', IDENTITY), ('x', 'x', IDENTITY)], static=False)
+    message, by_name = frames(state)
+    assert message['type'] == 'frames' and message['fixed_frame'] == 'world'
+    assert sorted(by_name) == ['base', 'camera', 'link1', 'link1_dh_z',
+                               'tool']
+    assert by_name['tool'][1:9] == ['link1', 0.75, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+    # the deepest frames: camera and tool (alphabetical first), never a URDF helper
+    assert message['select'] == 'camera'
+    assert not any(f[9] for f in message['frames'])
+    time.sleep(0.3)  # the /tf frames go stale, the /tf_static ones never
+    _, by_name = frames(state)
+    assert by_name['tool'][9] and not by_name['base'][9]
+
+
+def test_a_chosen_fixed_frame_and_selection_are_kept():
+    state = ViewState(fixed_frame='base', select='tool')
+    state.take_transforms([('world', 'base', IDENTITY), ('base', 'tool', IDENTITY)], True)
+    message, by_name = frames(state)
+    assert message['fixed_frame'] == 'base' and message['select'] == 'tool'
+    assert list(by_name) == ['tool']
+
+
+def test_a_new_description_is_a_new_version_only_when_it_changes():
+    state = ViewState()
+    state.take_description('<robot name="a"/>')
+    state.take_description('<robot name="a"/>')
+    assert state.urdf_version == 1
+    state.take_description('<robot name="b"/>')
+    assert state.urdf_version == 2 and state.urdf == '<robot name="b"/>'
+
+
+@pytest.mark.parametrize('argv, words', [
+    (['--port', '70000'], '--port 70000: give 0..65535'),
+    (['--rate', '0'], '--rate 0: give more than 0'),
+    (['--stale-after', '-1'], '--stale-after: give a positive number'),
+])
+def test_bad_options_are_one_line(argv, words, capsys):
+    with pytest.raises(SystemExit) as caught:
+        parse_args(argv)
+    assert caught.value.code == 2 and words in capsys.readouterr().err
+
+
+def test_defaults_listen_on_loopback():
+    args = parse_args([])
+    assert (args.host, args.port, args.rate) == ('127.0.0.1', 8765, 30.0)
