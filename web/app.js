@@ -111,6 +111,7 @@ function onFrames(message) {
       delete view.frames[name];
     }
   }
+  stackLabels();
   if ((!view.selected || !view.frames[view.selected]) && message.select &&
       view.frames[message.select]) {
     select(message.select);
@@ -118,6 +119,17 @@ function onFrames(message) {
   if (!framed) frameTheRobot();
   placeRobot();
   updatePanel();
+}
+
+function stackLabels() {
+  // frames at one place (wrist frames, a tool at its flange): their names one under another
+  const places = new Map();
+  for (const name of Object.keys(view.frames).sort()) {
+    const key = view.frames[name].position.map((v) => Math.round(v * 1e4)).join(',');
+    const k = places.get(key) || 0;
+    places.set(key, k + 1);
+    frameObjects[name].label.center.set(0, 0.5 - 1.1 * k);
+  }
 }
 
 function frameTheRobot() {

@@ -229,6 +229,7 @@ def test_helper_frames_are_children_of_their_dh_frames():
                 np.testing.assert_allclose(
                     (at_poses[frames[anchor]].inverse() * at_poses[helper]).to_matrix(),
                     offset.to_matrix(), atol=1e-12)
+        assert len(helpers.moving_poses(q)) == len(helpers.moving)
         for (helper, anchor), pose in zip(helpers.moving, helpers.moving_poses(q)):
             assert helper == frames[anchor] + '_dh_z0'
             expected = (poses[frames[anchor]].inverse() * poses[helper]).to_matrix()
@@ -272,3 +273,20 @@ def test_a_mimic_link_with_an_offset_keeps_it_in_the_urdf():
              if j.get('name') == 'f_joint'][0].find('mimic')
     assert (mimic.get('joint'), mimic.get('multiplier'), mimic.get('offset')) == \
         ('j1', '2.0', '0.25')
+
+
+def test_link_poses_follow_mimic_rows_and_joints_are_frozen():
+    import dataclasses
+    from dq_fk_ros.description.urdf import urdf_joints
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b}\nchain:\n'
+        '  - {frame: l1, joint: j1, theta: 0.2, d: 0.1, a: 0.3, alpha: 0.4}\n'
+        '  - {frame: l2, theta: 0.1, d: 0, a: 0.2, alpha: 0.3, mimic: {joint: j1, '
+        'multiplier: 0.5}}\n', 'mimic.yaml')
+    q = [0.7]
+    poses = link_poses(model, q)
+    for frame, m in zip(model.frame_names, homogeneous_from_dq(model.chain.forward_all(q))):
+        np.testing.assert_allclose(poses[frame].to_matrix(), m, atol=1e-12)
+    joint = urdf_joints(model)[0]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        joint.name = 'x'
