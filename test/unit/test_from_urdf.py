@@ -509,3 +509,62 @@ def test_a_long_bad_number_is_cut_in_the_message():
         urdf_to_description(text, 'mine.urdf')
     assert str(caught.value) == (f"mine.urdf: joint 'j2': origin xyz: {junk[:60]!r} is not 3 "
                                  'finite numbers')
+
+
+def test_a_broken_xacro_is_one_line(tmp_path):
+    path = tmp_path / 'bad.urdf.xacro'
+    path.write_text('<robot name="b" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                    '<link name="${undefined_property}"/></robot>')
+    with pytest.raises(RobotDescriptionError) as caught:
+        load_urdf_description(path)
+    assert str(caught.value).startswith(f'{path}: xacro failed: ')
+    assert 'undefined_property' in str(caught.value) and '\n' not in str(caught.value)
+
+
+def test_long_names_and_numbers_are_cut_in_messages():
+    ghost = 'g' * 100
+    text = ('<robot name="m"><link name="a"/><joint name="j" type="revolute">'
+            f'<parent link="a"/><child link="{ghost}"/></joint></robot>')
+    with pytest.raises(RobotDescriptionError) as caught:
+        urdf_to_description(text, 'mine.urdf')
+    assert str(caught.value) == (f"mine.urdf: joint 'j': child link {ghost!r} is not defined "
+                                 f'(no <link name="{ghost[:60]}">)')
+    junk = 'one two three ' * 10
+    text = serial_urdf(DEGENERATE['skew axes']).replace('xyz="0.1 0.2 0"', f'xyz="{junk}"')
+    with pytest.raises(RobotDescriptionError) as caught:
+        urdf_to_description(text, 'mine.urdf')
+    assert str(caught.value) == \
+        f"mine.urdf: joint 'j2': origin xyz: {junk[:60]!r} is not 3 numbers"
+
+
+def test_two_separate_trees_need_a_base():
+    text = serial_urdf(DEGENERATE['skew axes']).replace(
+        '</robot>', '<link name="lonely"/></robot>')
+    with pytest.raises(RobotDescriptionError, match=re.escape(
+            'mine.urdf: several root links (base, lonely); choose one with --base')):
+        urdf_to_description(text, 'mine.urdf')
+    assert urdf_to_description(text, 'mine.urdf', base='base').base == 'base'
+
+
+def test_the_largest_chain_converts_and_one_joint_more_does_not():
+    from dq_fk_ros.description.robot_model import MAX_ROWS
+    joints = [('revolute', '0 0 0.01', '0 0 0', '0 0 1' if k % 2 else '0 1 0')
+              for k in range(MAX_ROWS)]
+    model = parse_robot_description(urdf_to_description(serial_urdf(joints)).text)
+    assert model.chain.dof == MAX_ROWS
+    with pytest.raises(RobotDescriptionError, match=f'{MAX_ROWS + 1} moving joints; a robot '
+                                                    f'description has at most {MAX_ROWS} rows'):
+        urdf_to_description(serial_urdf(joints + [joints[0]]))
+
+
+def test_zero_velocities_mean_none_and_long_side_link_names_are_kept():
+    side = 's' * 128  # the longest frame id allowed
+    text = serial_urdf(DEGENERATE['skew axes']).replace('velocity="1"', 'velocity="0"')
+    text = text[:-len('</robot>\n')] + (
+        f'  <link name="{side}"/><joint name="g" type="revolute"><parent link="l3"/>'
+        f'<child link="{side}"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="0"/></joint>\n</robot>\n')
+    conversion = urdf_to_description(text, tip='l3')
+    model = parse_robot_description(conversion.text)
+    assert conversion.skipped == () and side in model.frame_names
+    assert model.max_velocity.tolist() == [math.inf] * 4  # 0 in a URDF: not given
