@@ -15,6 +15,7 @@ const view = {
   robotLinks: [],      // the URDF's links, placed by TF
   robotVersion: 0,
   messages: 0,
+  arrivals: [],        // the last 1000 frames messages: [newest /tf stamp (ns), arrival (ms)]
   connected: false,
   webgl: true,
   project,             // (frame name) -> {x, y}: where the camera puts its origin, in pixels
@@ -87,6 +88,8 @@ function frameObject(name) {
 }
 
 function onFrames(message) {
+  view.arrivals.push([message.stamp_ns, performance.timeOrigin + performance.now()]);
+  if (view.arrivals.length > 1000) view.arrivals.shift();
   view.fixedFrame = message.fixed_frame;
   const seen = new Set();
   for (const [name, parent, x, y, z, qx, qy, qz, qw, stale] of message.frames) {

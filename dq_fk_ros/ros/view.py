@@ -10,10 +10,10 @@ frame's axes and name, a grid, and a panel with the selected frame's pose.
     dq_fk_view [--host 127.0.0.1] [--port 8765] [--fixed-frame F] [--select F] [--rate 30]
 
 Messages to the page are JSON: ``{"type": "robot", "urdf": ...}`` when the description
-changes, and ``{"type": "frames", "fixed_frame": ..., "select": ..., "frames": [[name,
-parent, x, y, z, qx, qy, qz, qw, stale], ...]}``. Messages from pages are read and, but for
-``{"type": "hello"}``, ignored; anything else (not JSON, binary, too big) is counted in
-``/status``.
+changes, and ``{"type": "frames", "fixed_frame": ..., "select": ..., "stamp_ns": the
+newest /tf stamp, "frames": [[name, parent, x, y, z, qx, qy, qz, qw, stale], ...]}``.
+Messages from pages are read and, but for ``{"type": "hello"}``, ignored; anything else
+(not JSON, binary, too big) is counted in ``/status``.
 """
 
 import argparse
@@ -31,6 +31,7 @@ DEFAULT_PORT = 8765
 DEFAULT_RATE_HZ = 30.0
 STALE_AFTER_S = 1.0
 MAX_CLIENT_MESSAGE_BYTES = 64 * 1024
+MAX_PENDING = 10_000  # serialized /tf messages kept between two poses messages
 HELPER_SUFFIXES = ('_dh_z', '_dh_z0')  # dq_fk_node's URDF helper frames: never the default
 VENDOR_PACKAGES = ('three', 'urdf-loader')
 
@@ -61,6 +62,10 @@ class ViewState:
         """Start empty; ``fixed_frame`` and ``select`` empty: chosen from the TF tree."""
         self.lock = threading.Lock()
         self.edges = {}          # child -> (parent, pose, static, monotonic time received)
+        self.last_stamp_ns = 0   # the newest /tf stamp received (the page reports latency)
+        # /tf arrives serialized (up to kHz) and is decoded when poses are sent (tens of Hz)
+        self.pending_tf = []
+        self.decode_tf = None     # raw bytes -> [(parent, child, pose)], stamp ns
         self.urdf = None
         self.urdf_version = 0
         self.fixed_frame = fixed_frame
@@ -69,14 +74,36 @@ class ViewState:
         self.counts = {'tf_messages': 0, 'bad_input': 0, 'frames_sent': 0, 'skipped_sends': 0,
                        'clients': 0, 'clients_total': 0}
 
-    def take_transforms(self, transforms, static):
+    def take_transforms(self, transforms, static, stamp_ns=0):
         """Record ``[(parent, child, (x, y, z, qx, qy, qz, qw)), ...]`` as received now."""
         now = time.monotonic()
         with self.lock:
+            self.last_stamp_ns = max(self.last_stamp_ns, stamp_ns)
             self.counts['tf_messages'] += 1
             for parent, child, pose in transforms:
                 if parent and child and parent != child:
                     self.edges[child] = (parent, pose, static, now)
+
+    def take_raw_tf(self, raw):
+        """Keep a serialized /tf message for the next poses message (at most MAX_PENDING)."""
+        with self.lock:
+            pending = self.pending_tf
+            if len(pending) >= MAX_PENDING:
+                del pending[:len(pending) // 2]  # a stalled sender: keep the newest
+                self.counts['tf_dropped'] = self.counts.get('tf_dropped', 0) + 1
+            pending.append(raw)
+
+    def _decode_pending(self):
+        with self.lock:
+            pending, self.pending_tf = self.pending_tf, []
+        for raw in pending:
+            try:
+                transforms, stamp_ns = self.decode_tf(raw)
+            except Exception:  # not a TFMessage after all: counted, never fatal
+                with self.lock:
+                    self.counts['bad_tf'] = self.counts.get('bad_tf', 0) + 1
+                continue
+            self.take_transforms(transforms, False, stamp_ns)
 
     def take_description(self, text):
         """Record a new robot description (URDF XML)."""
@@ -87,10 +114,13 @@ class ViewState:
 
     def frames_message(self):
         """Return the JSON text of every frame's pose in the fixed frame (None: no frames)."""
+        if self.decode_tf is not None:
+            self._decode_pending()
         with self.lock:
             edges = {child: (parent, pose) for child, (parent, pose, _, _) in self.edges.items()}
             ages = {child: (static, received) for child, (_, _, static, received)
                     in self.edges.items()}
+            stamp_ns = self.last_stamp_ns
         if not edges:
             return None
         root = self.fixed_frame or _largest_root(edges)
@@ -104,7 +134,7 @@ class ViewState:
             stale = not static and now - received > self.stale_after_s
             frames.append([name, edges[name][0], *poses[name], stale])
         return json.dumps({'type': 'frames', 'fixed_frame': root, 'select': select,
-                           'frames': frames})
+                           'stamp_ns': stamp_ns, 'frames': frames})
 
 
 def _largest_root(edges):
@@ -121,25 +151,35 @@ def _deepest(below):
 
 def make_node(state, context=None):
     """Return the rclpy node that feeds ``state`` from /tf, /tf_static, /robot_description."""
+    from dq_fk_ros.ros.raw_input import RawSubscriptionThread
     from rclpy.node import Node
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.serialization import deserialize_message
     from std_msgs.msg import String
     from tf2_msgs.msg import TFMessage
 
-    def take(msg, static):
-        state.take_transforms([
-            (t.header.frame_id, t.child_frame_id,
-             (t.transform.translation.x, t.transform.translation.y, t.transform.translation.z,
-              t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
-              t.transform.rotation.w)) for t in msg.transforms], static)
+    def transforms_of(msg):
+        return [(t.header.frame_id, t.child_frame_id,
+                 (t.transform.translation.x, t.transform.translation.y,
+                  t.transform.translation.z, t.transform.rotation.x, t.transform.rotation.y,
+                  t.transform.rotation.z, t.transform.rotation.w)) for t in msg.transforms]
+
+    def decode(raw):
+        msg = deserialize_message(raw, TFMessage)
+        stamp = msg.transforms[0].header.stamp if msg.transforms else None
+        return transforms_of(msg), (stamp.sec * 1_000_000_000 + stamp.nanosec) if stamp else 0
 
     node = Node('dq_fk_view', context=context)
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    # best effort matches reliable and best-effort /tf publishers alike
-    node.create_subscription(TFMessage, '/tf', lambda m: take(m, False),
-                             QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT))
-    node.create_subscription(TFMessage, '/tf_static', lambda m: take(m, True),
+    # /tf: serialized, taken by a thread of its own (no executor wake-up per message) and
+    # decoded only when poses are sent; best effort matches every /tf publisher
+    state.decode_tf = decode
+    node.tf_input = RawSubscriptionThread(
+        node, TFMessage, '/tf', QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT),
+        state.take_raw_tf)
+    node.create_subscription(TFMessage, '/tf_static',
+                             lambda m: state.take_transforms(transforms_of(m), True),
                              QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                                         durability=DurabilityPolicy.TRANSIENT_LOCAL))
     node.create_subscription(String, 'robot_description',
@@ -342,6 +382,7 @@ def main(argv=None):
         return 1
     finally:
         executor.shutdown(timeout_sec=1.0)
+        node.tf_input.close()
         node.destroy_node()
         rclpy.try_shutdown()
         thread.join(timeout=2.0)

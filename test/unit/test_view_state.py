@@ -67,3 +67,15 @@ def test_bad_options_are_one_line(argv, words, capsys):
 def test_defaults_listen_on_loopback():
     args = parse_args([])
     assert (args.host, args.port, args.rate) == ('127.0.0.1', 8765, 30.0)
+
+
+def test_serialized_tf_is_decoded_when_poses_are_sent_and_bad_bytes_are_counted():
+    state = ViewState()
+    state.decode_tf = lambda raw: (json.loads(raw), 7) if raw != b'bad' else 1 / 0
+    state.take_raw_tf(json.dumps([['world', 'a', [1.0, 0, 0, 0, 0, 0, 1.0]]]).encode())
+    state.take_raw_tf(b'bad')
+    state.take_raw_tf(json.dumps([['world', 'a', [2.0, 0, 0, 0, 0, 0, 1.0]]]).encode())
+    message, by_name = frames(state)
+    assert by_name['a'][2] == 2.0 and message['stamp_ns'] == 7  # the latest wins
+    assert state.counts['bad_tf'] == 1 and state.counts['tf_messages'] == 2
+    assert state.pending_tf == []
