@@ -105,9 +105,14 @@ def lines_of(ax, colour):
             if colors.to_hex(line.get_color()) == colors.to_hex(colour)]
 
 
-def test_the_grid_lies_on_the_fixed_frames_xy_plane_in_round_steps():
+@pytest.mark.parametrize('robot', ['rl15', 'puma560', 'ur5e', 'panda', 'rrc',
+                                   'human_centrifuge', 'anthropomorphic_arm'])
+def test_the_grid_lies_on_the_fixed_frames_xy_plane_in_round_steps(robot):
     from dq_fk_ros.description.plot import _nice_step
-    fig = draw_robot(load_robot_description(shipped_robot_path('rl15')), np.zeros(6))
+    from dq_fk_ros.description.urdf import link_segments
+    model = load_robot_description(shipped_robot_path(robot))
+    q = np.full(model.dof, 0.3)
+    fig = draw_robot(model, q)
     ax = fig.axes[0]
     grid = lines_of(ax, '#bdbdbd')
     assert grid and all(np.all(line[2] == 0.0) for line in grid)  # z = 0
@@ -124,11 +129,20 @@ def test_the_grid_lies_on_the_fixed_frames_xy_plane_in_round_steps():
                                    atol=1e-9)  # on multiples of the step
         # from the step at or below the lower limit to within half a step of the upper one
         assert low - step < values[0] <= low + 1e-9
-        assert high - step / 2 - 1e-9 <= values[-1] <= high + step / 2 + 1e-9
+        # the last line: the last multiple of the step within half a step beyond the limit
+        assert values[-1] <= high + step / 2 + 1e-9 < values[-1] + step
     for line in along_y:  # each line spans the grid
         assert (line[1].min(), line[1].max()) == (ys[0], ys[-1])
     for line in along_x:
         assert (line[0].min(), line[0].max()) == (xs[0], xs[-1])
+    # the view is centred on everything drawn: frame origins, links and the fixed frame
+    from dq_fk_ros.kinematics.dh import homogeneous_from_dq
+    points = [m[:3, 3] for m in homogeneous_from_dq(model.forward_all(q))] + [np.zeros(3)]
+    points += [p for segment in link_segments(model, q) for p in segment]
+    centre = (np.min(points, axis=0) + np.max(points, axis=0)) / 2
+    np.testing.assert_allclose([np.mean(ax.get_xlim()), np.mean(ax.get_ylim()),
+                                np.mean(ax.get_zlim())], centre, atol=1e-9)
+    assert np.ptp(ax.get_xlim()) == pytest.approx(1.2 * np.ptp(points, axis=0).max())
 
 
 @pytest.mark.parametrize('raw, step', [(0.23, 0.2), (0.7, 0.5), (0.08, 0.1), (3.3, 2.0),
