@@ -346,3 +346,14 @@ def test_counting_a_rejection_counts_one_by_default():
     merger = JointStateMerger(NAMES, LIMITS)
     merger.count_rejected('malformed_cdr')
     assert merger.counts['rejected'] == merger.counts['rejected_malformed_cdr'] == 1
+
+
+def test_values_exactly_at_the_limits_are_inside_in_batches_too():
+    merger = JointStateMerger(NAMES, LIMITS, 'reject')
+    published, q, _ = merger.merge_many([(NAMES, np.array([[-1.0, 5.0, 2.0], [1.0, 0.0, 0.0]]),
+                                          np.zeros((2, 0)), np.array([0, 0]))])
+    assert published.tolist() == [0, 1] and merger.counts['rejected'] == 0
+
+
+def test_a_rejected_message_has_no_stamp():
+    assert JointStateMerger(NAMES, LIMITS).merge([], [], (), 5).stamp_ns == 0
