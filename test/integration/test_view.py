@@ -83,7 +83,8 @@ def wait_for(driver, script, timeout_s=20.0):
     raise AssertionError(f'the page never gave {script!r}')
 
 
-def test_the_page_shows_every_frame_where_the_kinematics_put_it(processes, browser, tmp_path):
+def test_the_page_shows_every_frame_where_the_kinematics_put_it(processes, browser, tmp_path,
+                                                                 listener):
     model = load_robot_description(shipped_robot_path('rl15'))
     start(processes, 'dq_fk_node')
     fake = start(processes, 'fake_joint_publisher', 'mode:=fixed',
@@ -143,6 +144,17 @@ def test_the_page_shows_every_frame_where_the_kinematics_put_it(processes, brows
     assert not state['base_seg0']['stale'] and not state['wrist_seg5_dh_z']['stale']
     assert 'stale' in browser.find_element(
         'css selector', '.frame-label[data-frame="eeCarry_seg6"]').get_attribute('class')
+    # a robot reload: the page rebuilds the model from the new description
+    version = browser.execute_script('return window.dqFkView.robotVersion')
+    client = AsyncParameterClient(listener.probe, 'dq_fk_node')
+    assert client.wait_for_services(timeout_sec=10.0)
+    future = client.set_parameters([Parameter('robot_description_file',
+                                              value=shipped_robot_path('puma560'))])
+    listener.spin_until(future.done)
+    assert future.result().results[0].successful
+    links = wait_for(browser, f'return window.dqFkView.robotVersion > {version} && '
+                              f'window.dqFkView.robotLinks')
+    assert 'puma_link6' in links and 'eeCarry_seg6' not in links
 
 
 async def _client(session, url, count=1, timeout_s=15.0):
