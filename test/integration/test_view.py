@@ -83,8 +83,8 @@ def wait_for(driver, script, timeout_s=20.0):
     raise AssertionError(f'the page never gave {script!r}')
 
 
-def test_the_page_shows_every_frame_where_the_kinematics_put_it(processes, browser, tmp_path,
-                                                                 listener):
+def test_the_page_shows_every_frame_where_the_kinematics_put_it(
+        processes, browser, tmp_path, listener):
     model = load_robot_description(shipped_robot_path('rl15'))
     start(processes, 'dq_fk_node')
     fake = start(processes, 'fake_joint_publisher', 'mode:=fixed',
