@@ -36,6 +36,7 @@ UNIT = 'test/unit/'
 MODULES = {
     'dual_quaternion': ('dq_fk_ros/kinematics/dual_quaternion.py',
                         ['test_dual_quaternion.py', 'test_dh.py', 'test_papers.py']),
+    'tree': ('dq_fk_ros/kinematics/tree.py', ['test_tree.py', 'test_view_state.py']),
     'dh': ('dq_fk_ros/kinematics/dh.py',
            ['test_dh.py', 'test_papers.py', 'test_shipped_robots.py']),
     'robot_model': ('dq_fk_ros/description/robot_model.py',

@@ -54,7 +54,9 @@ scene.add(sun);
 
 const frameObjects = {};   // name -> {object, axes, label}
 const linkGroups = {};     // URDF link -> group of its visuals
-let framed = false;
+let framedCount = 0;       // frames the camera was last fitted to
+let userMoved = false;     // once the user orbits or zooms, the camera is theirs
+controls.addEventListener('start', () => { userMoved = true; });
 
 function resize() {
   const width = container.clientWidth;
@@ -119,7 +121,9 @@ function onFrames(message) {
       view.frames[message.select]) {
     select(message.select);
   }
-  if (!framed) frameTheRobot();
+  // fit the camera to the robot while its tree grows (static frames often come first)
+  const count = Object.keys(view.frames).length;
+  if (!userMoved && count > framedCount) frameTheRobot(count);
   placeRobot();
   updatePanel();
 }
@@ -135,7 +139,7 @@ function stackLabels() {
   }
 }
 
-function frameTheRobot() {
+function frameTheRobot(count) {
   const points = Object.values(view.frames).map((f) => new THREE.Vector3(...f.position));
   if (points.length === 0) return;
   const box = new THREE.Box3().setFromPoints(points.concat([new THREE.Vector3()]));
@@ -146,7 +150,7 @@ function frameTheRobot() {
   grid.position.set(centre.x, centre.y, 0);
   grid.scale.setScalar(Math.max(size / 2, 0.5));
   controls.update();
-  framed = true;
+  framedCount = count;
 }
 
 function onRobot(message) {

@@ -122,6 +122,7 @@ def test_the_page_shows_every_frame_where_the_kinematics_put_it(
     image = imread(shot)[:, :, :3]
     assert (np.abs(image - image[5, 5]).max(axis=2) > 0.1).mean() > 0.02, 'a blank picture'
     where = browser.execute_script("return window.dqFkView.project('eeCarry_seg6')")
+    assert 0 < where['x'] < image.shape[1] - 100 and 10 < where['y'] < image.shape[0] - 10
     label = browser.execute_script(
         "const r = document.querySelector('.frame-label[data-frame=\"eeCarry_seg6\"]')"
         '.getBoundingClientRect(); return {left: r.left, top: r.top, bottom: r.bottom};')
@@ -129,7 +130,8 @@ def test_the_page_shows_every_frame_where_the_kinematics_put_it(
     assert abs((label['top'] + label['bottom']) / 2 - where['y']) < 2.0
     row, col = int(where['y']), int(where['x'])
     text = image[row - 6:row + 6, col + 2:col + 90]
-    assert (text.max(axis=2) < 0.35).sum() > 15, 'the name is not drawn there'
+    assert (text.max(axis=2) < 0.35).sum() > 15, \
+        f'the name is not drawn there: {where}, {label}, {image.shape}, {shot}'
     # clicking another frame's name selects it
     browser.execute_script(
         "document.querySelector('.frame-label[data-frame=\"elbow_seg3\"]')"
