@@ -32,6 +32,7 @@ DEFAULT_RATE_HZ = 30.0
 STALE_AFTER_S = 1.0
 MAX_CLIENT_MESSAGE_BYTES = 64 * 1024
 MAX_PENDING = 10_000  # serialized /tf messages kept between two poses messages
+TF_QUEUE_DEPTH = 1000  # /tf messages DDS keeps for the view between two takes
 HELPER_SUFFIXES = ('_dh_z', '_dh_z0')  # dq_fk_node's URDF helper frames: never the default
 VENDOR_PACKAGES = ('three', 'urdf-loader')
 
@@ -66,6 +67,7 @@ class ViewState:
         # /tf arrives serialized (up to kHz) and is decoded when poses are sent (tens of Hz)
         self.pending_tf = []
         self.decode_tf = None     # raw bytes -> [(parent, child, pose)], stamp ns
+        self.poll_tf = None       # takes what /tf has queued into take_raw_tf
         self.urdf = None
         self.urdf_version = 0
         self.fixed_frame = fixed_frame
@@ -114,6 +116,11 @@ class ViewState:
 
     def frames_message(self):
         """Return the JSON text of every frame's pose in the fixed frame (None: no frames)."""
+        if self.poll_tf is not None:
+            try:
+                self.poll_tf()
+            except Exception:  # the subscription is gone (shutting down)
+                pass
         if self.decode_tf is not None:
             self._decode_pending()
         with self.lock:
@@ -151,7 +158,8 @@ def _deepest(below):
 
 def make_node(state, context=None):
     """Return the rclpy node that feeds ``state`` from /tf, /tf_static, /robot_description."""
-    from dq_fk_ros.ros.raw_input import RawSubscriptionThread
+    from dq_fk_ros.ros.raw_input import take_queued
+    import rclpy
     from rclpy.node import Node
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from rclpy.serialization import deserialize_message
@@ -172,12 +180,16 @@ def make_node(state, context=None):
     node = Node('dq_fk_view', context=context)
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    # /tf: serialized, taken by a thread of its own (no executor wake-up per message) and
-    # decoded only when poses are sent; best effort matches every /tf publisher
+    # /tf: serialized, on a helper node no executor spins, taken and decoded only when poses
+    # are sent (tens of times a second, whatever the TF rate: nothing wakes per message); a
+    # deep queue holds what comes between; best effort matches every /tf publisher
     state.decode_tf = decode
-    node.tf_input = RawSubscriptionThread(
-        node, TFMessage, '/tf', QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT),
-        state.take_raw_tf)
+    node.tf_input = rclpy.create_node('_dq_fk_view_tf', context=node.context,
+                                      start_parameter_services=False, enable_rosout=False)
+    subscription = node.tf_input.create_subscription(
+        TFMessage, '/tf', lambda _: None,
+        QoSProfile(depth=TF_QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT), raw=True)
+    state.poll_tf = lambda: take_queued(subscription, state.take_raw_tf)
     node.create_subscription(TFMessage, '/tf_static',
                              lambda m: state.take_transforms(transforms_of(m), True),
                              QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
@@ -382,7 +394,7 @@ def main(argv=None):
         return 1
     finally:
         executor.shutdown(timeout_sec=1.0)
-        node.tf_input.close()
+        node.tf_input.destroy_node()
         node.destroy_node()
         rclpy.try_shutdown()
         thread.join(timeout=2.0)
