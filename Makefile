@@ -98,6 +98,8 @@ bench: setup $(BENCH_VENV)/.stamp
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_rclpy_floor.py
 	@echo
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_view.py
+	@echo
 	@$(PY) benchmarks/bench_bag.py
 
 mutate: setup
