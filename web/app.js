@@ -56,6 +56,7 @@ const frameObjects = {};   // name -> {object, axes, label}
 const linkGroups = {};     // URDF link -> group of its visuals
 let framedCount = 0;       // frames the camera was last fitted to
 let userMoved = false;     // once the user orbits or zooms, the camera is theirs
+let userSelected = false;  // once the user picks a frame, the selection is theirs
 controls.addEventListener('start', () => { userMoved = true; });
 
 function resize() {
@@ -117,9 +118,11 @@ function onFrames(message) {
     }
   }
   stackLabels();
-  if ((!view.selected || !view.frames[view.selected]) && message.select &&
-      view.frames[message.select]) {
-    select(message.select);
+  // the server's choice (the deepest frame, or --select) until the user picks one: the tree
+  // may still be growing
+  if ((!userSelected || !view.frames[view.selected]) && message.select &&
+      view.frames[message.select] && view.selected !== message.select) {
+    select(message.select, false);
   }
   // fit the camera to the robot while its tree grows (static frames often come first)
   const count = Object.keys(view.frames).length;
@@ -198,7 +201,8 @@ function placeRobot() {
   }
 }
 
-function select(name) {
+function select(name, byUser = true) {
+  userSelected = userSelected || byUser;
   view.selected = name;
   for (const [frame, entry] of Object.entries(frameObjects)) {
     entry.element.classList.toggle('selected', frame === name);

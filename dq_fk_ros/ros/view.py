@@ -26,12 +26,12 @@ import threading
 import time
 
 from dq_fk_ros.kinematics.tree import compose_tree, depths, roots
+from dq_fk_ros.messages.cdr import CdrError, TfLatest
 
 DEFAULT_PORT = 8765
 DEFAULT_RATE_HZ = 30.0
 STALE_AFTER_S = 1.0
 MAX_CLIENT_MESSAGE_BYTES = 64 * 1024
-MAX_PENDING = 10_000  # serialized /tf messages kept between two poses messages
 TF_QUEUE_DEPTH = 1000  # /tf messages DDS keeps for the view between two takes
 HELPER_SUFFIXES = ('_dh_z', '_dh_z0')  # dq_fk_node's URDF helper frames: never the default
 VENDOR_PACKAGES = ('three', 'urdf-loader')
@@ -64,9 +64,9 @@ class ViewState:
         self.lock = threading.Lock()
         self.edges = {}          # child -> (parent, pose, static, monotonic time received)
         self.last_stamp_ns = 0   # the newest /tf stamp received (the page reports latency)
-        # /tf arrives serialized (up to kHz) and is decoded when poses are sent (tens of Hz)
-        self.pending_tf = []
-        self.decode_tf = None     # raw bytes -> [(parent, child, pose)], stamp ns
+        # /tf arrives serialized (up to kHz): only the newest message of each layout
+        # (publisher) is read, when poses are sent (tens of Hz)
+        self.tf_latest = TfLatest()
         self.poll_tf = None       # takes what /tf has queued into take_raw_tf
         self.urdf = None
         self.urdf_version = 0
@@ -87,25 +87,12 @@ class ViewState:
                     self.edges[child] = (parent, pose, static, now)
 
     def take_raw_tf(self, raw):
-        """Keep a serialized /tf message for the next poses message (at most MAX_PENDING)."""
+        """Keep a serialized /tf message if it is its layout's newest (bad bytes: counted)."""
         with self.lock:
-            pending = self.pending_tf
-            if len(pending) >= MAX_PENDING:
-                del pending[:len(pending) // 2]  # a stalled sender: keep the newest
-                self.counts['tf_dropped'] = self.counts.get('tf_dropped', 0) + 1
-            pending.append(raw)
-
-    def _decode_pending(self):
-        with self.lock:
-            pending, self.pending_tf = self.pending_tf, []
-        for raw in pending:
             try:
-                transforms, stamp_ns = self.decode_tf(raw)
-            except Exception:  # not a TFMessage after all: counted, never fatal
-                with self.lock:
-                    self.counts['bad_tf'] = self.counts.get('bad_tf', 0) + 1
-                continue
-            self.take_transforms(transforms, False, stamp_ns)
+                self.tf_latest.take(raw)
+            except CdrError:  # not a TFMessage after all: counted, never fatal
+                self.counts['bad_tf'] = self.counts.get('bad_tf', 0) + 1
 
     def take_description(self, text):
         """Record a new robot description (URDF XML)."""
@@ -121,8 +108,10 @@ class ViewState:
                 self.poll_tf()
             except Exception:  # the subscription is gone (shutting down)
                 pass
-        if self.decode_tf is not None:
-            self._decode_pending()
+        with self.lock:
+            newest = self.tf_latest.pop()
+        for transforms, stamp_ns in newest:
+            self.take_transforms(transforms, False, stamp_ns)
         with self.lock:
             edges = {child: (parent, pose) for child, (parent, pose, _, _) in self.edges.items()}
             ages = {child: (static, received) for child, (_, _, static, received)
@@ -162,7 +151,6 @@ def make_node(state, context=None):
     import rclpy
     from rclpy.node import Node
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from rclpy.serialization import deserialize_message
     from std_msgs.msg import String
     from tf2_msgs.msg import TFMessage
 
@@ -172,18 +160,13 @@ def make_node(state, context=None):
                   t.transform.translation.z, t.transform.rotation.x, t.transform.rotation.y,
                   t.transform.rotation.z, t.transform.rotation.w)) for t in msg.transforms]
 
-    def decode(raw):
-        msg = deserialize_message(raw, TFMessage)
-        stamp = msg.transforms[0].header.stamp if msg.transforms else None
-        return transforms_of(msg), (stamp.sec * 1_000_000_000 + stamp.nanosec) if stamp else 0
-
     node = Node('dq_fk_view', context=context)
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    # /tf: serialized, on a helper node no executor spins, taken and decoded only when poses
-    # are sent (tens of times a second, whatever the TF rate: nothing wakes per message); a
-    # deep queue holds what comes between; best effort matches every /tf publisher
-    state.decode_tf = decode
+    # /tf: serialized, on a helper node no executor spins, taken only when poses are sent
+    # (tens of times a second, whatever the TF rate: nothing wakes per message; a deep queue
+    # holds what comes between), and only each publisher's newest message is read; best
+    # effort matches every /tf publisher
     node.tf_input = rclpy.create_node('_dq_fk_view_tf', context=node.context,
                                       start_parameter_services=False, enable_rosout=False)
     subscription = node.tf_input.create_subscription(

@@ -202,3 +202,55 @@ def test_a_string_length_of_zero_or_past_the_end_is_malformed(length):
     raw[12:16] = length.to_bytes(4, 'little')  # the frame id's length (with its NUL)
     with pytest.raises(CdrError, match='string runs past the end'):
         parse_joint_state(bytes(raw))
+
+
+def tf_message_bytes(edges, stamp=(1, 2)):
+    TransformStamped = TS.types['geometry_msgs/msg/TransformStamped']
+    Transform = TS.types['geometry_msgs/msg/Transform']
+    Vector3 = TS.types['geometry_msgs/msg/Vector3']
+    Quaternion = TS.types['geometry_msgs/msg/Quaternion']
+    TFMessage = TS.types['tf2_msgs/msg/TFMessage']
+    transforms = [TransformStamped(
+        header=Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=parent),
+        child_frame_id=child,
+        transform=Transform(translation=Vector3(x=v[0], y=v[1], z=v[2]),
+                            rotation=Quaternion(x=v[3], y=v[4], z=v[5], w=v[6])))
+        for parent, child, v in edges]
+    return bytes(TS.serialize_cdr(TFMessage(transforms=transforms), 'tf2_msgs/msg/TFMessage'))
+
+
+def test_tf_messages_read_as_rosbags_writes_them():
+    from dq_fk_ros.messages.cdr import tf_layout, tf_values
+    edges = [('world', 'b', (1.0, 2.0, 3.0, 0.0, 0.0, 0.6, 0.8)),
+             ('b', 'odd_length', (-1.0, 0.5, 0.25, 0.6, 0.0, 0.0, 0.8)),
+             ('odd_length', 'c', (0.0, 0.0, 9.0, 0.0, 1.0, 0.0, 0.0))]
+    raw = tf_message_bytes(edges, stamp=(5, 7))
+    layout = tf_layout(raw)
+    assert layout.edges == (('world', 'b'), ('b', 'odd_length'), ('odd_length', 'c'))
+    transforms, stamp = tf_values(raw, layout)
+    assert transforms == [(p, c, v) for p, c, v in edges] and stamp == 5_000_000_007
+    assert tf_values(tf_message_bytes([]), tf_layout(tf_message_bytes([]))) == ([], 0)
+    for cut in (3, 9, 20, len(raw) - 1):
+        with pytest.raises(CdrError):
+            tf_layout(raw[:cut])
+
+
+def test_the_newest_message_of_each_layout_is_kept():
+    from dq_fk_ros.messages.cdr import TfLatest
+    latest = TfLatest(max_layouts=2)
+    pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    ab = tf_message_bytes([('w', 'ab', pose)], stamp=(1, 0))
+    cd = tf_message_bytes([('w', 'cd', pose)], stamp=(2, 0))  # same size, other frames
+    assert len(ab) == len(cd)
+    latest.take(ab)
+    latest.take(cd)
+    latest.take(tf_message_bytes([('w', 'ab', (1.0,) + pose[1:])], stamp=(3, 0)))
+    got = sorted(latest.pop())
+    assert got == [([('w', 'ab', (1.0,) + pose[1:])], 3_000_000_000),
+                   ([('w', 'cd', pose)], 2_000_000_000)]
+    assert latest.pop() == []
+    latest.take(tf_message_bytes([('w', 'ef', pose)]))  # a third layout: the oldest goes
+    latest.take(ab)
+    assert sorted(t[0][0][1] for t in latest.pop()) == ['ab', 'ef']
+    with pytest.raises(CdrError):
+        latest.take(b'\x00\x01\x00\x00\xff\xff\xff\xff')

@@ -69,13 +69,33 @@ def test_defaults_listen_on_loopback():
     assert (args.host, args.port, args.rate) == ('127.0.0.1', 8765, 30.0)
 
 
-def test_serialized_tf_is_decoded_when_poses_are_sent_and_bad_bytes_are_counted():
+def tf_bytes(edges, stamp_ns=0):
+    """Serialize a TFMessage with rclpy: ``[(parent, child, (x, y, z, qx, qy, qz, qw))]``."""
+    from geometry_msgs.msg import TransformStamped
+    from rclpy.serialization import serialize_message
+    from tf2_msgs.msg import TFMessage
+    msg = TFMessage()
+    for parent, child, pose in edges:
+        t = TransformStamped()
+        t.header.frame_id, t.child_frame_id = parent, child
+        t.header.stamp.sec, t.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+        tr, r = t.transform.translation, t.transform.rotation
+        tr.x, tr.y, tr.z, r.x, r.y, r.z, r.w = pose
+        msg.transforms.append(t)
+    return serialize_message(msg)
+
+
+def test_only_each_publishers_newest_tf_is_read_and_bad_bytes_are_counted():
     state = ViewState()
-    state.decode_tf = lambda raw: (json.loads(raw), 7) if raw != b'bad' else 1 / 0
-    state.take_raw_tf(json.dumps([['world', 'a', [1.0, 0, 0, 0, 0, 0, 1.0]]]).encode())
-    state.take_raw_tf(b'bad')
-    state.take_raw_tf(json.dumps([['world', 'a', [2.0, 0, 0, 0, 0, 0, 1.0]]]).encode())
+    arm = [('world', 'a', (1.0, 0, 0, 0, 0, 0, 1.0)), ('a', 'b', (0, 1.0, 0, 0, 0, 0, 1.0))]
+    other = [('world', 'c', (5.0, 0, 0, 0, 0, 0, 1.0))]
+    state.take_raw_tf(tf_bytes(arm, 10))
+    state.take_raw_tf(tf_bytes(other, 11))       # another publisher: kept too
+    state.take_raw_tf(b'\x00\x01\x00\x00\xff\xff')  # not a TFMessage: counted
+    arm[0] = ('world', 'a', (2.0, 0, 0, 0, 0, 0, 1.0))
+    state.take_raw_tf(tf_bytes(arm, 12))
     message, by_name = frames(state)
-    assert by_name['a'][2] == 2.0 and message['stamp_ns'] == 7  # the latest wins
-    assert state.counts['bad_tf'] == 1 and state.counts['tf_messages'] == 2
-    assert state.pending_tf == []
+    assert by_name['a'][2] == 2.0 and by_name['b'][2:5] == [2.0, 1.0, 0.0]
+    assert by_name['c'][2] == 5.0 and message['stamp_ns'] == 12
+    assert state.counts['bad_tf'] == 1
+    assert state.counts['tf_messages'] == 2  # the newest of each of the two layouts
