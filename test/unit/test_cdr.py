@@ -210,12 +210,13 @@ def tf_message_bytes(edges, stamp=(1, 2)):
     Vector3 = TS.types['geometry_msgs/msg/Vector3']
     Quaternion = TS.types['geometry_msgs/msg/Quaternion']
     TFMessage = TS.types['tf2_msgs/msg/TFMessage']
-    transforms = [TransformStamped(
-        header=Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=parent),
-        child_frame_id=child,
-        transform=Transform(translation=Vector3(x=v[0], y=v[1], z=v[2]),
-                            rotation=Quaternion(x=v[3], y=v[4], z=v[5], w=v[6])))
-        for parent, child, v in edges]
+    transforms = []
+    for parent, child, v in edges:
+        transforms.append(TransformStamped(
+            header=Header(stamp=Time(sec=stamp[0], nanosec=stamp[1]), frame_id=parent),
+            child_frame_id=child,
+            transform=Transform(translation=Vector3(x=v[0], y=v[1], z=v[2]),
+                                rotation=Quaternion(x=v[3], y=v[4], z=v[5], w=v[6]))))
     return bytes(TS.serialize_cdr(TFMessage(transforms=transforms), 'tf2_msgs/msg/TFMessage'))
 
 
