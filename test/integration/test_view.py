@@ -241,3 +241,45 @@ def test_the_server_with_many_rude_and_early_clients(processes, listener):
         listening = [line.split()[1] for line in table.readlines()[1:]
                      if line.split()[3] == '0A' and line.split()[1].endswith(f':{port:04X}')]
     assert listening == [f'0100007F:{port:04X}']
+
+
+def test_a_bag_played_into_the_node_drives_the_view(processes, tmp_path):
+    """``dq_fk_bag play`` -> dq_fk_node -> dq_fk_view: the page gets the bag's poses."""
+    import aiohttp
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import get_typestore, Stores
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = store.types
+    model = load_robot_description(shipped_robot_path('rl15'))
+    q = np.array([0.4, -0.3, 0.2, 0.1, -0.6, 0.5])
+    t0 = 1_600_000_000_000_000_000
+    stamps = [t0 + k * 20_000_000 for k in range(200)]  # 4 s at 50 Hz
+    with Writer(tmp_path / 'bag', version=9) as writer:
+        conn = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState',
+                                     typestore=store)
+        for stamp in stamps:
+            header = types['std_msgs/msg/Header'](stamp=types['builtin_interfaces/msg/Time'](
+                sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id='')
+            msg = types['sensor_msgs/msg/JointState'](
+                header=header, name=list(model.joint_names), position=q,
+                velocity=np.zeros(0), effort=np.zeros(0))
+            writer.write(conn, stamp, bytes(store.serialize_cdr(
+                msg, 'sensor_msgs/msg/JointState')))
+    start(processes, 'dq_fk_node')
+    _, url = start_view(processes)
+    processes.start(executable('dq_fk_bag') + ['play', str(tmp_path / 'bag'), '--loop',
+                                               '--quiet', '--wait-for-subscribers', '1'])
+
+    async def scenario():
+        async with aiohttp.ClientSession() as session:
+            ws, _ = await _client(session, url, count=0)
+            message = await _until(ws, lambda m: m['type'] == 'frames' and
+                                   m['stamp_ns'] in stamps, timeout_s=30)
+            await ws.close()
+            return message
+
+    message = asyncio.run(scenario())
+    poses = {f[0]: f[2:9] for f in message['frames']}
+    expected = homogeneous_from_dq(model.chain.forward(q).coeffs)
+    np.testing.assert_allclose(htf.pose_matrix_of_tuple(poses['eeCarry_seg6']), expected,
+                               atol=1e-9)
