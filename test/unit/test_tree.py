@@ -49,3 +49,9 @@ def test_a_cycle_ends_the_walk():
     assert sorted(poses) == ['a', 'a2', 'b', 'root2']
     assert poses['b'][0] == 0.2 or math.isclose(poses['b'][0], 0.2)
     assert roots(edges) == []
+
+
+def test_every_component_of_an_unnormalised_quaternion_is_scaled():
+    edges = {'a': ('w', (0.5, -1.0, 2.0, 1.0, 2.0, 2.0, 4.0))}  # norm 5
+    pose = compose_tree(edges, 'w')['a']
+    np.testing.assert_allclose(pose, [0.5, -1.0, 2.0, 0.2, 0.4, 0.4, 0.8], atol=1e-15)
