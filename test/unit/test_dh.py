@@ -1,6 +1,7 @@
 """KinematicChain against the independent 4x4 reference, on random chains and configurations."""
 
 import math
+import re
 
 from dq_fk_ros.kinematics.dh import DHJoint, homogeneous_from_dq, KinematicChain
 from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion, quat_to_matrix
@@ -290,3 +291,9 @@ def test_batches_longer_than_one_chunk_equal_single_configurations():
     for k in (0, BATCH_CHUNK - 1, BATCH_CHUNK, BATCH_CHUNK + 2):
         np.testing.assert_allclose(batch[k], chain.forward_all(q[k]), atol=1e-15)
         np.testing.assert_allclose(ends[k], chain.forward(q[k]).coeffs, atol=1e-15)
+
+
+def test_a_row_following_an_unknown_joint_is_named_by_its_number():
+    with pytest.raises(ValueError, match=re.escape(
+            "row 2 follows unknown joint 'ghost'; joints are ['j1']")):
+        KinematicChain([DHJoint(name='j1'), DHJoint(follows='ghost')])
