@@ -568,3 +568,15 @@ def test_zero_velocities_mean_none_and_long_side_link_names_are_kept():
     model = parse_robot_description(conversion.text)
     assert conversion.skipped == () and side in model.frame_names
     assert model.max_velocity.tolist() == [math.inf] * 4  # 0 in a URDF: not given
+
+
+def test_a_huge_urdf_text_and_a_long_bad_joint_name_are_one_line():
+    with pytest.raises(RobotDescriptionError, match=re.escape(
+            'robot_description: larger than 8192 KiB; a URDF is at most that big')):
+        urdf_to_description(' ' * (8 * MAX_FILE_BYTES + 1), 'robot_description')
+    bad = 'j ' + 'x' * 100
+    text = serial_urdf(DEGENERATE['skew axes']).replace('name="j2"', f'name="{bad}"')
+    with pytest.raises(RobotDescriptionError) as caught:
+        urdf_to_description(text, 'mine.urdf')
+    assert str(caught.value) == (f'mine.urdf: joint name {bad[:70]!r} is not usable (a letter '
+                                 'or underscore, then letters, digits, _ . / -)')
