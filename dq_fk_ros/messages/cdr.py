@@ -390,8 +390,7 @@ def tf_layout(raw):
         if count > len(raw) // 64:  # each transform takes at least 64 bytes
             raise CdrError('more transforms than the message can hold')
         edges, strings, stamps, values = [], [], [], []
-        for _ in range(count):
-            cursor.align(4)
+        for _ in range(count):  # (a transform starts 8-aligned: after the count or 7 doubles)
             stamps.append(cursor.pos)
             cursor.pos += 8
             names = []

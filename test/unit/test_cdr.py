@@ -255,3 +255,35 @@ def test_the_newest_message_of_each_layout_is_kept():
     assert sorted(t[0][0][1] for t in latest.pop()) == ['ab', 'ef']
     with pytest.raises(CdrError):
         latest.take(b'\x00\x01\x00\x00\xff\xff\xff\xff')
+
+
+def test_garbage_in_alignment_padding_is_still_one_layout():
+    """rclpy leaves padding unset: only a layout's counts and strings are compared."""
+    from dq_fk_ros.messages.cdr import TfLatest, tf_layout
+    pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    raw = tf_message_bytes([('w', 'xyz', pose)])
+    layout = tf_layout(raw)
+    (_, frame_end), (child_start, _) = layout.strings[1], layout.strings[2]
+    assert child_start - frame_end == 2  # 'w' and its NUL: two bytes of padding follow
+    dirty = bytearray(raw)
+    dirty[frame_end:child_start] = b'\xee\xee'
+    latest = TfLatest()
+    latest.take(raw)
+    latest.take(bytes(dirty))
+    assert len(latest.pop()) == 1
+
+
+def test_forgotten_layouts_and_their_messages_are_gone():
+    from dq_fk_ros.messages.cdr import TfLatest
+    pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    ab1, cd1, ef1 = (tf_message_bytes([('w', n, pose)], stamp=(s, 0))
+                     for n, s in (('ab', 1), ('cd', 2), ('ef', 3)))
+    ab2 = tf_message_bytes([('w', 'ab', pose)], stamp=(4, 0))
+    latest = TfLatest(max_layouts=2)
+    for raw in (ab1, cd1, ef1, ab2):  # ef forgets ab (and ab1); ab again forgets cd
+        latest.take(raw)
+    assert sorted(stamp for _, stamp in latest.pop()) == [3_000_000_000, 4_000_000_000]
+    many = TfLatest()  # 64 layouts by default
+    for k in range(65):
+        many.take(tf_message_bytes([('w', f'f{k:02d}', pose)]))
+    assert sorted(t[0][0][1] for t in many.pop()) == [f'f{k:02d}' for k in range(1, 65)]
