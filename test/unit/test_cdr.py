@@ -258,7 +258,7 @@ def test_the_newest_message_of_each_layout_is_kept():
 
 
 def test_garbage_in_alignment_padding_is_still_one_layout():
-    """rclpy leaves padding unset: only a layout's counts and strings are compared."""
+    """Padding is left unset by rclpy: only a layout's counts and strings are compared."""
     from dq_fk_ros.messages.cdr import TfLatest, tf_layout
     pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     raw = tf_message_bytes([('w', 'xyz', pose)])
