@@ -287,3 +287,30 @@ def test_forgotten_layouts_and_their_messages_are_gone():
     for k in range(65):
         many.take(tf_message_bytes([('w', f'f{k:02d}', pose)]))
     assert sorted(t[0][0][1] for t in many.pop()) == [f'f{k:02d}' for k in range(1, 65)]
+
+
+def test_a_header_without_room_for_its_frame_id_says_so():
+    raw = joint_state_bytes(['a'], [1.0])[:16]  # header, stamp, frame id length: no text
+    with pytest.raises(CdrError, match='string runs past the end'):
+        parse_joint_state(raw)
+    with pytest.raises(CdrError, match='not a little-endian CDR message'):
+        parse_joint_state(raw[:15])
+
+
+def test_a_tf_count_beyond_64_bytes_a_transform_is_refused_at_once():
+    from dq_fk_ros.messages.cdr import tf_layout
+    head = b'\x00\x01\x00\x00'
+    for count, words in ((5, 'string runs past the end'),  # 5 x 64 bytes fit: parsed
+                         (6, 'more transforms than the message can hold')):
+        raw = head + count.to_bytes(4, 'little') + bytes(312)  # 320 bytes
+        with pytest.raises(CdrError, match=words):
+            tf_layout(raw)
+
+
+def test_one_publishers_messages_are_one_layout_whatever_their_stamps():
+    from dq_fk_ros.messages.cdr import TfLatest
+    pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    latest = TfLatest()
+    for sec in (1, 2, 3):
+        latest.take(tf_message_bytes([('w', 'a', pose)], stamp=(sec, sec)))
+    assert [stamp for _, stamp in latest.pop()] == [3_000_000_003]
