@@ -124,6 +124,7 @@ def test_batch_parse_equals_parsing_one_by_one(seed, max_layouts):
             covered += 1
             continue
         assert isinstance(item, JointStateRun) and item.first == covered
+        assert len(item.positions) == len(item.velocities) == len(item.stamps_ns)
         for j in range(len(item.stamps_ns)):
             got[item.first + j] = (int(item.stamps_ns[j]), item.names, item.positions[j],
                                    item.velocities[j])
@@ -314,3 +315,18 @@ def test_one_publishers_messages_are_one_layout_whatever_their_stamps():
     for sec in (1, 2, 3):
         latest.take(tf_message_bytes([('w', 'a', pose)], stamp=(sec, sec)))
     assert [stamp for _, stamp in latest.pop()] == [3_000_000_003]
+
+
+def test_a_message_cut_right_after_a_string_misses_the_next_field():
+    raw = joint_state_bytes(['abc'], [1.0])[:32]  # ends with the name's NUL
+    with pytest.raises(CdrError, match='^message ends early'):
+        parse_joint_state(raw)
+
+
+def test_a_batch_of_same_size_messages_of_two_layouts():
+    one = joint_state_with_efforts(['a', 'b'], [1.0, 2.0], [3.0], [5.0, 6.0])
+    two = joint_state_with_efforts(['a', 'b'], [1.0, 2.0], [3.0, 4.0], [5.0])
+    runs = parse_joint_states([one, two, one, two], JointStateNames())
+    assert [len(r.stamps_ns) for r in runs] == [1, 1, 1, 1]
+    assert [r.velocities.tolist() for r in runs] == [[[3.0]], [[3.0, 4.0]], [[3.0]],
+                                                     [[3.0, 4.0]]]
