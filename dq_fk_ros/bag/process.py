@@ -63,15 +63,12 @@ class BagOutputs:
         self.helpers = HelperFrames(model)
         # side-branch links (their joints optional) go in /tf messages of their own, written
         # for the messages whose joint states have named their joints, as the node does
-        needs = dict(zip(model.frame_names, model.frame_needs))
-        needs[model.fixed_frame] = frozenset()
-        edge_needs = {k: needs[model.frame_names[k]] | needs[model.parent_frames[k]]
-                      for k in range(n_frames)}
+        edge_needs = model.edge_needs
         base = [(k, r) for k, r in self.moving_edges if not edge_needs[k]]
         self.base_poses = [i for i, k in enumerate(self.pose_frames) if not edge_needs[k]]
         self.branches = []
         index = {name: i for i, name in enumerate(model.joint_names)}
-        for group in sorted({edge_needs[k] for k in range(n_frames)} - {frozenset()}, key=sorted):
+        for group in sorted(set(edge_needs) - {frozenset()}, key=sorted):
             edges = [(k, r) for k, r in self.moving_edges if edge_needs[k] == group]
             self.branches.append((
                 [index[name] for name in sorted(group)],
@@ -120,8 +117,8 @@ class BagOutputs:
         """
         model = self.model
         absolute = dq_to_pose_xyzw(model.forward_all_batch(q))           # (N, frames, 7)
-        all_relative = dq_to_pose_xyzw(model.relative_batch(q))
-        relative = all_relative[:, [k for _, k in self.moving_edges]]
+        all_relative = model.relative_batch(q)   # (N, rows + links, 8): poses of those written
+        relative = dq_to_pose_xyzw(all_relative[:, [k for _, k in self.moving_edges]])
         n = len(q)
         relative = relative.reshape(n, -1)
         if self.helpers.moving:  # (a cylindrical row's first motion: rare, per message)
@@ -140,8 +137,8 @@ class BagOutputs:
             channels, payloads = [], []
             if template is not None:
                 channels.append(self.tf)
-                payloads.append(template.fill(stamps, all_relative[rows][:, edges].reshape(
-                    int(rows.sum()), -1)))
+                payloads.append(template.fill(stamps, dq_to_pose_xyzw(
+                    all_relative[rows][:, edges]).reshape(int(rows.sum()), -1)))
             for i in poses:
                 channels.append(self.poses[i])
                 payloads.append(self.pose_template.fill(stamps,

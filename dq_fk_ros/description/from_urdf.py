@@ -33,8 +33,8 @@ import os
 import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.robot_model import (
-    FRAME_ID, JOINT_NAME, MAX_FILE_BYTES, MAX_NAME_CHARS, MAX_ROWS, parse_robot_description,
-    RobotDescriptionError, rpy_matrix)
+    _listing, FRAME_ID, JOINT_NAME, MAX_FILE_BYTES, MAX_NAME_CHARS, MAX_ROWS,
+    parse_robot_description, RobotDescriptionError, rpy_matrix)
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
 import numpy as np
 
@@ -597,12 +597,6 @@ def _check_joint(name, source):
     if len(name) > MAX_NAME_CHARS or not JOINT_NAME.fullmatch(name):
         raise RobotDescriptionError(f'{source}: joint name {name[:70]!r} is not usable (a '
                                     f'letter or underscore, then letters, digits, _ . / -)')
-
-
-def _listing(names, at_most=20):
-    names = list(names)
-    text = ', '.join(names[:at_most])
-    return text + (f' ... ({len(names) - at_most} more)' if len(names) > at_most else '')
 
 
 def _flow(mapping):

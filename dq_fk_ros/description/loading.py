@@ -22,14 +22,18 @@ class LoadedRobot:
     """
     A robot ready to use, and where it came from.
 
-    ``urdf`` is the URDF XML it was converted from (xacro expanded; also ``model.urdf``), or
+    ``urdf`` is the URDF XML it was converted from (xacro expanded: ``model.urdf``), or
     None for a DH file; ``conversion`` the
     :class:`~dq_fk_ros.description.from_urdf.Conversion` (None alike).
     """
 
     model: object
-    urdf: str = None
     conversion: object = None
+
+    @property
+    def urdf(self):
+        """Return the URDF XML the robot was converted from (``model.urdf``), or None."""
+        return self.model.urdf
 
     def summary(self):
         """Describe in one line how a URDF became this robot (empty for a DH file)."""
@@ -80,7 +84,7 @@ def load_robot(spec, base=None, tip=None, convention='standard'):
     if not is_urdf(path):
         return LoadedRobot(load_robot_description(path))
     conversion, text = load_urdf_description(path, base, tip, convention)
-    return LoadedRobot(replace(parse_robot_description(conversion.text, path), urdf=text), text,
+    return LoadedRobot(replace(parse_robot_description(conversion.text, path), urdf=text),
                        conversion)
 
 
@@ -91,7 +95,7 @@ def robot_from_urdf_text(text, source='robot_description', base=None, tip=None,
         raise RobotDescriptionError(f'{source}: empty; give URDF XML')
     conversion = urdf_to_description(text, source, base, tip, convention)
     return LoadedRobot(replace(parse_robot_description(conversion.text, source), urdf=text),
-                       text, conversion)
+                       conversion)
 
 
 __all__ = ['is_urdf', 'load_robot', 'LoadedRobot', 'resolve_robot', 'robot_from_urdf_text']

@@ -168,6 +168,14 @@ class RobotModel:
             needs[link.frame] = needs[link.parent] | own
         return tuple(needs[name] for name in self.frame_names)
 
+    @cached_property
+    def edge_needs(self):
+        """Per frame: the optional joints its TF transform needs (its own and its parent's)."""
+        needs = dict(zip(self.frame_names, self.frame_needs))
+        needs[self.fixed_frame] = frozenset()
+        return tuple(needs[name] | needs[parent]
+                     for name, parent in zip(self.frame_names, self.parent_frames))
+
     @property
     def n_chain_frames(self):
         """Count the chain's frames (base, rows, tool): the first ones of ``frame_names``."""

@@ -138,11 +138,7 @@ def hidden_frames(model, shown_optional):
     if not model.optional_joints:
         return frozenset()
     shown = frozenset(shown_optional)
-    needs = dict(zip(model.frame_names, model.frame_needs))
-    needs[model.fixed_frame] = frozenset()
-    return frozenset(k for k, (name, parent) in enumerate(zip(model.frame_names,
-                                                              model.parent_frames))
-                     if not (needs[name] | needs[parent]) <= shown)
+    return frozenset(k for k, needs in enumerate(model.edge_needs) if not needs <= shown)
 
 
 def _transform_stamped(parent, child, stamp=None, pose=None):
