@@ -253,6 +253,15 @@ class RobotModel:
                     dq_multiply_coeffs(dq_inverse_coeffs(above), pose)))
         return absolute, relative
 
+    def transform_poses(self, q):
+        """
+        Return the TF transforms of :meth:`frame_poses` alone (``relative``), at ``q``.
+
+        Without links these are the DH rows' transforms, computed without the absolute
+        poses (about half the work); with links, :meth:`frame_poses` runs whole.
+        """
+        return self.frame_poses(q)[1] if self.links else self.chain.row_poses(q)
+
     def forward_all(self, q):
         """Every frame of ``frame_names`` in the fixed frame: ``(n, 8)``, ``w >= 0``."""
         return self.forward_all_batch(np.asarray(q, dtype=float)[None, :])[0] if self.links \

@@ -238,6 +238,8 @@ class KinematicChain:
             (math.cos(0.5 * j.alpha), math.sin(0.5 * j.alpha), j.a, j.theta, j.d, j.scale,
              int(self._theta_index[i]), int(self._d_index[i]))
             for i, j in enumerate(self.joints))
+        self._pose_rows = tuple(row + (math.sin(j.alpha), math.cos(j.alpha))
+                                for row, j in zip(self._rows, self.joints))
 
     @property
     def dof(self):
@@ -289,9 +291,40 @@ class KinematicChain:
         return self._absolute_tuples(q)
 
     def row_poses(self, q):
-        """Every row's transform frame i-1 -> frame i as ``(x, y, z, qx, qy, qz, qw)``."""
-        qs = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
-        return [pose_xyzw_from_coeffs(h) for h in self._relative_tuples(qs)]
+        """
+        Every row's transform frame i-1 -> frame i as ``(x, y, z, qx, qy, qz, qw)``, ``qw >= 0``.
+
+        Read off the row's operator directly: standard ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``
+        turns by ``(cos t/2 + k sin t/2)(cos al/2 + i sin al/2)`` and moves by
+        ``(a cos t, a sin t, d)``; modified ``Rx(alpha) Tx(a) Rz(theta) Tz(d)`` turns by
+        ``(cos al/2 + i sin al/2)(cos t/2 + k sin t/2)`` and moves by ``(a, -d sin al,
+        d cos al)``: the same transforms as [Radavelli2014] eq. (3), without the dual part.
+        """
+        if len(q) != self.dof:
+            raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
+                             f'got {len(q)}')
+        q = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
+        cos, sin = math.cos, math.sin
+        out = []
+        append = out.append
+        standard = self.convention == 'standard'
+        for ca, sa, a, theta, d, scale, ti, di, s_alpha, c_alpha in self._pose_rows:
+            if ti >= 0:
+                theta = theta + scale * q[ti]
+            if di >= 0:
+                d = d + scale * q[di]
+            half = 0.5 * theta
+            ct, st = cos(half), sin(half)
+            if standard:
+                qx, qy, qz, qw = sa * ct, sa * st, ca * st, ca * ct
+                x, y, z = a * (1.0 - 2.0 * st * st), 2.0 * a * st * ct, d
+            else:
+                qx, qy, qz, qw = sa * ct, -sa * st, ca * st, ca * ct
+                x, y, z = a, -d * s_alpha, d * c_alpha
+            if qw < 0.0:
+                qx, qy, qz, qw = -qx, -qy, -qz, -qw
+            append((x, y, z, qx, qy, qz, qw))
+        return out
 
     def frame_poses(self, q):
         """

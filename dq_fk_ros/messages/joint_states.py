@@ -11,6 +11,7 @@ counts every outcome for diagnostics.
 from collections import Counter
 from dataclasses import dataclass, field
 import math
+import operator
 
 import numpy as np
 
@@ -94,6 +95,8 @@ class JointStateMerger:
         self._complete_order = ()
         self.limits = np.asarray(self.limits, dtype=float).reshape(len(self.joint_names), 2)
         self._limit_list = self.limits.tolist()
+        self._nan = [math.nan] * len(self.joint_names)
+        self._true = [True] * len(self.joint_names)
         self.reset()
 
     def _note_unknown(self, names, times=1):
@@ -311,7 +314,8 @@ class JointStateMerger:
 
         Every required joint is named once (optional ones may be) and nothing else, so there
         are no unknown names, no duplicates, and a valid message always completes the joint
-        vector.
+        vector. The checks run over whole lists first (a sum is finite only if every value
+        is; ``map(le, ...)`` for the limits) and look value by value only to say which failed.
         """
         order = self._complete_order          # chain index of each message column
         n = len(order)
@@ -319,37 +323,45 @@ class JointStateMerger:
             return self._reject('length_mismatch', f'{n} names, {len(positions)} '
                                 f'positions, {len(velocities)} velocities')
         values = [float(v) for v in positions]
-        for k, value in enumerate(values):
-            if not math.isfinite(value):
-                name = self.joint_names[order[k]]
-                return self._reject('non_finite', f'position of {name!r} is {value}')
-        outside = []
-        limits = self._limit_list
-        for k, value in enumerate(values):
-            lower, upper = limits[order[k]]
-            if value < lower or value > upper:
-                name = self.joint_names[order[k]]
-                outside.append(name)
-                if self.out_of_limits == 'reject':
-                    return self._reject('out_of_limits', f'{name} = {value:.6g} outside '
-                                                         f'[{lower:.6g}, {upper:.6g}]')
-                if self.out_of_limits == 'clamp':
-                    values[k] = min(max(value, lower), upper)
+        if not math.isfinite(sum(values)):  # (or finite values too large to add up)
+            for k, value in enumerate(values):
+                if not math.isfinite(value):
+                    name = self.joint_names[order[k]]
+                    return self._reject('non_finite', f'position of {name!r} is {value}')
+        outside = ()
+        lower, upper = self._complete_bounds
+        if not (all(map(operator.le, lower, values)) and all(map(operator.le, values, upper))):
+            outside = []
+            for k, value in enumerate(values):
+                if value < lower[k] or value > upper[k]:
+                    name = self.joint_names[order[k]]
+                    outside.append(name)
+                    if self.out_of_limits == 'reject':
+                        return self._reject('out_of_limits',
+                                            f'{name} = {value:.6g} outside '
+                                            f'[{lower[k]:.6g}, {upper[k]:.6g}]')
+                    if self.out_of_limits == 'clamp':
+                        values[k] = min(max(value, lower[k]), upper[k])
+            outside = tuple(outside)
         rates = [float(v) for v in velocities] if len(velocities) else None
-        if rates is not None and not all(math.isfinite(v) for v in rates):
+        if rates is not None and not all(map(math.isfinite, rates)):
             self.counts['velocities_non_finite'] += 1  # dropped: no velocities this time
             rates = None
-        time_jump = self._track_stamp(stamp_ns)
+        time_jump = self._track_stamp(stamp_ns) if stamp_ns else False
         q, qdot = self._q, self._qdot
-        seen = self._seen
-        for k, i in enumerate(order):
-            q[i] = values[k]
-            qdot[i] = rates[k] if rates is not None else math.nan
-            seen[i] = True
+        if self._complete_in_order:  # the message lists the joints in chain order
+            q[:n] = values
+            qdot[:n] = rates if rates is not None else self._nan[:n]
+            self._seen[:n] = self._true[:n]
+        else:
+            seen = self._seen
+            for k, i in enumerate(order):
+                q[i] = values[k]
+                qdot[i] = rates[k] if rates is not None else math.nan
+                seen[i] = True
         return MergeResult(PUBLISH, q=np.array(q),
                            qdot=np.array(qdot) if rates is not None else None,
-                           stamp_ns=stamp_ns, out_of_limits=tuple(outside),
-                           time_jump=time_jump)
+                           stamp_ns=stamp_ns, out_of_limits=outside, time_jump=time_jump)
 
     def _track_stamp(self, stamp_ns):
         """Follow the last stamp; on a jump back, reset first. Return whether it jumped."""
@@ -430,6 +442,9 @@ class JointStateMerger:
             # every required joint once, nothing unknown: the short path from now on
             self._complete_names = tuple(names)
             self._complete_order = order
+            self._complete_bounds = ([self._limit_list[i][0] for i in order],
+                                     [self._limit_list[i][1] for i in order])
+            self._complete_in_order = order == tuple(range(len(order)))
         has_velocity = all(math.isfinite(v) for v in qdot[:required])
         return MergeResult(PUBLISH, q=np.array(q), qdot=np.array(qdot) if has_velocity else None,
                            **base)

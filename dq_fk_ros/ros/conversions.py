@@ -5,12 +5,10 @@ Poses arrive as tuples ``(x, y, z, qx, qy, qz, qw)`` (metres, the ROS quaternion
 ``qw >= 0``) from :meth:`dq_fk_ros.description.robot_model.RobotModel.frame_poses`.
 :class:`FrameMessages` builds the messages of one robot once as message objects;
 :class:`FrameBytes` writes the same messages already serialized (CDR, the bytes
-``rclpy.serialization.serialize_message`` gives), filled in place for every update, for
+``rclpy.serialization.serialize_message`` gives), packed for every update, for
 ``Publisher.publish(bytes)``: the node's hot path (a test holds the two equal, byte for
 byte).
 """
-
-import struct
 
 from builtin_interfaces.msg import Time
 from dq_fk_ros.description.urdf import HelperFrames
@@ -20,9 +18,6 @@ from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
 from tf2_msgs.msg import TFMessage
 
 NS_PER_S = 1_000_000_000
-_STAMP = struct.Struct('<iI')
-_POSE = struct.Struct('<7d')
-_TWIST = struct.Struct('<6d')
 
 
 def stamp_to_ns(stamp):
@@ -154,10 +149,11 @@ def _transform_stamped(parent, child, stamp=None, pose=None):
 
 class FrameBytes:
     """
-    The node's /tf, pose and twist messages of one robot, serialized, refilled in place.
+    The node's /tf, pose and twist messages of one robot, serialized per update.
 
-    Each message's bytes are built once from its layout (frame ids fixed); an update writes
-    only its stamp and float64 fields (``struct.pack_into``) and hands ``bytes`` to
+    Each message's fixed bytes (frame ids, padding) are laid out once; an update packs them
+    with its stamp and float64 fields in one ``struct`` call
+    (:class:`~dq_fk_ros.messages.cdr.CdrPacker`) and hands ``bytes`` to
     ``Publisher.publish``. The same messages as :class:`FrameMessages`, byte for byte.
     """
 
@@ -166,40 +162,27 @@ class FrameBytes:
         model = messages.model
         self.helpers = messages.helpers
         self.moving_edges = messages.moving_edges
+        self._moving = [k for _, k in self.moving_edges]
         edges = [(t.header.frame_id, t.child_frame_id) for t in messages.tf.transforms]
         tf = tf_message_template(edges)
-        self.templates = {'tf': tf}  # their layouts (padding offsets), for the tests
-        self._tf = bytearray(tf.buf)
-        self._tf_fields = list(zip(tf.stamps, (offset for offset, _ in tf.floats)))
         pose = pose_stamped_template(model.fixed_frame)
-        self._pose = bytearray(pose.buf)
-        self._pose_stamp, self._pose_floats = pose.stamps[0], pose.floats[0][0]
         twist = twist_stamped_template(model.fixed_frame)
-        self.templates.update(pose=pose, twist=twist)
-        self._twist = bytearray(twist.buf)
-        self._twist_stamp, self._twist_floats = twist.stamps[0], twist.floats[0][0]
+        self.templates = {'tf': tf, 'pose': pose, 'twist': twist}  # layouts, for the tests
+        self._tf = tf.packer()
+        self._pose = pose.packer()
+        self._twist = twist.packer()
 
     def tf(self, sec, nanosec, relative, q=None):
         """Return the serialized /tf message: every moving row's (and helper's) transform."""
-        buf = self._tf
-        poses = [relative[k] for _, k in self.moving_edges]
+        poses = [relative[k] for k in self._moving]
         if self.helpers.moving:
             poses += self.helpers.moving_poses(q)
-        for (stamp_at, floats_at), pose in zip(self._tf_fields, poses):
-            _STAMP.pack_into(buf, stamp_at, sec, nanosec)
-            _POSE.pack_into(buf, floats_at, *pose)
-        return bytes(buf)
+        return self._tf.pack(sec, nanosec, poses)
 
     def pose(self, sec, nanosec, pose):
         """Return a serialized PoseStamped of ``pose`` in the fixed frame."""
-        buf = self._pose
-        _STAMP.pack_into(buf, self._pose_stamp, sec, nanosec)
-        _POSE.pack_into(buf, self._pose_floats, *pose)
-        return bytes(buf)
+        return self._pose.pack(sec, nanosec, (pose,))
 
     def twist(self, sec, nanosec, v, w):
         """Return a serialized TwistStamped: linear ``v``, angular ``w`` (fixed-frame axes)."""
-        buf = self._twist
-        _STAMP.pack_into(buf, self._twist_stamp, sec, nanosec)
-        _TWIST.pack_into(buf, self._twist_floats, *v, *w)
-        return bytes(buf)
+        return self._twist.pack(sec, nanosec, (v, w))

@@ -100,6 +100,9 @@ class DqFkNode(Node):
         self._readers_timer = self.create_timer(READERS_REFRESH_S, self._refresh_readers)
         self._diag_timer = self.create_timer(1.0, self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        # whether ROS time follows /clock (use_sim_time): asked once per change, not per update
+        self._sim_time = self.get_clock().ros_time_is_active
+        self.add_post_set_parameters_callback(self._after_set_parameters)
         # serialized in, serialized out: the messages are read and written as bytes, by
         # default in a thread of their own (the executor's wake-up costs more than an update)
         qos = QoSProfile(depth=depth, reliability=RELIABILITY[reliability])
@@ -203,6 +206,11 @@ class DqFkNode(Node):
         """Validate and apply a parameter change, under the node's lock."""
         with self._lock:
             return self._set_parameters(params)
+
+    def _after_set_parameters(self, params):
+        """Note a change of ``use_sim_time`` (rclpy's time source has applied it by now)."""
+        if any(p.name == 'use_sim_time' for p in params):
+            self._sim_time = self.get_clock().ros_time_is_active
 
     def _set_parameters(self, params):
         """
@@ -366,10 +374,9 @@ class DqFkNode(Node):
                 result.out_of_limits or result.unknown_overflow:
             if not self._report(result):
                 return
-        clock = self.get_clock()
         # ROS time is the system time unless /clock drives it (use_sim_time): skip the Time
-        # object then (2.5 us of a 40 us update)
-        now_ns = clock.now().nanoseconds if clock.ros_time_is_active else time.time_ns()
+        # object then (2.5 us of an update)
+        now_ns = self.get_clock().now().nanoseconds if self._sim_time else time.time_ns()
         self._last_update_ns = now_ns
         if self._max_rate_hz > 0 and self._last_publish_ns is not None and \
                 now_ns - self._last_publish_ns < 1e9 / self._max_rate_hz:
@@ -422,6 +429,7 @@ class DqFkNode(Node):
         self._shown_optional = seen
         hidden = self._messages.hidden
         self._pose_read = [read and k not in hidden for k, read in enumerate(self._pose_read)]
+        self._any_pose_read = any(self._pose_read)
         if new:
             self.get_logger().info(f'joint states name side-branch joints {", ".join(new)}: '
                                    f'publishing their links')
@@ -433,16 +441,21 @@ class DqFkNode(Node):
             seen = self._merger.seen_optional
             if seen != self._shown_optional:
                 self._show_branches(seen)
-        absolute, relative = model.frame_poses(q)
+        poses = self._publish_poses and self._any_pose_read
+        twists = self._publish_twist and qdot is not None and self._any_twist_read
+        if poses or twists:
+            absolute, relative = model.frame_poses(q)
+        else:  # /tf alone needs the transforms only (half the work for a DH chain)
+            relative = model.transform_poses(q)
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self._bytes
         if self._publish_tf:
             self._tf_pub.publish(out.tf(sec, nanosec, relative, q))
-        if self._publish_poses:
+        if poses:
             for pub, read, pose in zip(self._pose_pubs, self._pose_read, absolute):
                 if read:
                     pub.publish(out.pose(sec, nanosec, pose))
-        if self._publish_twist and qdot is not None and any(self._twist_read):
+        if twists:
             dof = model.chain.dof
             v, w = model.chain.twist(q[:dof], qdot[:dof])
             p_end = np.array(absolute[model.n_chain_frames - 1][:3])
@@ -469,6 +482,7 @@ class DqFkNode(Node):
                 hidden = self._messages.hidden  # side-branch links not named yet
                 self._pose_read = [read and k not in hidden for k, read in enumerate(pose)]
                 self._twist_read = twist
+                self._any_pose_read, self._any_twist_read = any(self._pose_read), any(twist)
 
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self):

@@ -2,7 +2,7 @@
 
 from dq_fk_ros.messages.cdr import (
     CdrError, JointStateNames, JointStateRun, MalformedJointState, parse_joint_state,
-    parse_joint_states, pose_stamped_template, tf_message_template)
+    parse_joint_states, pose_stamped_template, tf_message_template, twist_stamped_template)
 from hypothesis import given, strategies as st
 import numpy as np
 import pytest
@@ -84,6 +84,28 @@ def test_tf_message_template_deserializes_to_the_values():
         assert [tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w] == list(values[0, 7 * k:7 * k + 7])
         assert (t.header.stamp.sec, t.header.stamp.nanosec) == (123, 456)
     assert len(row) == len(TS.serialize_cdr(msg, 'tf2_msgs/msg/TFMessage'))
+
+
+@pytest.mark.parametrize('template', [
+    pose_stamped_template('world'), twist_stamped_template('base_link'),
+    tf_message_template([('world', 'base'), ('base', 'link_with_a_longer_name'), ('l', 'x')]),
+    tf_message_template([('w', 'a')])], ids=['pose', 'twist', 'tf3', 'tf1'])
+def test_one_message_packed_equals_the_template_filled(template):
+    """CdrPacker (one struct call, the node's path) writes what fill() writes for a batch."""
+    packer = template.packer()
+    rng = np.random.default_rng(packer.n_values)
+    for sec, nanosec in [(0, 0), (1, 999_999_999), (2**31 - 1, 5), (-3, 7)]:
+        values = rng.normal(size=packer.n_values)
+        runs = [values[k:k + 7].tolist() for k in range(0, len(values), 7)] \
+            if packer.n_values % 7 == 0 else [values[:3].tolist(), values[3:].tolist()]
+        ours = packer.pack(sec, nanosec, runs)
+        row = template.fill(np.array([sec * 1_000_000_000 + nanosec]), values[None, :])[0]
+        assert ours == row.tobytes()
+        assert len(ours) == packer.size
+        with pytest.raises(ValueError, match='float64 values'):
+            packer.pack(sec, nanosec, runs[:-1])
+        with pytest.raises(ValueError, match='float64 values'):
+            packer.pack(sec, nanosec, runs + [[1.0]])
 
 
 def mixed_messages(rng, count):

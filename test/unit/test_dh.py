@@ -238,12 +238,14 @@ def test_rotation_helper_consistency():
                                atol=1e-15)
 
 
-def test_frame_poses_are_absolute_and_relative_transforms():
+@pytest.mark.parametrize('convention', ['standard', 'modified'])
+def test_frame_poses_are_absolute_and_relative_transforms(convention):
     rng = np.random.default_rng(31)
-    chain, base, tool = random_chain(rng, 'modified')
+    chain, base, tool = random_chain(rng, convention)
     for q in rng.uniform(-3, 3, size=(100, chain.dof)):
         absolute, relative = chain.frame_poses(q)
-        expected = hm.chain_frames(reference_rows(chain, q), 'modified', base, tool)
+        assert chain.row_poses(q.tolist()) == relative  # lists and arrays alike
+        expected = hm.chain_frames(reference_rows(chain, q), convention, base, tool)
         assert len(absolute) == len(expected) and len(relative) == len(chain.joints)
         for pose, m in zip(absolute, expected):
             np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]), m, atol=1e-12)
@@ -252,6 +254,21 @@ def test_frame_poses_are_absolute_and_relative_transforms():
             np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]),
                                        np.linalg.inv(expected[i]) @ expected[i + 1],
                                        atol=1e-12)
+            assert pose[6] >= 0.0 and all(type(v) is float for v in pose)
+    with pytest.raises(ValueError, match=f'expected {chain.dof} joint values'):
+        chain.row_poses(np.zeros(chain.dof + 1))
+
+
+def test_row_poses_keep_qw_non_negative_at_half_turns():
+    """A row turned by theta = pi +- a little: the quaternion flips sign, never qw < 0."""
+    for convention in ('standard', 'modified'):
+        chain = KinematicChain([DHJoint(a=0.3, alpha=0.4, d=0.1)], convention)
+        for theta in (math.pi - 1e-9, math.pi, math.pi + 1e-9, -math.pi - 1e-9, 3.5, -3.5):
+            (pose,) = chain.row_poses([theta])
+            assert pose[6] >= 0.0
+            m = hm.chain_frames(reference_rows(chain, np.array([theta])), convention,
+                                np.eye(4), None)[1]
+            np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]), m, atol=1e-14)
 
 
 def test_row_parameters_is_the_dh_table_at_q():

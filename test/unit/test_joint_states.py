@@ -277,7 +277,8 @@ class NoShortPath(JointStateMerger):
 @given(st.lists(st.tuples(st.sampled_from([('a', 'b', 'c'), ('c', 'a', 'b'), ('a', 'b'),
                                            ('a', 'b', 'c', 'x'), ('b', 'c', 'a')]),
                           st.lists(st.one_of(st.floats(-3, 3), st.sampled_from(
-                              [math.nan, math.inf, 2.5, -1.5])), min_size=2, max_size=4),
+                              [math.nan, math.inf, 2.5, -1.5, 1e308, -1e308])),
+                                   min_size=2, max_size=4),
                           st.lists(st.one_of(st.floats(-3, 3), st.just(math.nan)),
                                    max_size=4),
                           st.sampled_from([0, 1, 2, 5, -3])),

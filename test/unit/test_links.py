@@ -102,6 +102,7 @@ def test_tf_transforms_are_relative_to_the_tf_parent():
         ours = hm.matrix_of_pose(relative[rows + j][:3], relative[rows + j][3:])
         want = np.linalg.inv(expected[link.tf_parent]) @ expected[link.frame]
         np.testing.assert_allclose(ours, want, atol=1e-12, err_msg=link.frame)
+    assert model.transform_poses(q) == relative  # the node's /tf-only path
     batch = model.relative_batch(q[None, :])[0]
     for k, pose in enumerate(relative):
         np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]),
