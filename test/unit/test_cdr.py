@@ -91,7 +91,7 @@ def test_tf_message_template_deserializes_to_the_values():
     tf_message_template([('world', 'base'), ('base', 'link_with_a_longer_name'), ('l', 'x')]),
     tf_message_template([('w', 'a')])], ids=['pose', 'twist', 'tf3', 'tf1'])
 def test_one_message_packed_equals_the_template_filled(template):
-    """CdrPacker (one struct call, the node's path) writes what fill() writes for a batch."""
+    """One message packed (one struct call, the node's path) is what fill() writes."""
     packer = template.packer()
     rng = np.random.default_rng(packer.n_values)
     for sec, nanosec in [(0, 0), (1, 999_999_999), (2**31 - 1, 5), (-3, 7)]:
