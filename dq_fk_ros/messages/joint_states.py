@@ -448,3 +448,44 @@ class JointStateMerger:
         has_velocity = all(math.isfinite(v) for v in qdot[:required])
         return MergeResult(PUBLISH, q=np.array(q), qdot=np.array(qdot) if has_velocity else None,
                            **base)
+
+
+class SequenceGaps:
+    """
+    Count the messages of one publisher that were lost before they were taken.
+
+    DDS numbers each publisher's messages 1, 2, 3, ... (``publication_sequence_number`` of a
+    taken message's info); a jump forward between two taken messages means the ones in
+    between were lost: a full subscription queue under overload, or loss on the wire.
+    Counting holds only while one publisher is matched (:meth:`single_publisher`): the
+    numbers of several publishers interleave. A number at or below the last one (a second
+    publisher not yet noticed, or a restarted one) starts over without counting, and
+    counting waits until the next :meth:`single_publisher` call confirms one publisher.
+    """
+
+    def __init__(self):
+        """Count nothing until one publisher is confirmed."""
+        self.lost = 0
+        self._last = None
+        self._counting = False
+
+    def single_publisher(self, single):
+        """Say whether exactly one publisher is matched now (from a periodic check)."""
+        if not (single and self._counting):
+            self._last = None  # (re)start: the next message is the stream's first
+        self._counting = single
+
+    def note(self, sequence):
+        """Note a taken message's sequence number (None: not known); return the count lost."""
+        if sequence is None or not self._counting:
+            return 0
+        last, self._last = self._last, sequence
+        if last is None:
+            return 0
+        if sequence <= last:  # another publisher's numbers, or a restart
+            self._counting = False
+            self._last = None
+            return 0
+        gap = sequence - last - 1
+        self.lost += gap
+        return gap

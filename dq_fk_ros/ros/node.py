@@ -18,7 +18,7 @@ from dq_fk_ros.description.urdf import description_urdf
 from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
     INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH,
-    REJECTED)
+    REJECTED, SequenceGaps)
 from dq_fk_ros.ros.conversions import (
     FrameBytes, FrameMessages, joint_state_fields, NS_PER_S)
 from dq_fk_ros.ros.executables import spin_until_shutdown
@@ -95,6 +95,8 @@ class DqFkNode(Node):
 
         depth = get('qos_depth').value
         self._names_cache = JointStateNames()
+        self._gaps = SequenceGaps()  # joint states lost before the node took them
+        self._lost_reported = 0
         # who reads which pose topic, refreshed twice a second (a new subscriber waits
         # at most that long for its first message)
         self._readers_timer = self.create_timer(READERS_REFRESH_S, self._refresh_readers)
@@ -327,21 +329,27 @@ class DqFkNode(Node):
         self._description_pub.publish(String(data=text))
 
     # -- the hot path --------------------------------------------------------------------
-    def _on_joint_state(self, raw):
-        """Take a serialized JointState: read, merge, publish (under the node's lock)."""
+    def _on_joint_state(self, raw, info=None):
+        """
+        Take a serialized JointState: read, merge, publish (under the node's lock).
+
+        :param info: rclpy's message info; its sequence number counts what was lost before.
+        """
         with self._lock:
+            if info is not None:
+                self._gaps.note(info.get('publication_sequence_number'))
             self._on_raw(raw)
 
-    def _on_joint_state_drain(self, raw):
+    def _on_joint_state_drain(self, raw, info):
         """
         Take a serialized JointState from the executor, and whatever else is queued.
 
         Up to :data:`DRAIN_MAX` more in the same call: one executor wake-up costs more than
         an update, so a burst is worked through without paying it per message.
         """
-        self._on_joint_state(raw)
+        self._on_joint_state(raw, info)
         try:
-            take_queued(self._joint_state_sub, self._on_joint_state, DRAIN_MAX)
+            take_queued(self._joint_state_sub, self._on_joint_state, DRAIN_MAX, with_info=True)
         except Exception:  # destroyed meanwhile (a shutdown): the executor decides
             return
 
@@ -477,7 +485,11 @@ class DqFkNode(Node):
         pose_pubs, twist_pubs, always = self._pose_pubs, self._twist_pubs, self._publish_unread
         pose = [always or pub.get_subscription_count() > 0 for pub in pose_pubs]
         twist = [always or pub.get_subscription_count() > 0 for pub in twist_pubs]
+        joint_states = getattr(self, '_joint_state_sub', None)
+        publishers = joint_states.get_publisher_count() if joint_states is not None else 0
         with self._lock:
+            if joint_states is not None:
+                self._gaps.single_publisher(publishers == 1)
             if pose_pubs is self._pose_pubs and twist_pubs is self._twist_pubs:
                 hidden = self._messages.hidden  # side-branch links not named yet
                 self._pose_read = [read and k not in hidden for k, read in enumerate(pose)]
@@ -502,11 +514,16 @@ class DqFkNode(Node):
                   'unknown_joints': ', '.join(sorted(self._merger.unknown)),
                   'unknown_names_unlisted': counts['unknown_names_unlisted'],
                   'velocities_non_finite': counts['velocities_non_finite'],
+                  'updates_lost': self._gaps.lost,
                   'last_update_age_s': age}
         for key in sorted(counts):
             if key.startswith('rejected_'):
                 values[key] = counts[key]
-        if never_seen:
+        lost_now = self._gaps.lost - self._lost_reported
+        if lost_now:
+            level, message = DiagnosticStatus.WARN, \
+                f'{lost_now} joint states lost before the node took them (overload?)'
+        elif never_seen:
             level, message = DiagnosticStatus.WARN, f'{len(never_seen)} joints never seen'
         elif counts['rejected']:
             level, message = DiagnosticStatus.WARN, f"{counts['rejected']} updates rejected"
@@ -530,6 +547,7 @@ class DqFkNode(Node):
         msg.header.stamp = self.get_clock().now().to_msg()
         with self._lock:
             msg.status = [self.diagnostics()]
+            self._lost_reported = self._gaps.lost
         self._diag_pub.publish(msg)
 
 

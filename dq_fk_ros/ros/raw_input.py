@@ -17,12 +17,14 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 WAKE_S = 0.1  # the longest a stop request waits for the thread
 
 
-def take_queued(subscription, callback, limit=None):
+def take_queued(subscription, callback, limit=None, with_info=False):
     """
     Hand every message already queued on a raw subscription to ``callback``, in order.
 
-    At most ``limit`` (None: all); returns when the queue is empty. Raises what the
-    subscription's handle raises once it is destroyed (a shutdown).
+    At most ``limit`` (None: all); returns when the queue is empty. ``with_info``: call
+    ``callback(raw, info)`` with rclpy's message info dict (``publication_sequence_number``,
+    timestamps). Raises what the subscription's handle raises once it is destroyed (a
+    shutdown).
     """
     count = 0
     while limit is None or count < limit:
@@ -30,13 +32,18 @@ def take_queued(subscription, callback, limit=None):
             taken = subscription.handle.take_message(subscription.msg_type, True)
         if taken is None:
             return
-        callback(taken[0])
+        if with_info:
+            callback(*taken)
+        else:
+            callback(taken[0])
         count += 1
 
 
 class RawSubscriptionThread:
     """
-    Call ``callback(raw_bytes)`` for every message of one topic, from a thread of its own.
+    Call ``callback(raw_bytes, info)`` for every message of one topic, from its own thread.
+
+    ``info`` is rclpy's message info dict (``publication_sequence_number``, timestamps).
 
     :param owner: the node it serves: its context, and its name for the hidden helper node.
     :param topic: a fully resolved topic name (the owner's remappings already applied).
@@ -65,7 +72,7 @@ class RawSubscriptionThread:
                     wait_set.clear_entities()
                     wait_set.add_subscription(sub.handle)
                     wait_set.wait(int(WAKE_S * 1e9))
-                take_queued(sub, self._callback)
+                take_queued(sub, self._callback, with_info=True)
         except Exception:  # shut down or destroyed under us: nothing more to take
             return
 

@@ -194,3 +194,41 @@ def test_a_flood_of_messages_leaves_the_node_alive_with_the_latest_state(ros):
         return np.allclose(position_of(poses[-1]), last, atol=1e-9)
     assert ros.spin_until(caught_up, timeout_s=30)
     assert _value(node.diagnostics(), 'updates_rejected') == 0
+
+
+@pytest.mark.parametrize('input_thread', [True, False])
+def test_joint_states_lost_in_a_full_queue_are_counted(ros, input_thread):
+    """One publisher, a queue of 1, a burst: every message is either taken or counted lost."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    node = ros.start_node(qos_depth=1, joint_states_reliability='reliable',
+                          input_thread=input_thread)
+    reports = ros.listen(DiagnosticArray, '/diagnostics')
+    counts = node._merger.counts
+    first = ros.joint_state(RL15_JOINTS, [0] * 6)
+    # counting starts once the node has seen one publisher matched (the harness's), from
+    # the first message it takes then
+    assert ros.spin_until(lambda: node._gaps._last is not None, publish=first)
+    ros.spin_until(lambda: False, timeout_s=0.3)  # what was sent so far is taken
+    received, lost = counts['received'], node._gaps.lost
+    burst = [ros.joint_state(RL15_JOINTS, q) for q in
+             np.random.default_rng(3).uniform(-1, 1, size=(3000, 6))]
+    for msg in burst:
+        ros.joint_pub.publish(msg)
+    ros.spin_until(lambda: False, timeout_s=0.2)
+    ros.joint_pub.publish(first)  # one more after a pause: the burst's tail is not "lost"
+
+    def accounted():
+        return counts['received'] - received + node._gaps.lost - lost == len(burst) + 1
+    assert ros.spin_until(accounted, timeout_s=20), \
+        (counts['received'] - received, node._gaps.lost - lost)
+    assert node._gaps.lost > lost  # a queue of one cannot have kept up with the burst
+    lost_now = node._gaps.lost
+    assert _value(node.diagnostics(), 'updates_lost') == lost_now
+
+    def warned():  # the report of the second the losses happened in says so
+        return any(m.status[0].level == DiagnosticStatus.WARN and 'lost' in m.status[0].message
+                   and _value(m.status[0], 'updates_lost') == lost_now for m in reports)
+    assert ros.spin_until(warned, timeout_s=5)
+    reports.clear()  # and the next report, with nothing lost since, is OK again
+    assert ros.spin_until(lambda: reports, timeout_s=5)
+    assert reports[0].status[0].level == DiagnosticStatus.OK

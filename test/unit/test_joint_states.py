@@ -3,7 +3,8 @@
 import math
 
 from dq_fk_ros.messages.joint_states import (
-    INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, PUBLISH, REJECTED, TIME_JUMP_BACK_NS)
+    INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, PUBLISH, REJECTED, SequenceGaps,
+    TIME_JUMP_BACK_NS)
 from hypothesis import given, strategies as st
 import numpy as np
 import pytest
@@ -358,3 +359,29 @@ def test_values_exactly_at_the_limits_are_inside_in_batches_too():
 
 def test_a_rejected_message_has_no_stamp():
     assert JointStateMerger(NAMES, LIMITS).merge([], [], (), 5).stamp_ns == 0
+
+
+def test_sequence_gaps_count_what_one_publisher_lost():
+    gaps = SequenceGaps()
+    assert [gaps.note(s) for s in (1, 2)] == [0, 0] and gaps.lost == 0  # not confirmed yet
+    gaps.single_publisher(True)
+    assert [gaps.note(s) for s in (3, 4, 7, 8, 18, None, 19)] == [0, 0, 2, 0, 9, 0, 0]
+    assert gaps.lost == 11
+    gaps.single_publisher(True)  # confirmed again: the stream goes on
+    assert gaps.note(21) == 1 and gaps.lost == 12
+
+
+def test_sequence_gaps_stop_at_a_second_publisher_or_a_restart():
+    gaps = SequenceGaps()
+    gaps.single_publisher(True)
+    gaps.note(100)
+    assert gaps.note(5) == 0  # another publisher's number (or a restart): stop counting
+    assert gaps.note(1000) == 0 and gaps.note(2000) == 0 and gaps.lost == 0
+    gaps.single_publisher(True)  # one publisher again: counting restarts from its next
+    assert gaps.note(3000) == 0 and gaps.note(3002) == 1 and gaps.lost == 1
+    gaps.single_publisher(False)  # two publishers: nothing is counted
+    assert gaps.note(3010) == 0 and gaps.lost == 1
+    gaps.single_publisher(True)
+    assert gaps.note(3020) == 0 and gaps.note(3021) == 0 and gaps.lost == 1
+    gaps.note(3021)  # the same number twice: not counted, counting stops
+    assert gaps.note(3030) == 0 and gaps.lost == 1
