@@ -4,9 +4,11 @@ End to end over DDS: a raw JointState publisher -> dq_fk_node -> a raw /tf subsc
 Three processes on loopback. The publisher (this script with ``--publish``) sends
 pre-serialized RL15 joint states, stamped at sending, at a fixed rate; this script
 subscribes to /tf as a tf2 listener would (reliable, depth 100) without building message
-objects, so that the figures measure the node. For each rate and repetition it prints:
-updates sent, /tf messages received, lost, latency from the JointState stamp to arrival
-(p50, p99, max), and the node's CPU use (share of one core, from /proc).
+objects, so that the figures measure the node; it shares CPU 0 with the publisher, and the
+node has CPU 1 (``taskset``). For each rate and repetition it prints: updates sent, the
+node's published updates and the joint states it counted lost at its input
+(``updates_lost``), /tf messages received, lost, latency from the JointState stamp to
+arrival (p50, p99, max), and the node's CPU use (share of one core, from /proc).
 
 ``--capacity S``: a flood instead. The publisher sends as fast as it can for S seconds
 (best effort, the node's default input), the node publishes every output
@@ -18,6 +20,7 @@ Run with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a private ROS_DOMAIN_ID
 """
 
 import argparse
+import gc
 import os
 import shutil
 import signal
@@ -141,9 +144,13 @@ def run_rate(rate_hz, seconds, reliable, extra=()):
     sub = probe.create_subscription(
         TFMessage, '/tf', on_tf, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE),
         raw=True)
-    published = []
-    probe.create_subscription(DiagnosticArray, '/diagnostics', lambda msg: published.append(
-        int({v.key: v.value for v in msg.status[0].values}['updates_published'])), 10)
+    published, lost_at_input = [], []
+
+    def on_diagnostics(msg):
+        values = {v.key: v.value for v in msg.status[0].values}
+        published.append(int(values['updates_published']))
+        lost_at_input.append(int(values['updates_lost']))
+    probe.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
     pub_proc = None
     total = int(rate_hz * seconds)
     try:
@@ -175,6 +182,7 @@ def run_rate(rate_hz, seconds, reliable, extra=()):
     lat_ms = np.array(latencies_ns) / 1e6
     return {'rate': rate_hz, 'reliable': reliable, 'sent': total,
             'published': published[-1] if published else -1, 'received': len(stamps),
+            'lost_at_input': lost_at_input[-1] if lost_at_input else -1,
             'lost': total - len(stamps),
             'p50': np.percentile(lat_ms, 50) if len(lat_ms) else float('nan'),
             'p99': np.percentile(lat_ms, 99) if len(lat_ms) else float('nan'),
@@ -236,18 +244,23 @@ def main(argv=None):
         except (KeyboardInterrupt, RCLError):  # the flood ends with SIGINT (context gone)
             return 0
     extra = [f'input_thread:={args.input_thread}']
+    if (os.cpu_count() or 1) > 1:  # this subscriber shares CPU 0 with the publisher
+        os.sched_setaffinity(0, {0})
+    gc.freeze()  # and its own garbage collection stays out of the latencies
+    gc.disable()
     rows = [run_rate(rate, args.seconds, rate >= 5000, extra) for rate in args.rates
             for _ in range(args.repeat)]
     print(f'# end to end: raw publisher -> dq_fk_node -> raw /tf subscriber, RL15, '
           f'{args.seconds:g} s per run, {os.cpu_count()} CPUs, loopback; node on CPU 1, '
-          f'publisher on CPU 0 (taskset), this subscriber unpinned; nothing else running; '
+          f'publisher and this subscriber on CPU 0 (taskset); nothing else running; '
           f'input_thread:={args.input_thread}')
-    print('| rate Hz | input | sent | node published | received on /tf | lost | latency '
-          'p50 ms | p99 ms | max ms | node CPU % of a core |')
-    print('|---|---|---|---|---|---|---|---|---|---|')
+    print('| rate Hz | input | sent | node published | node: lost at its input | received on '
+          '/tf | lost | latency p50 ms | p99 ms | max ms | node CPU % of a core |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|')
     for r in rows:
         print(f"| {r['rate']:g} | {'reliable' if r['reliable'] else 'best effort'} "
-              f"| {r['sent']} | {r['published']} | {r['received']} | {r['lost']} "
+              f"| {r['sent']} | {r['published']} | {r['lost_at_input']} | {r['received']} "
+              f"| {r['lost']} "
               f"| {r['p50']:.3f} "
               f"| {r['p99']:.3f} | {r['max']:.3f} | {r['cpu']:.0f} |")
     if args.capacity:

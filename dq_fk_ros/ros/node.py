@@ -22,7 +22,7 @@ from dq_fk_ros.messages.joint_states import (
 from dq_fk_ros.ros.conversions import (
     FrameBytes, FrameMessages, joint_state_fields, NS_PER_S)
 from dq_fk_ros.ros.executables import spin_until_shutdown
-from dq_fk_ros.ros.raw_input import RawSubscriptionThread, take_queued
+from dq_fk_ros.ros.raw_input import raw_publisher, RawSubscriptionThread, take_queued
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -78,6 +78,7 @@ class DqFkNode(Node):
             TFMessage, '/tf_static',
             QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self._send_tf = raw_publisher(self._tf_pub)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         # as robot_state_publisher: the URDF for RViz's RobotModel and Foxglove's 3D panel
         self._description_pub = self.create_publisher(
@@ -306,6 +307,9 @@ class DqFkNode(Node):
             for pub in self._pose_pubs + self._twist_pubs:
                 self.destroy_publisher(pub)
             self._messages, self._pose_pubs, self._twist_pubs = outputs
+            # bytes straight to the handles: publishers are replaced under the node's lock
+            self._send_pose = [raw_publisher(pub) for pub in self._pose_pubs]
+            self._send_twist = [raw_publisher(pub) for pub in self._twist_pubs]
             self._bytes = FrameBytes(self._messages)
             self._shown_optional = ()
             self._refresh_readers()
@@ -458,21 +462,21 @@ class DqFkNode(Node):
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self._bytes
         if self._publish_tf:
-            self._tf_pub.publish(out.tf(sec, nanosec, relative, q))
+            self._send_tf(out.tf(sec, nanosec, relative, q))
         if poses:
-            for pub, read, pose in zip(self._pose_pubs, self._pose_read, absolute):
+            for send, read, pose in zip(self._send_pose, self._pose_read, absolute):
                 if read:
-                    pub.publish(out.pose(sec, nanosec, pose))
+                    send(out.pose(sec, nanosec, pose))
         if twists:
             dof = model.chain.dof
             v, w = model.chain.twist(q[:dof], qdot[:dof])
             p_end = np.array(absolute[model.n_chain_frames - 1][:3])
-            for pub, read, k in zip(self._twist_pubs, self._twist_read,
-                                    self._messages.twist_frames):
+            for send, read, k in zip(self._send_twist, self._twist_read,
+                                     self._messages.twist_frames):
                 if read:
                     # the same rigid-body motion seen at another origin: v + w x (p_k - p)
                     v_k = v + np.cross(w, np.array(absolute[k][:3]) - p_end)
-                    pub.publish(out.twist(sec, nanosec, v_k.tolist(), w.tolist()))
+                    send(out.twist(sec, nanosec, v_k.tolist(), w.tolist()))
 
     def _refresh_readers(self):
         """

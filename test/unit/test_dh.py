@@ -259,6 +259,22 @@ def test_frame_poses_are_absolute_and_relative_transforms(convention):
         chain.row_poses(np.zeros(chain.dof + 1))
 
 
+@pytest.mark.parametrize('convention', ['standard', 'modified'])
+def test_the_unrolled_frame_poses_are_the_general_path_to_the_bit(convention):
+    """frame_poses' straight-line code: exactly the floats of the looping path."""
+    rng = np.random.default_rng(37)
+    chains = [random_chain(rng, convention, n_rows=n)[0] for n in (1, 3, 6, 9)]
+    chains.append(KinematicChain([DHJoint(), DHJoint(joint_type='fixed', a=0.2)],
+                                 convention))  # identity base, a fixed row, no tool
+    for chain in chains:
+        for q in rng.uniform(-4, 4, size=(200, chain.dof)):
+            assert chain.frame_poses(q) == chain.frame_poses_general(q)
+            assert chain.frame_poses(q.tolist()) == chain.frame_poses_general(q)
+        assert chain._unrolled.source.startswith('def frame_poses(q):')
+        with pytest.raises(ValueError, match=f'expected {chain.dof} joint values'):
+            chain.frame_poses([0.0] * (chain.dof + 1))
+
+
 def test_row_poses_keep_qw_non_negative_at_half_turns():
     """A row turned by theta = pi +- a little: the quaternion flips sign, never qw < 0."""
     for convention in ('standard', 'modified'):

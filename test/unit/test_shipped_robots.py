@@ -45,6 +45,14 @@ def test_shipped_files_load_and_every_frame_matches_matrices(name):
             np.testing.assert_allclose(frames[i + 1], acc, atol=1e-12)
 
 
+@pytest.mark.parametrize('name', shipped_robots())
+def test_the_nodes_frame_poses_are_the_general_path_to_the_bit(name):
+    """The unrolled frame_poses the node publishes from: the looping path's exact floats."""
+    chain = robot(name).chain
+    for q in np.random.default_rng(6).uniform(-3, 3, size=(300, chain.dof)):
+        assert chain.frame_poses(q) == chain.frame_poses_general(q)
+
+
 def test_rl15_is_the_papers_robot_with_its_frame_names():
     model = robot('rl15')
     assert model.frame_names[-1] == 'eeCarry_seg6'
