@@ -81,7 +81,7 @@ class JointStateNames:
         """Start empty."""
         self.raw = None
         self.names = ()
-        self.layout = None  # (size, bytes 12..end of names, spans, count offsets)
+        self.layout = None  # a _JointStateLayout: the last layout read
 
 
 def _joint_state_spans(raw, with_counts=False):
@@ -114,31 +114,57 @@ def _joint_state_spans(raw, with_counts=False):
     return (names, *arrays)
 
 
-def parse_joint_state(raw, cache=None):
+def parse_joint_state(raw, cache=None, as_tuples=False):
     """
     Read a serialized ``sensor_msgs/JointState``: ``(stamp_ns, names, positions, velocities)``.
 
     :param raw: the CDR bytes, encapsulation header included.
     :param cache: a :class:`JointStateNames` shared between calls (names rarely change).
+    :param as_tuples: positions and velocities as tuples of floats (the node's path) instead
+        of float64 arrays.
     :raises CdrError: truncated or not little-endian CDR.
     """
     layout = cache.layout if cache is not None else None
-    if layout is not None and len(raw) == layout[0] and \
-            raw[12:layout[2][0][2]] == layout[1] and \
-            all(_U32.unpack_from(raw, at)[0] == n for at, n in layout[3]):
-        spans = layout[2]  # same size, frame id, names and array lengths: same places
-        names_span, positions, velocities, _ = spans
-        names = cache.names
-    else:
-        spans, counts = _joint_state_spans(raw, with_counts=True)
-        names_span, positions, velocities, _ = spans
-        names = _names(raw, names_span, cache)
+    if layout is None or len(raw) != layout.size or raw[12:layout.fixed_end] != layout.fixed \
+            or layout.counts.unpack_from(raw, layout.counts_at) != layout.expected_counts:
+        layout = _JointStateLayout(raw, cache)
         if cache is not None:
-            cache.layout = (len(raw), bytes(raw[12:names_span[2]]), spans, counts)
+            cache.layout = layout
     sec, nanosec = _STAMP.unpack_from(raw, 4)
-    return (sec * 1_000_000_000 + nanosec, names,
-            np.frombuffer(raw, '<f8', positions[1], positions[0]),
-            np.frombuffer(raw, '<f8', velocities[1], velocities[0]))
+    (pos_at, n_pos), (vel_at, n_vel) = layout.positions, layout.velocities
+    if as_tuples:
+        return (sec * 1_000_000_000 + nanosec, layout.names,
+                layout.position_values.unpack_from(raw, pos_at),
+                layout.velocity_values.unpack_from(raw, vel_at))
+    return (sec * 1_000_000_000 + nanosec, layout.names,
+            np.frombuffer(raw, '<f8', n_pos, pos_at), np.frombuffer(raw, '<f8', n_vel, vel_at))
+
+
+class _JointStateLayout:
+    """
+    Where one JointState's values are, and the bytes that say another message has the same.
+
+    Same size, same bytes from the frame id to the end of the names, and the same three
+    array lengths (read in one ``struct`` call): the values are at the same offsets.
+    """
+
+    __slots__ = ('size', 'fixed_end', 'fixed', 'counts', 'counts_at', 'expected_counts',
+                 'names', 'positions', 'velocities', 'position_values', 'velocity_values')
+
+    def __init__(self, raw, cache):
+        """Walk ``raw`` once (:raises CdrError: not a readable JointState)."""
+        spans, counts = _joint_state_spans(raw, with_counts=True)
+        names_span, self.positions, self.velocities, _ = spans
+        self.names = _names(raw, names_span, cache)
+        self.size = len(raw)
+        self.fixed_end = names_span[2]
+        self.fixed = bytes(raw[12:self.fixed_end])
+        (first, _), (second, _), (third, _) = counts
+        self.counts = struct.Struct(f'<I{second - first - 4}xI{third - second - 4}xI')
+        self.counts_at = first
+        self.expected_counts = tuple(n for _, n in counts)
+        self.position_values = struct.Struct(f'<{self.positions[1]}d')
+        self.velocity_values = struct.Struct(f'<{self.velocities[1]}d')
 
 
 def _names(raw, span, cache):

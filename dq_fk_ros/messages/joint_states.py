@@ -330,7 +330,8 @@ class JointStateMerger:
                     return self._reject('non_finite', f'position of {name!r} is {value}')
         outside = ()
         lower, upper = self._complete_bounds
-        if not (all(map(operator.le, lower, values)) and all(map(operator.le, values, upper))):
+        if lower is not None and not (all(map(operator.le, lower, values)) and
+                                      all(map(operator.le, values, upper))):
             outside = []
             for k, value in enumerate(values):
                 if value < lower[k] or value > upper[k]:
@@ -444,6 +445,8 @@ class JointStateMerger:
             self._complete_order = order
             self._complete_bounds = ([self._limit_list[i][0] for i in order],
                                      [self._limit_list[i][1] for i in order])
+            if all(math.isinf(v) for v in self._complete_bounds[0] + self._complete_bounds[1]):
+                self._complete_bounds = (None, None)  # no limits: nothing to check
             self._complete_in_order = order == tuple(range(len(order)))
         has_velocity = all(math.isfinite(v) for v in qdot[:required])
         return MergeResult(PUBLISH, q=np.array(q), qdot=np.array(qdot) if has_velocity else None,

@@ -183,6 +183,11 @@ class FrameBytes:
         """Return a serialized PoseStamped of ``pose`` in the fixed frame."""
         return self._pose.pack(sec, nanosec, (pose,))
 
+    def poses(self, sec, nanosec, absolute, frames):
+        """Return serialized PoseStampeds of the poses ``absolute[k]`` for k in ``frames``."""
+        pack = self._pose.pack
+        return [pack(sec, nanosec, (absolute[k],)) for k in frames]
+
     def twist(self, sec, nanosec, v, w):
         """Return a serialized TwistStamped: linear ``v``, angular ``w`` (fixed-frame axes)."""
         return self._twist.pack(sec, nanosec, (v, w))

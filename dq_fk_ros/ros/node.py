@@ -361,14 +361,14 @@ class DqFkNode(Node):
         try:
             try:
                 stamp_ns, names, positions, velocities = parse_joint_state(
-                    raw, self._names_cache)
+                    raw, self._names_cache, as_tuples=True)
             except CdrError as exc:
                 self._merger.counts['received'] += 1
                 self._merger.count_rejected('malformed_cdr')
                 self.get_logger().warn(f'joint state rejected (malformed_cdr): {exc}',
                                        throttle_duration_sec=WARN_EVERY_S)
                 return
-            self._handle_fields(names, positions.tolist(), velocities.tolist(), stamp_ns)
+            self._handle_fields(names, positions, velocities, stamp_ns)
         except Exception as exc:  # nothing a user sends may stop the node
             if not self.context.ok():
                 return  # shutting down: the publishers are gone
@@ -441,7 +441,7 @@ class DqFkNode(Node):
         self._shown_optional = seen
         hidden = self._messages.hidden
         self._pose_read = [read and k not in hidden for k, read in enumerate(self._pose_read)]
-        self._any_pose_read = any(self._pose_read)
+        self._note_read_poses()
         if new:
             self.get_logger().info(f'joint states name side-branch joints {", ".join(new)}: '
                                    f'publishing their links')
@@ -464,9 +464,9 @@ class DqFkNode(Node):
         if self._publish_tf:
             self._send_tf(out.tf(sec, nanosec, relative, q))
         if poses:
-            for send, read, pose in zip(self._send_pose, self._pose_read, absolute):
-                if read:
-                    send(out.pose(sec, nanosec, pose))
+            for send, data in zip(self._send_read_poses,
+                                  out.poses(sec, nanosec, absolute, self._read_poses)):
+                send(data)
         if twists:
             dof = model.chain.dof
             v, w = model.chain.twist(q[:dof], qdot[:dof])
@@ -498,7 +498,14 @@ class DqFkNode(Node):
                 hidden = self._messages.hidden  # side-branch links not named yet
                 self._pose_read = [read and k not in hidden for k, read in enumerate(pose)]
                 self._twist_read = twist
-                self._any_pose_read, self._any_twist_read = any(self._pose_read), any(twist)
+                self._any_twist_read = any(twist)
+                self._note_read_poses()
+
+    def _note_read_poses(self):
+        """Index the pose topics someone reads, and their senders (for :meth:`_publish`)."""
+        self._read_poses = [k for k, read in enumerate(self._pose_read) if read]
+        self._send_read_poses = [self._send_pose[k] for k in self._read_poses]
+        self._any_pose_read = bool(self._read_poses)
 
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self):

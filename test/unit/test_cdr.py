@@ -178,7 +178,7 @@ def test_the_layout_cache_reads_every_message_as_a_fresh_parse_does(layouts):
     """Same size, same names, other array lengths: the cache must not reuse a stale layout."""
     from rclpy.serialization import serialize_message
     from sensor_msgs.msg import JointState as RosJointState
-    cache = JointStateNames()
+    cache, tuples_cache = JointStateNames(), JointStateNames()
     rng = np.random.default_rng(len(layouts))
     for names, n_pos, n_vel, frame in layouts:
         msg = RosJointState(name=list(names), position=rng.normal(size=n_pos).tolist(),
@@ -192,6 +192,8 @@ def test_the_layout_cache_reads_every_message_as_a_fresh_parse_does(layouts):
             np.testing.assert_array_equal(a, b)
         np.testing.assert_array_equal(cached[2], msg.position)
         np.testing.assert_array_equal(cached[3], msg.velocity)
+        as_tuples = parse_joint_state(raw, tuples_cache, as_tuples=True)
+        assert as_tuples == (cached[0], cached[1], tuple(msg.position), tuple(msg.velocity))
 
 
 def joint_state_with_efforts(names, positions, velocities, efforts):

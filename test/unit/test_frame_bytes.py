@@ -51,6 +51,11 @@ def test_serialized_output_equals_the_message_objects(robot, prefix):
         ours = raw.tf(sec, nanosec, relative, q)
         assert deserialize_message(ours, TFMessage) == tf  # every field
         same_outside_padding(ours, serialize_message(tf), raw.templates['tf'])
+        every = list(range(len(absolute)))
+        assert raw.poses(sec, nanosec, absolute, every) == \
+            [raw.pose(sec, nanosec, pose) for pose in absolute]
+        assert raw.poses(sec, nanosec, absolute, every[1::2]) == \
+            [raw.pose(sec, nanosec, pose) for pose in absolute[1::2]]
         for msg, pose in zip(poses, absolute):
             ours = raw.pose(sec, nanosec, pose)
             assert deserialize_message(ours, PoseStamped) == msg

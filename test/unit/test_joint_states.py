@@ -284,10 +284,12 @@ class NoShortPath(JointStateMerger):
                                    max_size=4),
                           st.sampled_from([0, 1, 2, 5, -3])),
                 max_size=30),
-       st.sampled_from(['warn', 'clamp', 'reject']), st.sampled_from([3, 2]))
-def test_the_short_path_for_complete_messages_changes_nothing(messages, policy, required):
-    fast = JointStateMerger(NAMES, LIMITS, policy, required=required)
-    slow = NoShortPath(NAMES, LIMITS, policy, required=required)
+       st.sampled_from(['warn', 'clamp', 'reject']), st.sampled_from([3, 2]),
+       st.sampled_from([LIMITS, [[-math.inf, math.inf]] * 3]))
+def test_the_short_path_for_complete_messages_changes_nothing(messages, policy, required,
+                                                              limits):
+    fast = JointStateMerger(NAMES, limits, policy, required=required)
+    slow = NoShortPath(NAMES, limits, policy, required=required)
     stamp = 10 * TIME_JUMP_BACK_NS
     for names, positions, velocities, step in messages:
         stamp += step * TIME_JUMP_BACK_NS // 2
