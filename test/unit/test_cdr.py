@@ -1,8 +1,9 @@
 """The fast CDR reader and templates against rosbags' own (independent) CDR implementation."""
 
 from dq_fk_ros.messages.cdr import (
-    CdrError, JointStateNames, JointStateRun, MalformedJointState, parse_joint_state,
-    parse_joint_states, pose_stamped_template, tf_message_template, twist_stamped_template)
+    CDR_LE_HEADER, CdrError, JointStateNames, JointStateRun, MalformedJointState,
+    parse_joint_state, parse_joint_states, pose_stamped_template, tf_layout,
+    tf_message_template, twist_stamped_template)
 from hypothesis import given, strategies as st
 import numpy as np
 import pytest
@@ -312,6 +313,17 @@ def test_forgotten_layouts_and_their_messages_are_gone():
     for k in range(65):
         many.take(tf_message_bytes([('w', f'f{k:02d}', pose)]))
     assert sorted(t[0][0][1] for t in many.pop()) == [f'f{k:02d}' for k in range(1, 65)]
+
+
+def test_a_big_endian_or_short_tf_message_is_refused_by_its_header():
+    raw = bytearray(tf_message_template([('world', 'base')]).fill(
+        np.array([1]), np.zeros((1, 7)))[0].tobytes())
+    assert tf_layout(bytes(raw)).edges == (('world', 'base'),)
+    raw[1] = 0  # big-endian CDR: long enough, the wrong header
+    with pytest.raises(CdrError, match='little-endian'):
+        tf_layout(bytes(raw))
+    with pytest.raises(CdrError, match='little-endian'):
+        tf_layout(CDR_LE_HEADER + b'\x00\x00')  # the right header, too short
 
 
 def test_a_header_without_room_for_its_frame_id_says_so():

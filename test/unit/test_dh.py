@@ -275,6 +275,15 @@ def test_the_unrolled_frame_poses_are_the_general_path_to_the_bit(convention):
             chain.frame_poses([0.0] * (chain.dof + 1))
 
 
+def test_forward_and_forward_all_agree_at_a_half_turn():
+    """w exactly 0 (a base turned by pi): both keep the same representative (w >= 0)."""
+    base = DualQuaternion.from_array(np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0]))
+    chain = KinematicChain([DHJoint(a=0.2), DHJoint(joint_type='fixed', d=0.1)], base=base)
+    end = chain.forward([0.0]).coeffs
+    assert end[0] == 0.0
+    np.testing.assert_array_equal(end, chain.forward_all([0.0])[-1])
+
+
 def test_row_poses_keep_qw_non_negative_at_half_turns():
     """A row turned by theta = pi +- a little: the quaternion flips sign, never qw < 0."""
     for convention in ('standard', 'modified'):

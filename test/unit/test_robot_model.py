@@ -222,6 +222,30 @@ def test_static_transforms_are_base_fixed_rows_and_tool():
                                    hm_of(expected[k]), atol=1e-12, err_msg=k)
 
 
+def test_a_fixed_last_row_is_static_with_or_without_a_tool():
+    """The last row fixed: its transform is static (the tool's index comes after it)."""
+    last_fixed = edit(GOOD, '''  - {frame: link4, theta: 10, d: 0, a: 0, alpha: 0, mimic: {joint: j1, multiplier: -2,
+     offset: 5}}
+''', '  - {frame: link4, type: fixed, theta: 10, d: 30, a: 40, alpha: 20}\n')
+    for text in (last_fixed, edit(last_fixed, 'tool: {frame: tcp, xyz: [0, 0, 20], '
+                                               'quaternion: [0, 0, 0, 1]}', '')):
+        model = parse_robot_description(text)
+        static = dict(model.static_transforms())
+        rows = model.chain.relative_all(np.zeros(model.chain.dof))
+        assert 4 in static
+        np.testing.assert_allclose(hm.matrix_of_pose(static[4][:3], static[4][3:]),
+                                   hm_of(rows[3]), atol=1e-12)
+
+
+def test_a_description_of_exactly_the_longest_length_is_taken():
+    from dq_fk_ros.description.robot_model import MAX_DESCRIPTION_CHARS
+    text = 'x' * MAX_DESCRIPTION_CHARS
+    model = parse_robot_description(GOOD + f'description: {text}\n')
+    assert model.name == 'demo'
+    with pytest.raises(RobotDescriptionError, match="field 'description'"):
+        parse_robot_description(GOOD + f'description: {text}x\n')
+
+
 def hm_of(h):
     from dq_fk_ros.kinematics.dh import homogeneous_from_dq
     return homogeneous_from_dq(h)
