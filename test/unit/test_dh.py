@@ -276,7 +276,7 @@ def test_the_unrolled_frame_poses_are_the_general_path_to_the_bit(convention):
 
 
 def test_forward_and_forward_all_agree_at_a_half_turn():
-    """w exactly 0 (a base turned by pi): both keep the same representative (w >= 0)."""
+    """At w exactly 0 (a base turned by pi) both keep the same representative (w >= 0)."""
     base = DualQuaternion.from_array(np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0]))
     chain = KinematicChain([DHJoint(a=0.2), DHJoint(joint_type='fixed', d=0.1)], base=base)
     end = chain.forward([0.0]).coeffs

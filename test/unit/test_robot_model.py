@@ -224,11 +224,11 @@ def test_static_transforms_are_base_fixed_rows_and_tool():
 
 def test_a_fixed_last_row_is_static_with_or_without_a_tool():
     """The last row fixed: its transform is static (the tool's index comes after it)."""
-    last_fixed = edit(GOOD, '''  - {frame: link4, theta: 10, d: 0, a: 0, alpha: 0, mimic: {joint: j1, multiplier: -2,
-     offset: 5}}
-''', '  - {frame: link4, type: fixed, theta: 10, d: 30, a: 40, alpha: 20}\n')
-    for text in (last_fixed, edit(last_fixed, 'tool: {frame: tcp, xyz: [0, 0, 20], '
-                                               'quaternion: [0, 0, 0, 1]}', '')):
+    row4 = '  - {frame: link4, theta: 10, d: 0, a: 0, alpha: 0, mimic: {joint: j1, multiplier: -2,'
+    last_fixed = edit(GOOD, row4 + '\n     offset: 5}}\n',
+                      '  - {frame: link4, type: fixed, theta: 10, d: 30, a: 40, alpha: 20}\n')
+    tool = 'tool: {frame: tcp, xyz: [0, 0, 20], quaternion: [0, 0, 0, 1]}'
+    for text in (last_fixed, edit(last_fixed, tool, '')):
         model = parse_robot_description(text)
         static = dict(model.static_transforms())
         rows = model.chain.relative_all(np.zeros(model.chain.dof))
