@@ -55,7 +55,8 @@ def write_joint_state_bag(path, n, split=False):
 
 def run_process(in_bag, out_bag, storage, poses):
     """Run ``dq_fk_bag process`` as a child; return (seconds, peak RSS MiB, summary line)."""
-    argv = executable('dq_fk_bag') + ['process', in_bag, out_bag, '--poses', poses,
+    argv = executable('dq_fk_bag') + ['process', in_bag, out_bag, '--robot', 'rl15',
+                                      '--poses', poses,
                                       '--storage', storage, '--quiet', '--overwrite']
     start = time.perf_counter()
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True)

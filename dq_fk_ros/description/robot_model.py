@@ -28,7 +28,8 @@ import math
 import os
 import re
 
-from dq_fk_ros.kinematics.dh import CONVENTIONS, DHJoint, KinematicChain
+from dq_fk_ros.kinematics.dh import (
+    CONVENTIONS, DHJoint, KinematicChain, unrolled_frame_poses)
 from dq_fk_ros.kinematics.dual_quaternion import (
     dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, DualQuaternion,
     pose_xyzw_from_coeffs, quat_from_matrix)
@@ -228,6 +229,21 @@ class RobotModel:
         """
         if not self.links:
             return self.chain.frame_poses(q)
+        if len(q) != self.dof:
+            raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
+                             f'got {len(q)}')
+        return self._unrolled(q.tolist() if isinstance(q, np.ndarray) else
+                              [float(v) for v in q])
+
+    @cached_property
+    def _unrolled(self):
+        """:meth:`frame_poses` as straight-line code (``unrolled_frame_poses``)."""
+        return unrolled_frame_poses(self.chain, self._link_plan, _motion)
+
+    def frame_poses_general(self, q):
+        """:meth:`frame_poses` by the general (looping) path: the reference the tests use."""
+        if not self.links:
+            return self.chain.frame_poses_general(q)
         if len(q) != self.dof:
             raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
                              f'got {len(q)}')

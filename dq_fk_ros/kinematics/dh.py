@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import math
 
 from dq_fk_ros.kinematics.dual_quaternion import (
-    canonical, dq_multiply_array, dq_multiply_coeffs, dq_translation_array, DualQuaternion,
-    pose_xyzw_from_coeffs, quat_conjugate, quat_to_matrix)
+    canonical, dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, dq_translation_array,
+    DualQuaternion, pose_xyzw_from_coeffs, quat_conjugate, quat_to_matrix)
 import numpy as np
 
 CONVENTIONS = ('standard', 'modified')
@@ -160,20 +160,66 @@ _MARK = ('s = -1.0 if aw < 0.0 else 1.0',  # pose_xyzw_from_coeffs, inline
          '2.0 * (bz * aw - bw * az - bx * ay + by * ax), s * ax, s * ay, s * az, s * aw))')
 
 
-def _unrolled_frame_poses(chain):
+_IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+_PARENT = 'u0, u1, u2, u3, u4, u5, u6, u7'
+# the terms of dq_multiply_coeffs ([Zivkovic2023] eq. (12)), in its order: (sign, a, b)
+_PRODUCT_TERMS = (
+    ((1, 0, 0), (-1, 1, 1), (-1, 2, 2), (-1, 3, 3)),
+    ((1, 0, 1), (1, 1, 0), (1, 2, 3), (-1, 3, 2)),
+    ((1, 0, 2), (-1, 1, 3), (1, 2, 0), (1, 3, 1)),
+    ((1, 0, 3), (1, 1, 2), (-1, 2, 1), (1, 3, 0)),
+    ((1, 0, 4), (-1, 1, 5), (-1, 2, 6), (-1, 3, 7), (1, 4, 0), (-1, 5, 1), (-1, 6, 2),
+     (-1, 7, 3)),
+    ((1, 0, 5), (1, 1, 4), (1, 2, 7), (-1, 3, 6), (1, 4, 1), (1, 5, 0), (1, 6, 3), (-1, 7, 2)),
+    ((1, 0, 6), (-1, 1, 7), (1, 2, 4), (1, 3, 5), (1, 4, 2), (-1, 5, 3), (1, 6, 0), (1, 7, 1)),
+    ((1, 0, 7), (1, 1, 6), (-1, 2, 5), (1, 3, 4), (1, 4, 3), (1, 5, 2), (-1, 6, 1), (1, 7, 0)),
+)
+
+
+def _product_code(a, b):
     """
-    Write and compile ``chain.frame_poses`` as straight-line code for this chain.
+    Write the 8 components of ``dq_multiply_coeffs(a, b)`` as Python expressions.
+
+    ``a``: 8 variable names; ``b``: 8 constants (floats). Terms with a zero constant are
+    left out, a factor 1.0 is dropped; the other terms keep their order, so the values are
+    the product's (a sum of exact zeros may differ only in the sign of a zero).
+    """
+    out = []
+    for terms in _PRODUCT_TERMS:
+        code = ''
+        for sign, i, k in terms:
+            if b[k] == 0.0:
+                continue
+            term = a[i] if b[k] == 1.0 else f'{a[i]} * {b[k]!r}'
+            code += (' + ' if sign > 0 else ' - ') + term if code else \
+                (term if sign > 0 else f'-{term}')
+        out.append(code or '0.0')
+    return out
+
+
+def unrolled_frame_poses(chain, links=(), motion=None):
+    """
+    Write and compile ``frame_poses`` as straight-line code for one chain (and its links).
 
     The loops of :func:`_run_program` and :meth:`KinematicChain.row_poses` unrolled, with
     each row's constants in place and the half-angle cosine and sine shared by the row's
     z factor and its pose: the same floating-point operations in the same order, so the
-    same results to the bit, in about half the time. Returns ``f(q_list) -> (absolute,
-    relative)``; its source is ``f.source``.
+    same results to the bit, in about half the time.
+
+    :param links: rigid frames attached to the chain's frames, as
+        :class:`~dq_fk_ros.description.robot_model.RobotModel` plans them: ``(attachment
+        index, TF-parent index, offset 8-tuple, motion)`` (index -1: the fixed frame); a
+        constant offset is multiplied in with its zero terms left out.
+    :param motion: ``motion(motion, q, cos, sin) -> 8-tuple`` for links that move.
+    :returns: ``f(q_list) -> (absolute, relative)`` as ``frame_poses`` returns them; its
+        source is ``f.source``.
     """
     r = repr
     base_pose = pose_xyzw_from_coeffs(chain._base_t)
     lines = ['def frame_poses(q):', 'absolute, relative = [], []',
              f'{_DQ} = {chain._base_t!r}', f'absolute.append({base_pose!r})']
+    keep = ['f0 = (' + _DQ + ')'] if links else []  # frames the links hang from
+    lines += keep
     modified = chain.convention == 'modified'
     for i, joint in enumerate(chain.joints):
         ti, di = int(chain._theta_index[i]), int(chain._d_index[i])
@@ -199,6 +245,8 @@ def _unrolled_frame_poses(chain):
                     lines += [f'c, s = {r(math.cos(0.5 * joint.alpha))}, '
                               f'{r(math.sin(0.5 * joint.alpha))}', _X_STEP]
         lines += list(_MARK)
+        if links:
+            lines.append(f'f{i + 1} = ({_DQ})')
         if modified:
             lines += [f'qx, qy, qz, qw = {r(sa)} * ct, -{r(sa)} * st, {r(ca)} * st, {r(ca)} * ct',
                       f'x, y, z = {r(a)}, -d * {r(s_alpha)}, d * {r(c_alpha)}']
@@ -207,13 +255,37 @@ def _unrolled_frame_poses(chain):
                       f'x, y, z = {r(a)} * (1.0 - 2.0 * st * st), 2.0 * {r(a)} * st * ct, d']
         lines += ['if qw < 0.0:', '    qx, qy, qz, qw = -qx, -qy, -qz, -qw',
                   'relative.append((x, y, z, qx, qy, qz, qw))']
+    n_frames = len(chain.joints) + 1
     if chain._tool_t is not None:
         lines += [f'{_DQ} = multiply(({_DQ}), {chain._tool_t!r})'] + list(_MARK)
+        if links:
+            lines.append(f'f{n_frames} = ({_DQ})')
+        n_frames += 1
+    for j, (attach, tf_parent, offset, moves) in enumerate(links):
+        k = n_frames + j
+        parent = f'f{attach}' if attach >= 0 else repr(_IDENTITY)
+        if moves is not None:  # offset times the joint's motion: as the general path
+            lines += [f'o = multiply({offset!r}, motion({moves!r}, q, cos, sin))',
+                      f'{_DQ} = multiply({parent}, o)']
+        elif attach >= 0:
+            lines += [f'{_PARENT} = {parent}',
+                      f'{_DQ} = (' + ', '.join(_product_code(_PARENT.split(', '), offset)) + ')']
+        else:
+            lines.append(f'{_DQ} = {dq_multiply_coeffs(_IDENTITY, offset)!r}')
+        lines += [f'f{k} = ({_DQ})'] + list(_MARK)
+        if tf_parent == attach:
+            lines.append('relative.append(pose(o))' if moves is not None else
+                         f'relative.append({pose_xyzw_from_coeffs(offset)!r})')
+        else:
+            above = f'f{tf_parent}' if tf_parent >= 0 else repr(_IDENTITY)
+            lines.append(f'relative.append(pose(multiply(inverse({above}), f{k})))')
     lines.append('return absolute, relative')
     source = '\n    '.join(lines) + '\n'
-    namespace = {'cos': math.cos, 'sin': math.sin, 'multiply': dq_multiply_coeffs}
-    exec(compile(source, f'<frame_poses of a {len(chain.joints)}-row chain>', 'exec'),
-         namespace)
+    namespace = {'cos': math.cos, 'sin': math.sin, 'multiply': dq_multiply_coeffs,
+                 'inverse': dq_inverse_coeffs, 'pose': pose_xyzw_from_coeffs,
+                 'motion': motion}
+    exec(compile(source, f'<frame_poses of a {len(chain.joints)}-row chain, '
+                         f'{len(links)} links>', 'exec'), namespace)
     function = namespace['frame_poses']
     function.source = source
     return function
@@ -404,13 +476,13 @@ class KinematicChain:
         Returns ``(absolute, relative)``: every frame in the fixed frame (as
         :meth:`forward_all`), and every row's transform frame i-1 -> frame i (as
         :meth:`row_poses`). The node's hot path: the chain's own straight-line code
-        (:func:`_unrolled_frame_poses`), the same arithmetic as the general path, to the bit.
+        (:func:`unrolled_frame_poses`), the same arithmetic as the general path, to the bit.
         """
         if len(q) != self.dof:
             raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
                              f'got {len(q)}')
         if self._unrolled is None:
-            self._unrolled = _unrolled_frame_poses(self)
+            self._unrolled = unrolled_frame_poses(self)
         return self._unrolled(q.tolist() if isinstance(q, np.ndarray) else
                               [float(v) for v in q])
 

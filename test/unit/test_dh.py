@@ -284,6 +284,22 @@ def test_forward_and_forward_all_agree_at_a_half_turn():
     np.testing.assert_array_equal(end, chain.forward_all([0.0])[-1])
 
 
+def test_a_product_with_constants_written_out_is_the_product():
+    """_product_code: zero terms left out, factors 1.0 dropped, the values unchanged."""
+    from dq_fk_ros.kinematics.dh import _product_code
+    from dq_fk_ros.kinematics.dual_quaternion import dq_multiply_coeffs
+    rng = np.random.default_rng(8)
+    names = [f'a{k}' for k in range(8)]
+    for _ in range(200):
+        b = tuple(float(v) for v in rng.choice([0.0, 1.0, -1.0, 0.5, -0.25, 3.0], 8))
+        a = tuple(float(v) for v in rng.normal(size=8))
+        code = _product_code(names, b)
+        values = tuple(eval(c, dict(zip(names, a))) for c in code)  # noqa: S307 (our code)
+        assert values == dq_multiply_coeffs(a, b)
+        assert all('* 0.0' not in c and '* 1.0' not in c for c in code)
+    assert _product_code(names, (0.0,) * 8) == ['0.0'] * 8
+
+
 def test_row_poses_keep_qw_non_negative_at_half_turns():
     """A row turned by theta = pi +- a little: the quaternion flips sign, never qw < 0."""
     for convention in ('standard', 'modified'):

@@ -1,6 +1,8 @@
 """``links:``: named frames fixed to the chain (or moving with one of its joints)."""
 
 import math
+import os
+import sys
 
 from builtin_interfaces.msg import Time
 from dq_fk_ros.description.robot_model import parse_robot_description, RobotDescriptionError
@@ -10,6 +12,9 @@ from dq_fk_ros.ros.conversions import FrameMessages
 import homogeneous as hm
 import numpy as np
 import pytest
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from vendor_urdfs import PANDA, UR5, vendor_robot, Z1  # noqa: E402, I100 (the tests' helper)
 
 ARM = """
 robot: two_link
@@ -231,3 +236,18 @@ def test_a_long_list_of_frames_is_cut_in_messages():
         'frames so far: world, base0, upper, lower, tcp, extra0, extra1, extra2, extra3, '
         'extra4, extra5, extra6, extra7, extra8, extra9, extra10, extra11, extra12, extra13, '
         'extra14 ... (10 more)')
+
+
+@pytest.mark.parametrize('robot', ['arm.yaml', 'ur5', 'panda', 'z1'])
+def test_the_unrolled_frame_poses_with_links_are_the_general_path(robot):
+    """Chain and links as straight-line code: the looping path's floats (== on each)."""
+    arms = {'ur5': UR5, 'panda': PANDA, 'z1': Z1}
+    model = vendor_robot(arms[robot]).model if robot in arms else \
+        parse_robot_description(ARM, 'arm.yaml')
+    assert model.links
+    for q in np.random.default_rng(12).uniform(-2.5, 2.5, size=(300, model.dof)):
+        assert model.frame_poses(q) == model.frame_poses_general(q)
+    assert model.frame_poses(q.tolist()) == model.frame_poses_general(q)
+    assert 'u0, u1, u2' in model._unrolled.source  # constant offsets multiplied inline
+    with pytest.raises(ValueError, match=f'expected {model.dof} joint values'):
+        model.frame_poses(np.zeros(model.dof + 1))
