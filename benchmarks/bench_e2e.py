@@ -241,6 +241,8 @@ def main(argv=None):
     parser.add_argument('--repeat', type=int, default=3)
     parser.add_argument('--input-thread', choices=('true', 'false'), default='true',
                         help="the node's input_thread parameter (default true)")
+    parser.add_argument('--qos-depth', type=int, default=0,
+                        help="the node's qos_depth parameter (0: its default)")
     parser.add_argument('--capacity', type=float, default=10.0, metavar='S',
                         help='seconds of flood for the capacity figure (0: skip)')
     parser.add_argument('--publish', nargs=3, metavar=('RATE', 'COUNT', 'RELIABLE'),
@@ -254,6 +256,8 @@ def main(argv=None):
         except (KeyboardInterrupt, RCLError):  # the flood ends with SIGINT (context gone)
             return 0
     extra = [f'input_thread:={args.input_thread}']
+    if args.qos_depth:
+        extra.append(f'qos_depth:={args.qos_depth}')
     # this subscriber is not pinned: on CPU 0 beside the publisher it stalled for about
     # 250 ms in one run of three on this project's machines (the node lost nothing then)
     gc.freeze()  # its own garbage collection stays out of the latencies
@@ -263,7 +267,8 @@ def main(argv=None):
     print(f'# end to end: raw publisher -> dq_fk_node -> raw /tf subscriber, RL15, '
           f'{args.seconds:g} s per run, {os.cpu_count()} CPUs, loopback; node on CPU 1, '
           f'publisher on CPU 0 (taskset), this subscriber unpinned; nothing else running; '
-          f'input_thread:={args.input_thread}')
+          f'input_thread:={args.input_thread}'
+          + (f', qos_depth:={args.qos_depth}' if args.qos_depth else ''))
     print('| rate Hz | input | sent | node published | node: lost at its input | received on '
           '/tf | lost | latency p50 ms | p99 ms | max ms | node CPU % of a core '
           '| major page faults, node / subscriber |')
