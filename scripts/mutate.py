@@ -38,7 +38,7 @@ MODULES = {
                         ['test_dual_quaternion.py', 'test_dh.py', 'test_papers.py']),
     'tree': ('dq_fk_ros/kinematics/tree.py', ['test_tree.py', 'test_view_state.py']),
     'dh': ('dq_fk_ros/kinematics/dh.py',
-           ['test_dh.py', 'test_papers.py', 'test_shipped_robots.py']),
+           ['test_dh.py', 'test_papers.py', 'test_shipped_robots.py', 'test_links.py']),
     'robot_model': ('dq_fk_ros/description/robot_model.py',
                     ['test_robot_model.py', 'test_links.py', 'test_shipped_robots.py',
                      'test_fuzz_robot_description.py']),

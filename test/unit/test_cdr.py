@@ -326,6 +326,14 @@ def test_a_big_endian_or_short_tf_message_is_refused_by_its_header():
         tf_layout(CDR_LE_HEADER + b'\x00\x00')  # the right header, too short
 
 
+def test_a_tf_frame_id_longer_than_what_is_left_is_refused():
+    raw = bytearray(tf_message_template([('world', 'base')]).fill(
+        np.array([1]), np.zeros((1, 7)))[0].tobytes())
+    raw[16:20] = (len(raw) - 16).to_bytes(4, 'little')  # the first frame id's length
+    with pytest.raises(CdrError, match='string runs past the end'):
+        tf_layout(bytes(raw))
+
+
 def test_a_header_without_room_for_its_frame_id_says_so():
     raw = joint_state_bytes(['a'], [1.0])[:16]  # header, stamp, frame id length: no text
     with pytest.raises(CdrError, match='string runs past the end'):

@@ -266,6 +266,8 @@ def test_the_unrolled_frame_poses_are_the_general_path_to_the_bit(convention):
     chains = [random_chain(rng, convention, n_rows=n)[0] for n in (1, 3, 6, 9)]
     chains.append(KinematicChain([DHJoint(), DHJoint(joint_type='fixed', a=0.2)],
                                  convention))  # identity base, a fixed row, no tool
+    chains.append(KinematicChain([DHJoint(joint_type='prismatic', a=0.1),
+                                  DHJoint(alpha=0.3)], convention))  # q[0] moves d from 0
     for chain in chains:
         for q in rng.uniform(-4, 4, size=(200, chain.dof)):
             assert chain.frame_poses(q) == chain.frame_poses_general(q)

@@ -387,3 +387,12 @@ def test_sequence_gaps_stop_at_a_second_publisher_or_a_restart():
     assert gaps.note(3020) == 0 and gaps.note(3021) == 0 and gaps.lost == 1
     gaps.note(3021)  # the same number twice: not counted, counting stops
     assert gaps.note(3030) == 0 and gaps.lost == 1
+
+
+def test_a_message_of_six_foreign_joints_lists_five_and_says_there_are_more(merger):
+    names = [f'x{k}' for k in range(6)]
+    r = merger.merge(names, [0.0] * 6)
+    assert r.reason == 'no_known_joint'
+    assert r.detail == "none of 'x0', 'x1', 'x2', 'x3', 'x4' ... is a joint of this robot"
+    five = merger.merge(names[:5], [0.0] * 5)
+    assert five.detail == "none of 'x0', 'x1', 'x2', 'x3', 'x4' is a joint of this robot"

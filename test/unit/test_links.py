@@ -251,3 +251,13 @@ def test_the_unrolled_frame_poses_with_links_are_the_general_path(robot):
     assert 'u0, u1, u2' in model._unrolled.source  # constant offsets multiplied inline
     with pytest.raises(ValueError, match=f'expected {model.dof} joint values'):
         model.frame_poses(np.zeros(model.dof + 1))
+
+
+def test_batches_of_a_model_with_links_keep_w_non_negative():
+    model = parse_robot_description(ARM, 'arm.yaml')
+    qs = np.random.default_rng(14).uniform(-3, 3, size=(200, model.dof))
+    batch = model.forward_all_batch(qs)
+    assert (batch[..., 0] >= 0.0).all()
+    for q, frames in zip(qs[:20], batch[:20]):
+        for k, pose in enumerate(model.frame_poses(q)[0]):
+            np.testing.assert_allclose(frames[k][1:4], pose[3:6], atol=1e-12)

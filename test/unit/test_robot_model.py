@@ -246,6 +246,26 @@ def test_a_description_of_exactly_the_longest_length_is_taken():
         parse_robot_description(GOOD + f'description: {text}x\n')
 
 
+def test_the_default_end_effector_is_the_last_chain_frame():
+    assert parse_robot_description(GOOD).end_effector == 'tcp'
+    no_tool = edit(GOOD, 'tool: {frame: tcp, xyz: [0, 0, 20], quaternion: [0, 0, 0, 1]}', '')
+    assert parse_robot_description(no_tool).end_effector == 'link4'
+
+
+def test_a_text_too_large_is_refused_before_it_is_read():
+    from dq_fk_ros.description.robot_model import MAX_FILE_BYTES
+    with pytest.raises(RobotDescriptionError, match=f'larger than {MAX_FILE_BYTES // 1024} '
+                                                    'KiB'):
+        parse_robot_description(GOOD + '#' * MAX_FILE_BYTES, 'big.yaml')
+    assert MAX_FILE_BYTES // 1024 == 1024
+
+
+def test_a_small_integer_of_the_wrong_kind_is_shown_as_it_is():
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description(edit(GOOD, 'robot: demo', 'robot: 200'), 'r.yaml')
+    assert 'got 200' in str(caught.value)
+
+
 def hm_of(h):
     from dq_fk_ros.kinematics.dh import homogeneous_from_dq
     return homogeneous_from_dq(h)
