@@ -266,6 +266,44 @@ def test_a_small_integer_of_the_wrong_kind_is_shown_as_it_is():
     assert 'got 200' in str(caught.value)
 
 
+def test_exactly_the_most_links_are_taken():
+    row = '  - {frame: l%d, parent: tcp, xyz: [0, 0, 1]}\n'
+    text = GOOD + 'links:\n' + ''.join(row % k for k in range(MAX_ROWS))
+    assert len(parse_robot_description(text).links) == MAX_ROWS
+    with pytest.raises(RobotDescriptionError, match=f'{MAX_ROWS + 1} links; a robot '):
+        parse_robot_description(text + row % MAX_ROWS)
+
+
+def test_an_unknown_end_effector_lists_every_frame_but_the_fixed_one():
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description(GOOD + 'end_effector: hand\n', 'r.yaml')
+    assert str(caught.value).endswith('frames: base0, link1, link2, link3, link4, tcp')
+
+
+def test_listings_say_how_many_more_only_when_there_are_more():
+    from dq_fk_ros.description.robot_model import _listing
+    assert _listing(['a', 'b', 'c'], at_most=3) == 'a, b, c'
+    assert _listing(['a', 'b', 'c', 'd'], at_most=3) == 'a, b, c ... (1 more)'
+
+
+def test_a_yaml_mistake_says_its_line_and_column():
+    """Both counted from 1, as editors do (the YAML parser counts from 0)."""
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description('robot: demo\nchain: [\n  {a: 1\n', 'r.yaml')
+    assert str(caught.value).startswith('r.yaml: not valid YAML at line 4, column 1: ')
+
+
+def test_a_moving_first_link_without_a_tool_is_not_a_dh_row():
+    text = edit(GOOD, 'tool: {frame: tcp, xyz: [0, 0, 20], quaternion: [0, 0, 0, 1]}',
+                'links:\n  - {frame: jaw, parent: link4, type: revolute, axis: [1, 0, 0], '
+                'mimic: {joint: j1}}')
+    model = parse_robot_description(text)
+    n_rows = len(model.chain.joints)
+    assert model.frame_names[n_rows + 1] == 'jaw' and model.moving[n_rows + 1]
+    assert [k for k, _ in model.moving_edges] == [1, 2, 4, n_rows + 1]  # each frame once
+    assert dict(model.moving_edges)[n_rows + 1] == n_rows  # the link's transform, after rows
+
+
 def hm_of(h):
     from dq_fk_ros.kinematics.dh import homogeneous_from_dq
     return homogeneous_from_dq(h)
