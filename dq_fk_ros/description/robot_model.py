@@ -29,7 +29,7 @@ import os
 import re
 
 from dq_fk_ros.kinematics.dh import (
-    CONVENTIONS, DHJoint, KinematicChain, unrolled_frame_poses)
+    CONVENTIONS, DHJoint, joint_value_list, KinematicChain, unrolled_frame_poses)
 from dq_fk_ros.kinematics.dual_quaternion import (
     dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, DualQuaternion,
     pose_xyzw_from_coeffs, quat_from_matrix)
@@ -229,11 +229,7 @@ class RobotModel:
         """
         if not self.links:
             return self.chain.frame_poses(q)
-        if len(q) != self.dof:
-            raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
-                             f'got {len(q)}')
-        return self._unrolled(q.tolist() if isinstance(q, np.ndarray) else
-                              [float(v) for v in q])
+        return self._unrolled(joint_value_list(q, self.joint_names))
 
     @cached_property
     def _unrolled(self):
@@ -244,20 +240,15 @@ class RobotModel:
         """:meth:`frame_poses` by the general (looping) path: the reference the tests use."""
         if not self.links:
             return self.chain.frame_poses_general(q)
-        if len(q) != self.dof:
-            raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
-                             f'got {len(q)}')
+        q = joint_value_list(q, self.joint_names)
         q_chain = q[:self.chain.dof]
         coeffs = self.chain.frame_coeffs(q_chain)
         absolute = [pose_xyzw_from_coeffs(h) for h in coeffs]
         relative = self.chain.row_poses(q_chain)
-        qs = None
         for attach, tf_parent, offset, motion in self._link_plan:
             parent = coeffs[attach] if attach >= 0 else _IDENTITY
             if motion is not None:
-                if qs is None:
-                    qs = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
-                offset = dq_multiply_coeffs(offset, _motion(motion, qs, math.cos, math.sin))
+                offset = dq_multiply_coeffs(offset, _motion(motion, q, math.cos, math.sin))
             pose = dq_multiply_coeffs(parent, offset)
             coeffs.append(pose)
             absolute.append(pose_xyzw_from_coeffs(pose))

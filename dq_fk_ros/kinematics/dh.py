@@ -19,6 +19,7 @@ Dual quaternions are 8-vectors (w, x, y, z, w', x', y', z'); see
 
 from array import array
 from dataclasses import dataclass
+from functools import cached_property
 import math
 
 from dq_fk_ros.kinematics.dual_quaternion import (
@@ -179,6 +180,14 @@ _PRODUCT_TERMS = (
 )
 
 
+def joint_value_list(q, joint_names):
+    """Return ``q`` as a list of floats, one per joint (ValueError naming the joints if not)."""
+    if len(q) != len(joint_names):
+        raise ValueError(f'expected {len(joint_names)} joint values {list(joint_names)}, '
+                         f'got {len(q)}')
+    return q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
+
+
 def _product_code(a, b):
     """
     Write the 8 components of ``dq_multiply_coeffs(a, b)`` as Python expressions.
@@ -220,8 +229,8 @@ def unrolled_frame_poses(chain, links=(), motion=None):
     base_pose = pose_xyzw_from_coeffs(chain._base_t)
     lines = ['def frame_poses(q):', 'absolute, relative = [], []',
              f'{_DQ} = {chain._base_t!r}', f'absolute.append({base_pose!r})']
-    keep = ['f0 = (' + _DQ + ')'] if links else []  # frames the links hang from
-    lines += keep
+    if links:  # keep the frames the links hang from
+        lines.append(f'f0 = ({_DQ})')
     modified = chain.convention == 'modified'
     for i, joint in enumerate(chain.joints):
         ti, di = int(chain._theta_index[i]), int(chain._d_index[i])
@@ -323,7 +332,6 @@ class KinematicChain:
         self._base_t = tuple(self.base.coeffs.tolist())
         self._tool_t = tuple(self.tool.coeffs.tolist()) if tool is not None else None
         self._build_variable_map()
-        self._unrolled = None  # frame_poses' straight-line code, made on first use
 
     # -- structure ---------------------------------------------------------------------
     def _build_variable_map(self):
@@ -422,10 +430,7 @@ class KinematicChain:
 
     def _absolute_tuples(self, q):
         """Frames 0..n (and the tool) as 8-tuples of floats; the scalar fast path."""
-        if len(q) != self.dof:
-            raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
-                             f'got {len(q)}')
-        q = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
+        q = joint_value_list(q, self.joint_names)
         frames = _run_program(self._program, self._base_t, q, math.cos, math.sin)
         if self._tool_t is not None:
             frames.append(dq_multiply_coeffs(frames[-1], self._tool_t))
@@ -445,10 +450,7 @@ class KinematicChain:
         ``(cos al/2 + i sin al/2)(cos t/2 + k sin t/2)`` and moves by ``(a, -d sin al,
         d cos al)``: the same transforms as [Radavelli2014] eq. (3), without the dual part.
         """
-        if len(q) != self.dof:
-            raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
-                             f'got {len(q)}')
-        q = q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
+        q = joint_value_list(q, self.joint_names)
         cos, sin = math.cos, math.sin
         out = []
         append = out.append
@@ -480,13 +482,12 @@ class KinematicChain:
         :meth:`row_poses`). The node's hot path: the chain's own straight-line code
         (:func:`unrolled_frame_poses`), the same arithmetic as the general path, to the bit.
         """
-        if len(q) != self.dof:
-            raise ValueError(f'expected {self.dof} joint values {list(self.joint_names)}, '
-                             f'got {len(q)}')
-        if self._unrolled is None:
-            self._unrolled = unrolled_frame_poses(self)
-        return self._unrolled(q.tolist() if isinstance(q, np.ndarray) else
-                              [float(v) for v in q])
+        return self._unrolled(joint_value_list(q, self.joint_names))
+
+    @cached_property
+    def _unrolled(self):
+        """:meth:`frame_poses` as straight-line code, made on first use."""
+        return unrolled_frame_poses(self)
 
     def frame_poses_general(self, q):
         """:meth:`frame_poses` by the general (looping) path: the reference the tests use."""

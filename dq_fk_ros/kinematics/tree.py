@@ -42,9 +42,7 @@ def compose_tree(edges, root):
     :param edges: ``{child: (parent, pose of child in parent)}`` (one parent per child, as
         TF keeps it); frames not connected to ``root``, and any cycle, are left out.
     """
-    children = {}
-    for child, (parent, _) in edges.items():
-        children.setdefault(parent, []).append(child)
+    children = _children(edges)
     out = {}
     stack = [(root, (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))]
     while stack:
@@ -63,9 +61,7 @@ def compose_tree(edges, root):
 
 def depths(edges, root):
     """Return ``{frame: number of transforms from root}`` of every frame below ``root``."""
-    children = {}
-    for child, (parent, _) in edges.items():
-        children.setdefault(parent, []).append(child)
+    children = _children(edges)
     out, stack = {}, [(root, 0)]
     while stack:
         frame, depth = stack.pop()
@@ -74,6 +70,14 @@ def depths(edges, root):
                 out[child] = depth + 1
                 stack.append((child, depth + 1))
     return out
+
+
+def _children(edges):
+    """Return ``{parent: [child, ...]}`` of ``{child: (parent, pose)}``."""
+    children = {}
+    for child, (parent, _) in edges.items():
+        children.setdefault(parent, []).append(child)
+    return children
 
 
 __all__ = ['coeffs_from_pose', 'compose_tree', 'depths', 'roots']

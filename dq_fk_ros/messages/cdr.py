@@ -511,13 +511,9 @@ def tf_layout(raw):
             for _ in range(2):
                 cursor.align(4)
                 start = cursor.pos
-                length = cursor.u32()
-                if length == 0 or cursor.pos + length > len(raw):
-                    raise CdrError('string runs past the end of the message')
-                text = bytes(raw[cursor.pos:cursor.pos + length - 1]).decode('utf-8')
-                cursor.pos += length
+                cursor.skip_string()  # (its length, the text, a NUL)
                 strings.append((start, cursor.pos))
-                names.append(text)
+                names.append(bytes(raw[start + 4:cursor.pos - 1]).decode('utf-8'))
             cursor.align(8)
             if cursor.pos + 56 > len(raw):
                 raise CdrError('transform runs past the end of the message')

@@ -453,7 +453,7 @@ class DqFkNode(Node):
             seen = self._merger.seen_optional
             if seen != self._shown_optional:
                 self._show_branches(seen)
-        poses = self._publish_poses and self._any_pose_read
+        poses = self._publish_poses and bool(self._read_poses)
         twists = self._publish_twist and qdot is not None and self._any_twist_read
         if poses or twists:
             absolute, relative = model.frame_poses(q)
@@ -505,7 +505,6 @@ class DqFkNode(Node):
         """Index the pose topics someone reads, and their senders (for :meth:`_publish`)."""
         self._read_poses = [k for k, read in enumerate(self._pose_read) if read]
         self._send_read_poses = [self._send_pose[k] for k in self._read_poses]
-        self._any_pose_read = bool(self._read_poses)
 
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self):
