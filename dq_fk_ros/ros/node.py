@@ -40,6 +40,8 @@ RELIABILITY = {'best_effort': ReliabilityPolicy.BEST_EFFORT,
 WARN_EVERY_S = 5.0
 READERS_REFRESH_S = 0.5
 DRAIN_MAX = 64  # queued joint states worked through per executor wake-up
+QOS_DEPTH_MAX = 100_000  # joint states the subscription may queue (a few MB at most)
+INPUT_BATCH_MS_MAX = 100.0
 
 
 class DqFkNode(Node):
@@ -60,9 +62,11 @@ class DqFkNode(Node):
         self._max_rate_hz = get('max_publish_rate_hz').value
         self._out_of_limits = get('out_of_limits').value
         self._frame_prefix = get('frame_prefix').value
+        depth = get('qos_depth').value
         self._check_values({'out_of_limits': self._out_of_limits,
                             'max_publish_rate_hz': self._max_rate_hz,
-                            'frame_prefix': self._frame_prefix})
+                            'frame_prefix': self._frame_prefix, 'qos_depth': depth,
+                            'input_batch_ms': get('input_batch_ms').value})
         reliability = get('joint_states_reliability').value
         self._check_choice('joint_states_reliability', reliability, tuple(RELIABILITY))
         self._robot_inputs = {name: get(name).value for name in ROBOT_PARAMETERS}
@@ -94,7 +98,6 @@ class DqFkNode(Node):
         self._last_update_ns = None
         self._apply_model(model, self._build_outputs(model, self._frame_prefix))
 
-        depth = get('qos_depth').value
         self._names_cache = JointStateNames()
         self._gaps = SequenceGaps()  # joint states lost before the node took them
         self._lost_reported = 0
@@ -113,7 +116,8 @@ class DqFkNode(Node):
         if get('input_thread').value:
             self._input = RawSubscriptionThread(self, JointState,
                                                 self.resolve_topic_name('joint_states'), qos,
-                                                self._on_joint_state)
+                                                self._on_joint_state,
+                                                get('input_batch_ms').value / 1000.0)
             self._joint_state_sub = self._input.subscription
         else:
             self._joint_state_sub = self.create_subscription(
@@ -161,9 +165,16 @@ class DqFkNode(Node):
         declare('max_publish_rate_hz', 0.0, 'at most this many updates per second; 0: all')
         declare('out_of_limits', 'warn',
                 'joint values outside their limits: warn | clamp | reject')
-        declare('qos_depth', 100, 'depth of the joint_states subscription', read_only=True)
+        declare('qos_depth', 1000,
+                f'depth of the joint_states subscription (1 to {QOS_DEPTH_MAX})',
+                read_only=True)
         declare('input_thread', True,
                 'take joint states in a thread of their own (true) or in the executor',
+                read_only=True)
+        declare('input_batch_ms', 2.0,
+                'with input_thread: after an update the input thread looks for the next '
+                'joint states this much later (ms; 0: at once): one wake-up serves several '
+                'messages above 1 / this rate, adding at most this much latency',
                 read_only=True)
         declare('joint_states_reliability', 'best_effort',
                 'best_effort (matches reliable and best-effort publishers) | reliable',
@@ -186,6 +197,15 @@ class DqFkNode(Node):
         if not (math.isfinite(frequency) and frequency >= 0.0):
             raise RobotDescriptionError(f'parameter publish_frequency must be a finite number '
                                         f'>= 0 (0: publish every update), got {frequency}')
+        depth = new.get('qos_depth', 1)
+        if not 1 <= depth <= QOS_DEPTH_MAX:
+            raise RobotDescriptionError(f'parameter qos_depth must be an integer from 1 to '
+                                        f'{QOS_DEPTH_MAX}, got {depth}')
+        batch_ms = new.get('input_batch_ms', 0.0)
+        if not (math.isfinite(batch_ms) and 0.0 <= batch_ms <= INPUT_BATCH_MS_MAX):
+            raise RobotDescriptionError(f'parameter input_batch_ms must be a number from 0 to '
+                                        f'{INPUT_BATCH_MS_MAX:g} (0: take each joint state at '
+                                        f'once), got {batch_ms}')
         prefix = new.get('frame_prefix', '')
         if prefix and (len(prefix) > 64 or not FRAME_ID.fullmatch(prefix + 'x')):
             raise RobotDescriptionError(

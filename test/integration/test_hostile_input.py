@@ -151,6 +151,12 @@ def test_a_flood_of_unknown_joint_names_keeps_memory_and_diagnostics_small(
     (['-p', 'publish_tf:=1'], "expecting type 'BOOL'"),
     (['-p', 'max_publish_rate_hz:=.nan'], 'max_publish_rate_hz must be a finite number'),
     (['-p', 'frame_prefix:=a b'], 'would not give valid frame ids'),
+    (['-p', 'qos_depth:=0'], 'qos_depth must be an integer from 1 to 100000, got 0'),
+    (['-p', 'qos_depth:=-1'], 'qos_depth must be an integer from 1 to 100000, got -1'),
+    (['-p', 'qos_depth:=100001'], 'qos_depth must be an integer from 1 to 100000, got 100001'),
+    (['-p', 'input_batch_ms:=-1.0'], 'input_batch_ms must be a number from 0 to 100'),
+    (['-p', 'input_batch_ms:=.nan'], 'input_batch_ms must be a number from 0 to 100'),
+    (['-p', 'input_batch_ms:=100.5'], 'input_batch_ms must be a number from 0 to 100'),
     (['--params-file', '/nonexistent/params.yaml'], '/nonexistent/params.yaml: no such file'),
 ])
 def test_bad_start_up_arguments_are_one_line_and_exit_1(processes, args, words):

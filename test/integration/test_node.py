@@ -1,6 +1,7 @@
 """dq_fk_node in-process with rclpy: a real publisher and subscribers over DDS (loopback)."""
 
 import math
+import os
 import sys
 import xml.etree.ElementTree as ET
 
@@ -232,3 +233,41 @@ def test_joint_states_lost_in_a_full_queue_are_counted(ros, input_thread):
     reports.clear()  # and the next report, with nothing lost since, is OK again
     assert ros.spin_until(lambda: reports, timeout_s=5)
     assert reports[0].status[0].level == DiagnosticStatus.OK
+
+
+def readme_parameter_rows(heading='### Parameters'):
+    """Return the README's parameter table under ``heading``: {name: (type, default)}."""
+    readme = open(os.path.join(os.path.dirname(__file__), '..', '..', 'README.md')).read()
+    table = readme.split(heading, 1)[1].split('\n\n', 2)[1]
+    rows = {}
+    for line in table.splitlines()[2:]:
+        name, kind, default = (cell.strip() for cell in line.strip('|').split('|')[:3])
+        rows[name.strip('`')] = (kind, default.split('`')[1])
+    return rows
+
+
+def test_the_readme_lists_every_parameter_with_its_type_and_default(ros):
+    """README "Parameters" is the node's: the same names, types and default values."""
+    node = ros.start_node()
+    rows = readme_parameter_rows()
+    rclpys_own = set(ros.probe._parameters)  # use_sim_time and the like: every node has them
+    declared = {name: node.get_parameter(name) for name in node._parameters
+                if name not in rclpys_own}
+    assert sorted(rows) == sorted(declared)
+    types = {Parameter.Type.STRING: 'string', Parameter.Type.DOUBLE: 'double',
+             Parameter.Type.BOOL: 'bool', Parameter.Type.INTEGER: 'int'}
+    for name, param in declared.items():
+        kind, default = rows[name]
+        assert kind == types[param.type_], name
+        if param.type_ == Parameter.Type.BOOL:
+            shown = 'true' if param.value else 'false'
+        else:
+            shown = str(param.value) if param.value != '' else "''"
+        assert default == shown, name
+
+
+@pytest.mark.parametrize('batch_ms, batch_s', [(None, 0.002), (0.0, 0.0), (5.0, 0.005)])
+def test_input_batch_ms_is_the_input_threads_window(ros, batch_ms, batch_s):
+    params = {} if batch_ms is None else {'input_batch_ms': batch_ms}
+    node = ros.start_node(**params)
+    assert node._input._batch_s == pytest.approx(batch_s)

@@ -1,5 +1,7 @@
 """dq_fk_ros.ros.raw_input: serialized messages in and out, over DDS (loopback)."""
 
+import os
+import sys
 import time
 
 from dq_fk_ros.ros.raw_input import raw_publisher, RawSubscriptionThread, take_queued
@@ -51,6 +53,48 @@ def test_bytes_published_raw_arrive_in_order_with_their_sequence_numbers(node):
         [f'message {k}' for k in range(50)]
     numbers = [info['publication_sequence_number'] for _, info in got]
     assert numbers == list(range(numbers[0], numbers[0] + 50))
+
+
+def test_a_batch_window_delays_the_next_look_and_loses_nothing(node):
+    """With ``batch_s`` the thread looks again only that long after handing messages over."""
+    pub = node.create_publisher(String, 'raw_io', QOS)
+    got = []
+    thread = RawSubscriptionThread(node, String, '/raw_io', QOS,
+                                   lambda raw, info: got.append((time.monotonic(), raw)),
+                                   batch_s=0.4)
+    try:
+        assert wait_until(lambda: pub.get_subscription_count() == 1)
+        time.sleep(0.5)  # the subscription's side of the match
+        pub.publish(String(data='first'))
+        assert wait_until(lambda: len(got) == 1)
+        sent = [time.monotonic()]
+        for k in range(5):  # while the thread sleeps: all handed over after its window
+            pub.publish(String(data=f'then {k}'))
+        assert wait_until(lambda: len(got) == 6)
+    finally:
+        thread.close()
+    assert [deserialize_message(raw, String).data for _, raw in got] == \
+        ['first'] + [f'then {k}' for k in range(5)]
+    # the window starts when 'first' was handed over, before the others were sent: they
+    # waited for the rest of it (0.4 s minus the time between the two)
+    assert got[1][0] - got[0][0] >= 0.4 - 0.02
+    assert got[1][0] > sent[0]
+
+
+def os_thread_names():
+    return [open(f'/proc/self/task/{task}/comm').read().strip()
+            for task in os.listdir('/proc/self/task')]
+
+
+@pytest.mark.skipif(not sys.platform.startswith('linux'), reason='thread names from /proc')
+def test_the_input_thread_carries_a_name_top_shows(node):
+    assert 'dq_fk input' not in os_thread_names()
+    thread = RawSubscriptionThread(node, String, '/raw_io', QOS, lambda raw, info: None)
+    try:
+        assert wait_until(lambda: 'dq_fk input' in os_thread_names())
+    finally:
+        thread.close()
+    assert wait_until(lambda: 'dq_fk input' not in os_thread_names())
 
 
 def test_take_queued_hands_over_what_is_queued_up_to_a_limit(node):
