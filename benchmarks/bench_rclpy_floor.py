@@ -1,11 +1,16 @@
 """
 rclpy's own floor: the CPU of a node whose raw JointState subscription does nothing.
 
-A separate process (this script with ``--node``) spins a node with one raw subscription
-(and, like dq_fk_node, two timers and the parameter services) under rclpy's
-SingleThreadedExecutor; bench_e2e's raw publisher sends it 1 kHz for 5 s. Prints the
-node's CPU share of a core and CPU microseconds per message while messages flow: what any
-rclpy node pays per wake-up before it does any work.
+A separate process (this script with ``--node MODE``) spins a node with two timers and the
+parameter services, as dq_fk_node, and one raw subscription that does nothing, taken:
+
+- ``executor``: by rclpy's SingleThreadedExecutor (a callback of the node);
+- ``thread``: by dq_fk_node's input thread (``dq_fk_ros.ros.raw_input``), at once;
+- ``thread-batch``: by that thread with dq_fk_node's default window (``input_batch_ms``).
+
+bench_e2e's raw publisher sends it 1 kHz for 5 s (node on CPU 1, publisher on CPU 0 where
+taskset exists). Prints per mode the node's CPU share of a core and CPU microseconds per
+message while messages flow: what any rclpy node pays per wake-up before it does any work.
 
 Run with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a private ROS_DOMAIN_ID
 (``make bench`` sets both): ``python benchmarks/bench_rclpy_floor.py``.
@@ -17,6 +22,9 @@ import subprocess
 import sys
 import time
 
+from bench_e2e import pinned  # a sibling script: python puts benchmarks/ on sys.path
+from dq_fk_ros.ros.node import INPUT_BATCH_MS_DEFAULT
+from dq_fk_ros.ros.raw_input import RawSubscriptionThread
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -24,20 +32,26 @@ from sensor_msgs.msg import JointState
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
+MODES = ('executor', 'thread', 'thread-batch')
+BATCH_S = INPUT_BATCH_MS_DEFAULT / 1000.0  # dq_fk_node's input_batch_ms
 
-def node_main():
+
+def node_main(mode):
     rclpy.init(args=['--ros-args', '--log-level', 'warn'])
     node = rclpy.create_node('dq_fk_bench_floor')
     count = [0]
     first = [None]  # time, CPU times and count at the first message
 
-    def on_message(_):
+    def on_message(*_):
         if first[0] is None:
             first[0] = (time.monotonic(), os.times(), count[0])
         count[0] += 1
-    node.create_subscription(JointState, 'joint_states', on_message,
-                             QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT),
-                             raw=True)
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+    if mode == 'executor':
+        node.create_subscription(JointState, 'joint_states', on_message, qos, raw=True)
+    else:
+        RawSubscriptionThread(node, JointState, '/joint_states', qos, on_message,
+                              BATCH_S if mode == 'thread-batch' else 0.0)
     node.create_timer(1.0, lambda: None)
     node.create_timer(0.5, lambda: None)
     try:
@@ -47,23 +61,25 @@ def node_main():
     t1, c1 = time.monotonic(), os.times()  # (0.3 s idle after the last message included)
     t0, c0, n0 = first[0]
     cpu = (c1.user + c1.system) - (c0.user + c0.system)
-    print(f'{count[0] - n0} messages in {t1 - t0:.1f} s: {100 * cpu / (t1 - t0):.0f} % of a '
-          f'core, {1e6 * cpu / max(count[0] - n0, 1):.0f} us of CPU per message')
+    print(f'| {mode} | {count[0] - n0} | {t1 - t0:.1f} | {100 * cpu / (t1 - t0):.1f} '
+          f'| {1e6 * cpu / max(count[0] - n0, 1):.0f} |', flush=True)
+    os._exit(0)  # the input thread's helper node needs no orderly teardown here
 
 
 def main():
-    if sys.argv[1:] == ['--node']:
-        return node_main()
-    node = subprocess.Popen([sys.executable, __file__, '--node'], stdout=subprocess.PIPE,
-                            text=True)
-    time.sleep(2.0)
-    subprocess.run([sys.executable, os.path.join(HERE, 'bench_e2e.py'), '--publish', '1000',
-                    '5000', '0'], check=True)
-    time.sleep(0.3)
-    node.send_signal(signal.SIGINT)
-    out, _ = node.communicate(timeout=10)
+    if sys.argv[1:2] == ['--node']:
+        return node_main(sys.argv[2])
     print('# rclpy floor: a node with one raw subscription that does nothing, at 1 kHz')
-    print(out.strip())
+    print('| taken by | messages | seconds | CPU % of a core | CPU us per message |')
+    print('|---|---|---|---|---|')
+    for mode in MODES:
+        node = subprocess.Popen(pinned([sys.executable, __file__, '--node', mode], 1))
+        time.sleep(2.0)
+        subprocess.run(pinned([sys.executable, os.path.join(HERE, 'bench_e2e.py'),
+                               '--publish', '1000', '5000', '0'], 0), check=True)
+        time.sleep(0.3)
+        node.send_signal(signal.SIGINT)
+        node.wait(timeout=10)
     return 0
 
 

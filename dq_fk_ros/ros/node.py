@@ -41,6 +41,7 @@ WARN_EVERY_S = 5.0
 READERS_REFRESH_S = 0.5
 DRAIN_MAX = 64  # queued joint states worked through per executor wake-up
 QOS_DEPTH_MAX = 100_000  # joint states the subscription may queue (a few MB at most)
+INPUT_BATCH_MS_DEFAULT = 2.0  # see README "How it keeps up"
 INPUT_BATCH_MS_MAX = 100.0
 
 
@@ -171,7 +172,7 @@ class DqFkNode(Node):
         declare('input_thread', True,
                 'take joint states in a thread of their own (true) or in the executor',
                 read_only=True)
-        declare('input_batch_ms', 2.0,
+        declare('input_batch_ms', INPUT_BATCH_MS_DEFAULT,
                 'with input_thread: after an update the input thread looks for the next '
                 'joint states this much later (ms; 0: at once): one wake-up serves several '
                 'messages above 1 / this rate, adding at most this much latency',
