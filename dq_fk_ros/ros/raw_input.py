@@ -81,10 +81,12 @@ class RawSubscriptionThread:
     :param owner: the node it serves: its context, and its name for the hidden helper node.
     :param topic: a fully resolved topic name (the owner's remappings already applied).
     :param batch_s: after handling what woke it, the thread looks for more messages only
-        this much later (seconds; 0: at once). A wake-up costs more than the work of a
-        message, and a woken CPU comes back with cold caches: above ``1 / batch_s``
-        messages a second one wake-up serves several, each still handed over in order.
-        Adds at most ``batch_s`` of latency; messages further apart wake it as they come.
+        this much later (seconds; 0: at once), and again every ``batch_s`` while each look
+        finds some; a look that finds none returns it to waiting. A wake-up costs more than
+        the work of a message, and a woken CPU comes back with cold caches: above
+        ``1 / batch_s`` messages a second one wake-up serves several, each still handed over
+        in order. Adds at most ``batch_s`` of latency; messages further apart than that are
+        taken as they come.
     """
 
     def __init__(self, owner, msg_type, topic, qos, callback, batch_s=0.0):
@@ -112,8 +114,12 @@ class RawSubscriptionThread:
                     wait_set.clear_entities()
                     wait_set.add_subscription(sub.handle)
                     wait_set.wait(int(WAKE_S * 1e9))
-                if take_queued(sub, self._callback, with_info=True) and batch_s:
+                taken = take_queued(sub, self._callback, with_info=True)
+                # while messages keep coming, look every batch_s without the wait set (its
+                # wake-up costs more than a look): back to waiting once a look finds none
+                while taken and batch_s and not self._stop:
                     time.sleep(batch_s)
+                    taken = take_queued(sub, self._callback, with_info=True)
         except Exception:  # shut down or destroyed under us: nothing more to take
             return
 
