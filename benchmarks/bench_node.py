@@ -8,7 +8,10 @@ reads are skipped: /tf alone goes out, and FK computes the transforms only), eve
 published with no subscriber (``publish_unread_topics``), and one subscriber on every topic,
 in this process (DDS delivers to it on the publishing thread, so part of its cost is counted
 here) and in another process (shared memory). Then the parts, and the message-object path
-the node used before (for comparison).
+the node used before (for comparison). Last, the default update right after 2 ms of sleep
+(what the input thread does between looks at 1 kHz: ``input_batch_ms``) and right after
+2 ms of busy waiting: a CPU that has been idle comes back slow (caches, clocks), and the
+difference between the two rows is that penalty, not the node's work.
 
 This machine's speed varies by up to 2x from minute to minute (a shared host): every case
 runs in ``--rounds`` rounds, and the table gives the median of the best round and of the
@@ -42,6 +45,8 @@ from tf2_msgs.msg import TFMessage
 
 LOG = ['--ros-args', '--log-level', 'warn']
 TARGETS = {'default': '<= 30 us', 'subscribed': '<= 40 us'}
+IDLE_GAP_S = 0.002  # the input thread's window between looks (input_batch_ms)
+IDLE_UPDATES = 800  # per round, for the two rows after a gap (800 x 2 ms: 1.6 s each)
 
 
 def subscribe_everything(node, frame_names):
@@ -106,11 +111,13 @@ def main(argv=None):
         qs = [np.array(m.position) for m in msgs]
         poses = [model.frame_poses(q) for q in qs]
 
-        def timed(label, fn, items):
+        def timed(label, fn, items, before=None):
             for item in items[:300]:  # warm up
                 fn(item)
             samples = []
             for item in items:
+                if before is not None:
+                    before()
                 start = time.perf_counter()
                 fn(item)
                 samples.append(time.perf_counter() - start)
@@ -177,6 +184,10 @@ def main(argv=None):
                 remote.send_signal(signal.SIGINT)
                 remote.wait(timeout=10)
             wait_for(lambda: readers(0), 'the remote probe did not go away')
+            node._refresh_readers()
+            idle_items = raws[:IDLE_UPDATES]
+            timed('after_sleep', update, idle_items, lambda: time.sleep(IDLE_GAP_S))
+            timed('after_busy', update, idle_items, lambda: _busy_wait(IDLE_GAP_S))
     finally:
         probe.destroy_node()
         node.destroy_node()
@@ -192,6 +203,8 @@ def main(argv=None):
             ('subscribed', 'update, a subscriber on every topic (same process)'),
             ('remote', 'update, a subscriber on every topic (another process)'),
             ('objects', '(before: message objects, same-process subscriber)'),
+            ('after_sleep', f'update, default, each after {IDLE_GAP_S * 1e3:g} ms of sleep'),
+            ('after_busy', f'update, default, each after {IDLE_GAP_S * 1e3:g} ms busy'),
             ('reference', '(machine speed: a fixed pure-Python loop)')]
     print(f'# dq_fk_node per-update cost, {model.name} ({model.dof} joints, {n_frames} frames, '
           f'{len(model.links)} of them links), {args.updates} updates x {args.rounds} rounds '
@@ -206,6 +219,13 @@ def main(argv=None):
         print(f'| {label:52s} | {best[0]:6.1f} | {middle[0]:6.1f} | {best[1]:6.1f} '
               f"| {targets.get(key, '')} |")
     return 0
+
+
+def _busy_wait(seconds):
+    """Keep the CPU busy for ``seconds`` without touching much memory."""
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        pass
 
 
 def _reference(_):
