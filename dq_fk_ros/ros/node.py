@@ -40,7 +40,7 @@ RELIABILITY = {'best_effort': ReliabilityPolicy.BEST_EFFORT,
 WARN_EVERY_S = 5.0
 READERS_REFRESH_S = 0.5
 DRAIN_MAX = 64  # queued joint states worked through per executor wake-up
-QOS_DEPTH_MAX = 100_000  # joint states the subscription may queue (a few MB at most)
+QOS_DEPTH_MAX = 100_000  # joint states the subscription may queue (tens of MB for an arm)
 INPUT_BATCH_MS_DEFAULT = 2.0  # see README "How it keeps up"
 INPUT_BATCH_MS_MAX = 100.0
 

@@ -83,7 +83,7 @@ class RawSubscriptionThread:
     :param batch_s: after handling what woke it, the thread looks for more messages only
         this much later (seconds; 0: at once), and again every ``batch_s`` while each look
         finds some; a look that finds none returns it to waiting. A wake-up costs more than
-        the work of a message, and a woken CPU comes back with cold caches: above
+        the work of a message, and a CPU back from idle runs slow for a while: above
         ``1 / batch_s`` messages a second one wake-up serves several, each still handed over
         in order. Adds at most ``batch_s`` of latency; messages further apart than that are
         taken as they come.

@@ -250,8 +250,8 @@ def test_the_readme_lists_every_parameter_with_its_type_and_default(ros):
     """README "Parameters" is the node's: the same names, types and default values."""
     node = ros.start_node()
     rows = readme_parameter_rows()
-    rclpys_own = set(ros.probe._parameters)  # use_sim_time and the like: every node has them
-    declared = {name: node.get_parameter(name) for name in node._parameters
+    rclpys_own = set(ros.probe.list_parameters([], 0).names)  # use_sim_time and the like
+    declared = {name: node.get_parameter(name) for name in node.list_parameters([], 0).names
                 if name not in rclpys_own}
     assert sorted(rows) == sorted(declared)
     types = {Parameter.Type.STRING: 'string', Parameter.Type.DOUBLE: 'double',
