@@ -271,3 +271,11 @@ def test_input_batch_ms_is_the_input_threads_window(ros, batch_ms, batch_s):
     params = {} if batch_ms is None else {'input_batch_ms': batch_ms}
     node = ros.start_node(**params)
     assert node._input._batch_s == pytest.approx(batch_s)
+
+
+@pytest.mark.parametrize('input_thread', [True, False])
+@pytest.mark.parametrize('depth', [None, 7])
+def test_qos_depth_is_the_joint_state_subscriptions_depth(ros, input_thread, depth):
+    params = {'input_thread': input_thread, **({} if depth is None else {'qos_depth': depth})}
+    node = ros.start_node(**params)
+    assert node._joint_state_sub.qos_profile.depth == (1000 if depth is None else depth)
