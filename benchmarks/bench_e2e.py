@@ -35,6 +35,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from dq_fk_ros.ros.executables import executable
+from dq_fk_ros.ros.raw_input import OS_THREAD_NAME
 import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -45,19 +46,29 @@ from tf2_msgs.msg import TFMessage
 
 LOG = ['--ros-args', '--log-level', 'warn']
 _STAMP = struct.Struct('<iI')
+INPUT_THREAD = OS_THREAD_NAME.decode()
+THREAD_GROUPS = ('input', 'dds', 'other')
+
+
+def _stat_fields(path):
+    """Return the fields of a Linux ``/proc/.../stat`` file after the command name."""
+    with open(path) as stream:
+        return stream.read().rsplit(')', 1)[1].split()
+
+
+def _cpu_of(fields):
+    """User + system CPU seconds of ``stat`` fields."""
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def major_faults(pid):
     """Major page faults of a process so far: pages read back from disk (Linux /proc)."""
-    with open(f'/proc/{pid}/stat') as stream:
-        return int(stream.read().rsplit(')', 1)[1].split()[9])
+    return int(_stat_fields(f'/proc/{pid}/stat')[9])
 
 
 def cpu_seconds(pid):
     """User + system CPU seconds of a process so far (Linux /proc)."""
-    with open(f'/proc/{pid}/stat') as stream:
-        fields = stream.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+    return _cpu_of(_stat_fields(f'/proc/{pid}/stat'))
 
 
 def thread_cpu_seconds(pid):
@@ -68,18 +79,17 @@ def thread_cpu_seconds(pid):
     names itself ``dq_fk input``, Fast DDS's threads start with ``dds.``; the rest is the
     executor's thread (timers, parameters) and what Python started.
     """
-    groups = {'input': 0.0, 'dds': 0.0, 'other': 0.0}
+    groups = dict.fromkeys(THREAD_GROUPS, 0.0)
     for task in os.listdir(f'/proc/{pid}/task'):
         try:
             with open(f'/proc/{pid}/task/{task}/comm') as stream:
                 name = stream.read().strip()
-            with open(f'/proc/{pid}/task/{task}/stat') as stream:
-                fields = stream.read().rsplit(')', 1)[1].split()
+            cpu = _cpu_of(_stat_fields(f'/proc/{pid}/task/{task}/stat'))
         except OSError:  # the thread ended meanwhile
             continue
-        group = 'input' if name == 'dq_fk input' else 'dds' if name.startswith('dds.') \
+        group = 'input' if name == INPUT_THREAD else 'dds' if name.startswith('dds.') \
             else 'other'
-        groups[group] += (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+        groups[group] += cpu
     return groups
 
 
@@ -209,8 +219,11 @@ def run_rate(rate_hz, seconds, reliable, extra=()):
                 break  # nothing more is coming
         faults = (major_faults(node_proc.pid) - faults_start[0],
                   major_faults(os.getpid()) - faults_start[1])
-        wall = last[0] - first[0] if first and last[0] > first[0] else float('nan')
-        cpu = {group: 100.0 * (last[1][group] - first[1][group]) / wall for group in first[1]}
+        if first is not None and last[0] > first[0]:
+            cpu = {group: 100.0 * (last[1][group] - first[1][group]) / (last[0] - first[0])
+                   for group in THREAD_GROUPS}
+        else:  # fewer than two arrivals apart in time: no CPU figure
+            cpu = dict.fromkeys(THREAD_GROUPS, float('nan'))
         published.clear()
         deadline = time.monotonic() + 3
         while not published and time.monotonic() < deadline:  # the node's own count

@@ -34,7 +34,7 @@ import time
 
 from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
 from dq_fk_ros.ros.conversions import joint_state_fields
-from dq_fk_ros.ros.node import DqFkNode
+from dq_fk_ros.ros.node import DqFkNode, INPUT_BATCH_MS_DEFAULT
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 import rclpy
@@ -45,7 +45,7 @@ from tf2_msgs.msg import TFMessage
 
 LOG = ['--ros-args', '--log-level', 'warn']
 TARGETS = {'default': '<= 30 us', 'subscribed': '<= 40 us'}
-IDLE_GAP_S = 0.002  # the input thread's window between looks (input_batch_ms)
+IDLE_GAP_S = INPUT_BATCH_MS_DEFAULT / 1000.0  # the input thread's window between looks
 IDLE_UPDATES = 800  # per round, for the two rows after a gap (800 x 2 ms: 1.6 s each)
 
 

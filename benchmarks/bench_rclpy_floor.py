@@ -104,10 +104,10 @@ def send_tf_main(count=3000, rate_hz=1000.0):
             time.sleep(delay)
         pub.publish(raw)
     c1, wakes = os.times(), voluntary_switches('dds.ev') - wakes
+    seconds = time.monotonic() - start
     cpu = (c1.user + c1.system) - (c0.user + c0.system)
-    print(f'| send /tf only | {count} | {time.monotonic() - start:.1f} '
-          f'| {100 * cpu / (time.monotonic() - start):.1f} | {1e6 * cpu / count:.0f} '
-          f'| {wakes / count:.1f} |', flush=True)
+    print(f'| send /tf only | {count} | {seconds:.1f} | {100 * cpu / seconds:.1f} '
+          f'| {1e6 * cpu / count:.0f} | {wakes / count:.1f} |', flush=True)
     os._exit(0)
 
 

@@ -63,11 +63,11 @@ class DqFkNode(Node):
         self._max_rate_hz = get('max_publish_rate_hz').value
         self._out_of_limits = get('out_of_limits').value
         self._frame_prefix = get('frame_prefix').value
-        depth = get('qos_depth').value
+        depth, batch_ms = get('qos_depth').value, get('input_batch_ms').value
         self._check_values({'out_of_limits': self._out_of_limits,
                             'max_publish_rate_hz': self._max_rate_hz,
                             'frame_prefix': self._frame_prefix, 'qos_depth': depth,
-                            'input_batch_ms': get('input_batch_ms').value})
+                            'input_batch_ms': batch_ms})
         reliability = get('joint_states_reliability').value
         self._check_choice('joint_states_reliability', reliability, tuple(RELIABILITY))
         self._robot_inputs = {name: get(name).value for name in ROBOT_PARAMETERS}
@@ -117,8 +117,7 @@ class DqFkNode(Node):
         if get('input_thread').value:
             self._input = RawSubscriptionThread(self, JointState,
                                                 self.resolve_topic_name('joint_states'), qos,
-                                                self._on_joint_state,
-                                                get('input_batch_ms').value / 1000.0)
+                                                self._on_joint_state, batch_ms / 1000.0)
             self._joint_state_sub = self._input.subscription
         else:
             self._joint_state_sub = self.create_subscription(
