@@ -27,14 +27,17 @@ planar joints, and mimics of joints that are not published, are skipped and name
 """
 
 from dataclasses import dataclass
+from functools import cached_property
 import json
 import math
 import os
 import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.robot_model import (
-    _listing, FRAME_ID, JOINT_NAME, MAX_FILE_BYTES, MAX_NAME_CHARS, MAX_ROWS,
-    parse_robot_description, RobotDescriptionError, rpy_matrix)
+    _listing, FRAME_ID, JOINT_NAME, MAX_FILE_BYTES, MAX_LENGTH_M, MAX_NAME_CHARS, MAX_ROWS,
+    parse_robot_description, RobotDescriptionError, rpy_matrix, yaml_number)
+from dq_fk_ros.description.xacro_sandbox import (
+    default_read_roots, expand_xacro, TIME_LIMIT_S, XacroRefused)
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
 import numpy as np
 
@@ -42,6 +45,7 @@ MOVING = ('revolute', 'continuous', 'prismatic')
 PARALLEL_TOL = 1e-9         # |sin| of the angle between two axes below which they are parallel
 LENGTH_TOL_M = 1e-9         # distances below which two points (or lines) meet
 NOISE = 1e-15               # numbers written as 0 (m or rad; far below the tests' 1e-12)
+MAX_URDF_ELEMENTS = 4096    # links, and joints, in one URDF (talos: 100; the checks are linear)
 
 
 @dataclass(frozen=True)
@@ -75,9 +79,20 @@ class UrdfTree:
         """Links that are no joint's child."""
         return [link for link in self.links if link not in self.joints]
 
+    @cached_property
+    def by_name(self):
+        """Return the joints by name."""
+        return {joint.name: joint for joint in self.joints.values()}
 
-def read_urdf_text(path):
-    """Return the URDF XML of a ``.urdf`` file, or of a ``.xacro`` file expanded by xacro."""
+
+def read_urdf_text(path, read_roots=None, time_limit_s=TIME_LIMIT_S, should_stop=None):
+    """
+    Return the URDF XML of a ``.urdf`` file, or of a ``.xacro`` file expanded by xacro.
+
+    xacro runs confined (:mod:`dq_fk_ros.description.xacro_sandbox`): it may read under
+    ``read_roots`` only (default: the file's package or folder and the ROS package paths)
+    and is stopped after ``time_limit_s``.
+    """
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise RobotDescriptionError(f'{path}: no such file' if not os.path.exists(path) else
@@ -87,21 +102,24 @@ def read_urdf_text(path):
                                     f'URDF is at most that big')
     if path.endswith('.xacro'):
         try:
-            import xacro
+            import xacro  # noqa: F401  (the child process imports it; say here if missing)
         except ImportError:
             raise RobotDescriptionError(f'{path}: a .xacro file needs the xacro package '
                                         f'(pip install xacro)') from None
+        roots = default_read_roots(path) if read_roots is None else read_roots
         try:
-            return xacro.process_file(path).toxml()
-        except Exception as exc:  # xacro raises many kinds; one line for the user
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else \
-                type(exc).__name__
-            raise RobotDescriptionError(f'{path}: xacro failed: {first}') from None
+            return expand_xacro(path, roots, time_limit_s, should_stop=should_stop)
+        except XacroRefused as exc:
+            raise RobotDescriptionError(f'{path}: xacro failed: {exc}',
+                                        f'{path}: xacro failed') from None
     try:
-        with open(path, encoding='utf-8') as stream:
-            return stream.read()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RobotDescriptionError(f'{path}: cannot be read ({exc})') from None
+        with open(path, 'rb') as stream:
+            data = stream.read(8 * MAX_FILE_BYTES + 1)
+        return data.decode('utf-8')
+    except UnicodeDecodeError:
+        raise RobotDescriptionError(f'{path}: not UTF-8 text') from None
+    except OSError as exc:
+        raise RobotDescriptionError(f'{path}: cannot be read ({exc.strerror})') from None
 
 
 def parse_urdf(text, source='<string>'):
@@ -118,42 +136,54 @@ def parse_urdf(text, source='<string>'):
         raise RobotDescriptionError(f'{source}: not valid XML: {exc}') from None
     if root.tag != 'robot':
         raise RobotDescriptionError(f'{source}: the root element is <{root.tag[:40]}>, not '
-                                    f'<robot>; is this a URDF?')
+                                    f'<robot>; is this a URDF?',
+                                    f'{source}: the root element is not <robot>; not a URDF')
     name = root.get('name', '') or 'robot'
-    links = []
-    for element in root.findall('link'):
+    link_elements, joint_elements = root.findall('link'), root.findall('joint')
+    for what, elements in (('<link>', link_elements), ('<joint>', joint_elements)):
+        if len(elements) > MAX_URDF_ELEMENTS:
+            raise RobotDescriptionError(f'{source}: {len(elements)} {what} elements; a URDF '
+                                        f'has at most {MAX_URDF_ELEMENTS}')
+    links, known = [], set()
+    for element in link_elements:
         link = element.get('name')
         if not link:
             raise RobotDescriptionError(f'{source}: a <link> without a name')
-        if link in links:
-            raise RobotDescriptionError(f'{source}: link {link!r} is defined twice')
+        if link in known:
+            raise RobotDescriptionError(f'{source}: link {link[:70]!r} is defined twice')
+        known.add(link)
         links.append(link)
     if not links:
         raise RobotDescriptionError(f'{source}: no <link> elements')
     joints, children, names = {}, {}, set()
-    for element in root.findall('joint'):
-        joint = _joint(element, source, set(links))
+    for element in joint_elements:
+        joint = _joint(element, source, known)
         if joint.name in names:
-            raise RobotDescriptionError(f'{source}: joint {joint.name!r} is defined twice')
+            raise RobotDescriptionError(f'{source}: joint {joint.name[:70]!r} is defined twice')
         names.add(joint.name)
         if joint.child in joints:
             raise RobotDescriptionError(
-                f'{source}: link {joint.child!r} is the child of two joints '
-                f'({joints[joint.child].name!r} and {joint.name!r}); a URDF is a tree')
+                f'{source}: link {joint.child[:70]!r} is the child of two joints '
+                f'({joints[joint.child].name[:70]!r} and {joint.name[:70]!r}); a URDF is a tree')
         joints[joint.child] = joint
         children.setdefault(joint.parent, []).append(joint)
     tree = UrdfTree(name, source, tuple(links), joints, children)
     if not tree.roots:
         raise RobotDescriptionError(f'{source}: every link has a parent joint: the joints '
                                     f'form a cycle')
-    for link in links:  # a cycle below a root: walking up never ends at a root
-        seen, at = set(), link
-        while at in joints:
-            if at in seen:
+    # a cycle below a root: walking up never ends at a root. Each link is walked once: a
+    # walk stops at a link already known to reach a root
+    reaches_root = set(tree.roots)
+    for link in links:
+        path, on_path, at = [], set(), link
+        while at not in reaches_root:
+            if at in on_path:
                 raise RobotDescriptionError(f'{source}: the joints form a cycle through link '
-                                            f'{at!r}')
-            seen.add(at)
+                                            f'{at[:70]!r}')
+            path.append(at)
+            on_path.add(at)
             at = joints[at].parent
+        reaches_root.update(path)
     return tree
 
 
@@ -180,6 +210,8 @@ def _joint(element, source, links):
     node = element.find('origin')
     if node is not None:
         xyz = _numbers(node.get('xyz', '0 0 0'), 3, f'{where}: origin xyz')
+        if max(abs(v) for v in xyz) > MAX_LENGTH_M:
+            raise RobotDescriptionError(f'{where}: origin xyz is beyond {MAX_LENGTH_M:g} m')
         rpy = _numbers(node.get('rpy', '0 0 0'), 3, f'{where}: origin rpy')
         origin[:3, :3] = rpy_matrix(*rpy)
         origin[:3, 3] = xyz
@@ -188,10 +220,11 @@ def _joint(element, source, links):
     if node is not None:
         axis = np.array(_numbers(node.get('xyz', '1 0 0'), 3, f'{where}: axis xyz'))
     if kind in MOVING:
-        norm = np.linalg.norm(axis)
-        if not norm > 1e-12:
+        largest = float(np.max(np.abs(axis)))
+        if not largest > 0.0 or not largest * np.linalg.norm(axis / largest) > 1e-12:
             raise RobotDescriptionError(f'{where}: axis xyz is all zeros')
-        axis = axis / norm
+        axis = axis / largest  # no overflow for huge components
+        axis = axis / np.linalg.norm(axis)
     lower = upper = velocity = None
     node = element.find('limit')
     if node is not None and kind in ('revolute', 'prismatic'):
@@ -526,10 +559,10 @@ def _walk_links(tree, base, path, pose, body, frames, dh_names, sources):
 
 def tree_joint(tree, name):
     """Return the joint called ``name`` (a :class:`UrdfJointSpec`)."""
-    for joint in tree.joints.values():
-        if joint.name == name:
-            return joint
-    raise RobotDescriptionError(f'{tree.source}: no joint {name!r}')
+    joint = tree.by_name.get(name)
+    if joint is None:
+        raise RobotDescriptionError(f'{tree.source}: no joint {name[:70]!r}')
+    return joint
 
 
 def _link_entry(joint, parent_link, pose, body, frames, dh_names, base, on_path):
@@ -616,7 +649,7 @@ def _value(value):
         return json.dumps(value)
     value = float(value)
     value = 0.0 if abs(value) < NOISE else value  # rounding noise (and -0.0) written as 0
-    return repr(value)
+    return yaml_number(value)
 
 
 def _comment(text):

@@ -9,10 +9,12 @@ and ``robot_from_urdf_text(xml)`` all give a :class:`LoadedRobot`; a URDF is con
 from dataclasses import dataclass, replace
 import os
 
-from dq_fk_ros.description.from_urdf import load_urdf_description, urdf_to_description
+from dq_fk_ros.description.from_urdf import (
+    load_urdf_description, read_urdf_text, urdf_to_description)
 from dq_fk_ros.description.robot_model import (
     load_robot_description, parse_robot_description, RobotDescriptionError, shipped_robot_path,
     shipped_robots)
+from dq_fk_ros.description.xacro_sandbox import package_root, TIME_LIMIT_S
 
 URDF_SUFFIXES = ('.urdf', '.xacro')
 
@@ -40,9 +42,9 @@ class LoadedRobot:
         if self.conversion is None:
             return ''
         c = self.conversion
-        skipped = (f'; skipped side branches: '
-                   f'{", ".join(f"{j.name} -> {j.child}" for j in c.skipped)}'
-                   if c.skipped else '')
+        skipped = ', '.join(f'{_printable(j.name, 80)} -> {_printable(j.child, 80)}'
+                            for j in c.skipped)
+        skipped = f'; skipped side branches: {skipped}' if skipped else ''
         optional = (f'; optional side-branch joints: {", ".join(self.model.optional_joints)}'
                     if self.model.optional_joints else '')
         return (f'converted URDF {self.model.source}: chain {c.base} -> {c.tip}, '
@@ -71,19 +73,72 @@ def is_urdf(path):
     return os.fspath(path).lower().endswith(URDF_SUFFIXES)
 
 
-def load_robot(spec, base=None, tip=None, convention='standard'):
+def shipped_robots_dir():
+    """Return the folder of the robots shipped with the package."""
+    return os.path.dirname(shipped_robot_path('rl15'))
+
+
+@dataclass(frozen=True)
+class FileAccess:
+    """
+    What a robot file named by someone else (a run-time parameter) may be.
+
+    ``dirs``: the folders it must lie in (after symlinks are resolved); ``xacro``: whether a
+    ``.xacro`` file (a program) may be expanded; ``time_limit_s``: the limit for that.
+    Errors under a :class:`FileAccess` quote no text of a file that is not a robot
+    description (:attr:`RobotDescriptionError.public`).
+    """
+
+    dirs: tuple
+    xacro: bool = False
+    time_limit_s: float = TIME_LIMIT_S
+    should_stop: object = None
+
+    def check(self, path):
+        """Return the real path of ``path`` if it lies in one of :attr:`dirs`; else raise."""
+        real = os.path.realpath(path)
+        for folder in self.dirs:
+            folder = os.path.realpath(folder)
+            if os.path.commonpath([real, folder]) == folder:
+                break
+        else:
+            raise RobotDescriptionError(f'{_printable(path)}: not in the folders robot files '
+                                        f'may be read from (robot_description_dirs: '
+                                        f'{", ".join(self.dirs)})')
+        if is_urdf(path) and path.lower().endswith('.xacro') and not self.xacro:
+            raise RobotDescriptionError(
+                f'{_printable(path)}: a .xacro file is a program and is not run when set at '
+                f"run time (the node's read-only parameter allow_runtime_xacro is off)")
+        return real
+
+
+def _printable(text, at_most=200):
+    return ''.join(c if c.isprintable() else '?' for c in str(text))[:at_most]
+
+
+def load_robot(spec, base=None, tip=None, convention='standard', access=None):
     """
     Load a robot from a DH YAML file, a URDF/xacro file or a shipped robot's name.
 
     :param base: for a URDF: the link the chain starts at (default: the root).
     :param tip: for a URDF: the link it ends at (default: see ``dq_fk from-urdf``).
     :param convention: for a URDF: the DH convention of the table made from it.
+    :param access: a :class:`FileAccess` for a file someone else named (default: the caller
+        chose the file: any path, xacro expanded with its package readable).
     Raises :class:`RobotDescriptionError` (one line) for anything unusable.
     """
     path = resolve_robot(spec)
+    roots = None
+    if access is not None:
+        path = access.check(path)
+        roots = [package_root(path)] + list(access.dirs)
     if not is_urdf(path):
         return LoadedRobot(load_robot_description(path))
-    conversion, text = load_urdf_description(path, base, tip, convention)
+    if access is None:
+        conversion, text = load_urdf_description(path, base, tip, convention)
+    else:
+        text = read_urdf_text(path, roots, access.time_limit_s, access.should_stop)
+        conversion = urdf_to_description(text, path, base, tip, convention)
     return LoadedRobot(replace(parse_robot_description(conversion.text, path), urdf=text),
                        conversion)
 
@@ -98,4 +153,5 @@ def robot_from_urdf_text(text, source='robot_description', base=None, tip=None,
                        conversion)
 
 
-__all__ = ['is_urdf', 'load_robot', 'LoadedRobot', 'resolve_robot', 'robot_from_urdf_text']
+__all__ = ['FileAccess', 'is_urdf', 'load_robot', 'LoadedRobot', 'resolve_robot',
+           'robot_from_urdf_text', 'shipped_robots_dir']

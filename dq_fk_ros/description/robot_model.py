@@ -49,6 +49,7 @@ MAX_NAME_CHARS = 128            # frame, joint and robot names (topic names stay
 MAX_DESCRIPTION_CHARS = 4096
 MAX_FILE_BYTES = 1 << 20        # a robot description file is at most 1 MiB ...
 MAX_ROWS = 256                  # ... and at most this many DH rows
+MAX_LENGTH_M = 1e6              # offsets (xyz, d, a) of at most 1000 km: no overflow in FK
 
 TOP_FIELDS = ('robot', 'description', 'convention', 'units', 'fixed_frame', 'base', 'chain',
               'tool', 'links', 'end_effector')
@@ -63,7 +64,18 @@ MIMIC_FIELDS = ('joint', 'multiplier', 'offset')
 
 
 class RobotDescriptionError(ValueError):
-    """A robot description file that cannot be used; the message is one line for the user."""
+    """
+    A robot description file that cannot be used; the message is one line for the user.
+
+    ``public`` is the same without any text of the file: what may be told to someone who
+    only named the file (a remote parameter client). It differs from the message only where
+    the file did not parse as a robot description (it may be any file, a secret one).
+    """
+
+    def __init__(self, message, public=None):
+        """Take the message for the user, and the one without file text if it differs."""
+        super().__init__(message)
+        self.public = message if public is None else public
 
 
 @dataclass(frozen=True)
@@ -381,6 +393,26 @@ def _construct_mapping(loader, node, deep=False):
 
 _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
                                  _construct_mapping)
+# YAML 1.2 writes exponents as 5e-05 or 1E16 (no point, or no sign): YAML 1.1, PyYAML's
+# dialect, reads those as strings; robot files take them as numbers
+_UniqueKeyLoader.add_implicit_resolver(
+    'tag:yaml.org,2002:float',
+    re.compile(r'^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$'),
+    list('-+0123456789.'))
+
+
+def yaml_number(value):
+    """
+    Write a finite float so that YAML 1.1 and 1.2 both read it back as the same float.
+
+    ``repr`` gives the shortest text that reads back exactly; YAML 1.1 also wants a point
+    in the mantissa and a sign in the exponent (``5e-05`` -> ``5.0e-05``).
+    """
+    text = repr(float(value))
+    mantissa, e, exponent = text.partition('e')
+    if e and '.' not in mantissa:
+        text = f'{mantissa}.0e{exponent}'
+    return text
 
 
 def load_robot_description(path):
@@ -397,8 +429,12 @@ def load_robot_description(path):
     except IsADirectoryError:
         raise RobotDescriptionError(f'{path}: is a directory, not a robot description file') \
             from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise RobotDescriptionError(f'{path}: cannot be read ({exc})') from None
+    except UnicodeDecodeError as exc:
+        raise RobotDescriptionError(f'{path}: cannot be read ({exc})',
+                                    f'{path}: not UTF-8 text') from None
+    except (OSError, ValueError) as exc:
+        raise RobotDescriptionError(f'{path}: cannot be read ({exc})',
+                                    f'{path}: cannot be read') from None
     return parse_robot_description(text, path)
 
 
@@ -418,18 +454,35 @@ def parse_robot_description(text, source='<string>'):
         mark = getattr(exc, 'problem_mark', None)
         where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
         problem = getattr(exc, 'problem', None) or str(exc).splitlines()[0]
-        raise RobotDescriptionError(f'{source}: not valid YAML{where}: {problem}') from None
+        raise RobotDescriptionError(f'{source}: not valid YAML{where}: {problem}',
+                                    f'{source}: not valid YAML{where}') from None
     except RecursionError:
         raise RobotDescriptionError(f'{source}: YAML nested too deeply to be a robot '
                                     f'description') from None
     except (ValueError, TypeError, OverflowError) as exc:  # e.g. a 5000-digit integer
         problem = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise RobotDescriptionError(f'{source}: not valid YAML: {problem}') from None
+        raise RobotDescriptionError(f'{source}: not valid YAML: {problem}',
+                                    f'{source}: not valid YAML') from None
+    if not _looks_like_description(data):
+        public = (f'{source}: not a robot description (a YAML mapping with the fields robot, '
+                  f'base and chain, and no others than {", ".join(TOP_FIELDS)})')
+        try:
+            _Parser(source).robot(data)
+        except RecursionError:
+            raise RobotDescriptionError(public) from None
+        except RobotDescriptionError as exc:
+            raise RobotDescriptionError(str(exc), public) from None
     try:
         return _Parser(source).robot(data)
     except RecursionError:  # a value nested so deeply that describing it recurses
         raise RobotDescriptionError(f'{source}: YAML nested too deeply to be a robot '
                                     f'description') from None
+
+
+def _looks_like_description(data):
+    """Say whether YAML data is a robot description at its top: then errors may quote it."""
+    return isinstance(data, dict) and all(isinstance(k, str) and k in TOP_FIELDS for k in data) \
+        and all(k in data for k in ('robot', 'base', 'chain'))
 
 
 class _Parser:
@@ -469,6 +522,14 @@ class _Parser:
             self.fail(where, f'field {field!r} must be a finite number, got '
                       f'{_describe(value)}')
         return scaled
+
+    def offset(self, value, where, field):
+        """Return a length given in the file's unit in metres (at most :data:`MAX_LENGTH_M`)."""
+        metres = self.number(value, where, field, self.length)
+        if abs(metres) > MAX_LENGTH_M:
+            self.fail(where, f'field {field!r} is {metres:g} m; offsets are at most '
+                      f'{MAX_LENGTH_M:g} m')
+        return metres
 
     def vector(self, value, where, field, size, unit=1.0):
         if not isinstance(value, list) or len(value) != size:
@@ -624,8 +685,10 @@ class _Parser:
             self.fail(where, f"a {kind} link takes either 'joint' (a joint of its own) or "
                       f"'mimic' (moving with another joint), not {given}")
         axis = np.array(self.vector(row.get('axis', [0, 0, 1]), where, 'axis', 3))
-        if not np.linalg.norm(axis) > 1e-9:
+        largest = float(np.max(np.abs(axis)))
+        if not largest > 0.0 or not np.linalg.norm(axis / largest) * largest > 1e-9:
             self.fail(where, "field 'axis' must not be all zeros")
+        axis = axis / largest  # no overflow for huge components
         axis = tuple((axis / np.linalg.norm(axis)).tolist())
         unit = self.length if kind == 'prismatic' else self.angle
         if 'joint' in row:
@@ -650,7 +713,9 @@ class _Parser:
     def transform(self, value, where):
         value = self.mapping(value, where, TRANSFORM_FIELDS, required=('frame',))
         frame = self.frame(value['frame'], where)
-        xyz = self.vector(value.get('xyz', [0, 0, 0]), where, 'xyz', 3, self.length)
+        xyz = value.get('xyz', [0, 0, 0])
+        self.vector(xyz, where, 'xyz', 3)
+        xyz = [self.offset(v, where, f'xyz[{k}]') for k, v in enumerate(xyz)]
         if 'rpy' in value and 'quaternion' in value:
             self.fail(where, "give either 'rpy' or 'quaternion', not both")
         if 'quaternion' in value:
@@ -677,8 +742,8 @@ class _Parser:
         kind = self.choice(row.get('type', 'revolute'), where, 'type', ROW_TYPES)
         out = {'frame': frame, 'type': kind, 'where': where, 'velocity': {},
                'theta': self.number(row['theta'], where, 'theta', self.angle),
-               'd': self.number(row['d'], where, 'd', self.length),
-               'a': self.number(row['a'], where, 'a', self.length),
+               'd': self.offset(row['d'], where, 'd'),
+               'a': self.offset(row['a'], where, 'a'),
                'alpha': self.number(row['alpha'], where, 'alpha', self.angle)}
         scale = self.number(row.get('scale', 1.0), where, 'scale')
         if scale == 0.0:

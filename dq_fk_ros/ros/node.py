@@ -7,13 +7,15 @@ messages. See the README for topics and parameters.
 """
 
 import math
+import os
 import sys
 import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from dq_fk_ros.description.loading import load_robot, robot_from_urdf_text
-from dq_fk_ros.description.robot_model import FRAME_ID, RobotDescriptionError
+from dq_fk_ros.description.loading import (
+    FileAccess, load_robot, resolve_robot, robot_from_urdf_text, shipped_robots_dir)
+from dq_fk_ros.description.robot_model import FRAME_ID, MAX_NAME_CHARS, RobotDescriptionError
 from dq_fk_ros.description.urdf import description_urdf
 from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
@@ -27,6 +29,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -43,6 +46,9 @@ DRAIN_MAX = 64  # queued joint states worked through per executor wake-up
 QOS_DEPTH_MAX = 100_000  # joint states the subscription may queue (tens of MB for an arm)
 INPUT_BATCH_MS_DEFAULT = 2.0  # see README "How it keeps up"
 INPUT_BATCH_MS_MAX = 100.0
+MIN_RATE_HZ = 0.01  # publish_frequency, max_publish_rate_hz: 0 (off) or at least this
+MAX_RATE_HZ = 1e6
+RUN_TIME_XACRO_LIMIT_S = 5.0  # a xacro set at run time (allow_runtime_xacro) is stopped then
 
 
 class DqFkNode(Node):
@@ -71,6 +77,9 @@ class DqFkNode(Node):
         reliability = get('joint_states_reliability').value
         self._check_choice('joint_states_reliability', reliability, tuple(RELIABILITY))
         self._robot_inputs = {name: get(name).value for name in ROBOT_PARAMETERS}
+        self._check_values(self._robot_inputs)
+        self._access = self._file_access(get('robot_description_dirs').value,
+                                         get('allow_runtime_xacro').value)
         model = self._load_robot(self._robot_inputs)
         self._publish_frequency = get('publish_frequency').value
         self._ignore_timestamp = get('ignore_timestamp').value
@@ -165,6 +174,15 @@ class DqFkNode(Node):
         declare('max_publish_rate_hz', 0.0, 'at most this many updates per second; 0: all')
         declare('out_of_limits', 'warn',
                 'joint values outside their limits: warn | clamp | reject')
+        self.declare_parameter('robot_description_dirs', Parameter.Type.STRING_ARRAY,
+                               ParameterDescriptor(
+                                   description='folders robot_description_file may name at run '
+                                   "time (symlinks resolved); default: the start-up file's "
+                                   'folder. The shipped robots are always allowed',
+                                   read_only=True))
+        declare('allow_runtime_xacro', False,
+                'expand a .xacro file set as robot_description_file at run time (a xacro file '
+                'is a program; any peer on the domain may set parameters)', read_only=True)
         declare('qos_depth', 1000,
                 f'depth of the joint_states subscription (1 to {QOS_DEPTH_MAX})',
                 read_only=True)
@@ -189,14 +207,19 @@ class DqFkNode(Node):
         """Raise RobotDescriptionError (one line) for a value the node cannot use."""
         if 'out_of_limits' in new:
             self._check_choice('out_of_limits', new['out_of_limits'], OUT_OF_LIMITS_POLICIES)
-        rate = new.get('max_publish_rate_hz', 0.0)
-        if not (math.isfinite(rate) and rate >= 0.0):
-            raise RobotDescriptionError(f'parameter max_publish_rate_hz must be a finite number '
-                                        f'>= 0 (0: publish every update), got {rate}')
-        frequency = new.get('publish_frequency', 0.0)
-        if not (math.isfinite(frequency) and frequency >= 0.0):
-            raise RobotDescriptionError(f'parameter publish_frequency must be a finite number '
-                                        f'>= 0 (0: publish every update), got {frequency}')
+        for name in ('max_publish_rate_hz', 'publish_frequency'):
+            rate = new.get(name, 0.0)
+            if not (rate == 0.0 or MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
+                raise RobotDescriptionError(f'parameter {name} must be 0 (publish every update) '
+                                            f'or from {MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}, got '
+                                            f'{rate:g}')
+        for name in ('urdf_base_link', 'urdf_tip_link'):
+            link = new.get(name, '')
+            if link and (len(link) > MAX_NAME_CHARS or not FRAME_ID.fullmatch(link)):
+                raise RobotDescriptionError(
+                    f'parameter {name} {_printable(link[:70])!r} is not a link name this node '
+                    f'can publish (letters, digits, underscores, inner slashes; at most '
+                    f'{MAX_NAME_CHARS})')
         depth = new.get('qos_depth', 1)
         if not 1 <= depth <= QOS_DEPTH_MAX:
             raise RobotDescriptionError(f'parameter qos_depth must be an integer from 1 to '
@@ -212,54 +235,94 @@ class DqFkNode(Node):
                 f'parameter frame_prefix {prefix[:70]!r} would not give valid frame ids: use '
                 f'letters, digits, underscores and inner slashes, e.g. robot1/ (at most 64)')
 
-    def _load_robot(self, inputs):
-        """Load the robot the parameters name (RobotDescriptionError: one line)."""
+    def _file_access(self, dirs, xacro):
+        """
+        Return what a robot file set at run time may be (a :class:`FileAccess`).
+
+        Under ``dirs`` (default: the start-up file's folder) or the shipped robots; a xacro
+        only if ``xacro``.
+        """
+        if not dirs:
+            dirs = []
+            start = self._robot_inputs['robot_description_file']
+            if start and not self._robot_inputs['robot_description'].strip():
+                dirs.append(os.path.dirname(os.path.realpath(resolve_robot(start))))
+        for folder in dirs:
+            if not os.path.isdir(folder):
+                raise RobotDescriptionError(f'parameter robot_description_dirs: {folder!r} is '
+                                            f'not a folder')
+        dirs = [os.path.realpath(d) for d in dirs] + [shipped_robots_dir()]
+        return FileAccess(tuple(dict.fromkeys(dirs)), xacro, RUN_TIME_XACRO_LIMIT_S,
+                          lambda: not self.context.ok())
+
+    def _load_robot(self, inputs, access=None):
+        """
+        Load the robot the parameters name (RobotDescriptionError: one line).
+
+        :param access: for a file named at run time: where it may be (see FileAccess).
+        """
         base = inputs['urdf_base_link'] or None
         tip = inputs['urdf_tip_link'] or None
         if inputs['robot_description'].strip():
             robot = robot_from_urdf_text(inputs['robot_description'],
                                          'parameter robot_description', base, tip)
         else:
-            robot = load_robot(inputs['robot_description_file'] or 'rl15', base, tip)
+            robot = load_robot(inputs['robot_description_file'] or 'rl15', base, tip,
+                               access=access)
         if robot.conversion is not None:
             self.get_logger().info(robot.summary())
         return robot.model
 
     def _on_set_parameters(self, params):
-        """Validate and apply a parameter change, under the node's lock."""
+        """
+        Validate and apply a parameter change.
+
+        A new robot is loaded first, outside the node's lock (the input thread keeps
+        publishing the robot it has meanwhile: a xacro may take seconds), then the change is
+        applied under the lock. A refusal's reason never quotes a file that is not a robot
+        description (a peer may name any file).
+        """
+        new = {p.name: p.value for p in params}
+        model = None
+        try:
+            self._check_values(new)
+            if any(name in new for name in ROBOT_PARAMETERS):
+                inputs = dict(self._robot_inputs)
+                inputs.update({k: v for k, v in new.items() if k in ROBOT_PARAMETERS})
+                model = self._load_robot(inputs, self._access)
+        except Exception as exc:  # nothing a user sets may stop the node
+            return self._refuse(exc)
         with self._lock:
-            return self._set_parameters(params)
+            return self._set_parameters(new, model)
+
+    def _refuse(self, exc):
+        """Refuse a parameter change for ``exc``: one line, in the log and the reply."""
+        if isinstance(exc, RobotDescriptionError):
+            reason = _printable(exc.public)
+        else:  # its text may come from a file: say only what kind of failure it was
+            reason = f'{type(exc).__name__} while applying the change'
+        self.get_logger().error(f'parameter change refused: {reason}')
+        return SetParametersResult(successful=False, reason=reason)
 
     def _after_set_parameters(self, params):
         """Note a change of ``use_sim_time`` (rclpy's time source has applied it by now)."""
         if any(p.name == 'use_sim_time' for p in params):
             self._sim_time = self.get_clock().ros_time_is_active
 
-    def _set_parameters(self, params):
+    def _set_parameters(self, new, model):
         """
-        Validate every change first; apply them only if all are valid.
+        Apply checked changes ``new`` and a robot ``model`` loaded for them (or None).
 
-        Any failure while loading a new robot or building its publishers refuses the whole
-        change with the reason (one line); the node keeps the robot it has.
+        Any failure while building the new publishers refuses the whole change with the
+        reason (one line); the node keeps the robot it has.
         """
-        new = {p.name: p.value for p in params}
-        model = outputs = None
+        outputs = None
         try:
-            self._check_values(new)
-            if any(name in new for name in ROBOT_PARAMETERS):
-                inputs = dict(self._robot_inputs)
-                inputs.update({k: v for k, v in new.items() if k in ROBOT_PARAMETERS})
-                model = self._load_robot(inputs)
             if model is not None or 'frame_prefix' in new:
                 outputs = self._build_outputs(model or self._model,
                                               new.get('frame_prefix', self._frame_prefix))
         except Exception as exc:  # nothing a user sets may stop the node
-            reason = str(exc).strip().splitlines()[0] if str(exc).strip() else \
-                type(exc).__name__
-            if not isinstance(exc, RobotDescriptionError):
-                reason = f'{type(exc).__name__}: {reason}'
-            self.get_logger().error(f'parameter change refused: {reason}')
-            return SetParametersResult(successful=False, reason=reason)
+            return self._refuse(exc)
         resend_static = new.get('publish_tf', self._publish_tf) and not self._publish_tf
         resend_description = new.get('publish_robot_description', self._publish_description) \
             and not self._publish_description
@@ -579,6 +642,11 @@ class DqFkNode(Node):
             msg.status = [self.diagnostics()]
             self._lost_reported = self._gaps.lost
         self._diag_pub.publish(msg)
+
+
+def _printable(text):
+    """``text`` with every character that would break a log line shown as ``?``."""
+    return ''.join(c if c.isprintable() else '?' for c in str(text))
 
 
 def main(args=None):
