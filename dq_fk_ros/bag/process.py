@@ -209,6 +209,45 @@ def check_output_paths(in_path, out_path, csv_path, overwrite, csv_only):
             raise BagError(f'--csv {path} is a directory; give a file name')
         if os.path.lexists(path) and not overwrite:
             raise BagError(f'{path} exists; use --overwrite to replace it')
+    # what the input really is: its files after symlinks, and their inodes (hard links)
+    reals, inodes = _files_of(in_path, follow=True)
+    for what, path in outputs:
+        real = os.path.realpath(path)
+        inside = [r for r in reals if r == real or _inside(r, real)]
+        if inside:
+            raise BagError(f'{what} {path} holds {inside[0]}, a file the input bag {in_path} '
+                           f'reads (through a symbolic link); choose another path')
+        _, theirs = _files_of(path, follow=False)
+        if theirs & inodes:
+            raise BagError(f'{what} {path} is (or holds) a hard link to a file of the input '
+                           f'bag {in_path}; choose another path')
+
+
+def _files_of(path, follow):
+    """
+    Return ``(real paths, {(device, inode)})`` of the files at or under ``path``.
+
+    ``follow``: symbolic links count as the files they point to (what reading follows);
+    else as themselves (what removing or writing touches).
+    """
+    path = os.fspath(path)
+    if not os.path.lexists(path):
+        return set(), set()
+    names = [path]
+    if os.path.isdir(path) and (follow or not os.path.islink(path)):
+        names = []
+        for folder, dirs, files in os.walk(path, followlinks=False):
+            names += [os.path.join(folder, n) for n in files + dirs
+                      if n in files or os.path.islink(os.path.join(folder, n))]
+    reals, inodes = set(), set()
+    for name in names:
+        try:
+            st = os.stat(name) if follow else os.lstat(name)
+        except OSError:  # a dangling link: nothing to protect or clobber
+            continue
+        reals.add(os.path.realpath(name) if follow else os.path.abspath(name))
+        inodes.add((st.st_dev, st.st_ino))
+    return reals, inodes
 
 
 def _inside(path, folder):
@@ -336,6 +375,17 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
     ids = {c.id for c in conns}
     meter = Progress(sum(c.msgcount for c in conns), 'dq_fk_bag process', enabled=progress)
     csv = open(csv_path, 'w', encoding='utf-8') if csv_path else None
+    try:
+        return _read_and_write(reader, conns, model, outputs, csv, copy_input, chunk, in_path,
+                               merger, cache, ids, meter)
+    finally:
+        if csv:
+            csv.close()
+
+
+def _read_and_write(reader, conns, model, outputs, csv, copy_input, chunk, in_path, merger,
+                    cache, ids, meter):
+    """The loop of :func:`_process_messages`, writing the CSV to the open file ``csv``."""
     if csv:
         csv.write('stamp_ns,x,y,z,qx,qy,qz,qw\n')
     raws, log_times = [], []
@@ -403,8 +453,6 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
             meter.update(seen)
     flush()
     meter.update(seen, force=True)
-    if csv:
-        csv.close()
     counts = merger.counts
     rejected = {k[len('rejected_'):]: v for k, v in counts.items()
                 if k.startswith('rejected_') and v}

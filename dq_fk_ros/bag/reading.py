@@ -33,7 +33,9 @@ def open_reader(path):
     (None where there is none), for when rosbags stops inside a damaged chunk.
     Raises :class:`BagError`.
     """
+    from dq_fk_ros.bag.mcap_stream import bound_rosbags_decompression
     from rosbags.rosbag2 import Reader
+    bound_rosbags_decompression()
     path = os.fspath(path)
     if not os.path.lexists(path):
         raise BagError(f'{path}: no such bag')

@@ -23,6 +23,9 @@ import numpy as np
 CDR_LE_HEADER = b'\x00\x01\x00\x00'
 _U32 = struct.Struct('<I')
 _STAMP = struct.Struct('<iI')
+# a JointState naming more joints is refused (malformed_cdr): a robot has far fewer, and
+# what a message names is cached and listed (see README "Security")
+MAX_JOINT_STATE_NAMES = 4096
 
 
 class CdrError(ValueError):
@@ -99,6 +102,8 @@ def _joint_state_spans(raw, with_counts=False):
         cur.pos = 12
         cur.skip_string()  # header.frame_id
         count = cur.u32()
+        if count > MAX_JOINT_STATE_NAMES:
+            raise CdrError(f'{count} joint names; at most {MAX_JOINT_STATE_NAMES} are taken')
         start = cur.pos
         for _ in range(count):
             cur.skip_string()

@@ -29,7 +29,6 @@ from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -78,8 +77,8 @@ class DqFkNode(Node):
         self._check_choice('joint_states_reliability', reliability, tuple(RELIABILITY))
         self._robot_inputs = {name: get(name).value for name in ROBOT_PARAMETERS}
         self._check_values(self._robot_inputs)
-        self._access = self._file_access(get('robot_description_dirs').value,
-                                         get('allow_runtime_xacro').value)
+        dirs = [d for d in get('robot_description_dirs').value.split(os.pathsep) if d]
+        self._access = self._file_access(dirs, get('allow_runtime_xacro').value)
         model = self._load_robot(self._robot_inputs)
         self._publish_frequency = get('publish_frequency').value
         self._ignore_timestamp = get('ignore_timestamp').value
@@ -126,7 +125,8 @@ class DqFkNode(Node):
         if get('input_thread').value:
             self._input = RawSubscriptionThread(self, JointState,
                                                 self.resolve_topic_name('joint_states'), qos,
-                                                self._on_joint_state, batch_ms / 1000.0)
+                                                self._on_joint_state, batch_ms / 1000.0,
+                                                self._on_input_error)
             self._joint_state_sub = self._input.subscription
         else:
             self._joint_state_sub = self.create_subscription(
@@ -174,12 +174,10 @@ class DqFkNode(Node):
         declare('max_publish_rate_hz', 0.0, 'at most this many updates per second; 0: all')
         declare('out_of_limits', 'warn',
                 'joint values outside their limits: warn | clamp | reject')
-        self.declare_parameter('robot_description_dirs', Parameter.Type.STRING_ARRAY,
-                               ParameterDescriptor(
-                                   description='folders robot_description_file may name at run '
-                                   "time (symlinks resolved); default: the start-up file's "
-                                   'folder. The shipped robots are always allowed',
-                                   read_only=True))
+        declare('robot_description_dirs', '',
+                'folders (separated by colons, as ROS_PACKAGE_PATH) that robot_description_file '
+                "may name at run time, symlinks resolved; empty: the start-up file's folder. "
+                'The shipped robots are always allowed', read_only=True)
         declare('allow_runtime_xacro', False,
                 'expand a .xacro file set as robot_description_file at run time (a xacro file '
                 'is a program; any peer on the domain may set parameters)', read_only=True)
@@ -440,6 +438,11 @@ class DqFkNode(Node):
         except Exception:  # destroyed meanwhile (a shutdown): the executor decides
             return
 
+    def _on_input_error(self, exc):
+        """Log an exception the input thread caught (it counts it and goes on)."""
+        self.get_logger().error(f'input thread: joint state not processed: {exc!r}',
+                                throttle_duration_sec=WARN_EVERY_S)
+
     def _on_raw(self, raw):
         try:
             try:
@@ -608,6 +611,7 @@ class DqFkNode(Node):
                   'unknown_names_unlisted': counts['unknown_names_unlisted'],
                   'velocities_non_finite': counts['velocities_non_finite'],
                   'updates_lost': self._gaps.lost,
+                  'input_errors': self._input.errors if self._input is not None else 0,
                   'last_update_age_s': age}
         for key in sorted(counts):
             if key.startswith('rejected_'):

@@ -80,6 +80,8 @@ class RawSubscriptionThread:
 
     :param owner: the node it serves: its context, and its name for the hidden helper node.
     :param topic: a fully resolved topic name (the owner's remappings already applied).
+    :param on_error: called with the exception when ``callback`` raises one; the thread
+        counts it (:attr:`errors`) and goes on taking messages.
     :param batch_s: after handling what woke it, the thread looks for more messages only
         this much later (seconds; 0: at once), and again every ``batch_s`` while each look
         finds some; a look that finds none returns it to waiting. A wake-up costs more than
@@ -89,7 +91,7 @@ class RawSubscriptionThread:
         taken as they come.
     """
 
-    def __init__(self, owner, msg_type, topic, qos, callback, batch_s=0.0):
+    def __init__(self, owner, msg_type, topic, qos, callback, batch_s=0.0, on_error=None):
         """Create the helper node and its raw subscription, and start the thread."""
         self._context = owner.context
         self._node = rclpy.create_node(f'_{owner.get_name()}_input', context=self._context,
@@ -98,11 +100,25 @@ class RawSubscriptionThread:
         self.subscription = self._node.create_subscription(
             msg_type, topic, lambda _: None, qos, raw=True)
         self._callback = callback
+        self._on_error = on_error
+        self.errors = 0
         self._batch_s = batch_s
         self._stop = False
         self._thread = threading.Thread(target=self._run, name=f'{owner.get_name()} input',
                                         daemon=True)
         self._thread.start()
+
+    def _call(self, raw, info):
+        """Hand one message to the callback; an exception is counted and reported, not fatal."""
+        try:
+            self._callback(raw, info)
+        except Exception as exc:
+            self.errors += 1
+            if self._on_error is not None:
+                try:
+                    self._on_error(exc)
+                except Exception:  # a report that fails must not stop the thread either
+                    pass
 
     def _run(self):
         sub, context, batch_s = self.subscription, self._context, self._batch_s
@@ -114,13 +130,13 @@ class RawSubscriptionThread:
                     wait_set.clear_entities()
                     wait_set.add_subscription(sub.handle)
                     wait_set.wait(int(WAKE_S * 1e9))
-                taken = take_queued(sub, self._callback, with_info=True)
+                taken = take_queued(sub, self._call, with_info=True)
                 # while messages keep coming, look every batch_s without the wait set (its
                 # wake-up costs more than a look): back to waiting once a look finds none
                 while taken and batch_s and not self._stop:
                     time.sleep(batch_s)
-                    taken = take_queued(sub, self._callback, with_info=True)
-        except Exception:  # shut down or destroyed under us: nothing more to take
+                    taken = take_queued(sub, self._call, with_info=True)
+        except Exception:  # waiting or taking failed: shut down or destroyed under us
             return
 
     def close(self):

@@ -66,7 +66,7 @@ def ee_position(poses):
 
 def test_the_running_node_refuses_every_bad_robot_file_and_keeps_its_robot(
         processes, listener, tmp_path):
-    node = start(processes, 'dq_fk_node')
+    node = start(processes, 'dq_fk_node', f'robot_description_dirs:={tmp_path}')
     poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
     zero = listener.joint_state(RL15_JOINTS, [0] * 6)
     assert listener.spin_until(lambda: poses, publish=zero, timeout_s=20)
@@ -80,8 +80,13 @@ def test_the_running_node_refuses_every_bad_robot_file_and_keeps_its_robot(
         poses.clear()
         assert listener.spin_until(lambda: poses, publish=zero, timeout_s=10), path.name
         np.testing.assert_allclose(ee_position(poses), [1.025, 0, 1.445], atol=1e-9)
-    for name, value, words in [('max_publish_rate_hz', float('nan'), 'finite number >= 0'),
-                               ('max_publish_rate_hz', -1.0, 'finite number >= 0'),
+    rate = 'must be 0 (publish every update) or from 0.01 to 1e+06'
+    for name, value, words in [('max_publish_rate_hz', float('nan'), rate),
+                               ('max_publish_rate_hz', -1.0, rate),
+                               ('max_publish_rate_hz', 5e-324, rate),
+                               ('publish_frequency', 5e-324, rate),
+                               ('urdf_tip_link', 'x' * 1_000_000, 'is not a link name'),
+                               ('urdf_base_link', 'tool\n0', 'is not a link name'),
                                ('frame_prefix', 'a b', 'would not give valid frame ids'),
                                ('frame_prefix', '"quoted"/', 'would not give valid frame ids'),
                                ('out_of_limits', 'ignore', 'allowed: warn, clamp, reject')]:
@@ -149,7 +154,7 @@ def test_a_flood_of_unknown_joint_names_keeps_memory_and_diagnostics_small(
     (['-p', 'max_publish_rate_hz:=10'],
      "parameter 'max_publish_rate_hz' to '10' of type 'INTEGER', expecting type 'DOUBLE'"),
     (['-p', 'publish_tf:=1'], "expecting type 'BOOL'"),
-    (['-p', 'max_publish_rate_hz:=.nan'], 'max_publish_rate_hz must be a finite number'),
+    (['-p', 'max_publish_rate_hz:=.nan'], 'max_publish_rate_hz must be 0 (publish every'),
     (['-p', 'frame_prefix:=a b'], 'would not give valid frame ids'),
     (['-p', 'qos_depth:=0'], 'qos_depth must be an integer from 1 to 100000, got 0'),
     (['-p', 'qos_depth:=-1'], 'qos_depth must be an integer from 1 to 100000, got -1'),

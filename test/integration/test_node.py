@@ -96,7 +96,7 @@ def test_missing_joints_hold_publishing_back(ros):
 
 
 def test_reload_with_a_bad_file_keeps_the_old_model(ros, tmp_path):
-    node = ros.start_node()
+    node = ros.start_node(robot_description_dirs=str(tmp_path))
     bad = tmp_path / 'bad.yaml'
     bad.write_text('robot: x\nbase: {frame: b}\nchain: []\n')
     result = node.set_parameters([Parameter('robot_description_file', value=str(bad))])[0]

@@ -7,6 +7,7 @@ the TF parents must be the URDF's parent links, as robot_state_publisher publish
 """
 
 import math
+import os
 import xml.etree.ElementTree as ElementTree
 
 from builtin_interfaces.msg import Time
@@ -98,7 +99,9 @@ def test_reload_between_urdf_and_dh_and_a_bad_urdf_is_refused(ros_domain_id, tmp
                    '<parent link="a"/><child link="ghost"/></joint></robot>')
     harness = Harness()
     try:
-        node = harness.start_node(robot_description_file='ur5e')  # a shipped name
+        # a shipped name; run-time files from the test's folder and the vendor's
+        node = harness.start_node(robot_description_file='ur5e', robot_description_dirs=(
+            f'{tmp_path}:{os.path.dirname(vendor_path(UR5))}'))
         static = harness.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
         assert harness.spin_until(lambda: static)
         result = node.set_parameters([Parameter('robot_description_file', value=str(bad))])

@@ -20,7 +20,9 @@ THIRD_PARTY = {
     'kinematics': {'numpy'},
     'description': {'numpy', 'yaml', 'ament_index_python', 'matplotlib', 'xacro'},
     'messages': {'numpy'},
-    'bag': {'numpy', 'rosbags', 'mcap'},
+    # zstd (the stdlib's compression.zstd from 3.14, its backport before) and lz4: rosbags' own
+    # decompressors, called directly to bound a chunk's size
+    'bag': {'numpy', 'rosbags', 'mcap', 'compression', 'backports', 'lz4'},
     'ros': {'numpy', 'rclpy', 'aiohttp', 'ament_index_python', 'builtin_interfaces',
             'diagnostic_msgs', 'geometry_msgs',
             'rcl_interfaces', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'tf2_msgs'},
