@@ -8,6 +8,7 @@ topic in it. Problems with a bag are :class:`BagError`, whose message is one lin
 
 import os
 import re
+import struct
 
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 
@@ -127,32 +128,57 @@ class Ros1Bag:
     with rosbags, converts a whole ROS 1 bag to rosbag2).
     """
 
-    def __init__(self, path):
-        """Open the bag; raises :class:`BagError` if rosbags cannot read it."""
+    def __init__(self, path, scan=False):
+        """
+        Open the bag; raises :class:`BagError` if it cannot be read at all.
+
+        Through its index with rosbags; if that fails (a damaged, cut-off or misplaced
+        index), or with ``scan``, chunk by chunk from the start
+        (:class:`~dq_fk_ros.bag.ros1_scan.Ros1ChunkScan`).
+        """
+        from dq_fk_ros.bag.ros1_scan import bound_rosbags_ros1_decompression, Ros1ChunkScan
         from rosbags.rosbag1 import Reader, ReaderError
         from rosbags.typesys import get_typestore, Stores
+        bound_rosbags_ros1_decompression()
         self.path = path
-        self._reader = Reader(path)
-        try:
-            self._reader.open()
-        except (ReaderError, OSError, ValueError, KeyError) as exc:
-            raise BagError(f'{path}: not a readable ROS 1 bag ({_one_line(exc)})') from None
+        self.note = f'{path}: a ROS 1 bag; its JointState messages are converted to ROS 2'
         self._ros1 = get_typestore(Stores.ROS1_NOETIC)
         self._ros2 = get_typestore(Stores.ROS2_JAZZY)
-        self.connections = [c for c in self._reader.connections if c.msgtype == JOINT_STATE]
-        self.all_topics = [(c.topic, c.msgtype) for c in self._reader.connections]
-        self.start_time = self._reader.start_time if self.connections else 0
-        self.end_time = self._reader.end_time if self.connections else 0
-        self.note = f'{path}: a ROS 1 bag; its JointState messages are converted to ROS 2'
-        self.damage = None
+        self._reader = None if scan else Reader(path)
+        try:
+            if self._reader is not None:
+                self._reader.open()
+        except (ReaderError, OSError, ValueError, KeyError, AssertionError, struct.error,
+                MemoryError, OverflowError) as exc:
+            self._reader = None
+            self.note = (f'{path}: a ROS 1 bag whose index cannot be read '
+                         f'({_one_line(exc)}); read chunk by chunk, its JointState messages '
+                         f'converted to ROS 2')
+        if self._reader is None:
+            try:
+                self._scan = Ros1ChunkScan(path, JOINT_STATE)
+            except Exception as exc:  # not a bag after all, or unreadable
+                raise BagError(f'{path}: not a readable ROS 1 bag ({_one_line(exc)})') \
+                    from None
+            source = self._scan
+            self.all_topics = self._scan.all_topics
+            self.damage = self._scan.damage
+        else:
+            self._scan = None
+            source = self._reader
+            self.all_topics = [(c.topic, c.msgtype) for c in self._reader.connections]
+            self.damage = None
+        self.connections = [c for c in source.connections if c.msgtype == JOINT_STATE]
+        self.start_time = source.start_time if self.connections else 0
+        self.end_time = source.end_time if self.connections else 0
 
     def fallback(self):
-        """No other way to read a ROS 1 bag."""
-        return None
+        """Return the chunk-by-chunk reader of the same bag (rosbags stopped inside it)."""
+        return Ros1Bag(self.path, scan=True) if self._scan is None else None
 
     def close(self):
         """Close the bag file."""
-        self._reader.close()
+        (self._reader or self._scan).close()
 
     def messages(self, connections=None, start=None, stop=None):
         """Yield ``(connection, log_time_ns, cdr)`` of the JointState topics."""
@@ -160,8 +186,12 @@ class Ros1Bag:
         types = self._ros2.types
         js, header, stamp = (types['sensor_msgs/msg/JointState'], types['std_msgs/msg/Header'],
                              types['builtin_interfaces/msg/Time'])
-        for conn, log_time, raw in self._reader.messages(connections=conns, start=start,
-                                                         stop=stop):
+        if self._scan is not None:
+            raws = ((c, t, raw) for c, t, raw in self._scan.raw_messages(conns)
+                    if (start is None or t >= start) and (stop is None or t < stop))
+        else:
+            raws = self._reader.messages(connections=conns, start=start, stop=stop)
+        for conn, log_time, raw in raws:
             try:
                 old = self._ros1.deserialize_ros1(raw, JOINT_STATE)
                 msg = js(header=header(stamp=stamp(sec=old.header.stamp.sec,

@@ -13,11 +13,18 @@ Messages to the page are JSON: ``{"type": "robot", "urdf": ...}`` when the descr
 changes, and ``{"type": "frames", "fixed_frame": ..., "select": ..., "stamp_ns": the
 newest /tf stamp, "frames": [[name, parent, x, y, z, qx, qy, qz, qw, stale], ...]}``.
 Messages from pages are read and, but for ``{"type": "hello"}``, ignored; anything else
-(not JSON, binary, too big) is counted in ``/status``.
+(not JSON, binary, too big, nested too deeply) is counted in ``/status``.
+
+Only this machine's pages get anything: every request must name a loopback host (or the
+address the server listens on, or one given with ``--allow-host``) in its ``Host`` header,
+so a web page that points its own domain at 127.0.0.1 (DNS rebinding) is refused; and a
+WebSocket whose ``Origin`` is not the server's own is refused (another site's page open in
+the same browser). Both answer 403.
 """
 
 import argparse
 import asyncio
+import ipaddress
 import json
 import os
 import signal
@@ -32,6 +39,7 @@ DEFAULT_PORT = 8765
 DEFAULT_RATE_HZ = 30.0
 STALE_AFTER_S = 1.0
 MAX_CLIENT_MESSAGE_BYTES = 64 * 1024
+LOOPBACK_NAMES = ('localhost', 'localhost.localdomain', 'ip6-localhost')
 TF_QUEUE_DEPTH = 1000  # /tf messages DDS keeps for the view between two takes
 HELPER_SUFFIXES = ('_dh_z', '_dh_z0')  # dq_fk_node's URDF helper frames: never the default
 VENDOR_PACKAGES = ('three', 'urdf-loader')
@@ -182,11 +190,65 @@ def make_node(state, context=None):
     return node
 
 
-def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None):
-    """Return the aiohttp application: the page, its scripts, /ws and /status."""
+def host_allowed(host, allowed=()):
+    """
+    Whether a ``Host`` or ``Origin`` host name may reach the view.
+
+    Loopback names and addresses always; ``allowed``: more names or addresses (the address
+    the server listens on, ``--allow-host``). ``host`` without its port.
+    """
+    host = host.strip('[]').lower().rstrip('.')
+    if host in LOOPBACK_NAMES or host in (a.lower() for a in allowed):
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _split_host(value):
+    """Return the host of a ``Host`` header value (``name``, ``name:port``, ``[v6]:port``)."""
+    value = value.strip()
+    if value.startswith('['):
+        return value[1:value.find(']')] if ']' in value else ''
+    return value.rsplit(':', 1)[0] if value.count(':') == 1 else value
+
+
+def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()):
+    """
+    Return the aiohttp application: the page, its scripts, /ws and /status.
+
+    :param allowed_hosts: host names or addresses besides loopback that requests may name
+        (see the module doc); anything else gets 403.
+    """
     from aiohttp import web, WebSocketError, WSMsgType
+    from urllib.parse import urlsplit
     root = root or web_root()
     clients = {}  # websocket -> task of its send in progress (only the latest is sent)
+
+    @web.middleware
+    async def guard(request, handler):
+        """Refuse foreign hosts and origins (403); a failing request is a 404, not a 500."""
+        if not host_allowed(_split_host(request.headers.get('Host', '')), allowed_hosts):
+            return web.Response(status=403, text='forbidden host\n')
+        origin = request.headers.get('Origin')
+        if origin is not None and request.path == '/ws':
+            try:
+                parts = urlsplit(origin)
+                same = parts.scheme == 'http' and parts.netloc.lower() == \
+                    request.headers.get('Host', '').lower()
+            except ValueError:
+                same = False
+            if not same:
+                with state.lock:
+                    state.counts['refused_origins'] = state.counts.get('refused_origins', 0) + 1
+                return web.Response(status=403, text='forbidden origin\n')
+        try:
+            return await handler(request)
+        except web.HTTPException:
+            raise
+        except (OSError, ValueError):  # a path too long for the file system, and the like
+            return web.Response(status=404, text='not found\n')
 
     async def index(_):
         return web.FileResponse(os.path.join(root, 'index.html'))
@@ -269,7 +331,7 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None):
         for ws in list(clients):
             await ws.close()
 
-    app = web.Application()
+    app = web.Application(middlewares=[guard])
     app.router.add_get('/', index)
     app.router.add_get('/app.js', app_js)
     app.router.add_get('/status', status)
@@ -289,7 +351,7 @@ def _good_client_message(msg, kinds):
         return False
     try:
         data = json.loads(msg.data)
-    except ValueError:
+    except (ValueError, RecursionError):  # not JSON, or nested past Python's stack
         return False
     return isinstance(data, dict) and data.get('type') == 'hello'
 
@@ -302,6 +364,9 @@ def parse_args(argv):
                         help='address to listen on (default 127.0.0.1: this machine only)')
     parser.add_argument('--port', type=int, default=DEFAULT_PORT,
                         help=f'port (default {DEFAULT_PORT}; 0: any free one)')
+    parser.add_argument('--allow-host', action='append', default=[], metavar='HOST',
+                        help='a host name or address pages may use besides loopback and '
+                        '--host (repeat for more; needed when --host binds a wildcard)')
     parser.add_argument('--fixed-frame', default='',
                         help='frame the poses are shown in (default: the root of the tree)')
     parser.add_argument('--select', default='',
@@ -324,7 +389,8 @@ def parse_args(argv):
 async def serve(args, state, ready=None):
     """Run the web server until SIGINT/SIGTERM; print the address to open."""
     from aiohttp import web
-    app = make_app(state, args.rate)
+    bound = [] if args.host in ('0.0.0.0', '::', '') else [args.host]
+    app = make_app(state, args.rate, allowed_hosts=tuple(bound + args.allow_host))
     runner = web.AppRunner(app, handle_signals=False)
     await runner.setup()
     site = web.TCPSite(runner, args.host, args.port)
