@@ -22,6 +22,7 @@ from dq_fk_ros.description.robot_model import (
     shipped_robot_path, shipped_robots)
 from dq_fk_ros.description.urdf import robot_to_urdf
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
+from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
 from hypothesis import given, strategies as st
 import numpy as np
 import pytest
@@ -580,3 +581,97 @@ def test_a_huge_urdf_text_and_a_long_bad_joint_name_are_one_line():
         urdf_to_description(text, 'mine.urdf')
     assert str(caught.value) == (f'mine.urdf: joint name {bad[:70]!r} is not usable (a letter '
                                  'or underscore, then letters, digits, _ . / -)')
+
+
+# -- numbers of every magnitude, hostile sizes (issue: nothing gets in) -----------------------
+def offset_urdf(y, upper=1.0, velocity=1.0):
+    return ('<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+            '<joint name="j1" type="revolute"><parent link="a"/><child link="b"/>'
+            f'<axis xyz="0 0 1"/><limit lower="-1" upper="{upper!r}" effort="1" '
+            f'velocity="{velocity!r}"/></joint>'
+            '<joint name="j2" type="revolute"><parent link="b"/><child link="c"/>'
+            f'<origin xyz="0 {y!r} 0.1"/><axis xyz="0 0 1"/>'
+            '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
+
+
+@given(y=st.one_of(st.floats(-1e6, 1e6, allow_subnormal=True),
+                   st.sampled_from([5e-05, -5e-05, 1e-300, 5e-324, 1e-5, 123456.789])),
+       upper=st.floats(1.0, 1e308), velocity=st.floats(1e-3, 1e308))
+def test_numbers_of_every_magnitude_survive_the_conversion(y, upper, velocity):
+    """repr() wrote 5e-05, which PyYAML read back as a string: every tool refused the URDF."""
+    conversion = urdf_to_description(offset_urdf(y, upper, velocity), 'r.urdf')
+    model = parse_robot_description(conversion.text, 'r.yaml')
+    c = model.frame_names.index('c')
+    position = dq_to_pose_xyzw(model.forward_all(np.zeros(model.dof)))[c][:3]
+    assert position[1] == pytest.approx(y, rel=1e-12, abs=1e-15)
+    assert model.limits[0][1] == upper and model.max_velocity[0] == velocity
+
+
+def test_a_huge_or_tiny_axis_is_normalised_or_one_line():
+    huge = offset_urdf(0.0).replace('<axis xyz="0 0 1"/>', '<axis xyz="1e200 0 0"/>', 1)
+    model = parse_robot_description(urdf_to_description(huge, 'r.urdf').text, 'r.yaml')
+    assert model.dof == 2
+    for axis, words in (('1e-300 0 0', 'axis xyz is all zeros'), ('1e999 0 0', 'finite')):
+        text = offset_urdf(0.0).replace('<axis xyz="0 0 1"/>', f'<axis xyz="{axis}"/>', 1)
+        with pytest.raises(RobotDescriptionError, match=words):
+            urdf_to_description(text, 'r.urdf')
+
+
+@pytest.mark.parametrize('xyz', ['1e200 0 0', '0 1e154 0', '0 0 -1e308', '1000001 0 0'])
+def test_offsets_beyond_a_thousand_km_are_one_line(xyz):
+    text = offset_urdf(0.0).replace('xyz="0 0.0 0.1"', f'xyz="{xyz}"')
+    with pytest.raises(RobotDescriptionError, match='is beyond 1e\\+06 m'):
+        urdf_to_description(text, 'r.urdf')
+
+
+def chain_urdf(n):
+    links = ''.join(f'<link name="l{k}"/>' for k in range(n + 1))
+    joints = ''.join(f'<joint name="j{k}" type="fixed"><parent link="l{k}"/>'
+                     f'<child link="l{k + 1}"/></joint>' for k in range(n))
+    return f'<robot name="long">{links}{joints}</robot>'
+
+
+def test_a_urdf_of_twenty_thousand_links_is_refused_in_one_line():
+    with pytest.raises(RobotDescriptionError, match='20001 <link> elements; a URDF has at '
+                       'most 4096'):
+        urdf_to_description(chain_urdf(20_000), 'big.urdf')
+
+
+def test_a_long_chain_and_a_cycle_at_its_end_are_found():
+    """The walk that finds cycles visits each link once (it was quadratic)."""
+    tree_text = chain_urdf(4000)
+    from dq_fk_ros.description.from_urdf import parse_urdf
+    tree = parse_urdf(tree_text, 'long.urdf')
+    assert len(tree.links) == 4001 and tree.roots == ['l0']
+    cyclic = tree_text.replace('</robot>', '<link name="x"/><link name="y"/>'
+                               '<joint name="a" type="fixed"><parent link="x"/>'
+                               '<child link="y"/></joint><joint name="b" type="fixed">'
+                               '<parent link="y"/><child link="x"/></joint></robot>')
+    with pytest.raises(RobotDescriptionError, match='cycle through link'):
+        parse_urdf(cyclic, 'cyclic.urdf')
+
+
+def test_what_a_remote_client_is_told_quotes_no_foreign_text():
+    for text in ('<secret>hunter2</secret>', 'root:*:20228:0:99999:7::', '<robot'):
+        with pytest.raises(RobotDescriptionError) as caught:
+            urdf_to_description(text, 'f')
+        assert 'hunter2' not in caught.value.public and 'root:' not in caught.value.public
+
+
+URDF_PIECES = st.sampled_from([
+    '<link name="a"/>', '<link name="b"/>', '<link/>', '<joint name="j" type="revolute">',
+    '<joint name="k" type="fixed">', '</joint>', '<parent link="a"/>', '<child link="b"/>',
+    '<origin xyz="1e308 0 0" rpy="0 nan 0"/>', '<axis xyz="0 0 0"/>', '<axis xyz="1 0 0"/>',
+    '<limit lower="1" upper="-1"/>', '<mimic joint="j" multiplier="1e400"/>', '&amp;', '<',
+    '<!ENTITY x "y">', '\x00', 'é', ' ', '<robot name="x">', '</robot>'])
+
+
+@given(st.lists(URDF_PIECES, max_size=30))
+def test_any_urdf_text_is_a_model_or_one_line(pieces):
+    text = '<robot name="r">' + ''.join(pieces) + '</robot>'
+    try:
+        conversion = urdf_to_description(text, 'fuzz.urdf')
+    except RobotDescriptionError as exc:
+        assert '\n' not in str(exc) and '\n' not in exc.public
+        return
+    parse_robot_description(conversion.text, 'fuzz.yaml')

@@ -4,7 +4,7 @@ import dataclasses
 import os
 
 from dq_fk_ros.description.loading import (
-    is_urdf, load_robot, LoadedRobot, resolve_robot, robot_from_urdf_text)
+    FileAccess, is_urdf, load_robot, LoadedRobot, resolve_robot, robot_from_urdf_text)
 from dq_fk_ros.description.robot_model import (
     RobotDescriptionError, shipped_robot_path, shipped_robots)
 import pytest
@@ -61,3 +61,62 @@ def test_a_loaded_robot_cannot_be_changed():
     with pytest.raises(dataclasses.FrozenInstanceError):
         robot.urdf = 'x'
     assert isinstance(robot, LoadedRobot) and os.path.isfile(robot.model.source)
+
+
+# -- a file named by someone else (a run-time parameter) ---------------------------------
+def access_to(*folders, xacro=False):
+    return FileAccess(tuple(str(f) for f in folders), xacro)
+
+
+def test_files_outside_the_allowed_folders_are_not_opened(tmp_path):
+    allowed, elsewhere = tmp_path / 'robots', tmp_path / 'private'
+    allowed.mkdir()
+    elsewhere.mkdir()
+    secret = elsewhere / 'shadow'
+    secret.write_text('root:*:20228:0:99999:7::\n')
+    (allowed / 'link.yaml').symlink_to(secret)            # a symlink out of the folder
+    (allowed / 'arm.yaml').write_text(open(shipped_robot_path('rl15')).read())
+    for path in (secret, allowed / 'link.yaml', allowed / '..' / 'private' / 'shadow',
+                 '/etc/passwd'):
+        with pytest.raises(RobotDescriptionError, match='not in the folders robot files may '
+                           'be read from') as caught:
+            load_robot(str(path), access=access_to(allowed))
+        assert 'root:' not in caught.value.public
+    assert load_robot(str(allowed / 'arm.yaml'), access=access_to(allowed)).model.dof == 6
+
+
+def test_a_file_in_the_folders_that_is_no_robot_is_not_quoted(tmp_path):
+    for name, text in (('shadow', 'root:*:20228:0:99999:7::\n'), ('env.yaml', 'KEY: hunter2'),
+                       ('key.urdf', '-----BEGIN KEY----- hunter2'),
+                       ('notes.urdf', '<notes>hunter2</notes>')):
+        (tmp_path / name).write_text(text)
+        with pytest.raises(RobotDescriptionError) as caught:
+            load_robot(str(tmp_path / name), access=access_to(tmp_path))
+        assert 'hunter2' not in caught.value.public and 'root:' not in caught.value.public
+        assert '\n' not in caught.value.public
+
+
+def test_a_xacro_named_at_run_time_is_not_run_unless_allowed(tmp_path):
+    marker = tmp_path / 'marker'
+    path = tmp_path / 'arm.urdf.xacro'
+    path.write_text('<?xml version="1.0"?><robot name="r" xmlns:xacro="http://www.ros.org/wiki/'
+                    f'xacro"><link name="${{open(\'{marker}\', \'w\')}}"/></robot>')
+    with pytest.raises(RobotDescriptionError, match='a .xacro file is a program'):
+        load_robot(str(path), access=access_to(tmp_path))
+    with pytest.raises(RobotDescriptionError, match='xacro failed') as caught:
+        load_robot(str(path), access=access_to(tmp_path, xacro=True))
+    assert caught.value.public == f'{path}: xacro failed'
+    assert not marker.exists()
+    path.write_text(f'<?xml version="1.0"?><robot name="r" xmlns:xacro="http://www.ros.org/'
+                    f'wiki/xacro"><xacro:property name="l" value="0.5"/>{URDF[18:]}'
+                    .replace('0.3 0 0', '${l} 0 0'))
+    model = load_robot(str(path), access=access_to(tmp_path, xacro=True)).model
+    assert model.dof == 2
+
+
+def test_the_summary_keeps_every_name_on_one_line():
+    urdf = URDF.replace('</robot>', '<link name="odd&#10;name"/><joint name="s&#10;j" '
+                        'type="floating"><parent link="l2"/><child link="odd&#10;name"/>'
+                        '</joint></robot>')
+    summary = robot_from_urdf_text(urdf).summary()
+    assert '\n' not in summary and 's?j -> odd?name' in summary

@@ -5,8 +5,9 @@ import math
 
 from dq_fk_ros.description.robot_model import (
     load_robot_description, MAX_ROWS, parse_robot_description, RobotDescriptionError,
-    shipped_robot_path)
+    shipped_robot_path, yaml_number)
 import homogeneous as hm
+from hypothesis import given, strategies as st
 import numpy as np
 import pytest
 
@@ -316,3 +317,29 @@ def test_an_integer_too_long_to_print_is_described_by_its_size():
         parse_robot_description(edit(GOOD, 'a: 200', 'a: 0x' + 'f' * 4000), 'r.yaml')
     assert "field 'a' must be a finite number, got an integer of about 4816 digits" in \
         str(caught.value)
+
+
+# -- numbers as YAML 1.1 and 1.2 write them ------------------------------------------------
+@given(st.floats(allow_nan=False, allow_infinity=False))
+def test_yaml_number_reads_back_as_the_same_float_in_pyyaml(value):
+    import yaml
+    text = yaml_number(value)
+    assert yaml.safe_load(text) == value and isinstance(yaml.safe_load(text), float)
+
+
+@pytest.mark.parametrize('text, value', [('5e-05', 5e-05), ('1e+16', 1e16), ('1E16', 1e16),
+                                         ('-2.5e3', -2500.0), ('.5e1', 5.0), ('1e308', 1e308)])
+def test_robot_files_take_yaml_1_2_exponents(text, value):
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b}\nchain:\n'
+        f'  - {{frame: f, joint: j, theta: {text}, d: 0, a: 0, alpha: 0}}\n', 'x.yaml')
+    assert model.chain.joints[0].theta == value
+
+
+def test_a_yaml_file_that_is_no_robot_is_not_quoted_for_a_remote_client():
+    for text in ('root:*:20228:0:99999:7::\n', 'api_key: hunter2\n', '[hunter2, 1]\n',
+                 'robot: x\nsecret: hunter2\n', '"unclosed hunter2\n'):
+        with pytest.raises(RobotDescriptionError) as caught:
+            parse_robot_description(text, 'f.yaml')
+        assert 'hunter2' not in caught.value.public and 'root:' not in caught.value.public
+        assert caught.value.public.startswith('f.yaml: ')

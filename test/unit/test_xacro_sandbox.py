@@ -1,0 +1,181 @@
+"""
+xacro files are programs: what they may do here (read their package, compute) and not.
+
+Every escape below ran a command or read a file through xacro 2.1.1 as it comes (the first
+test shows one does); expanded through the package, none does, and each is one line.
+"""
+
+import os
+import time
+
+from dq_fk_ros.description.from_urdf import load_urdf_description, read_urdf_text
+from dq_fk_ros.description.robot_model import RobotDescriptionError
+from dq_fk_ros.description.xacro_sandbox import (
+    check_expression, expand_xacro, TIME_LIMIT_S, XacroRefused)
+import pytest
+
+HEAD = '<?xml version="1.0"?>\n<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
+TAIL = '</robot>\n'
+
+
+def chars(text):
+    """A xacro expression that builds ``text`` without ( ) " ' < > & } (as an attacker would)."""
+    return ' + '.join(f"'%c' % {ord(c)}" if c in '()}"\'<>&' else repr(c) for c in text)
+
+
+def escapes(marker):
+    """Return ``{name: xacro text}``: ways to run code that create ``marker`` if they work."""
+    touch = f"open('{marker}', 'w')"
+    return {
+        # a comprehension: the dunders live in the nested code object only
+        'comprehension': HEAD + '<link name="${[c()._module.__builtins__[\'open\'](\'' +
+        str(marker) + '\', \'w\') for x in [()] for c in x.__class__.__base__.__subclasses__()'
+        ' if c.__name__ == \'catch_warnings\'][0]}"/>' + TAIL,
+        # a lambda reaching a function's globals
+        'globals': HEAD + '<link name="${(lambda f: f.__globals__[\'__builtins__\'][\'open\']'
+        '(\'' + str(marker) + '\', \'w\'))(xacro.load_yaml)}"/>' + TAIL,
+        # names built at run time: vars() of a type, then __getattribute__ by a computed name
+        'computed names': HEAD + '<link name="${python.vars(python.type(1).mro()[1])[\'_\' + \'_getattribute'
+        '_\' + \'_\'](xacro.load_yaml, \'_\' + \'_globals_\' + \'_\')[\'os\'].system(\'touch '
+        + str(marker) + '\')}"/>' + TAIL,
+        # $(eval) runs with Python's builtins in xacro as it comes; no ( ) in the text
+        'eval substitution': HEAD + '<link name="$(eval ${' + chars(f'exec("{touch}")') +
+        '})"/>' + TAIL,
+    }
+
+
+def write(folder, name, text):
+    path = folder / name
+    path.write_text(text, encoding='utf-8')
+    return path
+
+
+ESCAPES = ['comprehension', 'globals', 'computed names', 'eval substitution']
+
+
+@pytest.mark.parametrize('name', ESCAPES)
+def test_each_escape_runs_code_in_xacro_as_it_comes(tmp_path, name):
+    """The attacks the sandbox stops: stock xacro runs them (so the test below can fail)."""
+    import xacro
+    marker = tmp_path / 'marker'
+    path = write(tmp_path, 'evil.xacro', escapes(marker)[name])
+    xacro.process_file(str(path))
+    assert marker.exists()
+
+
+@pytest.mark.parametrize('name', ESCAPES)
+def test_escapes_are_refused_and_nothing_runs(tmp_path, name):
+    marker = tmp_path / 'marker'
+    path = write(tmp_path, 'evil.urdf.xacro', escapes(marker)[name])
+    with pytest.raises(RobotDescriptionError) as caught:
+        read_urdf_text(path)
+    message = str(caught.value)
+    assert message.startswith(f'{path}: xacro failed: ') and '\n' not in message, message
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize('expression', [
+    '[c for x in [()] for c in x.__class__.__mro__]',
+    'lambda: __import__',
+    "'__globals__'",
+    'f(__x=1)',
+    'lambda __a: 1',
+    "b'__'",
+])
+def test_check_expression_refuses_double_underscores_anywhere(expression):
+    with pytest.raises(XacroRefused):
+        check_expression(expression)
+
+
+@pytest.mark.parametrize('expression', ['1 + 2', 'pi / 2', "'link_' + str(3)",
+                                        '[x * 2 for x in range(3)]', 'radians(90)',
+                                        "dict(a=1)['a']", 'a_b'])
+def test_check_expression_lets_ordinary_xacro_through(expression):
+    check_expression(expression)
+
+
+def test_reads_outside_the_package_and_the_environment_are_refused(tmp_path, monkeypatch):
+    secret = tmp_path / 'secret.yaml'
+    secret.write_text('password: hunter2\n')
+    robot = tmp_path / 'pkg'
+    robot.mkdir()
+    monkeypatch.setenv('DQ_FK_TEST_SECRET', 'hunter2')
+    cases = {
+        'load_yaml': f'<link name="${{xacro.load_yaml(\'{secret}\')[\'password\']}}"/>',
+        'include': f'<xacro:include filename="{secret}"/><link name="a"/>',
+        'env': '<link name="$(env DQ_FK_TEST_SECRET)"/>',
+        'optenv': '<link name="x$(optenv DQ_FK_TEST_SECRET)"/><link name="a"/>',
+    }
+    for name, body in cases.items():
+        path = write(robot, f'{name}.urdf.xacro', HEAD + body + TAIL)
+        try:
+            text = read_urdf_text(path, read_roots=[robot])
+        except RobotDescriptionError as exc:
+            assert 'hunter2' not in str(exc), name
+        else:
+            assert 'hunter2' not in text, name
+
+
+def test_the_package_and_its_yaml_are_readable(tmp_path):
+    """What xacro files really do: include their package's files and read its YAML."""
+    package = tmp_path / 'arm_description'
+    (package / 'urdf').mkdir(parents=True)
+    (package / 'config').mkdir()
+    (package / 'package.xml').write_text('<package><name>arm_description</name></package>')
+    (package / 'config' / 'arm.yaml').write_text('length: 0.25\n')
+    write(package / 'urdf', 'link.xacro', '<?xml version="1.0"?>\n<robot xmlns:xacro='
+          '"http://www.ros.org/wiki/xacro"><xacro:macro name="seg" params="n parent">'
+          '<link name="l${n}"/><joint name="j${n}" type="revolute"><parent link="${parent}"/>'
+          '<child link="l${n}"/><origin xyz="0 0 ${cfg.length}"/><axis xyz="0 0 1"/>'
+          '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></xacro:macro>'
+          '</robot>\n')
+    path = write(package / 'urdf', 'arm.urdf.xacro', HEAD +
+                 '<xacro:property name="cfg" value="${xacro.load_yaml(\'../config/arm.yaml\')}"/>'
+                 '<xacro:include filename="link.xacro"/><link name="base"/>'
+                 '<xacro:seg n="1" parent="base"/><xacro:seg n="2" parent="l1"/>' + TAIL)
+    conversion, text = load_urdf_description(path)
+    assert '<origin xyz="0 0 0.25"/>' in text and conversion.tip == 'l2'
+
+
+def macro_bomb(levels=9):
+    """Nested macros: 10**levels links from a few hundred bytes."""
+    lines = ['<xacro:macro name="m0"><link name="x"/></xacro:macro>']
+    for k in range(1, levels + 1):
+        lines.append(f'<xacro:macro name="m{k}">' + f'<xacro:m{k - 1}/>' * 10 +
+                     '</xacro:macro>')
+    return HEAD + '\n'.join(lines) + f'\n<xacro:m{levels}/>\n' + TAIL
+
+
+@pytest.mark.parametrize('name, body', [
+    ('macros', macro_bomb()),
+    ('power', HEAD + '<link name="${2**2**40}"/>' + TAIL),
+    ('long string', HEAD + '<xacro:property name="s" value="${\'x\' * 10**8}"/>'
+     '<xacro:property name="t" value="${s * 100}"/><link name="${t}"/>' + TAIL),
+])
+def test_bombs_are_stopped_within_the_limits(tmp_path, name, body):
+    path = write(tmp_path, 'bomb.urdf.xacro', body)
+    start = time.monotonic()
+    with pytest.raises(XacroRefused) as caught:
+        expand_xacro(path, [tmp_path], time_limit_s=3.0)
+    took = time.monotonic() - start
+    assert took < 3.0 + 2.0, took
+    assert '\n' not in str(caught.value)
+
+
+def test_the_default_limit_is_what_the_readme_says():
+    readme = open(os.path.join(os.path.dirname(__file__), '..', '..', 'README.md'),
+                  encoding='utf-8').read()
+    assert f'{TIME_LIMIT_S:g} s' in readme and '1 GiB' in readme
+
+
+def test_should_stop_ends_the_expansion_early(tmp_path):
+    path = write(tmp_path, 'bomb.urdf.xacro', macro_bomb())
+    start = time.monotonic()
+    asked = []
+
+    def stop():
+        asked.append(1)
+        return len(asked) > 3
+    with pytest.raises(XacroRefused, match='shutting down'):
+        expand_xacro(path, [tmp_path], time_limit_s=30.0, should_stop=stop)
+    assert time.monotonic() - start < 5.0
