@@ -6,6 +6,8 @@ intact chunk must be processed).
 """
 
 import io
+import os
+import sys
 
 from dq_fk_ros.bag import writer as bag_writer
 from dq_fk_ros.bag.writer import BagWriter
@@ -290,3 +292,263 @@ def test_play_goes_on_past_a_damaged_chunk(tmp_path, processes, ros_domain_id):
     # messages before the damage may come too: rosbags read them before it stopped)
     assert set(expected) <= set(got) and got == sorted(set(got)) and set(got) <= set(stamps)
     assert len(got) < len(stamps) and got[-1] == stamps[-1]
+
+
+# -- outputs that are the input under another name (symlinks, hard links) -----------------
+def test_an_input_that_links_into_the_output_is_not_destroyed(tmp_path, capsys):
+    """The .mcap of the input was a symlink into OUT: --overwrite deleted the recording."""
+    valid_bag(tmp_path / 'real', n=20)
+    mcap = next((tmp_path / 'real').glob('*.mcap'))
+    (tmp_path / 'out').mkdir()
+    recording = tmp_path / 'out' / 'recording.mcap'
+    mcap.rename(recording)
+    (tmp_path / 'in').mkdir()
+    (tmp_path / 'in' / 'metadata.yaml').write_bytes((tmp_path / 'real' / 'metadata.yaml')
+                                                    .read_bytes())
+    (tmp_path / 'in' / mcap.name).symlink_to(recording)
+    before = recording.read_bytes()
+    rc, out, err = run(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--robot', 'rl15',
+                       '--overwrite', '--quiet')
+    one_line_error(rc, err)
+    assert 'a file the input bag' in err and recording.read_bytes() == before
+
+
+def test_a_csv_that_is_a_hard_link_of_the_input_is_refused(tmp_path, capsys):
+    valid_bag(tmp_path / 'in', n=20)
+    mcap = next((tmp_path / 'in').glob('*.mcap'))
+    os.link(mcap, tmp_path / 'ee.csv')
+    (tmp_path / 'out_dir').mkdir()
+    os.link(mcap, tmp_path / 'out_dir' / 'old.mcap')
+    before = mcap.read_bytes()
+    for args in (('--csv', tmp_path / 'ee.csv', '--overwrite'),
+                 ('--csv', tmp_path / 'ee.csv', '--csv-only', '--overwrite')):
+        rc, _, err = run(capsys, 'process', tmp_path / 'in', tmp_path / 'out', '--robot',
+                         'rl15', '--quiet', *args)
+        one_line_error(rc, err)
+        assert 'hard link to a file of the input' in err
+    rc, _, err = run(capsys, 'process', tmp_path / 'in', tmp_path / 'out_dir', '--robot',
+                     'rl15', '--quiet', '--overwrite')
+    one_line_error(rc, err)
+    assert mcap.read_bytes() == before
+
+
+# -- decompression bombs ----------------------------------------------------------------------
+def zstd_rle_bomb(size):
+    """A zstd frame of RLE blocks (4 bytes each) that expands to ``size`` zero bytes."""
+    block = 128 * 1024
+    frame = bytearray(b'\x28\xb5\x2f\xfd\x00\x38')   # no content size, 128 KiB window
+    count = size // block
+    for k in range(count):
+        last = 1 if k == count - 1 else 0
+        frame += ((block << 3) | (1 << 1) | last).to_bytes(3, 'little') + b'\x00'
+    return bytes(frame)
+
+
+def chunk_record(data, compression, declared, start, end):
+    body = (start.to_bytes(8, 'little') + end.to_bytes(8, 'little') +
+            declared.to_bytes(8, 'little') + b'\x00' * 4 +
+            len(compression).to_bytes(4, 'little') + compression.encode() +
+            len(data).to_bytes(8, 'little') + data)
+    return b'\x06' + len(body).to_bytes(8, 'little') + body
+
+
+@pytest.fixture(scope='module')
+def bomb_bags(tmp_path_factory, small_mcap):
+    """Bare .mcap files: the small bag with a bomb chunk put between two of its chunks."""
+    import lz4.frame
+    folder, mcap, data, chunks, definitions, summary_start = small_mcap
+    out = tmp_path_factory.mktemp('bombs')
+    at = chunks[len(chunks) // 2][0]           # before the middle chunk
+    start, end = chunks[0][2][0], chunks[-1][2][-1]
+    lz4_bomb = lz4.frame.LZ4FrameCompressor()
+    lz4_data = lz4_bomb.begin() + b''.join(lz4_bomb.compress(bytes(1 << 20)) for _ in
+                                             range(1024)) + lz4_bomb.flush()   # 1 GiB
+    bombs = {
+        'zstd 4 GiB, declared': chunk_record(zstd_rle_bomb(4 << 30), 'zstd', 4 << 30, start,
+                                             end),
+        'zstd 4 GiB, declared 1 KiB': chunk_record(zstd_rle_bomb(4 << 30), 'zstd', 1024,
+                                                   start, end),
+        'zstd, declared 100 GB': chunk_record(zstd_rle_bomb(1 << 20), 'zstd', 100 * 10**9,
+                                              start, end),
+        'lz4 1 GiB, declared 1 KiB': chunk_record(lz4_data, 'lz4', 1024, start, end),
+    }
+    files = {}
+    for name, record in bombs.items():
+        path = out / (name.replace(' ', '_').replace(',', '') + '.mcap')
+        path.write_bytes(data[:at] + record + data[at:])
+        files[name] = path
+    return files, chunks
+
+
+def rosbags_bomb_bag(folder, small_mcap, compression):
+    """
+    A rosbag2 folder rosbags opens (metadata, summary intact) whose third chunk is a bomb.
+
+    Written with mcap's own writer, its compressor swapped for one chunk: the chunk index
+    declares the real size, the data expands to 4 GiB (zstd) or 1 GiB (lz4). Returns the
+    log times of the messages in intact chunks.
+    """
+    import lz4.frame
+    import mcap.writer as mcap_writer
+    from mcap.writer import CompressionType, Writer
+    source_folder, mcap, data, _, _, _ = small_mcap
+    folder.mkdir()
+    (folder / 'metadata.yaml').write_bytes((source_folder / 'metadata.yaml').read_bytes())
+    reader = make_reader(io.BytesIO(data))
+    summary = reader.get_summary()
+    module = mcap_writer.zstandard if compression == 'zstd' else mcap_writer.lz4.frame
+    real, count = module.compress, [0]
+    if compression == 'zstd':
+        bomb = zstd_rle_bomb(4 << 30)
+    else:
+        packer = lz4.frame.LZ4FrameCompressor()
+        bomb = packer.begin() + b''.join(packer.compress(bytes(1 << 20))
+                                         for _ in range(1024)) + packer.flush()
+
+    def compress(chunk):
+        count[0] += 1
+        return bomb if count[0] == 3 else real(chunk)
+    module.compress = compress
+    try:
+        with open(folder / mcap.name, 'wb') as stream:
+            writer = Writer(stream, chunk_size=4000, compression=CompressionType.ZSTD if
+                            compression == 'zstd' else CompressionType.LZ4)
+            writer.start(profile='ros2', library='test')
+            ids = {}
+            for schema in summary.schemas.values():
+                ids[schema.id] = writer.register_schema(schema.name, schema.encoding,
+                                                        schema.data)
+            channels = {}
+            for channel in summary.channels.values():
+                channels[channel.id] = writer.register_channel(
+                    channel.topic, channel.message_encoding, ids[channel.schema_id],
+                    channel.metadata)
+            for _, channel, message in reader.iter_messages():
+                writer.add_message(channels[channel.id], message.log_time, message.data,
+                                   message.publish_time)
+            writer.finish()
+    finally:
+        module.compress = real
+    written = make_reader(io.BytesIO((folder / mcap.name).read_bytes())).get_summary()
+    lost = sorted(written.chunk_indexes, key=lambda c: c.chunk_start_offset)[2]
+    assert lost.compression == compression
+    return [m.log_time for _, _, m in make_reader(io.BytesIO(data)).iter_messages()
+            if not lost.message_start_time <= m.log_time <= lost.message_end_time]
+
+
+def process_under_a_memory_cap(path, out):
+    """Run dq_fk_bag process in a child limited to 1 GiB of address space."""
+    import subprocess
+    code = ('import resource, sys\n'
+            'resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))\n'
+            'from dq_fk_ros.cli.dq_fk_bag import main\n'
+            f'sys.exit(main(["process", {str(path)!r}, {str(out / "bag")!r}, "--robot",'
+            f' "rl15", "--csv", {str(out / "ee.csv")!r}, "--csv-only", "--quiet"]))\n')
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode in (0, 1), proc.stderr[-2000:]
+    assert 'Traceback' not in proc.stderr and 'MemoryError' not in proc.stderr, proc.stderr
+    return [int(line.split(',')[0]) for line in (out / 'ee.csv').read_text().splitlines()[1:]]
+
+
+@pytest.mark.parametrize('compression', ['zstd', 'lz4'])
+def test_a_bomb_rosbags_opens_is_skipped_within_a_memory_cap(small_mcap, tmp_path, compression):
+    """rosbags decompressed a chunk whole: a 131 KB chunk expanding to 4 GiB took 8.3 GB."""
+    expected = rosbags_bomb_bag(tmp_path / 'in', small_mcap, compression)
+    from rosbags.rosbag2 import Reader
+    with Reader(tmp_path / 'in') as reader:   # rosbags itself opens this bag
+        assert len(reader.connections) == 1
+    got = process_under_a_memory_cap(tmp_path / 'in', tmp_path)
+    assert sorted(got) == sorted(expected) and len(expected) < 240
+
+
+@pytest.mark.parametrize('name', ['zstd 4 GiB, declared', 'zstd 4 GiB, declared 1 KiB',
+                                  'zstd, declared 100 GB', 'lz4 1 GiB, declared 1 KiB'])
+def test_decompression_bombs_in_a_damaged_recording_are_skipped(bomb_bags, tmp_path, name):
+    """The record-by-record reader: 100 GB declared raised MemoryError and lost the rest."""
+    import subprocess
+    files, chunks = bomb_bags
+    path = files[name]
+    code = ('import resource, sys\n'
+            'resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))\n'
+            'from dq_fk_ros.cli.dq_fk_bag import main\n'
+            f'sys.exit(main(["process", {str(path)!r}, {str(tmp_path / "out")!r}, "--robot",'
+            f' "rl15", "--csv", {str(tmp_path / "ee.csv")!r}, "--csv-only", "--quiet"]))\n')
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode in (0, 1), proc.stderr[-2000:]
+    assert 'Traceback' not in proc.stderr and 'MemoryError' not in proc.stderr, proc.stderr
+    got = [int(line.split(',')[0]) for line in
+           (tmp_path / 'ee.csv').read_text().splitlines()[1:]]
+    expected = [t for _, _, times in chunks for t in times]
+    assert sorted(got) == sorted(expected), (len(got), len(expected), proc.stderr)
+
+
+# -- ROS 1 bags whose index is damaged ------------------------------------------------------
+@pytest.mark.parametrize('damage', ['cut', 'bytes', 'index_pos 2**62', 'index_pos 0'])
+def test_a_ros1_bag_with_a_damaged_index_is_read_chunk_by_chunk(tmp_path, capsys, damage):
+    """All 12 000 messages were lost to a damaged index although every chunk was intact."""
+    import struct
+    q, stamps = write_ros1_bag(tmp_path / 'old.bag', 12_000)
+    data = (tmp_path / 'old.bag').read_bytes()
+    at = data.index(b'index_pos=') + len(b'index_pos=')
+    index_pos = struct.unpack_from('<Q', data, at)[0]
+    assert index_pos > 0
+    if damage == 'cut':
+        data = data[:index_pos + 30]
+    elif damage == 'bytes':
+        data = data[:index_pos + 8] + bytes(b ^ 0x5A for b in data[index_pos + 8:index_pos + 400]) \
+            + data[index_pos + 400:]
+    else:
+        value = 2**62 if damage == 'index_pos 2**62' else 0
+        data = data[:at] + struct.pack('<Q', value) + data[at + 8:]
+    (tmp_path / 'damaged.bag').write_bytes(data)
+    rc, out, err = run(capsys, 'process', tmp_path / 'damaged.bag', tmp_path / 'out', '--robot',
+                       'rl15', '--csv', tmp_path / 'ee.csv', '--quiet')
+    assert rc in (0, 1) and '12000 JointState messages, 12000 written' in out, (out, err)
+    assert 'read chunk by chunk' in err and 'Traceback' not in err
+    rows = np.loadtxt(tmp_path / 'ee.csv', delimiter=',', skiprows=1, dtype=object)
+    assert [int(s) for s in rows[:, 0]] == stamps
+    np.testing.assert_allclose(rows[:, 1:4].astype(float),
+                               [MODEL.chain.forward(r).translation for r in q], atol=1e-12)
+
+
+def test_a_ros1_chunk_is_decompressed_within_the_limit():
+    import bz2
+    from dq_fk_ros.bag.mcap_stream import ChunkRefused
+    from dq_fk_ros.bag.ros1_scan import decompress_ros1_chunk
+    bomb = bz2.compress(bytes(64 << 20))
+    with pytest.raises(ChunkRefused, match='more bytes than the 1024 it declares'):
+        decompress_ros1_chunk(bomb, 'bz2', 1024)
+    with pytest.raises(ChunkRefused, match='chunks over 256 MiB are skipped'):
+        decompress_ros1_chunk(bomb, 'bz2', 10**11)
+    assert decompress_ros1_chunk(bz2.compress(b'abc'), 'bz2', 3) == b'abc'
+
+
+@pytest.mark.parametrize('compression', ['zstd', 'lz4'])
+def test_rosbags_decompresses_through_the_bound_once_a_bag_is_opened(tmp_path, compression):
+    """Under a 1 GiB cap rosbags' own decompressor raised MemoryError on a 4 GiB chunk."""
+    import subprocess
+    import lz4.frame
+    valid_bag(tmp_path / 'in', n=5)
+    if compression == 'zstd':
+        bomb = zstd_rle_bomb(4 << 30)
+    else:
+        packer = lz4.frame.LZ4FrameCompressor()
+        bomb = packer.begin() + b''.join(packer.compress(bytes(1 << 20))
+                                         for _ in range(1024)) + packer.flush()
+    (tmp_path / 'bomb').write_bytes(bomb)
+    code = ('import resource\n'
+            'resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))\n'
+            'from dq_fk_ros.bag.reading import open_reader\n'
+            'from rosbags.rosbag2 import storage_mcap\n'
+            f'open_reader({str(tmp_path / "in")!r}).close()\n'
+            f'data = open({str(tmp_path / "bomb")!r}, "rb").read()\n'
+            'try:\n'
+            f'    storage_mcap.decompress(data, {compression!r}, 4096, 0)\n'
+            'except Exception as exc:\n'
+            '    print(type(exc).__name__, exc)\n')
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.stdout.startswith('ChunkRefused it decompresses to more bytes than the '
+                                  '4096'), (proc.stdout, proc.stderr[-1000:])

@@ -1,0 +1,176 @@
+"""
+Nothing a DDS peer, a file or a web page sends may run code, read files, freeze or crash.
+
+The node runs as the robot's user (often root) and any peer on its domain may set its
+parameters: every class of attack of the issue "nothing gets in" is here, each as a test
+that failed before the fix (a marker file created, a secret in a reply, no answer for a
+minute, SIGINT ignored).
+"""
+
+import os
+import signal
+import sys
+import time
+
+from dq_fk_ros.description.robot_model import shipped_robot_path
+from dq_fk_ros.ros.executables import executable
+from geometry_msgs.msg import PoseStamped
+import numpy as np
+import pytest
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
+from ros_harness import start
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                                'unit'))
+from test_xacro_sandbox import escapes, macro_bomb  # noqa: E402, I100 (the unit tests' own)
+
+RL15_JOINTS = [f'joint_{i}' for i in range(1, 7)]
+SECRET = 'root:*:20228:0:99999:7::'
+
+
+def set_parameter_async(listener, client, name, value):
+    request = SetParameters.Request(parameters=[Parameter(name, value=value)
+                                                .to_parameter_msg()])
+    return client.call_async(request)
+
+
+def set_parameter(listener, client, name, value, timeout_s=30):
+    future = set_parameter_async(listener, client, name, value)
+    assert listener.spin_until(future.done, timeout_s=timeout_s), f'no answer for {name}'
+    return future.result().results[0]
+
+
+def started_node(processes, listener, *params):
+    """Start dq_fk_node with ``params``; return it, its /pose listener and a service client."""
+    node = start(processes, 'dq_fk_node', *params, log_level='info')
+    poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    zero = listener.joint_state(RL15_JOINTS, [0] * 6)
+    assert listener.spin_until(lambda: poses, publish=zero, timeout_s=20)
+    client = listener.probe.create_client(SetParameters, '/dq_fk_node/set_parameters')
+    assert client.wait_for_service(timeout_sec=10)
+    return node, poses, client
+
+
+def stop(node, timeout_s=5.0):
+    """SIGINT the node; return (seconds it took to exit, everything it printed)."""
+    start_s = time.monotonic()
+    os.killpg(node.pid, signal.SIGINT)
+    output, _ = node.communicate(timeout=timeout_s + 5.0)
+    return time.monotonic() - start_s, output
+
+
+# -- code execution through xacro ---------------------------------------------------------
+@pytest.mark.parametrize('name', ['comprehension', 'globals', 'computed names',
+                                  'eval substitution'])
+def test_xacro_escapes_run_nothing_in_the_cli_or_at_node_start(tmp_path, processes, name):
+    marker = tmp_path / 'marker'
+    path = tmp_path / 'evil.urdf.xacro'
+    path.write_text(escapes(marker)[name])
+    for argv in (executable('dq_fk') + ['validate', str(path)],
+                 executable('dq_fk_node') + ['--ros-args', '-p',
+                                             f'robot_description_file:={path}']):
+        proc = processes.start(argv)
+        output, _ = proc.communicate(timeout=60)
+        assert proc.returncode == 1, output
+        assert 'xacro failed' in output and 'Traceback' not in output, output
+        assert not marker.exists(), argv
+    assert len(output.strip().splitlines()) == 1, output
+
+
+def test_xacro_set_at_run_time_runs_nothing(tmp_path, processes, listener):
+    marker = tmp_path / 'marker'
+    evil = tmp_path / 'evil.urdf.xacro'
+    evil.write_text(escapes(marker)['eval substitution'])
+    node, poses, client = started_node(processes, listener,
+                                       f'robot_description_dirs:={tmp_path}')
+    result = set_parameter(listener, client, 'robot_description_file', str(evil))
+    assert not result.successful and 'a .xacro file is a program' in result.reason
+    assert not marker.exists()
+    _, output = stop(node)
+    node2, poses, client = started_node(processes, listener,
+                                        f'robot_description_dirs:={tmp_path}',
+                                        'allow_runtime_xacro:=true')
+    result = set_parameter(listener, client, 'robot_description_file', str(evil))
+    assert not result.successful and result.reason == f'{evil}: xacro failed', result.reason
+    assert not marker.exists()
+
+
+# -- files disclosed to parameter clients -------------------------------------------------
+def test_run_time_files_outside_the_folders_are_refused_and_nothing_is_quoted(
+        tmp_path, processes, listener):
+    robots, private = tmp_path / 'robots', tmp_path / 'private'
+    robots.mkdir()
+    private.mkdir()
+    (private / 'shadow').write_text(SECRET + '\n')
+    (robots / 'notes.txt').write_text(SECRET + '\n')             # in the folder, no robot
+    (robots / 'env.yaml').write_text('API_KEY: hunter2\n')
+    (robots / 'key.urdf').write_text(f'<notes>{SECRET}</notes>')
+    (robots / 'shadow.yaml').symlink_to(private / 'shadow')
+    secret_xacro = robots / 'leak.urdf.xacro'
+    secret_xacro.write_text(
+        '<?xml version="1.0"?><robot name="$(env HOME)${xacro.load_yaml(\'' +
+        str(private / 'shadow') + '\')}" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<link name="a"/></robot>')
+    node, poses, client = started_node(processes, listener, f'robot_description_dirs:={robots}',
+                                       'allow_runtime_xacro:=true')
+    for path in (private / 'shadow', robots / 'shadow.yaml', '/etc/shadow', '/etc/passwd',
+                 robots / 'notes.txt', robots / 'env.yaml', robots / 'key.urdf', secret_xacro):
+        result = set_parameter(listener, client, 'robot_description_file', str(path))
+        assert not result.successful, path
+        for secret in ('root:', 'hunter2', 'API_KEY', '/root'):
+            assert secret not in result.reason, (path, result.reason)
+    zero = listener.joint_state(RL15_JOINTS, [0] * 6)
+    poses.clear()
+    assert listener.spin_until(lambda: poses, publish=zero, timeout_s=10)
+    good = robots / 'puma.yaml'
+    good.write_text(open(shipped_robot_path('puma560'), encoding='utf-8').read())
+    assert set_parameter(listener, client, 'robot_description_file', str(good)).successful
+    _, output = stop(node)
+    assert 'root:' not in output and 'hunter2' not in output and 'API_KEY' not in output, output
+
+
+# -- freezes: one parameter set may not stop the node ---------------------------------------
+def chain_urdf(n):
+    links = ''.join(f'<link name="l{k}"/>' for k in range(n + 1))
+    joints = ''.join(f'<joint name="j{k}" type="fixed"><parent link="l{k}"/>'
+                     f'<child link="l{k + 1}"/></joint>' for k in range(n))
+    return f'<robot name="long">{links}{joints}</robot>'
+
+
+def test_a_huge_urdf_and_a_macro_bomb_are_answered_while_the_node_keeps_publishing(
+        tmp_path, processes, listener):
+    (tmp_path / 'big.urdf').write_text(chain_urdf(20_000))
+    (tmp_path / 'bomb.urdf.xacro').write_text(macro_bomb())
+    node, poses, client = started_node(processes, listener, f'robot_description_dirs:={tmp_path}',
+                                       'allow_runtime_xacro:=true')
+    zero = listener.joint_state(RL15_JOINTS, [0] * 6)
+    for name, words in (('big.urdf', '20001 <link> elements'),
+                        ('bomb.urdf.xacro', 'xacro failed')):
+        poses.clear()
+        arrivals = []
+        poses_seen = [0]
+
+        def note():
+            if len(poses) > poses_seen[0]:
+                arrivals.append(time.monotonic())
+                poses_seen[0] = len(poses)
+            return future.done()
+        asked = time.monotonic()
+        future = set_parameter_async(listener, client, 'robot_description_file',
+                                     str(tmp_path / name))
+        assert listener.spin_until(note, publish=zero, timeout_s=20), f'no answer for {name}'
+        took = time.monotonic() - asked
+        result = future.result().results[0]
+        assert not result.successful and words in result.reason, result.reason
+        assert took < 10.0, f'{name}: answered after {took:.1f} s'
+        # the old robot was published all along (joint states every 50 ms)
+        gaps = np.diff([asked] + arrivals)
+        assert len(arrivals) > 3 and gaps.max() < 1.0, (name, took, gaps.max())
+        assert node.poll() is None
+    # and Ctrl-C works while a bomb is being expanded
+    future = set_parameter_async(listener, client, 'robot_description_file',
+                                 str(tmp_path / 'bomb.urdf.xacro'))
+    listener.spin_until(lambda: False, timeout_s=1.0)
+    took, output = stop(node)
+    assert node.returncode is not None and took < 5.0, (took, output[-500:])
