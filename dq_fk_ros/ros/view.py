@@ -82,7 +82,8 @@ class ViewState:
         self.select = select
         self.stale_after_s = stale_after_s
         self.counts = {'tf_messages': 0, 'bad_input': 0, 'frames_sent': 0, 'skipped_sends': 0,
-                       'clients': 0, 'clients_total': 0}
+                       'clients': 0, 'clients_total': 0, 'refused_hosts': 0,
+                       'refused_origins': 0}
 
     def take_transforms(self, transforms, static, stamp_ns=0):
         """Record ``[(parent, child, (x, y, z, qx, qy, qz, qw)), ...]`` as received now."""
@@ -230,6 +231,8 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()):
     async def guard(request, handler):
         """Refuse foreign hosts and origins (403); a failing request is a 404, not a 500."""
         if not host_allowed(_split_host(request.headers.get('Host', '')), allowed_hosts):
+            with state.lock:
+                state.counts['refused_hosts'] += 1
             return web.Response(status=403, text='forbidden host\n')
         origin = request.headers.get('Origin')
         if origin is not None and request.path == '/ws':
@@ -241,7 +244,7 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()):
                 same = False
             if not same:
                 with state.lock:
-                    state.counts['refused_origins'] = state.counts.get('refused_origins', 0) + 1
+                    state.counts['refused_origins'] += 1
                 return web.Response(status=403, text='forbidden origin\n')
         try:
             return await handler(request)

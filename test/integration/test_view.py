@@ -283,3 +283,66 @@ def test_a_bag_played_into_the_node_drives_the_view(processes, tmp_path):
     expected = homogeneous_from_dq(model.chain.forward(q).coeffs)
     np.testing.assert_allclose(htf.pose_matrix_of_tuple(poses['eeCarry_seg6']), expected,
                                atol=1e-9)
+
+
+def test_foreign_pages_and_hosts_are_refused(processes):
+    """/ws streamed the URDF and the poses to Origin: http://evil.example and to a rebinding
+    Host; now 403. A long URL gave a 500 with a traceback; nested JSON a RecursionError."""
+    import aiohttp
+    view, url = start_view(processes)
+    start(processes, 'dq_fk_node')
+    port = url.rsplit(':', 1)[1]
+
+    async def scenario():
+        async with aiohttp.ClientSession() as session:
+            for headers in ({'Origin': 'http://evil.example'},
+                            {'Origin': f'http://evil.example:{port}'},
+                            {'Origin': 'null'},
+                            {'Host': f'evil.example:{port}'},
+                            {'Host': f'attacker.127.0.0.1.nip.example:{port}'},
+                            {'Host': f'evil.example:{port}', 'Origin': f'http://evil.example:'
+                                                                      f'{port}'}):
+                with pytest.raises(aiohttp.WSServerHandshakeError) as refused:
+                    await session.ws_connect(url.replace('http', 'ws') + '/ws',
+                                             headers=headers)
+                assert refused.value.status == 403, headers
+            async with session.get(url + '/status', headers={'Host': 'evil.example'}) as r:
+                assert r.status == 403
+            # its own page, by each loopback name, still works
+            for own in (url, url.replace('127.0.0.1', 'localhost')):
+                ws = await session.ws_connect(own.replace('http', 'ws') + '/ws',
+                                              headers={'Origin': own})
+                await _until(ws, lambda m: m['type'] == 'robot')
+                await ws.send_str('[' * 30_000 + ']' * 30_000)      # 60 KB of nesting
+                await ws.close()
+            for path in ('/vendor/three/' + 'a' * 5000, '/' + 'b' * 5000,
+                         '/vendor/three/..%2f..%2f..%2fetc%2fpasswd'):
+                async with session.get(url + path) as r:
+                    body = await r.text()
+                    assert r.status in (403, 404) and 'Traceback' not in body, (path, r.status)
+            for _ in range(50):
+                counts = await _status(session, url)
+                if counts['bad_input'] >= 2:
+                    break
+                await asyncio.sleep(0.1)
+            assert counts['bad_input'] == 2 and counts['refused_origins'] == 3 and \
+        counts['refused_hosts'] == 4, counts
+
+    asyncio.run(scenario())
+    assert view.poll() is None
+
+
+def test_allow_host_adds_a_name(processes):
+    import aiohttp
+    _, url = start_view(processes, '--allow-host', 'robot.local')
+    port = url.rsplit(':', 1)[1]
+
+    async def scenario():
+        async with aiohttp.ClientSession() as session:
+            async with session.get(url + '/status',
+                                   headers={'Host': f'robot.local:{port}'}) as r:
+                assert r.status == 200
+            async with session.get(url + '/status', headers={'Host': f'other:{port}'}) as r:
+                assert r.status == 403
+
+    asyncio.run(scenario())

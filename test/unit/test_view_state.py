@@ -2,8 +2,10 @@
 
 import json
 import time
+from types import SimpleNamespace
 
-from dq_fk_ros.ros.view import parse_args, ViewState
+from dq_fk_ros.ros.view import _good_client_message, host_allowed, parse_args, ViewState
+from hypothesis import given, strategies as st
 import pytest
 
 IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
@@ -99,3 +101,29 @@ def test_only_each_publishers_newest_tf_is_read_and_bad_bytes_are_counted():
     assert by_name['c'][2] == 5.0 and message['stamp_ns'] == 12
     assert state.counts['bad_tf'] == 1
     assert state.counts['tf_messages'] == 2  # the newest of each of the two layouts
+
+
+@given(st.one_of(st.text(max_size=200), st.binary(max_size=200),
+                 st.recursive(st.one_of(st.none(), st.booleans(), st.floats(),
+                                        st.text(max_size=5)),
+                              lambda inner: st.one_of(
+                                  st.lists(inner, max_size=3),
+                                  st.dictionaries(st.text(max_size=5), inner, max_size=3)),
+                              max_leaves=20).map(json.dumps),
+                 st.integers(1, 40_000).map(lambda n: '[' * n + ']' * n),
+                 st.integers(1, 40_000).map(lambda n: '{"a":' * n + '1' + '}' * n)))
+def test_any_page_message_is_judged_without_an_exception(data):
+    """A 64 KB nested JSON message raised RecursionError in the view."""
+    kinds = SimpleNamespace(TEXT='text', BINARY='binary')
+    kind = kinds.BINARY if isinstance(data, bytes) else kinds.TEXT
+    good = _good_client_message(SimpleNamespace(type=kind, data=data), kinds)
+    assert good is (kind == kinds.TEXT and data.replace(' ', '') == '{"type":"hello"}')
+
+
+@pytest.mark.parametrize('host, allowed', [
+    ('127.0.0.1', True), ('127.3.4.5', True), ('localhost', True), ('::1', True),
+    ('[::1]', True), ('LOCALHOST.', True), ('evil.example', False), ('10.0.0.1', False),
+    ('', False), ('0.0.0.0', False), ('localhost.evil.example', False)])
+def test_only_loopback_hosts_are_allowed_by_default(host, allowed):
+    assert host_allowed(host) is allowed
+    assert host_allowed('robot.local', ('robot.local',))
