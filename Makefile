@@ -100,6 +100,8 @@ bench: setup $(BENCH_VENV)/.stamp
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_view.py
 	@echo
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_flood_memory.py
+	@echo
 	@$(PY) benchmarks/bench_bag.py
 
 mutate: setup

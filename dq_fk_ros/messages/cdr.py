@@ -23,9 +23,10 @@ import numpy as np
 CDR_LE_HEADER = b'\x00\x01\x00\x00'
 _U32 = struct.Struct('<I')
 _STAMP = struct.Struct('<iI')
-# a JointState naming more joints is refused (malformed_cdr): a robot has far fewer, and
-# what a message names is cached and listed (see README "Security")
-MAX_JOINT_STATE_NAMES = 4096
+# a JointState naming more joints, or larger, is refused (malformed_cdr): a robot has far
+# fewer, and what a message names is cached and listed (see README "Security")
+MAX_JOINT_STATE_NAMES = 1024
+MAX_JOINT_STATE_BYTES = 64 * 1024
 
 
 class CdrError(ValueError):
@@ -97,6 +98,9 @@ def _joint_state_spans(raw, with_counts=False):
     """
     if len(raw) < 16 or raw[:2] != CDR_LE_HEADER[:2]:
         raise CdrError('not a little-endian CDR message (or shorter than its header)')
+    if len(raw) > MAX_JOINT_STATE_BYTES:
+        raise CdrError(f'{len(raw)} bytes; a JointState of at most {MAX_JOINT_STATE_BYTES} is '
+                       f'taken')
     try:
         cur = _Cursor(raw)
         cur.pos = 12

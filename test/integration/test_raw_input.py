@@ -124,3 +124,28 @@ def test_raw_publisher_falls_back_to_publish_without_publish_raw():
 
     publisher = Publisher()
     assert raw_publisher(publisher)(b'x') == b'x'
+
+
+def test_a_callback_that_raises_is_counted_and_the_thread_goes_on(node):
+    """The input thread ended silently on its callback's first exception (no more /tf)."""
+    pub = node.create_publisher(String, 'raw_io', QOS)
+    got, reported = [], []
+
+    def callback(raw, info):
+        text = deserialize_message(raw, String).data
+        if text.startswith('bad'):
+            raise ValueError(text)
+        got.append(text)
+    thread = RawSubscriptionThread(node, String, '/raw_io', QOS, callback,
+                                   on_error=reported.append)
+    try:
+        assert wait_until(lambda: pub.get_subscription_count() == 1)
+        time.sleep(0.5)
+        for k in range(20):
+            pub.publish(String(data=f'bad {k}' if k % 2 else f'good {k}'))
+        assert wait_until(lambda: len(got) == 10)
+    finally:
+        thread.close()
+    assert got == [f'good {k}' for k in range(0, 20, 2)]
+    assert thread.errors == 10 and [str(e) for e in reported] == \
+        [f'bad {k}' for k in range(1, 20, 2)]

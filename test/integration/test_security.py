@@ -174,3 +174,52 @@ def test_a_huge_urdf_and_a_macro_bomb_are_answered_while_the_node_keeps_publishi
     listener.spin_until(lambda: False, timeout_s=1.0)
     took, output = stop(node)
     assert node.returncode is not None and took < 5.0, (took, output[-500:])
+
+
+# -- one line where one line is promised ----------------------------------------------------
+def test_huge_numbers_are_one_line_in_every_tool(tmp_path, processes):
+    """An axis of 1e200 gave a 39-line LinAlgError at node start (rc 1 in dq_fk_bag)."""
+    offset = tmp_path / 'far.urdf'
+    offset.write_text('<robot name="r"><link name="a"/><link name="b"/><joint name="j" '
+                      'type="revolute"><parent link="a"/><child link="b"/><origin '
+                      'xyz="1e200 0 0"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" '
+                      'effort="1" velocity="1"/></joint></robot>')
+    words = "joint 'j': origin xyz is beyond 1e+06 m"
+    for argv, code in ((executable('dq_fk') + ['fk', str(offset)], 1),
+                       (executable('dq_fk_bag') + ['process', str(tmp_path), str(tmp_path / 'o'),
+                                                   '--robot', str(offset)], 2),
+                       (executable('dq_fk_node') + ['--ros-args', '-p',
+                                                    f'robot_description_file:={offset}'], 1)):
+        proc = processes.start(argv)
+        output, _ = proc.communicate(timeout=60)
+        assert proc.returncode == code and words in output, (argv, output)
+        assert len(output.strip().splitlines()) == 1 and 'Warning' not in output, output
+    axis = tmp_path / 'axis.urdf'
+    axis.write_text(offset.read_text().replace('xyz="1e200 0 0"', 'xyz="0 0 1e200"')
+                    .replace('<axis xyz="0 0 1"/>', '<axis xyz="1e200 0 0"/>'))
+    proc = processes.start(executable('dq_fk') + ['fk', str(axis)])
+    output, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 1 and 'beyond 1e+06 m' in output
+    axis.write_text(offset.read_text().replace('xyz="1e200 0 0"', 'xyz="0 0 0.5"')
+                    .replace('<axis xyz="0 0 1"/>', '<axis xyz="1e200 0 0"/>'))
+    proc = processes.start(executable('dq_fk') + ['fk', str(axis)])
+    output, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 0 and 'Warning' not in output, output
+
+
+def test_joint_states_naming_too_many_joints_are_refused(processes, listener):
+    """10 000-name JointStates held the node at 438 MB; more than 1024 names are refused."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    node = start(processes, 'dq_fk_node')
+    diagnostics = listener.listen(DiagnosticArray, '/diagnostics')
+    poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    names = RL15_JOINTS + [f'extra_{k}' for k in range(1100)]
+    huge = listener.joint_state(names, [0.0] * len(names))
+
+    def refused():
+        values = {v.key: v.value for d in diagnostics[-1:] for v in d.status[0].values}
+        return int(values.get('rejected_malformed_cdr', 0)) > 0
+    assert listener.spin_until(refused, publish=huge, timeout_s=20)
+    assert not poses
+    assert listener.spin_until(lambda: poses, publish=listener.joint_state(RL15_JOINTS, [0] * 6))
+    assert node.poll() is None
