@@ -385,7 +385,7 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
 
 def _read_and_write(reader, conns, model, outputs, csv, copy_input, chunk, in_path, merger,
                     cache, ids, meter):
-    """The loop of :func:`_process_messages`, writing the CSV to the open file ``csv``."""
+    """Run the loop of :func:`_process_messages`, writing the CSV to the open file ``csv``."""
     if csv:
         csv.write('stamp_ns,x,y,z,qx,qy,qz,qw\n')
     raws, log_times = [], []

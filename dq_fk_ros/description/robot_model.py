@@ -418,6 +418,9 @@ def yaml_number(value):
 def load_robot_description(path):
     """Read and validate a robot description file; raise :class:`RobotDescriptionError`."""
     path = os.fspath(path)
+    if os.path.exists(path) and not os.path.isdir(path) and not os.path.isfile(path):
+        # a FIFO or a device would block the reader or never end
+        raise RobotDescriptionError(f'{path}: not a regular file')
     try:
         with open(path, encoding='utf-8') as stream:
             text = stream.read(MAX_FILE_BYTES + 1)

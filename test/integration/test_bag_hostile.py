@@ -334,7 +334,7 @@ def test_a_csv_that_is_a_hard_link_of_the_input_is_refused(tmp_path, capsys):
 
 # -- decompression bombs ----------------------------------------------------------------------
 def zstd_rle_bomb(size):
-    """A zstd frame of RLE blocks (4 bytes each) that expands to ``size`` zero bytes."""
+    """Return a zstd frame of RLE blocks (4 bytes each) expanding to ``size`` zero bytes."""
     block = 128 * 1024
     frame = bytearray(b'\x28\xb5\x2f\xfd\x00\x38')   # no content size, 128 KiB window
     count = size // block
@@ -361,8 +361,8 @@ def bomb_bags(tmp_path_factory, small_mcap):
     at = chunks[len(chunks) // 2][0]           # before the middle chunk
     start, end = chunks[0][2][0], chunks[-1][2][-1]
     lz4_bomb = lz4.frame.LZ4FrameCompressor()
-    lz4_data = lz4_bomb.begin() + b''.join(lz4_bomb.compress(bytes(1 << 20)) for _ in
-                                             range(1024)) + lz4_bomb.flush()   # 1 GiB
+    lz4_data = lz4_bomb.begin() + b''.join(
+        lz4_bomb.compress(bytes(1 << 20)) for _ in range(1024)) + lz4_bomb.flush()  # 1 GiB
     bombs = {
         'zstd 4 GiB, declared': chunk_record(zstd_rle_bomb(4 << 30), 'zstd', 4 << 30, start,
                                              end),
@@ -382,7 +382,7 @@ def bomb_bags(tmp_path_factory, small_mcap):
 
 def rosbags_bomb_bag(folder, small_mcap, compression):
     """
-    A rosbag2 folder rosbags opens (metadata, summary intact) whose third chunk is a bomb.
+    Write a rosbag2 folder rosbags opens (metadata, summary intact), its third chunk a bomb.
 
     Written with mcap's own writer, its compressor swapped for one chunk: the chunk index
     declares the real size, the data expands to 4 GiB (zstd) or 1 GiB (lz4). Returns the
@@ -453,7 +453,7 @@ def process_under_a_memory_cap(path, out):
 
 @pytest.mark.parametrize('compression', ['zstd', 'lz4'])
 def test_a_bomb_rosbags_opens_is_skipped_within_a_memory_cap(small_mcap, tmp_path, compression):
-    """rosbags decompressed a chunk whole: a 131 KB chunk expanding to 4 GiB took 8.3 GB."""
+    """Rosbags decompressed a chunk whole: a 131 KB chunk expanding to 4 GiB took 8.3 GB."""
     expected = rosbags_bomb_bag(tmp_path / 'in', small_mcap, compression)
     from rosbags.rosbag2 import Reader
     with Reader(tmp_path / 'in') as reader:   # rosbags itself opens this bag
@@ -497,8 +497,8 @@ def test_a_ros1_bag_with_a_damaged_index_is_read_chunk_by_chunk(tmp_path, capsys
     if damage == 'cut':
         data = data[:index_pos + 30]
     elif damage == 'bytes':
-        data = data[:index_pos + 8] + bytes(b ^ 0x5A for b in data[index_pos + 8:index_pos + 400]) \
-            + data[index_pos + 400:]
+        flipped = bytes(b ^ 0x5A for b in data[index_pos + 8:index_pos + 400])
+        data = data[:index_pos + 8] + flipped + data[index_pos + 400:]
     else:
         value = 2**62 if damage == 'index_pos 2**62' else 0
         data = data[:at] + struct.pack('<Q', value) + data[at + 8:]
@@ -552,3 +552,50 @@ def test_rosbags_decompresses_through_the_bound_once_a_bag_is_opened(tmp_path, c
                           timeout=120)
     assert proc.stdout.startswith('ChunkRefused it decompresses to more bytes than the '
                                   '4096'), (proc.stdout, proc.stderr[-1000:])
+
+
+def test_the_csv_is_closed_when_processing_fails(tmp_path, monkeypatch):
+    """The --csv file handle stayed open when an exception went through process_bag."""
+    import builtins
+    from dq_fk_ros.bag import process as process_module
+    valid_bag(tmp_path / 'in', n=20)
+    opened = []
+
+    def tracking_open(*args, **kwargs):
+        opened.append(builtins.open(*args, **kwargs))
+        return opened[-1]
+
+    def broken(*args, **kwargs):
+        raise RuntimeError('broken on purpose')
+    monkeypatch.setattr(process_module, 'open', tracking_open, raising=False)
+    monkeypatch.setattr(process_module.JointStateMerger, 'merge_many', broken)
+    with pytest.raises(RuntimeError, match='broken on purpose'):
+        process_module.process_bag(tmp_path / 'in', tmp_path / 'out', 'rl15',
+                                   csv_path=tmp_path / 'ee.csv', csv_only=True, progress=False)
+    assert len(opened) == 1 and opened[0].closed
+
+
+def test_play_skips_a_bomb_within_a_memory_cap(small_mcap, tmp_path, processes,
+                                               ros_domain_id):
+    """dq_fk_bag play decompressed a bomb chunk whole, as process did."""
+    from ros_harness import Harness
+    from sensor_msgs.msg import JointState as RosJointState
+    from test_bag import stamp_ns
+    from dq_fk_ros.ros.executables import executable
+    expected = rosbags_bomb_bag(tmp_path / 'in', small_mcap, 'zstd')
+    listener = Harness()
+    try:
+        joints = listener.listen(RosJointState, '/joint_states', 1000)
+        player = processes.start(['prlimit', f'--as={1 << 30}'] + executable('dq_fk_bag') + [
+            'play', str(tmp_path / 'in'), '--rate', '20', '--quiet',
+            '--wait-for-subscribers', '1'])
+        listener.spin_until(lambda: player.poll() is not None and
+                            len(joints) >= len(expected), timeout_s=60)
+        player.wait(timeout=30)
+        output = player.stdout.read()
+    finally:
+        listener.close()
+    assert player.returncode == 1 and 'MemoryError' not in output, output
+    assert 'it decompresses to more bytes than' in output, output
+    got = [stamp_ns(m.header) for m in joints]
+    assert set(expected) <= set(got), (len(expected), len(got), output)

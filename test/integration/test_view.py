@@ -286,8 +286,12 @@ def test_a_bag_played_into_the_node_drives_the_view(processes, tmp_path):
 
 
 def test_foreign_pages_and_hosts_are_refused(processes):
-    """/ws streamed the URDF and the poses to Origin: http://evil.example and to a rebinding
-    Host; now 403. A long URL gave a 500 with a traceback; nested JSON a RecursionError."""
+    """
+    Refuse other sites' pages and rebinding hosts (403); long paths and deep JSON are harmless.
+
+    /ws streamed the URDF and the poses to ``Origin: http://evil.example`` and to a rebinding
+    ``Host``; a long URL gave a 500 with a traceback; nested JSON a RecursionError.
+    """
     import aiohttp
     view, url = start_view(processes)
     start(processes, 'dq_fk_node')
@@ -300,8 +304,8 @@ def test_foreign_pages_and_hosts_are_refused(processes):
                             {'Origin': 'null'},
                             {'Host': f'evil.example:{port}'},
                             {'Host': f'attacker.127.0.0.1.nip.example:{port}'},
-                            {'Host': f'evil.example:{port}', 'Origin': f'http://evil.example:'
-                                                                      f'{port}'}):
+                            {'Host': f'evil.example:{port}',
+                             'Origin': f'http://evil.example:{port}'}):
                 with pytest.raises(aiohttp.WSServerHandshakeError) as refused:
                     await session.ws_connect(url.replace('http', 'ws') + '/ws',
                                              headers=headers)
@@ -325,8 +329,8 @@ def test_foreign_pages_and_hosts_are_refused(processes):
                 if counts['bad_input'] >= 2:
                     break
                 await asyncio.sleep(0.1)
-            assert counts['bad_input'] == 2 and counts['refused_origins'] == 3 and \
-        counts['refused_hosts'] == 4, counts
+            assert (counts['bad_input'], counts['refused_origins'],
+                    counts['refused_hosts']) == (2, 3, 4), counts
 
     asyncio.run(scenario())
     assert view.poll() is None

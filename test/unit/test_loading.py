@@ -120,3 +120,13 @@ def test_the_summary_keeps_every_name_on_one_line():
                         '</joint></robot>')
     summary = robot_from_urdf_text(urdf).summary()
     assert '\n' not in summary and 's?j -> odd?name' in summary
+
+
+def test_a_fifo_or_a_device_is_refused_without_blocking(tmp_path):
+    os.mkfifo(tmp_path / 'pipe.yaml')
+    for path in (tmp_path / 'pipe.yaml', '/dev/zero'):
+        with pytest.raises(RobotDescriptionError, match='not a regular file|not a file'):
+            load_robot(str(path))
+    with pytest.raises(RobotDescriptionError, match='not a file'):
+        load_robot(str(tmp_path / 'pipe.yaml').replace('.yaml', '.urdf')
+                   if os.mkfifo(tmp_path / 'pipe.urdf') is None else '')

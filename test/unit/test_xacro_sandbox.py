@@ -19,8 +19,13 @@ TAIL = '</robot>\n'
 
 
 def chars(text):
-    """A xacro expression that builds ``text`` without ( ) " ' < > & } (as an attacker would)."""
+    """Return a xacro expression building ``text`` without ( ) " ' < > & } in it."""
     return ' + '.join(f"'%c' % {ord(c)}" if c in '()}"\'<>&' else repr(c) for c in text)
+
+
+def link(expression):
+    """Return a xacro file whose one link is named by ``expression``."""
+    return HEAD + '<link name="' + expression + '"/>' + TAIL
 
 
 def escapes(marker):
@@ -28,19 +33,20 @@ def escapes(marker):
     touch = f"open('{marker}', 'w')"
     return {
         # a comprehension: the dunders live in the nested code object only
-        'comprehension': HEAD + '<link name="${[c()._module.__builtins__[\'open\'](\'' +
-        str(marker) + '\', \'w\') for x in [()] for c in x.__class__.__base__.__subclasses__()'
-        ' if c.__name__ == \'catch_warnings\'][0]}"/>' + TAIL,
+        'comprehension': link(
+            "${[c()._module.__builtins__['open']" f"('{marker}', 'w') for x in [()] "
+            "for c in x.__class__.__base__.__subclasses__() if c.__name__ == 'catch_warnings']"
+            '[0]}'),
         # a lambda reaching a function's globals
-        'globals': HEAD + '<link name="${(lambda f: f.__globals__[\'__builtins__\'][\'open\']'
-        '(\'' + str(marker) + '\', \'w\'))(xacro.load_yaml)}"/>' + TAIL,
+        'globals': link(
+            "${(lambda f: f.__globals__['__builtins__']['open']" f"('{marker}', 'w'))"
+            '(xacro.load_yaml)}'),
         # names built at run time: vars() of a type, then __getattribute__ by a computed name
-        'computed names': HEAD + '<link name="${python.vars(python.type(1).mro()[1])[\'_\' + \'_getattribute'
-        '_\' + \'_\'](xacro.load_yaml, \'_\' + \'_globals_\' + \'_\')[\'os\'].system(\'touch '
-        + str(marker) + '\')}"/>' + TAIL,
+        'computed names': link(
+            "${python.vars(python.type(1).mro()[1])['_' + '_getattribute_' + '_']"
+            "(xacro.load_yaml, '_' + '_globals_' + '_')['os'].system" f"('touch {marker}')}}"),
         # $(eval) runs with Python's builtins in xacro as it comes; no ( ) in the text
-        'eval substitution': HEAD + '<link name="$(eval ${' + chars(f'exec("{touch}")') +
-        '})"/>' + TAIL,
+        'eval substitution': link('$(eval ${' + chars(f'exec("{touch}")') + '})'),
     }
 
 
