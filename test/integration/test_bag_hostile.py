@@ -259,13 +259,30 @@ def test_byte_damage_and_truncation_keep_every_intact_chunk(
         assert rc == 0 and len(got) == 240 and err == ''
 
 
+def play_and_listen(processes, folder, expected, prefix=()):
+    """Play ``folder`` at 20x (``prefix`` before the command); return (rc, output, stamps)."""
+    from ros_harness import Harness
+    from sensor_msgs.msg import JointState as RosJointState
+    from test_bag import stamp_ns
+    from dq_fk_ros.ros.executables import executable
+    listener = Harness()
+    try:
+        joints = listener.listen(RosJointState, '/joint_states', 20000)
+        player = processes.start(list(prefix) + executable('dq_fk_bag') + [
+            'play', str(folder), '--rate', '20', '--quiet', '--wait-for-subscribers', '1'])
+        listener.spin_until(lambda: player.poll() is not None and
+                            len(joints) >= len(expected), timeout_s=60)
+        player.wait(timeout=30)
+        output = player.stdout.read()
+    finally:
+        listener.close()
+    return player.returncode, output, [stamp_ns(m.header) for m in joints]
+
+
 @pytest.mark.integration
 def test_play_goes_on_past_a_damaged_chunk(tmp_path, processes, ros_domain_id):
     """Rosbags stops inside the damaged chunk; play goes on with the intact ones (exit 1)."""
-    from ros_harness import Harness
-    from sensor_msgs.msg import JointState as RosJointState
-    from test_bag import messages_outside, stamp_ns
-    from dq_fk_ros.ros.executables import executable
+    from test_bag import messages_outside
     _, stamps = valid_bag(tmp_path / 'in', n=12000)
     mcap = next((tmp_path / 'in').glob('*.mcap'))
     data = bytearray(mcap.read_bytes())
@@ -273,20 +290,8 @@ def test_play_goes_on_past_a_damaged_chunk(tmp_path, processes, ros_domain_id):
     expected = messages_outside(bytes(data), at, at + 2000)
     data[at:at + 2000] = b'\xff' * 2000
     mcap.write_bytes(bytes(data))
-    listener = Harness()
-    try:
-        joints = listener.listen(RosJointState, '/joint_states', 20000)
-        player = processes.start(executable('dq_fk_bag') + [
-            'play', str(tmp_path / 'in'), '--rate', '20', '--quiet',
-            '--wait-for-subscribers', '1'])
-        listener.spin_until(lambda: player.poll() is not None and
-                            len(joints) >= len(expected), timeout_s=60)
-        player.wait(timeout=30)
-        output = player.stdout.read()
-    finally:
-        listener.close()
-    got = [stamp_ns(m.header) for m in joints]
-    assert player.returncode == 1, output
+    rc, output, got = play_and_listen(processes, tmp_path / 'in', expected)
+    assert rc == 1, output
     assert 'is damaged' in output and 'published ' in output
     # every message of every intact chunk, in order, none twice (the damaged chunk's
     # messages before the damage may come too: rosbags read them before it stopped)
@@ -344,6 +349,14 @@ def zstd_rle_bomb(size):
     return bytes(frame)
 
 
+def lz4_bomb(size):
+    """Return an lz4 frame expanding to ``size`` zero bytes (about size / 250 of them)."""
+    import lz4.frame
+    packer = lz4.frame.LZ4FrameCompressor()
+    return packer.begin() + b''.join(packer.compress(bytes(1 << 20))
+                                     for _ in range(size >> 20)) + packer.flush()
+
+
 def chunk_record(data, compression, declared, start, end):
     body = (start.to_bytes(8, 'little') + end.to_bytes(8, 'little') +
             declared.to_bytes(8, 'little') + b'\x00' * 4 +
@@ -355,14 +368,11 @@ def chunk_record(data, compression, declared, start, end):
 @pytest.fixture(scope='module')
 def bomb_bags(tmp_path_factory, small_mcap):
     """Bare .mcap files: the small bag with a bomb chunk put between two of its chunks."""
-    import lz4.frame
     folder, mcap, data, chunks, definitions, summary_start = small_mcap
     out = tmp_path_factory.mktemp('bombs')
     at = chunks[len(chunks) // 2][0]           # before the middle chunk
     start, end = chunks[0][2][0], chunks[-1][2][-1]
-    lz4_bomb = lz4.frame.LZ4FrameCompressor()
-    lz4_data = lz4_bomb.begin() + b''.join(
-        lz4_bomb.compress(bytes(1 << 20)) for _ in range(1024)) + lz4_bomb.flush()  # 1 GiB
+    lz4_data = lz4_bomb(1 << 30)
     bombs = {
         'zstd 4 GiB, declared': chunk_record(zstd_rle_bomb(4 << 30), 'zstd', 4 << 30, start,
                                              end),
@@ -388,7 +398,6 @@ def rosbags_bomb_bag(folder, small_mcap, compression):
     declares the real size, the data expands to 4 GiB (zstd) or 1 GiB (lz4). Returns the
     log times of the messages in intact chunks.
     """
-    import lz4.frame
     import mcap.writer as mcap_writer
     from mcap.writer import CompressionType, Writer
     source_folder, mcap, data, _, _, _ = small_mcap
@@ -398,12 +407,7 @@ def rosbags_bomb_bag(folder, small_mcap, compression):
     summary = reader.get_summary()
     module = mcap_writer.zstandard if compression == 'zstd' else mcap_writer.lz4.frame
     real, count = module.compress, [0]
-    if compression == 'zstd':
-        bomb = zstd_rle_bomb(4 << 30)
-    else:
-        packer = lz4.frame.LZ4FrameCompressor()
-        bomb = packer.begin() + b''.join(packer.compress(bytes(1 << 20))
-                                         for _ in range(1024)) + packer.flush()
+    bomb = zstd_rle_bomb(4 << 30) if compression == 'zstd' else lz4_bomb(1 << 30)
 
     def compress(chunk):
         count[0] += 1
@@ -466,22 +470,10 @@ def test_a_bomb_rosbags_opens_is_skipped_within_a_memory_cap(small_mcap, tmp_pat
                                   'zstd, declared 100 GB', 'lz4 1 GiB, declared 1 KiB'])
 def test_decompression_bombs_in_a_damaged_recording_are_skipped(bomb_bags, tmp_path, name):
     """The record-by-record reader: 100 GB declared raised MemoryError and lost the rest."""
-    import subprocess
     files, chunks = bomb_bags
-    path = files[name]
-    code = ('import resource, sys\n'
-            'resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))\n'
-            'from dq_fk_ros.cli.dq_fk_bag import main\n'
-            f'sys.exit(main(["process", {str(path)!r}, {str(tmp_path / "out")!r}, "--robot",'
-            f' "rl15", "--csv", {str(tmp_path / "ee.csv")!r}, "--csv-only", "--quiet"]))\n')
-    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
-                          timeout=120)
-    assert proc.returncode in (0, 1), proc.stderr[-2000:]
-    assert 'Traceback' not in proc.stderr and 'MemoryError' not in proc.stderr, proc.stderr
-    got = [int(line.split(',')[0]) for line in
-           (tmp_path / 'ee.csv').read_text().splitlines()[1:]]
+    got = process_under_a_memory_cap(files[name], tmp_path)
     expected = [t for _, _, times in chunks for t in times]
-    assert sorted(got) == sorted(expected), (len(got), len(expected), proc.stderr)
+    assert sorted(got) == sorted(expected), (len(got), len(expected))
 
 
 # -- ROS 1 bags whose index is damaged ------------------------------------------------------
@@ -529,14 +521,8 @@ def test_a_ros1_chunk_is_decompressed_within_the_limit():
 def test_rosbags_decompresses_through_the_bound_once_a_bag_is_opened(tmp_path, compression):
     """Under a 1 GiB cap rosbags' own decompressor raised MemoryError on a 4 GiB chunk."""
     import subprocess
-    import lz4.frame
     valid_bag(tmp_path / 'in', n=5)
-    if compression == 'zstd':
-        bomb = zstd_rle_bomb(4 << 30)
-    else:
-        packer = lz4.frame.LZ4FrameCompressor()
-        bomb = packer.begin() + b''.join(packer.compress(bytes(1 << 20))
-                                         for _ in range(1024)) + packer.flush()
+    bomb = zstd_rle_bomb(4 << 30) if compression == 'zstd' else lz4_bomb(1 << 30)
     (tmp_path / 'bomb').write_bytes(bomb)
     code = ('import resource\n'
             'resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))\n'
@@ -577,25 +563,10 @@ def test_the_csv_is_closed_when_processing_fails(tmp_path, monkeypatch):
 
 def test_play_skips_a_bomb_within_a_memory_cap(small_mcap, tmp_path, processes,
                                                ros_domain_id):
-    """dq_fk_bag play decompressed a bomb chunk whole, as process did."""
-    from ros_harness import Harness
-    from sensor_msgs.msg import JointState as RosJointState
-    from test_bag import stamp_ns
-    from dq_fk_ros.ros.executables import executable
+    """Play decompressed a bomb chunk whole, as process did."""
     expected = rosbags_bomb_bag(tmp_path / 'in', small_mcap, 'zstd')
-    listener = Harness()
-    try:
-        joints = listener.listen(RosJointState, '/joint_states', 1000)
-        player = processes.start(['prlimit', f'--as={1 << 30}'] + executable('dq_fk_bag') + [
-            'play', str(tmp_path / 'in'), '--rate', '20', '--quiet',
-            '--wait-for-subscribers', '1'])
-        listener.spin_until(lambda: player.poll() is not None and
-                            len(joints) >= len(expected), timeout_s=60)
-        player.wait(timeout=30)
-        output = player.stdout.read()
-    finally:
-        listener.close()
-    assert player.returncode == 1 and 'MemoryError' not in output, output
+    rc, output, got = play_and_listen(processes, tmp_path / 'in', expected,
+                                      ['prlimit', f'--as={1 << 30}'])
+    assert rc == 1 and 'MemoryError' not in output, output
     assert 'it decompresses to more bytes than' in output, output
-    got = [stamp_ns(m.header) for m in joints]
     assert set(expected) <= set(got), (len(expected), len(got), output)
