@@ -14,7 +14,7 @@ from dq_fk_ros.description.from_urdf import (
 from dq_fk_ros.description.robot_model import (
     load_robot_description, parse_robot_description, RobotDescriptionError, shipped_robot_path,
     shipped_robots)
-from dq_fk_ros.description.xacro_sandbox import package_root, TIME_LIMIT_S
+from dq_fk_ros.description.xacro_sandbox import ros_package_roots, TIME_LIMIT_S
 
 URDF_SUFFIXES = ('.urdf', '.xacro')
 
@@ -123,15 +123,16 @@ def load_robot(spec, base=None, tip=None, convention='standard', access=None):
     :param base: for a URDF: the link the chain starts at (default: the root).
     :param tip: for a URDF: the link it ends at (default: see ``dq_fk from-urdf``).
     :param convention: for a URDF: the DH convention of the table made from it.
-    :param access: a :class:`FileAccess` for a file someone else named (default: the caller
-        chose the file: any path, xacro expanded with its package readable).
+    :param access: a :class:`FileAccess` for a file someone else named: it must lie in
+        ``access.dirs``, and a xacro may read only there and in the ROS package paths
+        (default: the caller chose the file: any path, a xacro may read its package).
     Raises :class:`RobotDescriptionError` (one line) for anything unusable.
     """
     path = resolve_robot(spec)
     roots = None
-    if access is not None:
+    if access is not None:  # a xacro reads only where the file may be, and ROS packages
         path = access.check(path)
-        roots = [package_root(path)] + list(access.dirs)
+        roots = list(access.dirs) + ros_package_roots()
     if not is_urdf(path):
         return LoadedRobot(load_robot_description(path))
     if access is None:

@@ -84,6 +84,24 @@ def test_every_bad_input_leaves_the_node_alive_and_publishing(ros):
     assert 'gripper' in {v.key: v.value for v in status.values}['unknown_joints']
 
 
+def test_an_exception_in_the_input_thread_is_counted_and_the_node_goes_on(ros):
+    """The input thread ended silently when its callback raised: no /tf ever after."""
+    node = ros.start_node()
+    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    zero = ros.joint_state(RL15_JOINTS, [0] * 6)
+    assert ros.spin_until(lambda: poses, publish=zero)
+    note = node._gaps.note
+
+    def broken(number):
+        raise RuntimeError('broken on purpose')
+    node._gaps.note = broken
+    assert ros.spin_until(lambda: _value(node.diagnostics(), 'input_errors') >= 3,
+                          publish=zero)
+    node._gaps.note = note
+    poses.clear()
+    assert ros.spin_until(lambda: poses, publish=zero)
+
+
 def test_missing_joints_hold_publishing_back(ros):
     node = ros.start_node()
     poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')

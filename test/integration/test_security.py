@@ -80,20 +80,24 @@ def test_xacro_escapes_run_nothing_in_the_cli_or_at_node_start(tmp_path, process
 
 def test_xacro_set_at_run_time_runs_nothing(tmp_path, processes, listener):
     marker = tmp_path / 'marker'
-    evil = tmp_path / 'evil.urdf.xacro'
-    evil.write_text(escapes(marker)['eval substitution'])
+    evil = {}
+    for k, (name, text) in enumerate(escapes(marker).items()):
+        evil[name] = tmp_path / f'evil{k}.urdf.xacro'
+        evil[name].write_text(text)
     node, poses, client = started_node(processes, listener,
                                        f'robot_description_dirs:={tmp_path}')
-    result = set_parameter(listener, client, 'robot_description_file', str(evil))
+    result = set_parameter(listener, client, 'robot_description_file',
+                           str(evil['eval substitution']))
     assert not result.successful and 'a .xacro file is a program' in result.reason
     assert not marker.exists()
-    _, output = stop(node)
-    node2, poses, client = started_node(processes, listener,
-                                        f'robot_description_dirs:={tmp_path}',
-                                        'allow_runtime_xacro:=true')
-    result = set_parameter(listener, client, 'robot_description_file', str(evil))
-    assert not result.successful and result.reason == f'{evil}: xacro failed', result.reason
-    assert not marker.exists()
+    stop(node)
+    node, poses, client = started_node(processes, listener, f'robot_description_dirs:={tmp_path}',
+                                       'allow_runtime_xacro:=true')
+    for name, path in evil.items():
+        result = set_parameter(listener, client, 'robot_description_file', str(path))
+        assert not result.successful and result.reason == f'{path}: xacro failed', \
+            (name, result.reason)
+        assert not marker.exists(), name
 
 
 # -- files disclosed to parameter clients -------------------------------------------------
