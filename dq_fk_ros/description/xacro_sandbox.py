@@ -115,7 +115,7 @@ def expand_xacro(path, read_roots, time_limit_s=TIME_LIMIT_S,
     kill the child before they propagate.
     """
     environment = {k: os.environ[k] for k in ENVIRONMENT if k in os.environ}
-    request = json.dumps({'path': os.fspath(path),
+    request = json.dumps({'path': os.path.abspath(path),  # the child runs in its folder
                           'roots': [os.path.realpath(r) for r in read_roots],
                           'time_limit_s': time_limit_s, 'memory': memory_limit_bytes})
     child = subprocess.Popen(

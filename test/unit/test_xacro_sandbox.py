@@ -185,3 +185,12 @@ def test_should_stop_ends_the_expansion_early(tmp_path):
     with pytest.raises(XacroRefused, match='shutting down'):
         expand_xacro(path, [tmp_path], time_limit_s=30.0, should_stop=stop)
     assert time.monotonic() - start < 5.0
+
+
+def test_a_relative_path_is_expanded(tmp_path, monkeypatch):
+    """The child runs in the file's folder: a relative path was looked up twice over."""
+    (tmp_path / 'robots').mkdir()
+    write(tmp_path / 'robots', 'r.urdf.xacro', HEAD + '<xacro:property name="n" value="a"/>'
+          '<link name="${n}"/>' + TAIL)
+    monkeypatch.chdir(tmp_path)
+    assert '<link name="a"/>' in read_urdf_text('robots/r.urdf.xacro')
