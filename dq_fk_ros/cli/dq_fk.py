@@ -15,6 +15,7 @@ import sys
 
 from dq_fk_ros.description.from_urdf import load_urdf_description
 from dq_fk_ros.description.loading import load_robot, resolve_robot
+from dq_fk_ros.description.packages import parse_package_option
 from dq_fk_ros.description.robot_model import (
     load_robot_description, RobotDescriptionError, shipped_robot_path, shipped_robots)
 from dq_fk_ros.description.urdf import matrix_to_rpy, robot_to_urdf
@@ -94,7 +95,23 @@ def frames_table(model, q):
 def _robot(args):
     """Load FILE of a command (a URDF with its --urdf-base/--urdf-tip)."""
     return load_robot(args.file, getattr(args, 'urdf_base', None),
-                      getattr(args, 'urdf_tip', None)).model
+                      getattr(args, 'urdf_tip', None), packages=dict(args.package)).model
+
+
+def package_option(text):
+    """Check one ``--package NAME=DIR``; return ``(name, folder)`` (argparse's type)."""
+    try:
+        return parse_package_option(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_package_option(parser):
+    """Add ``--package NAME=DIR`` (repeatable): where a xacro's ``$(find NAME)`` is."""
+    parser.add_argument('--package', metavar='NAME=DIR', action='append', default=[],
+                        type=package_option,
+                        help='for a xacro: $(find NAME) is DIR (repeat for more; before the '
+                        'ament index, ROS_PACKAGE_PATH and the folders above the file)')
 
 
 def add_urdf_chain_options(parser):
@@ -111,7 +128,7 @@ def cmd_validate(args):
     for name in args.files:
         path = resolve_robot(name)
         try:
-            robot = load_robot(path)
+            robot = load_robot(path, packages=dict(args.package))
         except RobotDescriptionError as exc:
             print(exc, file=sys.stderr)
             failed += 1
@@ -208,7 +225,8 @@ def cmd_plot(args):
 
 
 def cmd_from_urdf(args):
-    conversion, _ = load_urdf_description(args.file, args.base, args.tip, args.convention)
+    conversion, _ = load_urdf_description(args.file, args.base, args.tip, args.convention,
+                                          dict(args.package))
     if args.output in (None, '-'):
         sys.stdout.write(conversion.text)
     else:
@@ -239,6 +257,7 @@ def build_parser():
     sub = parser.add_subparsers(dest='command', required=True)
     p = sub.add_parser('validate', help='check robot description files')
     p.add_argument('files', nargs='+', metavar='FILE')
+    add_package_option(p)
     p.set_defaults(func=cmd_validate)
     p = sub.add_parser('fk', help='print the pose of every frame')
     p.add_argument('file', metavar='FILE')
@@ -250,11 +269,13 @@ def build_parser():
     p.add_argument('--matrix', action='store_true', help='also print the 4x4 matrix')
     p.add_argument('--json', action='store_true', help='print JSON instead of a table')
     add_urdf_chain_options(p)
+    add_package_option(p)
     p.set_defaults(func=cmd_fk)
     p = sub.add_parser('urdf', help='write a URDF whose links are the published frames')
     p.add_argument('file', metavar='FILE')
     p.add_argument('-o', '--output', help='output file (default: standard output)')
     add_urdf_chain_options(p)
+    add_package_option(p)
     p.set_defaults(func=cmd_urdf)
     p = sub.add_parser('plot', help='draw the robot at given joint values (PNG or SVG)')
     p.add_argument('file', metavar='FILE')
@@ -266,6 +287,7 @@ def build_parser():
     p.add_argument('--view', nargs=2, type=float, metavar=('AZIMUTH', 'ELEVATION'),
                    default=None, help='camera direction in degrees (default -60 25)')
     add_urdf_chain_options(p)
+    add_package_option(p)
     p.set_defaults(func=cmd_plot)
     p = sub.add_parser('from-urdf', help='write the DH robot description of a URDF chain')
     p.add_argument('file', metavar='ROBOT.urdf|ROBOT.urdf.xacro')
@@ -277,6 +299,7 @@ def build_parser():
                    help='DH convention of the table (default: standard, Spong)')
     p.add_argument('-o', '--output', metavar='robot.yaml',
                    help='output file (default: standard output)')
+    add_package_option(p)
     p.set_defaults(func=cmd_from_urdf)
     p = sub.add_parser('list', help='list the shipped robots')
     p.set_defaults(func=cmd_list)

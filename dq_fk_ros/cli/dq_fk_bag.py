@@ -16,7 +16,7 @@ import sys
 
 from dq_fk_ros.bag.process import process_bag
 from dq_fk_ros.bag.reading import BagDamaged, BagError, printable
-from dq_fk_ros.cli.dq_fk import add_urdf_chain_options
+from dq_fk_ros.cli.dq_fk import add_package_option, add_urdf_chain_options
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.description.robot_model import RobotDescriptionError
 
@@ -47,6 +47,7 @@ def build_parser():
                    help='DH robot file, URDF/xacro file or shipped robot name (e.g. rl15, '
                    'ur5e); required: a bag does not say which robot recorded it')
     add_urdf_chain_options(p)
+    add_package_option(p)
     p.add_argument('--topic', help='JointState topic (default: the only one in the bag)')
     p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
     p.add_argument('--overwrite', action='store_true', help='replace OUT_BAG if it exists')
@@ -96,7 +97,8 @@ def main(argv=None):
     args = build_parser().parse_args(argv)
     try:
         if args.command == 'process':
-            robot = load_robot(args.robot, args.urdf_base, args.urdf_tip).model
+            robot = load_robot(args.robot, args.urdf_base, args.urdf_tip,
+                               packages=dict(args.package)).model
             s = process_bag(args.in_bag, args.out_bag, robot, topic=args.topic,
                             storage=args.storage, overwrite=args.overwrite, csv_path=args.csv,
                             csv_only=args.csv_only, copy_input=args.copy_input,

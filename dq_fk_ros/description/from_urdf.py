@@ -85,13 +85,15 @@ class UrdfTree:
         return {joint.name: joint for joint in self.joints.values()}
 
 
-def read_urdf_text(path, read_roots=None, time_limit_s=TIME_LIMIT_S, should_stop=None):
+def read_urdf_text(path, read_roots=None, time_limit_s=TIME_LIMIT_S, should_stop=None,
+                   packages=None, within=None):
     """
     Return the URDF XML of a ``.urdf`` file, or of a ``.xacro`` file expanded by xacro.
 
     xacro runs confined (:mod:`dq_fk_ros.description.xacro_sandbox`): it may read under
     ``read_roots`` only (default: the file's package or folder and the ROS package paths)
-    and is stopped after ``time_limit_s``.
+    and in the packages ``$(find)`` finds (``packages``: ``{name: folder}`` first; ``within``:
+    folders the search above the file may not leave), and is stopped after ``time_limit_s``.
     """
     path = os.fspath(path)
     if not os.path.isfile(path):
@@ -108,7 +110,8 @@ def read_urdf_text(path, read_roots=None, time_limit_s=TIME_LIMIT_S, should_stop
                                         f'(pip install xacro)') from None
         roots = default_read_roots(path) if read_roots is None else read_roots
         try:
-            return expand_xacro(path, roots, time_limit_s, should_stop=should_stop)
+            return expand_xacro(path, roots, time_limit_s, should_stop=should_stop,
+                                packages=packages, within=within)
         except XacroRefused as exc:
             raise RobotDescriptionError(f'{path}: xacro failed: {exc}',
                                         f'{path}: xacro failed') from None
@@ -688,9 +691,13 @@ def _yaml(tree, source, base, tip, convention, frame0, dh_names, rows, links, sk
     return '\n'.join(lines) + '\n'
 
 
-def load_urdf_description(path, base=None, tip=None, convention='standard'):
-    """Read a ``.urdf``/``.xacro`` file and convert it: ``(Conversion, urdf text)``."""
-    text = read_urdf_text(path)
+def load_urdf_description(path, base=None, tip=None, convention='standard', packages=None):
+    """
+    Read a ``.urdf``/``.xacro`` file and convert it: ``(Conversion, urdf text)``.
+
+    :param packages: ``{name: folder}`` for xacro's ``$(find)`` (before the ROS paths).
+    """
+    text = read_urdf_text(path, packages=packages)
     return urdf_to_description(text, os.fspath(path), base, tip, convention), text
 
 

@@ -116,7 +116,7 @@ def _printable(text, at_most=200):
     return ''.join(c if c.isprintable() else '?' for c in str(text))[:at_most]
 
 
-def load_robot(spec, base=None, tip=None, convention='standard', access=None):
+def load_robot(spec, base=None, tip=None, convention='standard', access=None, packages=None):
     """
     Load a robot from a DH YAML file, a URDF/xacro file or a shipped robot's name.
 
@@ -126,6 +126,8 @@ def load_robot(spec, base=None, tip=None, convention='standard', access=None):
     :param access: a :class:`FileAccess` for a file someone else named: it must lie in
         ``access.dirs``, and a xacro may read only there and in the ROS package paths
         (default: the caller chose the file: any path, a xacro may read its package).
+    :param packages: ``{name: folder}`` that a xacro's ``$(find name)`` gives first (see
+        :mod:`dq_fk_ros.description.packages` for where else it looks).
     Raises :class:`RobotDescriptionError` (one line) for anything unusable.
     """
     path = resolve_robot(spec)
@@ -136,9 +138,10 @@ def load_robot(spec, base=None, tip=None, convention='standard', access=None):
     if not is_urdf(path):
         return LoadedRobot(load_robot_description(path))
     if access is None:
-        conversion, text = load_urdf_description(path, base, tip, convention)
+        conversion, text = load_urdf_description(path, base, tip, convention, packages)
     else:
-        text = read_urdf_text(path, roots, access.time_limit_s, access.should_stop)
+        text = read_urdf_text(path, roots, access.time_limit_s, access.should_stop, packages,
+                              within=access.dirs)
         conversion = urdf_to_description(text, path, base, tip, convention)
     return LoadedRobot(replace(parse_robot_description(conversion.text, path), urdf=text),
                        conversion)

@@ -11,7 +11,9 @@ xacro here (:func:`expand_xacro`), in a child process that:
   with no builtins and without xacro's ``type`` and ``vars`` (their only use here is to
   reach Python's internals through computed names);
 * may open files for reading only, and only under ``read_roots`` (the file's package or
-  folder, the ROS package paths, the folders the user allowed); never for writing;
+  folder, the ROS package paths, the folders the user allowed) and in the packages
+  ``$(find)`` finds (:class:`~dq_fk_ros.description.packages.PackageResolver`, also on a
+  pip-only install); never for writing;
 * sees an environment cut down to the ROS and locale variables (:data:`ENVIRONMENT`);
 * runs under a time limit (wall clock and CPU) and an address-space limit, in a session of
   its own: Ctrl-C reaches the caller, who kills it.
@@ -23,6 +25,7 @@ one line on its stderr.
 import ast
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -103,7 +106,8 @@ def default_read_roots(path, extra=()):
 
 
 def expand_xacro(path, read_roots, time_limit_s=TIME_LIMIT_S,
-                 memory_limit_bytes=MEMORY_LIMIT_BYTES, should_stop=None):
+                 memory_limit_bytes=MEMORY_LIMIT_BYTES, should_stop=None, packages=None,
+                 within=None):
     """
     Return the URDF XML of the ``.xacro`` file ``path``, expanded in a confined child process.
 
@@ -111,13 +115,17 @@ def expand_xacro(path, read_roots, time_limit_s=TIME_LIMIT_S,
     :param time_limit_s: the child is killed after this long (wall clock).
     :param should_stop: optional callable; when it returns true the child is killed (a node
         shutting down).
+    :param packages: ``{name: folder}`` that ``$(find name)`` gives first (``--package``).
+    :param within: folders the search above the file may not leave (a run-time file).
     Raises :class:`XacroRefused` with one line. KeyboardInterrupt and every other exception
     kill the child before they propagate.
     """
     environment = {k: os.environ[k] for k in ENVIRONMENT if k in os.environ}
     request = json.dumps({'path': os.path.abspath(path),  # the child runs in its folder
                           'roots': [os.path.realpath(r) for r in read_roots],
-                          'time_limit_s': time_limit_s, 'memory': memory_limit_bytes})
+                          'time_limit_s': time_limit_s, 'memory': memory_limit_bytes,
+                          'packages': dict(packages or {}),
+                          'within': None if within is None else [os.fspath(w) for w in within]})
     child = subprocess.Popen(
         [sys.executable, '-m', __name__], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
         stderr=subprocess.PIPE, env=environment, close_fds=True, start_new_session=True,
@@ -185,6 +193,9 @@ def _confine(roots, time_limit_s, memory):
     real_open = builtins.open
     roots = [r.rstrip(os.sep) + os.sep for r in roots]
 
+    def allow(folder):
+        roots.append(os.path.realpath(folder).rstrip(os.sep) + os.sep)
+
     def confined_open(file, mode='r', *args, **kwargs):
         if not isinstance(file, (str, bytes, os.PathLike)) or \
                 any(c in str(mode) for c in 'wax+'):
@@ -196,12 +207,26 @@ def _confine(roots, time_limit_s, memory):
         return real_open(path, mode, *args, **kwargs)
 
     builtins.open = io.open = confined_open
+    return allow
 
 
-def _patch_xacro():
-    """Make xacro evaluate through :func:`check_expression`, with no builtins."""
+def _patch_xacro(resolver, allow):
+    """
+    Make xacro evaluate through :func:`check_expression`, with no builtins.
+
+    ``$(find)`` asks ``resolver``; the folder found may then be read (``allow``).
+    """
     import xacro
     import xacro.substitution_args as substitution
+    from dq_fk_ros.description.packages import PackageNotFound
+
+    def find(name):
+        try:
+            folder = resolver.find(name)
+        except PackageNotFound as exc:
+            raise substitution.SubstitutionException(str(exc)) from None
+        allow(folder)
+        return folder
 
     def safe_eval(expr, symbols, local=None):
         check_expression(expr)
@@ -220,6 +245,8 @@ def _patch_xacro():
 
     xacro.safe_eval = safe_eval
     substitution._eval = eval_substitution
+    substitution._eval_find = find
+    substitution._eval_dict['find'] = find
     for table in (xacro._global_symbols, xacro._global_symbols['python']):
         for name in REMOVED_SYMBOLS:
             table.pop(name, None)
@@ -229,8 +256,11 @@ def _patch_xacro():
 def _child_main():
     request = json.loads(sys.stdin.read(1 << 20))
     try:
-        _confine(request['roots'], request['time_limit_s'], request['memory'])
-        xacro = _patch_xacro()
+        from dq_fk_ros.description.packages import PackageResolver
+        allow = _confine(request['roots'], request['time_limit_s'], request['memory'])
+        resolver = PackageResolver(request['packages'], near=request['path'],
+                                   within=request['within'])
+        xacro = _patch_xacro(resolver, allow)
         xacro.verbosity = 0  # its warnings would go to stderr, where the error line goes
         text = xacro.process_file(request['path']).toxml()
     except MemoryError:
@@ -251,8 +281,15 @@ def _child_main():
 
 
 def _one_line(exc):
+    """Return xacro's message in one line, without ``<class '...'>:`` and the repeat after."""
     lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
     text = ' '.join(lines) if lines else type(exc).__name__
+    text = re.sub(r"<class '[\w.]+'>: ", '', text)
+    for cut in range(len(text) // 2, 0, -1):  # "A A rest": say A once
+        first = text[:cut]
+        if text[cut + 1:].startswith(first) and text[cut] == ' ':
+            text = first + text[cut + 1 + len(first):]
+            break
     text = ''.join(c if c.isprintable() else '?' for c in text)
     return text[:400]
 

@@ -13,6 +13,7 @@ import sys
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.description.robot_model import RobotDescriptionError
 from dq_fk_ros.ros.executables import MATCH_SETTLE_S, spin_until_shutdown
+from dq_fk_ros.ros.package_paths import declare_package_paths
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
@@ -120,7 +121,8 @@ class FakeJointPublisher(Node):
             raise ValueError(f'fault_fraction must be in [0, 1], got {self._fault_fraction}')
         if not rate_hz > 0.0:
             raise ValueError(f'rate_hz must be positive, got {rate_hz}')
-        model = load_robot(path or 'rl15', base or None, tip or None).model
+        packages = declare_package_paths(self)
+        model = load_robot(path or 'rl15', base or None, tip or None, packages=packages).model
         self._names = list(model.joint_names)
         self._motion = JointMotion(mode, model.limits,
                                    fixed=positions if mode == 'fixed' else None,

@@ -24,6 +24,7 @@ from dq_fk_ros.messages.joint_states import (
 from dq_fk_ros.ros.conversions import (
     FrameBytes, FrameMessages, joint_state_fields, NS_PER_S)
 from dq_fk_ros.ros.executables import spin_until_shutdown
+from dq_fk_ros.ros.package_paths import declare_package_paths
 from dq_fk_ros.ros.raw_input import raw_publisher, RawSubscriptionThread, take_queued
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
@@ -79,6 +80,7 @@ class DqFkNode(Node):
         self._check_values(self._robot_inputs)
         dirs = [d for d in get('robot_description_dirs').value.split(os.pathsep) if d]
         self._access = self._file_access(dirs, get('allow_runtime_xacro').value)
+        self._packages = declare_package_paths(self)
         model = self._load_robot(self._robot_inputs)
         self._publish_frequency = get('publish_frequency').value
         self._ignore_timestamp = get('ignore_timestamp').value
@@ -266,7 +268,7 @@ class DqFkNode(Node):
                                          'parameter robot_description', base, tip)
         else:
             robot = load_robot(inputs['robot_description_file'] or 'rl15', base, tip,
-                               access=access)
+                               access=access, packages=self._packages)
         if robot.conversion is not None:
             self.get_logger().info(robot.summary())
         return robot.model

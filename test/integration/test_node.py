@@ -11,6 +11,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped
 import homogeneous_tf as htf
 import numpy as np
 import pytest
+from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
 from ros_harness import Harness, TF_STATIC_QOS
 from tf2_msgs.msg import TFMessage
@@ -269,15 +270,23 @@ def test_the_readme_lists_every_parameter_with_its_type_and_default(ros):
     node = ros.start_node()
     rows = readme_parameter_rows()
     rclpys_own = set(ros.probe.list_parameters([], 0).names)  # use_sim_time and the like
-    declared = {name: node.get_parameter(name) for name in node.list_parameters([], 0).names
-                if name not in rclpys_own}
+    declared = {}
+    for name in node.list_parameters([], 0).names:
+        if name not in rclpys_own:
+            try:
+                declared[name] = node.get_parameter(name)
+            except ParameterUninitializedException:  # a string array given no default
+                declared[name] = Parameter(name, Parameter.Type.STRING_ARRAY, [])
     assert sorted(rows) == sorted(declared)
     types = {Parameter.Type.STRING: 'string', Parameter.Type.DOUBLE: 'double',
-             Parameter.Type.BOOL: 'bool', Parameter.Type.INTEGER: 'int'}
+             Parameter.Type.BOOL: 'bool', Parameter.Type.INTEGER: 'int',
+             Parameter.Type.STRING_ARRAY: 'string[]'}
     for name, param in declared.items():
         kind, default = rows[name]
         assert kind == types[param.type_], name
-        if param.type_ == Parameter.Type.BOOL:
+        if param.type_ == Parameter.Type.STRING_ARRAY:
+            shown = str(list(param.value))
+        elif param.type_ == Parameter.Type.BOOL:
             shown = 'true' if param.value else 'false'
         else:
             shown = str(param.value) if param.value != '' else "''"

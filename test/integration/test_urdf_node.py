@@ -201,3 +201,46 @@ def test_a_bag_writes_a_side_branch_from_the_message_that_names_it(tmp_path):
                     if any(x.child_frame_id == 'gripperMover' for x in msg.transforms))
     assert stamps == [t0 + k * 10_000_000 for k in range(12, 20)]
     assert sorted(poses) == stamps
+
+
+def test_a_xacro_with_find_on_a_pip_only_install(ros_domain_id, tmp_path, processes):
+    """$(find arm_description) failed everywhere: AMENT_PREFIX_PATH is not set here."""
+    import sys
+    from dq_fk_ros.ros.executables import executable
+    from geometry_msgs.msg import PoseStamped
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(__file__)), 'unit'))
+    from test_packages import ARM, make_package
+    package = make_package(tmp_path / 'vendor' / 'some_folder')
+    robot = tmp_path / 'arm.urdf.xacro'
+    robot.write_text(ARM)
+    option = f'arm_description={package}'
+    # the node and the fake publisher, with the package_paths parameter
+    harness = Harness()
+    try:
+        harness.start_node(robot_description_file=str(robot), package_paths=[option])
+        poses = harness.listen(PoseStamped, '/dq_fk_node/pose/l2')
+        fake = processes.start(executable('fake_joint_publisher') + [
+            '--ros-args', '-p', f'robot_description_file:={robot}', '-p',
+            f"package_paths:=['{option}']", '-p', 'mode:=fixed', '-p',
+            'positions:=[0.0, 0.0]'])
+        assert harness.spin_until(lambda: poses, timeout_s=20), fake.poll()
+        p = poses[-1].pose.position
+        np.testing.assert_allclose([p.x, p.y, p.z], [0, 0, 0.6], atol=1e-12)
+    finally:
+        harness.close()
+    # dq_fk_bag process with --package, and without it a one-line error naming the package
+    from test_bag import js_bytes, write_bag
+    write_bag(tmp_path / 'in', [(10**9 + k, js_bytes(['j1', 'j2'], [0.1 * k, 0], 10**9 + k))
+                                for k in range(5)])
+    base = executable('dq_fk_bag') + ['process', str(tmp_path / 'in'), str(tmp_path / 'out'),
+                                      '--robot', str(robot), '--quiet']
+    proc = processes.start(base)
+    output, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 2 and "package 'arm_description' not found" in output, output
+    proc = processes.start(base + ['--package', option])
+    output, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 0 and '5 written' in output, output
+    bad = processes.start(executable('dq_fk_node') + ['--ros-args', '-p',
+                                                      "package_paths:=['nameonly']"])
+    output, _ = bad.communicate(timeout=30)
+    assert bad.returncode == 1 and 'package_paths: ' in output and 'NAME=DIR' in output

@@ -1,0 +1,156 @@
+"""Finding ROS packages as ROS does, and a xacro's ``$(find)`` on a pip-only install."""
+
+import os
+
+from dq_fk_ros.cli import dq_fk
+from dq_fk_ros.description.from_urdf import read_urdf_text
+from dq_fk_ros.description.loading import FileAccess, load_robot
+from dq_fk_ros.description.packages import (
+    PackageNotFound, PackageResolver, parse_package_option)
+from dq_fk_ros.description.robot_model import RobotDescriptionError
+import pytest
+
+SEGMENT = ('<?xml version="1.0"?><robot xmlns:xacro="http://www.ros.org/wiki/xacro">'
+           '<xacro:macro name="seg" params="n parent"><link name="l${n}"/>'
+           '<joint name="j${n}" type="revolute"><parent link="${parent}"/><child link="l${n}"/>'
+           '<origin xyz="0 0 ${xacro.load_yaml(\'$(find arm_description)/config/arm.yaml\')'
+           '[\'length\']}"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" '
+           'velocity="1"/></joint></xacro:macro></robot>')
+ARM = ('<?xml version="1.0"?><robot name="arm" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+       '<xacro:include filename="$(find arm_description)/urdf/seg.xacro"/><link name="base"/>'
+       '<xacro:seg n="1" parent="base"/><xacro:seg n="2" parent="l1"/></robot>')
+
+
+def make_package(folder, name='arm_description'):
+    """Write a description package (package.xml, a macro, its YAML) into ``folder``."""
+    (folder / 'urdf').mkdir(parents=True)
+    (folder / 'config').mkdir()
+    (folder / 'package.xml').write_text(f'<package format="3"><name>{name}</name></package>')
+    (folder / 'urdf' / 'seg.xacro').write_text(SEGMENT)
+    (folder / 'config' / 'arm.yaml').write_text('length: 0.3\n')
+    return folder
+
+
+@pytest.fixture
+def layouts(tmp_path, monkeypatch):
+    """Make the four places a package may be, and a robot xacro outside all of them."""
+    monkeypatch.delenv('AMENT_PREFIX_PATH', raising=False)
+    monkeypatch.delenv('ROS_PACKAGE_PATH', raising=False)
+    places = {}
+    places['explicit'] = make_package(tmp_path / 'given' / 'anything')
+    prefix = tmp_path / 'install'
+    places['ament'] = make_package(prefix / 'share' / 'arm_description')
+    index = prefix / 'share' / 'ament_index' / 'resource_index' / 'packages'
+    index.mkdir(parents=True)
+    (index / 'arm_description').write_text('')
+    # ROS 1's crawl: the folder's name is not the package's; an ignored copy is skipped
+    places['ros_package_path'] = make_package(tmp_path / 'ws' / 'src' / 'vendor_repo' / 'arm')
+    make_package(tmp_path / 'ws' / 'src' / 'old' / 'arm')
+    (tmp_path / 'ws' / 'src' / 'old' / 'CATKIN_IGNORE').write_text('')
+    robot = tmp_path / 'robots' / 'arm.urdf.xacro'
+    robot.parent.mkdir()
+    robot.write_text(ARM)
+    places['above'] = make_package(tmp_path / 'robots' / 'arm_description')
+    return tmp_path, robot, places, prefix
+
+
+def test_each_rule_finds_the_package_in_its_order(layouts, monkeypatch):
+    tmp_path, robot, places, prefix = layouts
+    environ = {'AMENT_PREFIX_PATH': str(prefix), 'ROS_PACKAGE_PATH': str(tmp_path / 'ws')}
+    given = {'arm_description': str(places['explicit'])}
+    assert PackageResolver(given, robot, environ=environ).find('arm_description') == \
+        str(places['explicit'])
+    assert PackageResolver({}, robot, environ=environ).find('arm_description') == \
+        str(places['ament'])
+    assert PackageResolver({}, robot, environ={'ROS_PACKAGE_PATH': str(tmp_path / 'ws')}) \
+        .find('arm_description') == str(places['ros_package_path'])
+    assert PackageResolver({}, robot, environ={}).find('arm_description') == \
+        str(places['above'])
+
+
+def test_an_unknown_package_is_one_line_naming_it_and_the_places(layouts):
+    tmp_path, robot, places, prefix = layouts
+    resolver = PackageResolver({}, robot, environ={'AMENT_PREFIX_PATH': str(prefix)})
+    with pytest.raises(PackageNotFound) as caught:
+        resolver.find('gripper_description')
+    message = str(caught.value)
+    assert message.startswith("package 'gripper_description' not found; searched: ")
+    assert str(prefix) in message and 'ROS_PACKAGE_PATH (not set)' in message
+    assert f'the folders above {robot}' in message and '\n' not in message
+
+
+def test_package_uris_resolve_inside_their_package_only(layouts):
+    tmp_path, robot, places, prefix = layouts
+    resolver = PackageResolver({}, robot, environ={})
+    assert resolver.resolve('package://arm_description/urdf/seg.xacro') == \
+        str(places['above'] / 'urdf' / 'seg.xacro')
+    with pytest.raises(ValueError, match='leaves package'):
+        resolver.resolve('package://arm_description/../../../etc/passwd')
+    with pytest.raises(ValueError, match='only package:// and file://'):
+        resolver.resolve('http://example.org/mesh.stl')
+    assert resolver.resolve('file:///opt/mesh.stl') == '/opt/mesh.stl'
+
+
+def test_the_search_above_a_run_time_file_stays_in_its_folders(layouts):
+    tmp_path, robot, places, prefix = layouts
+    inside = PackageResolver({}, robot, within=[tmp_path / 'robots'], environ={})
+    assert inside.find('arm_description') == str(places['above'])
+    outside = PackageResolver({}, tmp_path / 'robots' / 'arm_description' / 'urdf' / 'x.xacro',
+                              within=[tmp_path / 'robots' / 'arm_description' / 'urdf'],
+                              environ={})
+    with pytest.raises(PackageNotFound):
+        outside.find('arm_description')
+
+
+@pytest.mark.parametrize('rule', ['explicit', 'ament', 'ros_package_path', 'above'])
+def test_a_xacro_finds_its_package_each_way(layouts, monkeypatch, rule):
+    """Every vendor xacro with $(find ...) failed: AMENT_PREFIX_PATH is not set."""
+    tmp_path, robot, places, prefix = layouts
+    packages = {}
+    if rule != 'above':
+        (tmp_path / 'robots' / 'arm_description' / 'package.xml').unlink()
+    if rule == 'explicit':
+        packages = {'arm_description': str(places['explicit'])}
+    elif rule == 'ament':
+        monkeypatch.setenv('AMENT_PREFIX_PATH', str(prefix))
+    elif rule == 'ros_package_path':
+        monkeypatch.setenv('ROS_PACKAGE_PATH', str(tmp_path / 'ws'))
+    text = read_urdf_text(robot, packages=packages)
+    assert '<origin xyz="0 0 0.3"/>' in text
+    model = load_robot(str(robot), packages=packages).model
+    assert model.dof == 2
+
+
+def test_the_cli_takes_package_options(layouts, capsys):
+    tmp_path, robot, places, prefix = layouts
+    (tmp_path / 'robots' / 'arm_description' / 'package.xml').unlink()
+    assert dq_fk.main(['validate', str(robot)]) == 1
+    assert "package 'arm_description' not found" in capsys.readouterr().err
+    option = f'arm_description={places["explicit"]}'
+    for argv in (['validate', str(robot), '--package', option],
+                 ['fk', str(robot), '--package', option, '--json'],
+                 ['from-urdf', str(robot), '--package', option]):
+        assert dq_fk.main(argv) == 0, argv
+    with pytest.raises(SystemExit):
+        dq_fk.main(['validate', str(robot), '--package', 'arm_description'])
+    assert 'give NAME=DIR' in capsys.readouterr().err
+
+
+def test_a_run_time_xacro_finds_packages_only_within_its_folders(layouts):
+    tmp_path, robot, places, prefix = layouts
+    access = FileAccess((str(tmp_path / 'robots'),), xacro=True)
+    assert load_robot(str(robot), access=access).model.dof == 2
+    (tmp_path / 'robots' / 'arm_description' / 'package.xml').unlink()
+    make_package(tmp_path / 'arm_description')          # above, but outside the folders
+    with pytest.raises(RobotDescriptionError, match='xacro failed'):
+        load_robot(str(robot), access=access)
+
+
+@pytest.mark.parametrize('text, words', [('nameonly', 'give NAME=DIR'),
+                                         ('=/tmp', 'give NAME=DIR'),
+                                         ('a b=/tmp', 'give NAME=DIR'),
+                                         ('pkg=/no/such/folder', 'no such folder')])
+def test_package_options_are_checked(text, words):
+    with pytest.raises(ValueError, match=words):
+        parse_package_option(text)
+    assert parse_package_option(f'pkg={os.sep}') == ('pkg', os.sep)
