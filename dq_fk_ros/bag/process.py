@@ -56,7 +56,7 @@ class BagOutputs:
         self.end = model.end_effector_index
         self.pose_frames = {'all': list(range(n_frames)), 'end': [self.end],
                             'none': []}[poses]
-        self.poses = [add(f'{pose_namespace}/pose/{model.frame_names[k]}',
+        self.poses = [add(f'{pose_namespace}/pose/{model.topic_names[k]}',
                           'geometry_msgs/msg/PoseStamped', typestore=typestore,
                           offered_qos_profiles=qos(10, volatile)) for k in self.pose_frames]
         # the URDF's helper links, as the node publishes them (children of their DH frames)

@@ -139,6 +139,8 @@ def cmd_validate(args):
               f'{len(model.frame_names)} frames)')
         if robot.conversion is not None:
             print(f'  {robot.summary()}')
+        for line in robot.warnings:
+            print(f'dq_fk: warning: {line}', file=sys.stderr)
     return 1 if failed else 0
 
 
@@ -237,6 +239,8 @@ def cmd_from_urdf(args):
     for joint in conversion.skipped:
         print(f'skipped side branch {joint.name} ({joint.kind}) -> {joint.child}',
               file=sys.stderr)
+    for line in conversion.warnings:
+        print(f'dq_fk: warning: {line}', file=sys.stderr)
     where = 'standard output' if args.output in (None, '-') else args.output
     print(f'wrote {where}: {args.convention} DH chain {conversion.base} -> {conversion.tip} '
           f'of {args.file}', file=sys.stderr)

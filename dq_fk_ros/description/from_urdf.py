@@ -34,8 +34,8 @@ import os
 import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.robot_model import (
-    _listing, FRAME_ID, JOINT_NAME, MAX_FILE_BYTES, MAX_LENGTH_M, MAX_NAME_CHARS, MAX_ROWS,
-    parse_robot_description, RobotDescriptionError, rpy_matrix, yaml_number)
+    _listing, JOINT_NAME, MAX_FILE_BYTES, MAX_LENGTH_M, MAX_NAME_CHARS, MAX_ROWS,
+    parse_robot_description, RobotDescriptionError, rpy_matrix, TF_FRAME_ID, yaml_number)
 from dq_fk_ros.description.xacro_sandbox import (
     default_read_roots, expand_xacro, TIME_LIMIT_S, XacroRefused)
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
@@ -73,6 +73,7 @@ class UrdfTree:
     links: tuple
     joints: dict
     children: dict
+    slashed: tuple = ()   # link names the URDF wrote with a leading slash (tf2 strips it)
 
     @property
     def roots(self):
@@ -147,9 +148,12 @@ def parse_urdf(text, source='<string>'):
         if len(elements) > MAX_URDF_ELEMENTS:
             raise RobotDescriptionError(f'{source}: {len(elements)} {what} elements; a URDF '
                                         f'has at most {MAX_URDF_ELEMENTS}')
-    links, known = [], set()
+    links, known, slashed = [], set(), []
     for element in link_elements:
         link = element.get('name')
+        if link and link.startswith('/'):
+            slashed.append(link)
+            link = tf_name(link)
         if not link:
             raise RobotDescriptionError(f'{source}: a <link> without a name')
         if link in known:
@@ -170,7 +174,7 @@ def parse_urdf(text, source='<string>'):
                 f'({joints[joint.child].name[:70]!r} and {joint.name[:70]!r}); a URDF is a tree')
         joints[joint.child] = joint
         children.setdefault(joint.parent, []).append(joint)
-    tree = UrdfTree(name, source, tuple(links), joints, children)
+    tree = UrdfTree(name, source, tuple(links), joints, children, tuple(slashed))
     if not tree.roots:
         raise RobotDescriptionError(f'{source}: every link has a parent joint: the joints '
                                     f'form a cycle')
@@ -190,6 +194,11 @@ def parse_urdf(text, source='<string>'):
     return tree
 
 
+def tf_name(link):
+    """Return a link name as tf2 takes it: without one leading slash (``/base`` -> ``base``)."""
+    return link[1:] if link.startswith('/') else link
+
+
 def _joint(element, source, links):
     name = element.get('name') or ''
     kind = element.get('type') or ''
@@ -203,6 +212,7 @@ def _joint(element, source, links):
     for tag in ('parent', 'child'):
         node = element.find(tag)
         link = node.get('link') if node is not None else None
+        link = tf_name(link) if link else link
         if not link:
             raise RobotDescriptionError(f'{where}: no <{tag} link="...">')
         if link not in links:
@@ -271,6 +281,8 @@ def chain_joints(tree, base=None, tip=None):
     published anyway). Chains that end in different joints: an error that lists them.
     """
     source = tree.source
+    base = tf_name(base) if base else base
+    tip = tf_name(tip) if tip else tip
     for name, value in (('--base', base), ('--tip', tip)):
         if value is not None and value not in tree.links:
             raise RobotDescriptionError(f'{source}: {name} {value!r} is not a link of the URDF; '
@@ -438,6 +450,7 @@ class Conversion:
     base: str
     tip: str
     skipped: tuple          # side-branch joints not published (one line each)
+    warnings: tuple = ()    # what a user should know (one line each): names changed
 
 
 def urdf_to_description(text, source='<string>', base=None, tip=None, convention='standard'):
@@ -520,7 +533,13 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
     text = _yaml(tree, source, base, tip, convention, frames[0], dh_names, rows, links,
                  skipped, end_effector)
     parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here
-    return Conversion(text, base, tip, tuple(skipped))
+    warnings = ()
+    if tree.slashed:
+        shown = ', '.join(_comment(n)[:80] for n in tree.slashed[:5])
+        more = f' and {len(tree.slashed) - 5} more' if len(tree.slashed) > 5 else ''
+        warnings = (f'{source}: link names with a leading slash are published without it, as '
+                    f'tf2 strips it: {shown}{more}',)
+    return Conversion(text, base, tip, tuple(skipped), warnings)
 
 
 def _walk_links(tree, base, path, pose, body, frames, dh_names, sources):
@@ -549,7 +568,7 @@ def _walk_links(tree, base, path, pose, body, frames, dh_names, sources):
             else:
                 usable = False
             if usable and not on_path:
-                usable = len(j.child) <= MAX_NAME_CHARS and FRAME_ID.fullmatch(j.child)
+                usable = len(j.child) <= MAX_NAME_CHARS and TF_FRAME_ID.fullmatch(j.child)
             if not usable:
                 skipped.append(j)
                 continue
@@ -623,10 +642,10 @@ def _dh_frame_names(count, taken):
 
 
 def _check_frame(link, source):
-    if len(link) > MAX_NAME_CHARS or not FRAME_ID.fullmatch(link):
+    if len(link) > MAX_NAME_CHARS or not TF_FRAME_ID.fullmatch(link):
         raise RobotDescriptionError(
-            f'{source}: link name {link[:70]!r} is not a ROS frame id this package can '
-            f'publish (letters, digits, underscores, inner slashes; at most {MAX_NAME_CHARS})')
+            f'{source}: link name {link[:70]!r} is not a frame id tf2 takes (printable ASCII '
+            f'without spaces; at most {MAX_NAME_CHARS})')
 
 
 def _check_joint(name, source):

@@ -33,6 +33,11 @@ class LoadedRobot:
     conversion: object = None
 
     @property
+    def warnings(self):
+        """Return what the conversion changed that a user should know (lines; none: ())."""
+        return self.conversion.warnings if self.conversion is not None else ()
+
+    @property
     def urdf(self):
         """Return the URDF XML the robot was converted from (``model.urdf``), or None."""
         return self.model.urdf

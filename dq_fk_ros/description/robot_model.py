@@ -39,10 +39,14 @@ import yaml
 LENGTH_UNITS = {'m': 1.0, 'cm': 0.01, 'mm': 0.001}
 ANGLE_UNITS = {'rad': 1.0, 'deg': math.pi / 180.0}
 ROW_TYPES = ('revolute', 'prismatic', 'cylindrical', 'fixed')
-# A frame id is also a token of the node's topic names (~/pose/<frame>), so it follows
-# ROS's topic-token rules: tokens of letters, digits and underscores that do not start with a
-# digit, joined by single inner slashes; no leading or trailing slash (tf2 frame ids).
+# A frame id as tf2 takes it: printable ASCII without spaces, not starting with a slash (tf2
+# strips a leading one). The Allegro hand's link_11.0 and names with '-' are frame ids; the
+# node's topic for a frame (~/pose/<topic name>) is made from it by pose_topic_name.
+TF_FRAME_ID = re.compile(r'[!-.0-~][!-~]*')
+# What ROS topic names take: tokens of letters, digits and underscores that do not start with
+# a digit, joined by single inner slashes (a frame_prefix, a frame's pose topic name).
 FRAME_ID = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*')
+_NOT_TOKEN = re.compile(r'[^A-Za-z0-9_]')
 # Joint names only travel inside JointState messages and URDF attributes.
 JOINT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_./-]*')
 MAX_NAME_CHARS = 128            # frame, joint and robot names (topic names stay < 247 chars)
@@ -188,6 +192,11 @@ class RobotModel:
         needs[self.fixed_frame] = frozenset()
         return tuple(needs[name] | needs[parent]
                      for name, parent in zip(self.frame_names, self.parent_frames))
+
+    @cached_property
+    def topic_names(self):
+        """Per frame of ``frame_names``: its ``~/pose/...`` topic (:func:`pose_topic_name`)."""
+        return tuple(pose_topic_name(frame) for frame in self.frame_names)
 
     @property
     def n_chain_frames(self):
@@ -548,9 +557,9 @@ class _Parser:
         return value
 
     def frame(self, value, where, field='frame'):
-        return self.name(value, where, field, FRAME_ID,
-                         'a ROS frame id (letters, digits, underscores, single inner slashes; '
-                         'no part starting with a digit; no leading or trailing slash)')
+        return self.name(value, where, field, TF_FRAME_ID,
+                         'a tf2 frame id (printable ASCII without spaces, not starting with '
+                         'a slash)')
 
     def choice(self, value, where, field, allowed):
         if not isinstance(value, str) or value not in allowed:
@@ -650,6 +659,14 @@ class _Parser:
             velocity.update(p['velocity'])
         moving = [False] + [p['type'] != 'fixed' for p in parsed] + ([False] if tool else [])
         moving += [body[link.frame] != body[link.tf_parent] for link in links]
+        topics = {}
+        for frame in frames + [link.frame for link in links]:
+            topic = pose_topic_name(frame)
+            if topic in topics:
+                self.fail('', f'frames {topics[topic]!r} and {frame!r} would both publish on '
+                          f'~/pose/{topic} (topic names take letters, digits and _); rename '
+                          f'one')
+            topics[topic] = frame
         return RobotModel(
             name=name, source=self.source, fixed_frame=fixed_frame,
             frame_names=tuple(frames + [link.frame for link in links]),
@@ -836,6 +853,24 @@ class _Parser:
                 scale=p['scale'], name=p.get('joint', ''), d_name=p.get('d_joint', ''),
                 follows=p.get('follows', ''), limits=limits))
         return joints
+
+
+def pose_topic_name(frame):
+    """
+    Return the topic name token(s) of a frame's ``~/pose/...`` topic.
+
+    The frame id itself where ROS takes it as a topic name; else, per ``/``-separated part,
+    every character other than a letter, digit or ``_`` becomes ``_``, an empty part ``_``,
+    and a part starting with a digit gets a leading ``_`` (``link_11.0`` -> ``link_11_0``,
+    ``finger-1`` -> ``finger_1``, ``2nd`` -> ``_2nd``).
+    """
+    if FRAME_ID.fullmatch(frame):
+        return frame
+    parts = []
+    for part in frame.split('/'):
+        part = _NOT_TOKEN.sub('_', part) or '_'
+        parts.append('_' + part if part[0].isdigit() else part)
+    return '/'.join(parts)
 
 
 def rpy_matrix(roll, pitch, yaw):

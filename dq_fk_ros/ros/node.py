@@ -271,6 +271,8 @@ class DqFkNode(Node):
                                access=access, packages=self._packages)
         if robot.conversion is not None:
             self.get_logger().info(robot.summary())
+        for line in robot.warnings:
+            self.get_logger().warn(line)
         return robot.model
 
     def _on_set_parameters(self, params):
@@ -364,11 +366,11 @@ class DqFkNode(Node):
         messages = FrameMessages(model, prefix)
         made = []
         try:
-            for name in model.frame_names:
-                made.append(self.create_publisher(PoseStamped, f'~/pose/{name}', 10))
+            for topic in model.topic_names:
+                made.append(self.create_publisher(PoseStamped, f'~/pose/{topic}', 10))
             for k in messages.twist_frames:
                 made.append(self.create_publisher(
-                    TwistStamped, f'~/twist/{model.frame_names[k]}', 10))
+                    TwistStamped, f'~/twist/{model.topic_names[k]}', 10))
         except Exception:
             for pub in made:
                 self.destroy_publisher(pub)

@@ -244,3 +244,36 @@ def test_a_xacro_with_find_on_a_pip_only_install(ros_domain_id, tmp_path, proces
                                                       "package_paths:=['nameonly']"])
     output, _ = bad.communicate(timeout=30)
     assert bad.returncode == 1 and 'package_paths: ' in output and 'NAME=DIR' in output
+
+
+def test_tf_names_as_the_urdf_writes_them_and_valid_topic_names(ros_domain_id):
+    """link_11.0 and /base_link were refused; on TF they are link_11.0 and base_link."""
+    from geometry_msgs.msg import PoseStamped
+    text = ('<robot name="r"><link name="/base_link"/><link name="link_11.0"/>'
+            '<link name="tip-1"/><joint name="j1" type="revolute"><parent link="/base_link"/>'
+            '<child link="link_11.0"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" '
+            'effort="1" velocity="1"/></joint><joint name="j2" type="revolute">'
+            '<parent link="link_11.0"/><child link="tip-1"/><origin xyz="0.2 0 0"/>'
+            '<axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/>'
+            '</joint></robot>')
+    harness = Harness()
+    try:
+        harness.start_node(robot_description=text)
+        tf = harness.listen(TFMessage, '/tf')
+        tip = harness.listen(PoseStamped, '/dq_fk_node/pose/tip_1')
+        link = harness.listen(PoseStamped, '/dq_fk_node/pose/link_11_0')
+        state = harness.joint_state(['j1', 'j2'], [0.5, 0.0])
+        assert harness.spin_until(lambda: tf and tip and link, publish=state)
+        edges = {(t.header.frame_id, t.child_frame_id) for m in tf for t in m.transforms}
+        static = harness.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+        assert harness.spin_until(lambda: static)
+        edges |= {(t.header.frame_id, t.child_frame_id) for t in static[-1].transforms}
+        # the URDF's own tree on TF, names as tf2 reads them
+        assert {('base_link', 'link_11.0'), ('link_11.0', 'tip-1')} <= edges, edges
+        assert not any(name.startswith('/') for edge in edges for name in edge)
+        p = tip[-1].pose.position
+        np.testing.assert_allclose([p.x, p.y, p.z], [0.2 * math.cos(0.5), 0.2 * math.sin(0.5),
+                                                     0.0], atol=1e-12)
+        assert tip[-1].header.frame_id == 'base_link'
+    finally:
+        harness.close()

@@ -420,13 +420,13 @@ def test_a_chain_joint_with_an_unusable_name_is_refused():
 
 
 def test_a_chain_link_with_an_unusable_name_is_refused_with_its_name_cut():
-    bad = 'l' + '-' * 99
+    bad = 'l ' + '-' * 98
     text = serial_urdf(DEGENERATE['skew axes']).replace('"l2"', f'"{bad}"')
     with pytest.raises(RobotDescriptionError) as caught:
         urdf_to_description(text, 'mine.urdf')
     assert str(caught.value) == (
-        f'mine.urdf: link name {bad[:70]!r} is not a ROS frame id this package can publish '
-        '(letters, digits, underscores, inner slashes; at most 128)')
+        f'mine.urdf: link name {bad[:70]!r} is not a frame id tf2 takes (printable ASCII '
+        'without spaces; at most 128)')
 
 
 def test_the_source_in_the_first_comment_is_printable_and_cut():
@@ -675,3 +675,37 @@ def test_any_urdf_text_is_a_model_or_one_line(pieces):
         assert '\n' not in str(exc) and '\n' not in exc.public
         return
     parse_robot_description(conversion.text, 'fuzz.yaml')
+
+
+# -- frame names as tf2 takes them ----------------------------------------------------------
+def named_urdf(base, middle, tip):
+    return (f'<robot name="r"><link name="{base}"/><link name="{middle}"/><link name="{tip}"/>'
+            f'<joint name="j1" type="revolute"><parent link="{base}"/><child link="{middle}"/>'
+            '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+            f'<joint name="j2" type="revolute"><parent link="{middle}"/><child link="{tip}"/>'
+            '<origin xyz="0.2 0 0"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" '
+            'velocity="1"/></joint></robot>')
+
+
+def test_a_leading_slash_is_dropped_as_tf2_drops_it_with_one_warning():
+    """Interbotix xacros with an empty robot name give /base_link: it was refused."""
+    conversion = urdf_to_description(named_urdf('/base_link', '/upper', 'tip'), 'ix.urdf')
+    model = parse_robot_description(conversion.text, 'ix.yaml')
+    assert model.fixed_frame == 'base_link' and {'upper', 'tip'} <= set(model.frame_names)
+    assert conversion.warnings == ('ix.urdf: link names with a leading slash are published '
+                                   'without it, as tf2 strips it: /base_link, /upper',)
+    assert urdf_to_description(named_urdf('/base_link', 'a', 'b'), 'ix.urdf',
+                               tip='/b').tip == 'b'
+    with pytest.raises(RobotDescriptionError, match="link 'a' is defined twice"):
+        urdf_to_description(named_urdf('/a', 'a', 'b'), 'ix.urdf')
+
+
+def test_names_tf2_takes_keep_their_spelling_on_tf():
+    """The Allegro hand's link_11.0 (and names with '-') made the conversion fail."""
+    text = named_urdf('palm', 'link_11.0', 'link-11.0_tip')
+    model = parse_robot_description(urdf_to_description(text, 'hand.urdf').text, 'hand.yaml')
+    topics = dict(zip(model.frame_names, model.topic_names))
+    assert topics['link_11.0'] == 'link_11_0' and topics['link-11.0_tip'] == 'link_11_0_tip'
+    assert_matches_pinocchio(model, text, 'palm', 50)
+    with pytest.raises(RobotDescriptionError, match="frames 'link.1' and 'link-1' would both"):
+        urdf_to_description(named_urdf('palm', 'link.1', 'link-1'), 'hand.urdf')

@@ -10,8 +10,8 @@ import copy
 import math
 
 from dq_fk_ros.description.robot_model import (
-    FRAME_ID, JOINT_NAME, load_robot_description, parse_robot_description,
-    RobotDescriptionError, shipped_robot_path, shipped_robots)
+    FRAME_ID, JOINT_NAME, load_robot_description, parse_robot_description, pose_topic_name,
+    RobotDescriptionError, shipped_robot_path, shipped_robots, TF_FRAME_ID)
 from hypothesis import given, strategies as st
 import numpy as np
 import pytest
@@ -86,7 +86,9 @@ def check(text):
         assert len(message) < 600, message
         return None
     for name in model.frame_names + (model.fixed_frame,):
-        assert FRAME_ID.fullmatch(name), name
+        assert TF_FRAME_ID.fullmatch(name), name
+    for topic in model.topic_names:
+        assert FRAME_ID.fullmatch(topic), topic
     for name in model.joint_names:
         assert JOINT_NAME.fullmatch(name), name
     assert model.name.isprintable()
@@ -121,14 +123,33 @@ def test_the_classes_that_crashed_the_loader(text, words):
     assert words in str(info.value) and '\n' not in str(info.value)
 
 
-@pytest.mark.parametrize('name', ['elbow\n', 'a b', "it's", 'a/1b', '/world', 'x/', 'a//b',
-                                  'tab\t', 'x' * 129, 'ü'])
-def test_frame_names_follow_ros_topic_token_rules(name):
-    r"""``$`` used to match before a trailing newline: 'elbow\n' passed as a frame name."""
+def with_frame(name):
     base = open(shipped_robot_path('rl15'), encoding='utf-8').read()
-    text = base.replace('frame: shoulder_seg1', f'frame: {yaml.safe_dump(name).strip()}'
+    return base.replace('frame: shoulder_seg1', f'frame: {yaml.safe_dump(name).strip()}'
                         .replace('\n...', ''), 1)
-    with pytest.raises(RobotDescriptionError, match="field 'frame' must be a ROS frame id"):
+
+
+@pytest.mark.parametrize('name', ['elbow\n', 'a b', '/world', 'tab\t', 'x' * 129, 'ü', ''])
+def test_frame_names_follow_tf2(name):
+    r"""``$`` used to match before a trailing newline: 'elbow\n' passed as a frame name."""
+    with pytest.raises(RobotDescriptionError, match="field 'frame' must be a tf2 frame id"):
+        parse_robot_description(with_frame(name), 'x.yaml')
+
+
+@pytest.mark.parametrize('name, topic', [("it's", 'it_s'), ('a/1b', 'a/_1b'), ('x/', 'x/_'),
+                                         ('a//b', 'a/_/b'), ('link_11.0', 'link_11_0'),
+                                         ('finger-1', 'finger_1'), ('2nd', '_2nd')])
+def test_frames_tf2_takes_are_published_with_a_valid_topic_name(name, topic):
+    """The Allegro hand's link_11.0 was refused; its TF name stays, its topic is link_11_0."""
+    model = parse_robot_description(with_frame(name), 'x.yaml')
+    assert name in model.frame_names
+    assert model.topic_names[model.frame_names.index(name)] == topic
+
+
+def test_two_frames_with_one_topic_name_are_an_error_naming_both():
+    text = with_frame('wrist.1').replace('frame: wrist_seg5', 'frame: wrist-1', 1)
+    with pytest.raises(RobotDescriptionError, match="frames 'wrist.1' and 'wrist-1' would both "
+                       'publish on ~/pose/wrist_1'):
         parse_robot_description(text, 'x.yaml')
 
 
@@ -141,6 +162,8 @@ def test_every_accepted_frame_name_is_a_valid_ros_topic_token():
     accepted = refused_by_ros = 0
     for _ in range(3000):
         name = ''.join(rng.choice(alphabet, size=rng.integers(1, 8)))
+        if TF_FRAME_ID.fullmatch(name):  # its topic name is one ROS takes
+            validate_full_topic_name(f'/dq_fk_node/pose/{pose_topic_name(name)}')
         if FRAME_ID.fullmatch(name):
             accepted += 1
             validate_full_topic_name(f'/dq_fk_node/pose/{name}')

@@ -98,7 +98,7 @@ BAD_CASES = [
     ('duplicate joint', edit(GOOD, 'joint: j2', 'joint: j1'),
      ["chain[1] (frame 'link2')", "joint 'j1' is already read by chain[0]"]),
     ('leading slash in a frame id', edit(GOOD, 'frame: link1', 'frame: /link1'),
-     ["field 'frame' must be a ROS frame id", "'/link1'"]),
+     ["field 'frame' must be a tf2 frame id", "'/link1'"]),
     ('negative speed', edit(GOOD, 'max_velocity: 250', 'max_velocity: -1'),
      ["chain[1] (frame 'link2'): field 'max_velocity' must be a positive speed (per second), "
       'got -1']),
