@@ -21,7 +21,7 @@ printed beside the rows they apply to.
 
 Run with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a private ROS_DOMAIN_ID
 (``make bench`` sets both): ``python benchmarks/bench_node.py [--updates 4000] [--rounds 5]
-[--robot ROBOT] [--urdf-tip LINK]`` (ROBOT: a DH file, a URDF, a shipped name).
+[--robot ROBOT] [--tip LINK]`` (ROBOT: a DH file, a URDF, a shipped name).
 """
 
 import argparse
@@ -83,7 +83,8 @@ def main(argv=None):
     parser.add_argument('--updates', type=int, default=4000, help='updates timed per round')
     parser.add_argument('--rounds', type=int, default=5, help='rounds per case')
     parser.add_argument('--robot', default='rl15', help='DH file, URDF or shipped name')
-    parser.add_argument('--urdf-tip', default='', help="for a URDF: the chain's last link")
+    parser.add_argument('--tip', '--urdf-tip', dest='urdf_tip', default='',
+                        help="for a URDF: the chain's last link")
     parser.add_argument('--probe', nargs='+', help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.probe:

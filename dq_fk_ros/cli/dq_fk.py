@@ -115,12 +115,12 @@ def add_package_option(parser):
 
 
 def add_urdf_chain_options(parser):
-    """Add ``--urdf-base``/``--urdf-tip``: where a URDF's chain starts and ends."""
-    parser.add_argument('--urdf-base', metavar='LINK',
+    """Add ``--base``/``--tip`` (once ``--urdf-base``/``--urdf-tip``): a URDF's chain's ends."""
+    parser.add_argument('--base', '--urdf-base', dest='urdf_base', metavar='LINK',
                         help='for a URDF: the link the DH chain starts at (default: the root)')
-    parser.add_argument('--urdf-tip', metavar='LINK',
-                        help='for a URDF: the link the DH chain ends at (default: see '
-                        'from-urdf --tip)')
+    parser.add_argument('--tip', '--urdf-tip', dest='urdf_tip', metavar='LINK',
+                        help='for a URDF: the link the DH chain ends at (default: the child of '
+                        'the last moving joint of the longest chain)')
 
 
 def cmd_validate(args):

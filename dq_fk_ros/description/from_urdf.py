@@ -46,6 +46,9 @@ PARALLEL_TOL = 1e-9         # |sin| of the angle between two axes below which th
 LENGTH_TOL_M = 1e-9         # distances below which two points (or lines) meet
 NOISE = 1e-15               # numbers written as 0 (m or rad; far below the tests' 1e-12)
 MAX_URDF_ELEMENTS = 4096    # links, and joints, in one URDF (talos: 100; the checks are linear)
+# how the tools call the base and tip links (messages name the option of the tool that said it)
+OPTIONS = ('--base', '--tip')
+NODE_OPTIONS = ('urdf_base_link', 'urdf_tip_link')
 
 
 @dataclass(frozen=True)
@@ -272,18 +275,21 @@ def _numbers(text, size, where):
 
 
 # -- the chain ---------------------------------------------------------------------------
-def chain_joints(tree, base=None, tip=None):
+def chain_joints(tree, base=None, tip=None, options=OPTIONS):
     """
     Return ``(base, tip, joints)``: the joints from ``base`` down to ``tip``.
 
     Defaults: ``base`` is the root link; ``tip`` the child link of the last moving joint on
     the longest chains below ``base`` (mimic joints not counted; links fixed below it are
     published anyway). Chains that end in different joints: an error that lists them.
+    ``options``: the names of the base and tip options in messages (:data:`OPTIONS`,
+    :data:`NODE_OPTIONS`).
     """
     source = tree.source
+    base_option, tip_option = options
     base = tf_name(base) if base else base
     tip = tf_name(tip) if tip else tip
-    for name, value in (('--base', base), ('--tip', tip)):
+    for name, value in ((base_option, base), (tip_option, tip)):
         if value is not None and value not in tree.links:
             raise RobotDescriptionError(f'{source}: {name} {value!r} is not a link of the URDF; '
                                         f'links: {_listing(tree.links)}')
@@ -291,14 +297,15 @@ def chain_joints(tree, base=None, tip=None):
         roots = tree.roots
         if len(roots) > 1:
             raise RobotDescriptionError(f'{source}: several root links ({_listing(roots)}); '
-                                        f'choose one with --base')
+                                        f'choose one with {base_option}')
         base = roots[0]
     if tip is None:
-        tip = _default_tip(tree, base)
+        tip = _default_tip(tree, base, tip_option)
     joints, at = [], tip
     while at != base:
         if at not in tree.joints:
-            raise RobotDescriptionError(f'{source}: --tip {tip!r} is not below --base {base!r}')
+            raise RobotDescriptionError(f'{source}: {tip_option} {tip!r} is not below '
+                                        f'{base_option} {base!r}')
         joints.append(tree.joints[at])
         at = tree.joints[at].parent
     joints.reverse()
@@ -313,7 +320,7 @@ def chain_joints(tree, base=None, tip=None):
     return base, tip, joints
 
 
-def _default_tip(tree, base):
+def _default_tip(tree, base, tip_option=OPTIONS[1]):
     """Return the child link of the last moving joint of the longest chain(s) below ``base``."""
     best, tips = -1, set()
     stack = [(base, 0, None)]
@@ -332,7 +339,7 @@ def _default_tip(tree, base):
     if len(tips) > 1:
         raise RobotDescriptionError(
             f'{tree.source}: {len(tips)} links end chains of {best} moving joints below '
-            f'{base!r}: {_listing(sorted(tips))}; choose one with --tip')
+            f'{base!r}: {_listing(sorted(tips))}; choose one with {tip_option}')
     tip = tips.pop()
     if tip is None:
         raise RobotDescriptionError(f'{tree.source}: no moving joint below {base!r}; a DH '
@@ -453,19 +460,21 @@ class Conversion:
     warnings: tuple = ()    # what a user should know (one line each): names changed
 
 
-def urdf_to_description(text, source='<string>', base=None, tip=None, convention='standard'):
+def urdf_to_description(text, source='<string>', base=None, tip=None, convention='standard',
+                        options=OPTIONS):
     """
     Convert URDF XML into the YAML text of a DH robot description (see the module doc).
 
     :param base: the link the chain starts at (default: the root); it is the fixed frame.
     :param tip: the link the chain ends at (default: the leaf of the longest moving chain).
     :param convention: ``standard`` (Spong, distal) or ``modified`` (Craig, proximal).
+    :param options: the names of the base and tip options, for messages (:data:`OPTIONS`).
     :returns: a :class:`Conversion`; raises :class:`RobotDescriptionError` (one line).
     """
     if convention not in ('standard', 'modified'):
         raise RobotDescriptionError(f'convention {convention!r}; allowed: standard, modified')
     tree = parse_urdf(text, source)
-    base, tip, path = chain_joints(tree, base, tip)
+    base, tip, path = chain_joints(tree, base, tip, options)
     for link in [base] + [j.child for j in path]:
         _check_frame(link, source)
     moving = [j for j in path if j.kind in MOVING]
@@ -710,14 +719,16 @@ def _yaml(tree, source, base, tip, convention, frame0, dh_names, rows, links, sk
     return '\n'.join(lines) + '\n'
 
 
-def load_urdf_description(path, base=None, tip=None, convention='standard', packages=None):
+def load_urdf_description(path, base=None, tip=None, convention='standard', packages=None,
+                          options=OPTIONS):
     """
     Read a ``.urdf``/``.xacro`` file and convert it: ``(Conversion, urdf text)``.
 
     :param packages: ``{name: folder}`` for xacro's ``$(find)`` (before the ROS paths).
+    :param options: the names of the base and tip options, for messages.
     """
     text = read_urdf_text(path, packages=packages)
-    return urdf_to_description(text, os.fspath(path), base, tip, convention), text
+    return urdf_to_description(text, os.fspath(path), base, tip, convention, options), text
 
 
 __all__ = ['chain_joints', 'Conversion', 'load_urdf_description', 'parse_urdf',

@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import os
 
 from dq_fk_ros.description.from_urdf import (
-    load_urdf_description, read_urdf_text, urdf_to_description)
+    load_urdf_description, OPTIONS, read_urdf_text, urdf_to_description)
 from dq_fk_ros.description.robot_model import (
     load_robot_description, parse_robot_description, RobotDescriptionError, shipped_robot_path,
     shipped_robots)
@@ -121,7 +121,8 @@ def _printable(text, at_most=200):
     return ''.join(c if c.isprintable() else '?' for c in str(text))[:at_most]
 
 
-def load_robot(spec, base=None, tip=None, convention='standard', access=None, packages=None):
+def load_robot(spec, base=None, tip=None, convention='standard', access=None, packages=None,
+               options=OPTIONS):
     """
     Load a robot from a DH YAML file, a URDF/xacro file or a shipped robot's name.
 
@@ -133,6 +134,8 @@ def load_robot(spec, base=None, tip=None, convention='standard', access=None, pa
         (default: the caller chose the file: any path, a xacro may read its package).
     :param packages: ``{name: folder}`` that a xacro's ``$(find name)`` gives first (see
         :mod:`dq_fk_ros.description.packages` for where else it looks).
+    :param options: how the caller names ``base`` and ``tip`` in messages (``--base``,
+        ``--tip``; the nodes: :data:`~dq_fk_ros.description.from_urdf.NODE_OPTIONS`).
     Raises :class:`RobotDescriptionError` (one line) for anything unusable.
     """
     path = resolve_robot(spec)
@@ -143,21 +146,22 @@ def load_robot(spec, base=None, tip=None, convention='standard', access=None, pa
     if not is_urdf(path):
         return LoadedRobot(load_robot_description(path))
     if access is None:
-        conversion, text = load_urdf_description(path, base, tip, convention, packages)
+        conversion, text = load_urdf_description(path, base, tip, convention, packages,
+                                                 options)
     else:
         text = read_urdf_text(path, roots, access.time_limit_s, access.should_stop, packages,
                               within=access.dirs)
-        conversion = urdf_to_description(text, path, base, tip, convention)
+        conversion = urdf_to_description(text, path, base, tip, convention, options)
     return LoadedRobot(replace(parse_robot_description(conversion.text, path), urdf=text),
                        conversion)
 
 
 def robot_from_urdf_text(text, source='robot_description', base=None, tip=None,
-                         convention='standard'):
+                         convention='standard', options=OPTIONS):
     """Convert URDF XML given as text (robot_state_publisher's ``robot_description``)."""
     if not isinstance(text, str) or not text.strip():
         raise RobotDescriptionError(f'{source}: empty; give URDF XML')
-    conversion = urdf_to_description(text, source, base, tip, convention)
+    conversion = urdf_to_description(text, source, base, tip, convention, options)
     return LoadedRobot(replace(parse_robot_description(conversion.text, source), urdf=text),
                        conversion)
 

@@ -10,6 +10,7 @@ stream, for robustness tests. The motion itself is plain Python (:class:`JointMo
 import math
 import sys
 
+from dq_fk_ros.description.from_urdf import NODE_OPTIONS
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.description.robot_model import RobotDescriptionError
 from dq_fk_ros.ros.executables import MATCH_SETTLE_S, spin_until_shutdown
@@ -122,7 +123,8 @@ class FakeJointPublisher(Node):
         if not rate_hz > 0.0:
             raise ValueError(f'rate_hz must be positive, got {rate_hz}')
         packages = declare_package_paths(self)
-        model = load_robot(path or 'rl15', base or None, tip or None, packages=packages).model
+        model = load_robot(path or 'rl15', base or None, tip or None, packages=packages,
+                           options=NODE_OPTIONS).model
         self._names = list(model.joint_names)
         self._motion = JointMotion(mode, model.limits,
                                    fixed=positions if mode == 'fixed' else None,

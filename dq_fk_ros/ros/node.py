@@ -13,6 +13,7 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from dq_fk_ros.description.from_urdf import NODE_OPTIONS
 from dq_fk_ros.description.loading import (
     FileAccess, load_robot, resolve_robot, robot_from_urdf_text, shipped_robots_dir)
 from dq_fk_ros.description.robot_model import FRAME_ID, MAX_NAME_CHARS, RobotDescriptionError
@@ -265,10 +266,11 @@ class DqFkNode(Node):
         tip = inputs['urdf_tip_link'] or None
         if inputs['robot_description'].strip():
             robot = robot_from_urdf_text(inputs['robot_description'],
-                                         'parameter robot_description', base, tip)
+                                         'parameter robot_description', base, tip,
+                                         options=NODE_OPTIONS)
         else:
             robot = load_robot(inputs['robot_description_file'] or 'rl15', base, tip,
-                               access=access, packages=self._packages)
+                               access=access, packages=self._packages, options=NODE_OPTIONS)
         if robot.conversion is not None:
             self.get_logger().info(robot.summary())
         for line in robot.warnings:

@@ -258,7 +258,11 @@ def test_tf_names_as_the_urdf_writes_them_and_valid_topic_names(ros_domain_id):
             '</joint></robot>')
     harness = Harness()
     try:
-        harness.start_node(robot_description=text)
+        node = harness.start_node(robot_description=text)
+        # the node's messages name its parameters, not the command line's options
+        result = node.set_parameters([Parameter('urdf_tip_link', value='nolink')])[0]
+        assert not result.successful and "urdf_tip_link 'nolink' is not a link" in \
+            result.reason, result.reason
         tf = harness.listen(TFMessage, '/tf')
         tip = harness.listen(PoseStamped, '/dq_fk_node/pose/tip_1')
         link = harness.listen(PoseStamped, '/dq_fk_node/pose/link_11_0')

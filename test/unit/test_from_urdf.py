@@ -709,3 +709,29 @@ def test_names_tf2_takes_keep_their_spelling_on_tf():
     assert_matches_pinocchio(model, text, 'palm', 50)
     with pytest.raises(RobotDescriptionError, match="frames 'link.1' and 'link-1' would both"):
         urdf_to_description(named_urdf('palm', 'link.1', 'link-1'), 'hand.urdf')
+
+
+def test_every_tool_spells_base_and_tip_alike_and_messages_name_its_option(capsys):
+    """--tip was suggested by tools that took only --urdf-tip; the node was told --tip."""
+    text = ('<robot name="v"><link name="b"/><link name="l"/><link name="r"/>'
+            '<joint name="jl" type="revolute"><parent link="b"/><child link="l"/>'
+            '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+            '<joint name="jr" type="revolute"><parent link="b"/><child link="r"/>'
+            '<origin xyz="0.1 0 0"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" '
+            'velocity="1"/></joint></robot>')
+    from dq_fk_ros.description.from_urdf import NODE_OPTIONS
+    with pytest.raises(RobotDescriptionError, match='choose one with --tip$'):
+        urdf_to_description(text, 'v.urdf')
+    with pytest.raises(RobotDescriptionError, match='choose one with urdf_tip_link$'):
+        urdf_to_description(text, 'v.urdf', options=NODE_OPTIONS)
+    with pytest.raises(RobotDescriptionError, match="urdf_base_link 'x' is not a link"):
+        urdf_to_description(text, 'v.urdf', base='x', options=NODE_OPTIONS)
+    import tempfile
+    with tempfile.NamedTemporaryFile('w', suffix='.urdf') as f:
+        f.write(text)
+        f.flush()
+        for argv in (['fk', f.name, '--tip', 'r'], ['urdf', f.name, '--tip', 'r'],
+                     ['fk', f.name, '--urdf-tip', 'r'], ['from-urdf', f.name, '--tip', 'r'],
+                     ['fk', f.name, '--base', 'b', '--tip', 'l']):
+            assert dq_fk.main(argv) == 0, argv
+        capsys.readouterr()
