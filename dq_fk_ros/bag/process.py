@@ -43,8 +43,7 @@ class BagOutputs:
         self.writer = writer
         self.typestore = typestore
         self.frame_ids = [frame_prefix + name for name in model.frame_names]
-        parents = [p if p == model.fixed_frame else frame_prefix + p
-                   for p in model.parent_frames]
+        parents = [model.tf_frame_id(p, frame_prefix) for p in model.parent_frames]
         self.moving_edges = model.moving_edges
         self.static = model.static_transforms()
         add = writer.add_connection
@@ -80,7 +79,8 @@ class BagOutputs:
         self.tf_template = tf_message_template(
             [(parents[k], self.frame_ids[k]) for k, _ in self.moving_edges]
             + [(self.frame_ids[k], frame_prefix + name) for name, k in self.helpers.moving])
-        self.pose_template = pose_stamped_template(model.fixed_frame)
+        self.pose_template = pose_stamped_template(model.tf_frame_id(model.fixed_frame,
+                                                                     frame_prefix))
         self.static_template = tf_message_template(
             [(parents[k], self.frame_ids[k]) for k, _ in self.static]
             + [(self.frame_ids[k], frame_prefix + name) for name, k, _ in self.helpers.static])
@@ -124,11 +124,14 @@ class BagOutputs:
         if self.helpers.moving:  # (a cylindrical row's first motion: rare, per message)
             moving = np.array([np.concatenate(self.helpers.moving_poses(row)) for row in q])
             relative = np.concatenate([relative, moving], axis=1)
-        tf_rows = self.tf_template.fill(stamps_ns, relative)
         pose_rows = [self.pose_template.fill(stamps_ns, absolute[:, self.pose_frames[i]])
                      for i in self.base_poses]
-        self.writer.write_rows([self.tf] + [self.poses[i] for i in self.base_poses],
-                               log_times_ns, [tf_rows] + pose_rows)
+        channels = [self.poses[i] for i in self.base_poses]
+        if relative.shape[1]:  # a robot with nothing moving has no /tf (as the node)
+            channels.insert(0, self.tf)
+            pose_rows.insert(0, self.tf_template.fill(stamps_ns, relative))
+        if channels:
+            self.writer.write_rows(channels, log_times_ns, pose_rows)
         for columns, template, edges, poses in self.branches:
             rows = np.ones(n, bool) if seen is None else seen[:, columns].all(axis=1)
             if not rows.any():

@@ -314,14 +314,15 @@ def chain_joints(tree, base=None, tip=None, options=OPTIONS):
             raise RobotDescriptionError(f'{source}: joint {joint.name!r} on the chain is '
                                         f'{joint.kind}; a DH chain takes revolute, continuous, '
                                         f'prismatic and fixed joints')
-    if not any(j.kind in MOVING for j in joints):
-        raise RobotDescriptionError(f'{source}: no moving joint between {base!r} and {tip!r}; '
-                                    f'a DH chain needs at least one')
     return base, tip, joints
 
 
 def _default_tip(tree, base, tip_option=OPTIONS[1]):
-    """Return the child link of the last moving joint of the longest chain(s) below ``base``."""
+    """
+    Return the child link of the last moving joint of the longest chain(s) below ``base``.
+
+    ``base`` itself when no moving joint is below it (a sensor rig, a camera mount).
+    """
     best, tips = -1, set()
     stack = [(base, 0, None)]
     while stack:
@@ -341,10 +342,7 @@ def _default_tip(tree, base, tip_option=OPTIONS[1]):
             f'{tree.source}: {len(tips)} links end chains of {best} moving joints below '
             f'{base!r}: {_listing(sorted(tips))}; choose one with {tip_option}')
     tip = tips.pop()
-    if tip is None:
-        raise RobotDescriptionError(f'{tree.source}: no moving joint below {base!r}; a DH '
-                                    f'chain needs at least one')
-    return tip
+    return base if tip is None else tip  # no moving joint below base: a fixed rig
 
 
 # -- DH frames on the joint axes -----------------------------------------------------------
@@ -504,7 +502,10 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
             body[j.child] = len(lines)
         else:
             body[j.child] = body[j.parent]
-    frames, kinds = _frames_on_axes(lines, convention)
+    if lines:
+        frames, kinds = _frames_on_axes(lines, convention)
+    else:  # no moving joint: one fixed row, every link fixed to the base (only /tf_static)
+        frames, kinds = [np.eye(4), np.eye(4)], ['first']
     dh_names = _dh_frame_names(len(frames), set(tree.links))
 
     rows = []
@@ -526,6 +527,9 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
         note = (f'URDF joint {j.name} ({j.kind}{", mimic" if j.mimic else ""}): '
                 f'{j.parent} -> {j.child}; axis {kinds[i]}{" to the previous" if i else ""}')
         rows.append((row, note))
+    if not moving:
+        rows.append(({'frame': dh_names[1], 'type': 'fixed', 'theta': 0.0, 'd': 0.0, 'a': 0.0,
+                      'alpha': 0.0}, 'no moving joint: a fixed row (every link is static)'))
 
     # every link of the chain and everything hanging off it: fixed, mimic or with a joint
     # of its own (a side branch, optional in joint states); a mimic of a joint that is not
@@ -539,6 +543,8 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
             break
         sources = chain_names | owned
     end_effector = tip
+    if not moving:  # the fixed frame cannot be the end effector: the deepest link
+        end_effector = links[-1][0]['frame'] if links else dh_names[1]
     text = _yaml(tree, source, base, tip, convention, frames[0], dh_names, rows, links,
                  skipped, end_effector)
     parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here

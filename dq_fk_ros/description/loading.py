@@ -52,6 +52,9 @@ class LoadedRobot:
         skipped = f'; skipped side branches: {skipped}' if skipped else ''
         optional = (f'; optional side-branch joints: {", ".join(self.model.optional_joints)}'
                     if self.model.optional_joints else '')
+        if not self.model.dof:
+            return (f'converted URDF {self.model.source}: no moving joint below {c.base}: '
+                    f'{len(self.model.links)} URDF links, all static (/tf_static only)')
         return (f'converted URDF {self.model.source}: chain {c.base} -> {c.tip}, '
                 f'{len(self.model.chain.joints)} DH rows ({self.model.chain.convention}), '
                 f'{len(self.model.links)} URDF links{optional}{skipped}')

@@ -193,6 +193,18 @@ class RobotModel:
         return tuple(needs[name] | needs[parent]
                      for name, parent in zip(self.frame_names, self.parent_frames))
 
+    def tf_frame_id(self, name, prefix=''):
+        """
+        Return the TF frame id of frame ``name`` (or the fixed frame) under ``frame_prefix``.
+
+        Every frame gets the prefix, the fixed frame too when it is a URDF's root link (as
+        robot_state_publisher prefixes every link); a DH file's fixed frame (``world``) is
+        shared by the robots in one tree and keeps its name.
+        """
+        if name == self.fixed_frame and self.urdf is None:
+            return name
+        return prefix + name
+
     @cached_property
     def topic_names(self):
         """Per frame of ``frame_names``: its ``~/pose/...`` topic (:func:`pose_topic_name`)."""

@@ -249,7 +249,7 @@ class JointStateMerger:
         else:
             self._note_unknown(names, times=k)
             columns = [c for c, name in enumerate(names) if name in self._index]
-            if not columns:
+            if not columns and self._index:  # (a robot without joints takes any message)
                 reason = 'no_known_joint'
         if reason is not None:
             self.count_rejected(reason, k)
@@ -298,7 +298,7 @@ class JointStateMerger:
         pick = (np.where(has, last, 0), np.arange(given.shape[1]))
         q_out[:] = np.where(has, values[pick], self._q)
         qdot_out[:] = np.where(has, rates[pick], self._qdot)
-        seen = has | np.array(self._seen)
+        seen = has | np.array(self._seen, dtype=bool)
         complete[:] = seen[:, :self.required].all(axis=1)
         self._seen_rows.append(seen)
         self._q, self._qdot, self._seen = q_out[-1].tolist(), qdot_out[-1].tolist(), \
@@ -400,7 +400,7 @@ class JointStateMerger:
                 result.unknown_overflow = overflow
                 return result
             ours.append((i, position, float(velocities[k]) if len(velocities) else math.nan))
-        if not ours:
+        if not ours and self.joint_names:  # (a robot without joints takes any message)
             result = self._reject('no_known_joint', 'none of ' + ', '.join(map(repr, names[:5]))
                                   + (' ...' if n_msg > 5 else '') + ' is a joint of this robot')
             result.new_unknown = tuple(new_unknown)

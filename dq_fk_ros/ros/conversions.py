@@ -51,8 +51,10 @@ class FrameMessages:
     """
     The messages of one robot model under one ``frame_prefix``, built once, refilled often.
 
-    ``frame_prefix`` is prepended to every frame id the model names, except the fixed
-    frame, so that several robots hang in one TF tree under a shared world frame. The
+    ``frame_prefix`` is prepended to every frame id the model names, except a DH file's
+    fixed frame, so that several robots hang in one TF tree under a shared world frame (a
+    URDF's root link is prefixed too, as robot_state_publisher does:
+    :meth:`RobotModel.tf_frame_id`). The
     URDF's helper links (:class:`~dq_fk_ros.description.urdf.HelperFrames`) are published
     as children of their DH frames: constant ones on /tf_static, moving ones on /tf.
     """
@@ -66,9 +68,9 @@ class FrameMessages:
         """
         self.model = model
         self.prefix = frame_prefix
-        fixed = model.fixed_frame
+        fixed = model.tf_frame_id(model.fixed_frame, frame_prefix)
         self.frame_ids = [frame_prefix + name for name in model.frame_names]
-        self._parent_ids = [p if p == fixed else frame_prefix + p for p in model.parent_frames]
+        self._parent_ids = [model.tf_frame_id(p, frame_prefix) for p in model.parent_frames]
         self.hidden = hidden_frames(model, shown_optional)
         # moving TF transforms: DH rows and links on other bodies than their TF parents
         self.moving_edges = tuple(e for e in model.moving_edges if e[0] not in self.hidden)
@@ -165,8 +167,9 @@ class FrameBytes:
         self._moving = [k for _, k in self.moving_edges]
         edges = [(t.header.frame_id, t.child_frame_id) for t in messages.tf.transforms]
         tf = tf_message_template(edges)
-        pose = pose_stamped_template(model.fixed_frame)
-        twist = twist_stamped_template(model.fixed_frame)
+        fixed = model.tf_frame_id(model.fixed_frame, messages.prefix)
+        pose = pose_stamped_template(fixed)
+        twist = twist_stamped_template(fixed)
         self.templates = {'tf': tf, 'pose': pose, 'twist': twist}  # layouts, for the tests
         self._tf = tf.packer()
         self._pose = pose.packer()

@@ -553,7 +553,7 @@ class DqFkNode(Node):
             relative = model.transform_poses(q)
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self._bytes
-        if self._publish_tf:
+        if self._publish_tf and self._messages.tf.transforms:  # nothing moving: no /tf
             self._send_tf(out.tf(sec, nanosec, relative, q))
         if poses:
             for send, data in zip(self._send_read_poses,

@@ -472,3 +472,23 @@ def test_play_publishes_recorded_messages_and_clock(tmp_path, processes, ros_dom
     assert player.returncode == 0
     assert [stamp_ns(m.header) for m in joints] == stamps[10:]  # --start 0.1 s skips 10
     assert clock_ns() == stamps[10:]
+
+
+def test_a_robot_with_no_moving_joint_gets_tf_static_and_poses_only(tmp_path):
+    """A sensor rig's URDF (fixed joints only) was refused; rsp publishes /tf_static alone."""
+    rig = tmp_path / 'rig.urdf'
+    rig.write_text('<robot name="rig"><link name="mount"/><link name="camera"/>'
+                   '<joint name="j" type="fixed"><parent link="mount"/><child link="camera"/>'
+                   '<origin xyz="0.1 0.2 0.3"/></joint></robot>')
+    write_bag(tmp_path / 'in', [(T0 + k, js_bytes(['wheel'], [0.0], T0 + k)) for k in range(4)])
+    summary = process_bag(tmp_path / 'in', tmp_path / 'out', str(rig), progress=False,
+                          frame_prefix='r1/')
+    assert summary['written'] == 4 and summary['error'] is None
+    static = read_topic(tmp_path / 'out', '/tf_static')
+    edges = {(t.header.frame_id, t.child_frame_id): t.transform.translation
+             for t in static[0][1].transforms}
+    camera = edges[('r1/mount', 'r1/camera')]
+    assert (camera.x, camera.y, camera.z) == (0.1, 0.2, 0.3)
+    assert read_topic(tmp_path / 'out', '/tf') == []
+    poses = read_topic(tmp_path / 'out', '/dq_fk_node/pose/camera')
+    assert len(poses) == 4 and poses[0][1].header.frame_id == 'r1/mount'

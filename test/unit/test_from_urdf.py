@@ -294,8 +294,6 @@ def test_cli_writes_a_file_that_validates(tmp_path, capsys):
 
 
 BROKEN = {
-    'only fixed joints': (serial_urdf([('fixed', '0 0 1', '0 0 0', '1 0 0')]),
-                          "no moving joint below 'base'"),
     'two tips': ('<robot name="y"><link name="b"/><link name="t1"/><link name="t2"/>'
                  '<joint name="a" type="continuous"><parent link="b"/><child link="t1"/>'
                  '</joint><joint name="c" type="continuous"><parent link="b"/>'
@@ -735,3 +733,23 @@ def test_every_tool_spells_base_and_tip_alike_and_messages_name_its_option(capsy
                      ['fk', f.name, '--base', 'b', '--tip', 'l']):
             assert dq_fk.main(argv) == 0, argv
         capsys.readouterr()
+
+
+def test_a_urdf_with_no_moving_joint_is_a_static_robot():
+    """robot_state_publisher's two_links_fixed_joint was refused: 'a DH chain needs one'."""
+    text = ('<robot name="rig"><link name="link1"/><link name="link2"/><link name="cam"/>'
+            '<joint name="joint1" type="fixed"><parent link="link1"/><child link="link2"/>'
+            '<origin xyz="5 0 0"/></joint><joint name="j2" type="fixed"><parent link="link2"/>'
+            '<child link="cam"/><origin xyz="0 0.1 0.2" rpy="0.1 0.2 0.3"/></joint></robot>')
+    model = parse_robot_description(urdf_to_description(text, 'rig.urdf').text, 'rig.yaml')
+    assert model.dof == 0 and not any(model.moving) and model.fixed_frame == 'link1'
+    assert model.end_effector == 'cam'
+    static = {model.frame_names[k]: pose for k, pose in model.static_transforms()}
+    np.testing.assert_allclose(static['link2'], [5, 0, 0, 0, 0, 0, 1], atol=1e-15)
+    oracle = pinocchio_oracle.urdf_model(text)
+    expected = pinocchio_oracle.link_placements(
+        oracle, pinocchio_oracle.configuration(oracle, {}), ['link1', 'link2', 'cam'])
+    ours = homogeneous_from_dq(model.forward_all(np.zeros(0)))
+    for link in ('link2', 'cam'):
+        np.testing.assert_allclose(ours[model.frame_names.index(link)], expected[link],
+                                   atol=1e-12)

@@ -396,3 +396,13 @@ def test_a_message_of_six_foreign_joints_lists_five_and_says_there_are_more(merg
     assert r.detail == "none of 'x0', 'x1', 'x2', 'x3', 'x4' ... is a joint of this robot"
     five = merger.merge(names[:5], [0.0] * 5)
     assert five.detail == "none of 'x0', 'x1', 'x2', 'x3', 'x4' is a joint of this robot"
+
+
+def test_a_robot_without_joints_takes_any_message_in_both_paths():
+    """A fixed rig (no moving joint): every message is an update, none 'no_known_joint'."""
+    merger = JointStateMerger((), np.zeros((0, 2)), required=0)
+    result = merger.merge(('other',), (1.0,), (), 7)
+    assert result.status == PUBLISH and result.q.shape == (0,) and result.stamp_ns == 7
+    published, q, _ = JointStateMerger((), np.zeros((0, 2)), required=0).merge_many(
+        [(('a', 'b'), np.zeros((3, 2)), np.zeros((3, 0)), np.array([1, 2, 3]))])
+    assert published.tolist() == [0, 1, 2] and q.shape == (3, 0)
