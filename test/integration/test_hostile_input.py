@@ -35,7 +35,7 @@ def bad_robot_files(folder):
                          'nested too deeply'),
         'newline_in_frame': (RL15_TEXT.replace('frame: shoulder_seg1',
                                                'frame: "shoulder_seg1\\n"', 1),
-                             "field 'frame' must be a ROS frame id"),
+                             "field 'frame' must be a tf2 frame id"),
         'ten_thousand_rows': (RL15_TEXT[:RL15_TEXT.index('chain:') + 7] + rows,
                               'a robot description has at most 256'),
         'binary': ('\x00\x01\x02' * 100, 'not valid YAML'),
