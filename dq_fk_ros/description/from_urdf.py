@@ -317,11 +317,12 @@ def chain_joints(tree, base=None, tip=None, options=OPTIONS):
     return base, tip, joints
 
 
-def _default_tip(tree, base, tip_option=OPTIONS[1]):
+def longest_chain_tips(tree, base):
     """
-    Return the child link of the last moving joint of the longest chain(s) below ``base``.
+    Return the links that end the longest chains of moving joints below ``base``.
 
-    ``base`` itself when no moving joint is below it (a sensor rig, a camera mount).
+    Each is the child link of a chain's last moving joint (mimic joints not counted), in the
+    URDF's link order; ``[None]`` when no moving joint is below ``base``.
     """
     best, tips = -1, set()
     stack = [(base, 0, None)]
@@ -337,12 +338,19 @@ def _default_tip(tree, base, tip_option=OPTIONS[1]):
         for joint in below:
             counts = joint.kind in MOVING and joint.mimic is None
             stack.append((joint.child, count + counts, joint.child if counts else last))
-    if len(tips) > 1:
-        raise RobotDescriptionError(
-            f'{tree.source}: {len(tips)} links end chains of {best} moving joints below '
-            f'{base!r}: {_listing(sorted(tips))}; choose one with {tip_option}')
-    tip = tips.pop()
-    return base if tip is None else tip  # no moving joint below base: a fixed rig
+    order = {link: k for k, link in enumerate(tree.links)}
+    return sorted(tips, key=lambda t: order.get(t, -1))
+
+
+def _default_tip(tree, base, tip_option=OPTIONS[1]):
+    """
+    Return the end of the longest chain below ``base``: the first in the URDF's order.
+
+    Among equally long chains (two legs, two arms, fingers) the first wins and the others
+    become side branches; ``base`` itself when no moving joint is below it (a sensor rig).
+    """
+    tip = longest_chain_tips(tree, base)[0]
+    return base if tip is None else tip
 
 
 # -- DH frames on the joint axes -----------------------------------------------------------
@@ -472,6 +480,7 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
     if convention not in ('standard', 'modified'):
         raise RobotDescriptionError(f'convention {convention!r}; allowed: standard, modified')
     tree = parse_urdf(text, source)
+    chose_tip = tip is None
     base, tip, path = chain_joints(tree, base, tip, options)
     for link in [base] + [j.child for j in path]:
         _check_frame(link, source)
@@ -549,11 +558,18 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
                  skipped, end_effector)
     parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here
     warnings = ()
+    equal = [t for t in longest_chain_tips(tree, base) if t not in (None, tip)] \
+        if chose_tip else []
+    if equal:
+        warnings += (f'{source}: {len(equal) + 1} chains of equal length below {base!r}: the '
+                     f'DH chain ends at {tip!r} (the first in the URDF), '
+                     f'{_listing([_comment(t)[:80] for t in equal], 5)} are side branches, '
+                     f'published once joint states name their joints (another: {options[1]})',)
     if tree.slashed:
         shown = ', '.join(_comment(n)[:80] for n in tree.slashed[:5])
         more = f' and {len(tree.slashed) - 5} more' if len(tree.slashed) > 5 else ''
-        warnings = (f'{source}: link names with a leading slash are published without it, as '
-                    f'tf2 strips it: {shown}{more}',)
+        warnings += (f'{source}: link names with a leading slash are published without it, '
+                     f'as tf2 strips it: {shown}{more}',)
     return Conversion(text, base, tip, tuple(skipped), warnings)
 
 
