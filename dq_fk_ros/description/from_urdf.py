@@ -558,6 +558,11 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
                  skipped, end_effector)
     parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here
     warnings = ()
+    loose = [j for j in skipped if j.kind in ('floating', 'planar')]
+    if loose:
+        warnings += (f'{source}: {len(loose)} floating or planar joint(s) get no transform, as '
+                     f'in robot_state_publisher (their links are not on TF): '
+                     f'{_listing([_comment(j.name)[:80] for j in loose], 5)}',)
     equal = [t for t in longest_chain_tips(tree, base) if t not in (None, tip)] \
         if chose_tip else []
     if equal:

@@ -798,3 +798,18 @@ def test_every_vendor_urdf_is_published_whole_and_equals_pinocchio(path):
     except ValueError:  # pinocchio refuses the URDF's mimic joints; give it their values
         mimic = False
     assert_matches_pinocchio(model, text, model.fixed_frame, 200, mimic=mimic)
+
+
+def test_floating_and_planar_joints_get_no_transform_and_one_warning_line():
+    text = ('<robot name="f"><link name="b"/><link name="a"/><link name="drone"/>'
+            '<link name="puck"/><joint name="j" type="revolute"><parent link="b"/>'
+            '<child link="a"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" '
+            'velocity="1"/></joint><joint name="fly" type="floating"><parent link="b"/>'
+            '<child link="drone"/></joint><joint name="slide" type="planar"><parent link="b"/>'
+            '<child link="puck"/></joint></robot>')
+    conversion = urdf_to_description(text, 'f.urdf')
+    model = parse_robot_description(conversion.text, 'f.yaml')
+    assert 'drone' not in model.frame_names and 'puck' not in model.frame_names
+    assert [w for w in conversion.warnings if 'floating or planar' in w] == [
+        'f.urdf: 2 floating or planar joint(s) get no transform, as in robot_state_publisher '
+        '(their links are not on TF): fly, slide']
