@@ -134,8 +134,9 @@ def parse_joint_state(raw, cache=None, as_tuples=False):
     :raises CdrError: truncated or not little-endian CDR.
     """
     layout = cache.layout if cache is not None else None
-    if layout is None or len(raw) != layout.size or raw[12:layout.fixed_end] != layout.fixed \
-            or layout.counts.unpack_from(raw, layout.counts_at) != layout.expected_counts:
+    if layout is None or len(raw) != layout.size \
+            or layout.counts.unpack_from(raw, layout.counts_at) != layout.expected_counts \
+            or (raw[12:layout.fixed_end] != layout.fixed and not layout.same_strings(raw)):
         layout = _JointStateLayout(raw, cache)
         if cache is not None:
             cache.layout = layout
@@ -158,7 +159,8 @@ class _JointStateLayout:
     """
 
     __slots__ = ('size', 'fixed_end', 'fixed', 'counts', 'counts_at', 'expected_counts',
-                 'names', 'positions', 'velocities', 'position_values', 'velocity_values')
+                 'names', 'positions', 'velocities', 'position_values', 'velocity_values',
+                 'strings')
 
     def __init__(self, raw, cache):
         """Walk ``raw`` once (:raises CdrError: not a readable JointState)."""
@@ -174,6 +176,40 @@ class _JointStateLayout:
         self.expected_counts = tuple(n for _, n in counts)
         self.position_values = struct.Struct(f'<{self.positions[1]}d')
         self.velocity_values = struct.Struct(f'<{self.velocities[1]}d')
+        self.strings = None  # (offset, bytes) of the strings, built on the first miss
+
+    def same_strings(self, raw):
+        """
+        Say whether ``raw`` has this layout's frame id and names, padding aside.
+
+        CDR's alignment padding is not defined: a serializer may leave any bytes there (rclpy
+        does), so two messages with the same names can differ in ``fixed``. Then the
+        strings are compared one by one (lengths and characters), still cheaper than reading
+        the message anew.
+        """
+        if self.strings is None:
+            self.strings = _string_spans(self.fixed, 12)
+        return all(raw[at:at + len(text)] == text for at, text in self.strings)
+
+
+def _string_spans(fixed, start):
+    """Return ``[(offset, length and characters), ...]`` of the strings in ``fixed``."""
+    spans, pos = [], 0
+
+    def string():
+        nonlocal pos
+        pos += (-pos) % 4
+        (length,) = _U32.unpack_from(fixed, pos)
+        spans.append((start + pos, fixed[pos:pos + 4 + length]))
+        pos += 4 + length
+    string()  # header.frame_id
+    pos += (-pos) % 4
+    (count,) = _U32.unpack_from(fixed, pos)
+    spans.append((start + pos, fixed[pos:pos + 4]))
+    pos += 4
+    for _ in range(count):
+        string()
+    return spans
 
 
 def _names(raw, span, cache):

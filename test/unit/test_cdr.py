@@ -1,5 +1,7 @@
 """The fast CDR reader and templates against rosbags' own (independent) CDR implementation."""
 
+import struct
+
 from dq_fk_ros.messages.cdr import (
     CDR_LE_HEADER, CdrError, JointStateNames, JointStateRun, MalformedJointState,
     parse_joint_state, parse_joint_states, pose_stamped_template, tf_layout,
@@ -374,3 +376,24 @@ def test_a_batch_of_same_size_messages_of_two_layouts():
     assert [len(r.stamps_ns) for r in runs] == [1, 1, 1, 1]
     assert [r.velocities.tolist() for r in runs] == [[[3.0]], [[3.0, 4.0]], [[3.0]],
                                                      [[3.0, 4.0]]]
+
+
+def test_a_layout_is_kept_whatever_the_padding_bytes_hold():
+    """CDR padding is undefined (rclpy's holds garbage): tiago's layout was rebuilt per message."""
+    names = ['a', 'bb', 'ccc', 'dddd']
+    raw = bytearray(joint_state_bytes(names, [1.0, 2.0, 3.0, 4.0]))
+    cache = JointStateNames()
+    parse_joint_state(bytes(raw), cache)
+    layout = cache.layout
+    pads = [17, 18, 19]  # after the empty frame id ('' + NUL: 1 byte, then 3 of padding)
+    for at in pads:
+        raw[at] = 0xAB
+    at = layout.positions[0] + 3 * 8
+    raw[at:at + 8] = struct.pack('<d', 9.0)  # and a new value
+    stamp, got, positions, _ = parse_joint_state(bytes(raw), cache)
+    assert cache.layout is layout and got == tuple(names) and positions[-1] == 9.0
+    renamed = bytearray(raw)
+    at = bytes(raw).index(b'bb\x00')
+    renamed[at:at + 2] = b'xy'  # a name of the same length, the same padding
+    _, got, _, _ = parse_joint_state(bytes(renamed), cache)
+    assert got == ('a', 'xy', 'ccc', 'dddd') and cache.layout is not layout
