@@ -260,13 +260,19 @@ class _Layout:
     """One message's layout: its size, the bytes that must match, where the values are."""
 
     def __init__(self, raw, cache):
-        names, self.positions, self.velocities, efforts = _joint_state_spans(raw)
+        spans, counts = _joint_state_spans(raw, with_counts=True)
+        names, self.positions, self.velocities, _ = spans
         self.names = _names(raw, names, cache)
         self.size = len(raw)
-        fixed = np.ones(self.size, bool)
-        fixed[4:12] = False  # the stamp
-        for at, count in (self.positions, self.velocities, efforts):
-            fixed[at:at + 8 * count] = False
+        # the bytes that say "same layout": the encapsulation, the strings (lengths and
+        # characters) and the arrays' lengths; not the stamp, the values, nor the padding,
+        # which CDR leaves undefined (rclpy's holds whatever its buffer held)
+        fixed = np.zeros(self.size, bool)
+        fixed[:4] = True
+        for at, text in _string_spans(bytes(raw[12:names[2]]), 12):
+            fixed[at:at + len(text)] = True
+        for at, _ in counts:
+            fixed[at:at + 4] = True
         self.fixed = np.flatnonzero(fixed)
         self.template = np.frombuffer(raw, np.uint8)[self.fixed]
 

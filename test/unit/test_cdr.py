@@ -397,3 +397,19 @@ def test_a_layout_is_kept_whatever_the_padding_bytes_hold():
     renamed[at:at + 2] = b'xy'  # a name of the same length, the same padding
     _, got, _, _ = parse_joint_state(bytes(renamed), cache)
     assert got == ('a', 'xy', 'ccc', 'dddd') and cache.layout is not layout
+
+
+def test_a_batch_with_undefined_padding_is_one_run():
+    """Recorded messages differ in their padding: each was a layout of its own in a bag."""
+    names = ['a', 'bb', 'ccc']
+    raws = []
+    for k in range(20):
+        raw = bytearray(joint_state_bytes(names, [k, 2.0 * k, 3.0], stamp_ns=k))
+        raw[17:20] = bytes([k, k + 1, k + 2])  # the padding after the empty frame id
+        raws.append(bytes(raw))
+    runs = parse_joint_states(raws)
+    assert len(runs) == 1 and runs[0].names == tuple(names)
+    np.testing.assert_array_equal(runs[0].positions[:, 1], 2.0 * np.arange(20))
+    renamed = raws[:5] + [raws[5].replace(b'bb\x00', b'xy\x00')] + raws[6:]
+    runs = parse_joint_states(renamed)
+    assert [r.names for r in runs] == [tuple(names), ('a', 'xy', 'ccc'), tuple(names)]
