@@ -154,3 +154,32 @@ def test_package_options_are_checked(text, words):
     with pytest.raises(ValueError, match=words):
         parse_package_option(text)
     assert parse_package_option(f'pkg={os.sep}') == ('pkg', os.sep)
+
+
+def test_broken_or_huge_package_xml_files_name_no_package(tmp_path):
+    """A package.xml the crawl cannot read names nothing: it is not a crash."""
+    root = tmp_path / 'ws'
+    for folder, text in (('empty_name', '<package><name/></package>'),
+                         ('no_name', '<package></package>'),
+                         ('not_xml', '<package><name>arm_description'),
+                         ('entity', '<!DOCTYPE p [<!ENTITY x "arm_description">]>'
+                                    '<package><name>&x;</name></package>'),
+                         ('huge', '<package><name>arm_description</name>' + ' ' * (1 << 20)
+                          + '</package>')):
+        (root / folder).mkdir(parents=True)
+        (root / folder / 'package.xml').write_text(text)
+    resolver = PackageResolver({'other': str(tmp_path)}, environ={'ROS_PACKAGE_PATH': str(root)})
+    with pytest.raises(PackageNotFound, match="^package 'arm_description' not found; "
+                       'searched: --package other; '):
+        resolver.find('arm_description')
+
+
+def test_a_package_several_folders_above_the_file_is_found(tmp_path):
+    package = make_package(tmp_path / 'arm_description')
+    deep = package / 'robots' / 'variants' / 'left'
+    deep.mkdir(parents=True)
+    robot = deep / 'arm.urdf.xacro'
+    robot.write_text(ARM)
+    assert PackageResolver(near=robot, environ={}).find('arm_description') == str(package)
+    with pytest.raises(PackageNotFound):
+        PackageResolver(near=robot, environ={}).find('gripper_description')

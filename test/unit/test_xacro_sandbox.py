@@ -184,7 +184,7 @@ def test_should_stop_ends_the_expansion_early(tmp_path):
         return len(asked) > 3
     with pytest.raises(XacroRefused, match='shutting down'):
         expand_xacro(path, [tmp_path], time_limit_s=30.0, should_stop=stop)
-    assert time.monotonic() - start < 5.0
+    assert time.monotonic() - start < 5.0 and len(asked) == 4  # not before it said so
 
 
 def test_a_relative_path_is_expanded(tmp_path, monkeypatch):
@@ -194,3 +194,19 @@ def test_a_relative_path_is_expanded(tmp_path, monkeypatch):
           '<link name="${n}"/>' + TAIL)
     monkeypatch.chdir(tmp_path)
     assert '<link name="a"/>' in read_urdf_text('robots/r.urdf.xacro')
+
+
+def test_a_read_of_python_internals_is_refused_by_the_check_itself(tmp_path):
+    """The check runs before xacro evaluates: a harmless-looking read of __subclasses__."""
+    path = write(tmp_path, 'peek.urdf.xacro', link(
+        '${[c.__name__ for c in ().__class__.__base__.__subclasses__()][0]}'))
+    with pytest.raises(XacroRefused, match="uses '__name__': names with __ reach Python "
+                       'internals and are not evaluated'):
+        expand_xacro(path, [tmp_path])
+
+
+def test_a_xacro_error_is_said_once_without_its_class(tmp_path):
+    path = write(tmp_path, 'env.urdf.xacro', link('$(env DQ_FK_NOT_SET_ANYWHERE)'))
+    with pytest.raises(XacroRefused) as caught:
+        expand_xacro(path, [tmp_path])
+    assert str(caught.value) == "environment variable 'DQ_FK_NOT_SET_ANYWHERE' is not set"
