@@ -210,3 +210,11 @@ def test_a_xacro_error_is_said_once_without_its_class(tmp_path):
     with pytest.raises(XacroRefused) as caught:
         expand_xacro(path, [tmp_path])
     assert str(caught.value) == "environment variable 'DQ_FK_NOT_SET_ANYWHERE' is not set"
+
+
+def test_a_macro_that_calls_itself_is_one_line(tmp_path):
+    path = write(tmp_path, 'loop.urdf.xacro', HEAD + '<xacro:macro name="m"><xacro:m/>'
+                 '</xacro:macro><xacro:m/>' + TAIL)
+    with pytest.raises(XacroRefused) as caught:
+        expand_xacro(path, [tmp_path])
+    assert str(caught.value) == 'xacro nested too deeply (macros or expressions)'
