@@ -26,6 +26,7 @@ import re
 import struct
 import zlib
 
+from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
 from rosbags.interfaces import (
     Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat)
 from rosbags.rosbag2.metadata import parse_qos
@@ -46,64 +47,6 @@ SCHEMA_ENCODINGS = ('ros2msg', 'ros2idl', 'ros1msg', 'omgidl', 'jsonschema', 'pr
 MESSAGE_ENCODINGS = ('cdr', 'ros1', 'json', 'protobuf', 'flatbuffer', 'cbor', 'msgpack')
 _U64 = struct.Struct('<Q')
 _CHUNK_HEAD = struct.Struct('<QQQII')  # start, end, uncompressed size, crc, compression len
-# one chunk is held in memory uncompressed: larger ones are skipped as damaged (ros2 bag
-# record writes chunks of about 1 MiB; a decompression bomb claims gigabytes)
-MAX_CHUNK_BYTES = 256 << 20
-
-
-class ChunkRefused(ValueError):
-    """A chunk that cannot be decompressed within its declared size and the limit."""
-
-
-def decompress_chunk(data, compression, size):
-    """
-    Return the records of a chunk, decompressed to at most ``size`` bytes (its declared size).
-
-    ``compression``: ``''``, ``'zstd'`` or ``'lz4'``. Memory stays within ``size`` (at most
-    :data:`MAX_CHUNK_BYTES`) whatever the data claims: a chunk declaring more, or expanding
-    beyond what it declares, raises :class:`ChunkRefused` (one line).
-    """
-    if size > MAX_CHUNK_BYTES:
-        raise ChunkRefused(f'it declares {size} bytes uncompressed; chunks over '
-                           f'{MAX_CHUNK_BYTES >> 20} MiB are skipped')
-    if compression == '':
-        raw = bytes(data)
-    elif compression == 'zstd':
-        try:
-            from compression import zstd
-        except ImportError:  # before Python 3.14: the backport (a dependency of rosbags)
-            from backports import zstd
-        try:
-            raw = zstd.ZstdDecompressor().decompress(data, max_length=size + 1)
-        except zstd.ZstdError as exc:
-            raise ChunkRefused(f'its zstd data is damaged ({exc})') from None
-    elif compression == 'lz4':
-        import lz4.frame
-        try:
-            raw = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=size + 1)
-        except RuntimeError as exc:
-            raise ChunkRefused(f'its lz4 data is damaged ({exc})') from None
-    else:
-        raise ChunkRefused(f'unsupported compression {compression[:20]!r}')
-    if len(raw) != size:
-        raise ChunkRefused(f'it decompresses to {"more" if len(raw) > size else "fewer"} '
-                           f'bytes than the {size} it declares')
-    return raw
-
-
-def bound_rosbags_decompression():
-    """
-    Make rosbags' MCAP reader decompress chunks with :func:`decompress_chunk`.
-
-    rosbags decompresses a chunk whole, with no bound (a 131 KB zstd chunk can expand to
-    4 GiB); its decompressors take the declared size, so they are replaced by this
-    package's bounded one. A refused chunk raises inside rosbags' reading, and the bag is
-    read again record by record (:class:`McapStreamBag`), skipping that chunk.
-    """
-    from rosbags.rosbag2 import storage_mcap
-    for name in ('zstd', 'lz4'):
-        storage_mcap.DECOMPRESSORS[name] = \
-            lambda data, size, name=name: decompress_chunk(data, name, size)
 
 
 def summary_intact(path):

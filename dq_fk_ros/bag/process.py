@@ -7,6 +7,7 @@ written as /tf, /tf_static and the node's pose topics to a new bag (MCAP by defa
 ``csv_path`` gets the end-effector pose per message.
 """
 
+from contextlib import nullcontext
 import os
 import shutil
 
@@ -377,88 +378,79 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
     cache = JointStateNames()
     ids = {c.id for c in conns}
     meter = Progress(sum(c.msgcount for c in conns), 'dq_fk_bag process', enabled=progress)
-    csv = open(csv_path, 'w', encoding='utf-8') if csv_path else None
-    try:
-        return _read_and_write(reader, conns, model, outputs, csv, copy_input, chunk, in_path,
-                               merger, cache, ids, meter)
-    finally:
+    # the CSV file is closed whatever happens (an exception from a damaged bag included)
+    with open(csv_path, 'w', encoding='utf-8') if csv_path else nullcontext() as csv:
         if csv:
-            csv.close()
+            csv.write('stamp_ns,x,y,z,qx,qy,qz,qw\n')
+        raws, log_times = [], []
+        seen = written = 0
+        error = None
+        stopped = False
+        names_seen = []  # the first joint names the bag's messages carry, for a closing message
 
+        def flush():
+            """Parse, merge (the node's rules), compute and write the collected messages."""
+            nonlocal written
+            if not raws:
+                return
+            items = parse_joint_states(raws, cache)
+            runs = [item for item in items if isinstance(item, JointStateRun)]
+            for run in runs:
+                if len(names_seen) < 50:
+                    names_seen.extend(n for n in run.names if n not in names_seen)
+            malformed = len(items) - len(runs)
+            merger.counts['received'] += malformed
+            merger.count_rejected('malformed_cdr', malformed)
+            published, q, _ = merger.merge_many(
+                [(r.names, r.positions, r.velocities, r.stamps_ns) for r in runs])
+            # message index in this batch of every run message, in merge order
+            where = np.concatenate([r.first + np.arange(len(r.stamps_ns)) for r in runs] or [[]])
+            where = where.astype(np.int64)[published]
+            out_times = np.array(log_times, dtype=np.int64)[where]
+            stamps = np.concatenate([r.stamps_ns for r in runs] or [[]])
+            stamps = stamps.astype(np.int64)[published]
+            stamps = np.where(stamps != 0, stamps, out_times)  # output stamps are input stamps
+            raws.clear()
+            log_times.clear()
+            if not len(q):
+                return
+            if outputs is not None:
+                if not outputs.static_written:
+                    outputs.write_static(int(out_times[0]))
+                ee = outputs.write_chunk(q, stamps, out_times, merger.last_seen)
+            else:
+                ee = dq_to_pose_xyzw(model.end_effector_batch(q))
+            if csv:
+                line = '%d,' + ','.join(['%.17g'] * 7) + '\n'
+                csv.writelines(line % (s, *p) for s, p in zip(stamps.tolist(), ee.tolist()))
+            written += len(q)
 
-def _read_and_write(reader, conns, model, outputs, csv, copy_input, chunk, in_path, merger,
-                    cache, ids, meter):
-    """Run the loop of :func:`_process_messages`, writing the CSV to the open file ``csv``."""
-    if csv:
-        csv.write('stamp_ns,x,y,z,qx,qy,qz,qw\n')
-    raws, log_times = [], []
-    seen = written = 0
-    error = None
-    stopped = False
-    names_seen = []  # the first joint names the bag's messages carry, for a closing message
-
-    def flush():
-        """Parse, merge (the node's rules), compute and write the collected messages."""
-        nonlocal written
-        if not raws:
-            return
-        items = parse_joint_states(raws, cache)
-        runs = [item for item in items if isinstance(item, JointStateRun)]
-        for run in runs:
-            if len(names_seen) < 50:
-                names_seen.extend(n for n in run.names if n not in names_seen)
-        malformed = len(items) - len(runs)
-        merger.counts['received'] += malformed
-        merger.count_rejected('malformed_cdr', malformed)
-        published, q, _ = merger.merge_many(
-            [(r.names, r.positions, r.velocities, r.stamps_ns) for r in runs])
-        # message index in this batch of every run message, in merge order
-        where = np.concatenate([r.first + np.arange(len(r.stamps_ns)) for r in runs] or [[]])
-        where = where.astype(np.int64)[published]
-        out_times = np.array(log_times, dtype=np.int64)[where]
-        stamps = np.concatenate([r.stamps_ns for r in runs] or [[]]).astype(np.int64)[published]
-        stamps = np.where(stamps != 0, stamps, out_times)  # output stamps are input stamps
-        raws.clear()
-        log_times.clear()
-        if not len(q):
-            return
-        if outputs is not None:
-            if not outputs.static_written:
-                outputs.write_static(int(out_times[0]))
-            ee = outputs.write_chunk(q, stamps, out_times, merger.last_seen)
-        else:
-            ee = dq_to_pose_xyzw(model.end_effector_batch(q))
-        if csv:
-            line = '%d,' + ','.join(['%.17g'] * 7) + '\n'
-            csv.writelines(line % (s, *p) for s, p in zip(stamps.tolist(), ee.tolist()))
-        written += len(q)
-
-    messages = iter(reader.messages(
-        connections=list(reader.connections) if copy_input else conns))
-    while True:
-        try:
-            conn, log_time, raw = next(messages)
-        except StopIteration:
-            break
-        except Exception as exc:  # a truncated or corrupt bag: keep everything read so far
-            error = f'{in_path}: reading stopped after {seen} JointState messages: {exc}'
-            stopped = True
-            break
-        if copy_input:
-            outputs.copy(conn, log_time, raw)
-        if conn.id not in ids:
-            continue
-        seen += 1
-        raws.append(raw)
-        log_times.append(log_time)
-        if len(raws) == chunk:
-            flush()
-            meter.update(seen)
-    flush()
-    meter.update(seen, force=True)
-    counts = merger.counts
-    rejected = {k[len('rejected_'):]: v for k, v in counts.items()
-                if k.startswith('rejected_') and v}
-    return {'read': seen, 'written': written, 'incomplete': counts['incomplete'],
-            'rejected': rejected, 'unknown_joints': sorted(merger.unknown), 'error': error,
-            'stopped': stopped, 'joint_names_seen': names_seen[:50]}
+        messages = iter(reader.messages(
+            connections=list(reader.connections) if copy_input else conns))
+        while True:
+            try:
+                conn, log_time, raw = next(messages)
+            except StopIteration:
+                break
+            except Exception as exc:  # a truncated or corrupt bag: keep everything read so far
+                error = f'{in_path}: reading stopped after {seen} JointState messages: {exc}'
+                stopped = True
+                break
+            if copy_input:
+                outputs.copy(conn, log_time, raw)
+            if conn.id not in ids:
+                continue
+            seen += 1
+            raws.append(raw)
+            log_times.append(log_time)
+            if len(raws) == chunk:
+                flush()
+                meter.update(seen)
+        flush()
+        meter.update(seen, force=True)
+        counts = merger.counts
+        rejected = {k[len('rejected_'):]: v for k, v in counts.items()
+                    if k.startswith('rejected_') and v}
+        return {'read': seen, 'written': written, 'incomplete': counts['incomplete'],
+                'rejected': rejected, 'unknown_joints': sorted(merger.unknown), 'error': error,
+                'stopped': stopped, 'joint_names_seen': names_seen[:50]}

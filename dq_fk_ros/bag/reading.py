@@ -34,9 +34,9 @@ def open_reader(path):
     (None where there is none), for when rosbags stops inside a damaged chunk.
     Raises :class:`BagError`.
     """
-    from dq_fk_ros.bag.mcap_stream import bound_rosbags_decompression
+    from dq_fk_ros.bag.decompress import bound_rosbags
     from rosbags.rosbag2 import Reader
-    bound_rosbags_decompression()
+    bound_rosbags()
     path = os.fspath(path)
     if not os.path.lexists(path):
         raise BagError(f'{path}: no such bag')
@@ -136,10 +136,11 @@ class Ros1Bag:
         index), or with ``scan``, chunk by chunk from the start
         (:class:`~dq_fk_ros.bag.ros1_scan.Ros1ChunkScan`).
         """
-        from dq_fk_ros.bag.ros1_scan import bound_rosbags_ros1_decompression, Ros1ChunkScan
+        from dq_fk_ros.bag.decompress import bound_rosbags
+        from dq_fk_ros.bag.ros1_scan import Ros1ChunkScan
         from rosbags.rosbag1 import Reader, ReaderError
         from rosbags.typesys import get_typestore, Stores
-        bound_rosbags_ros1_decompression()
+        bound_rosbags()
         self.path = path
         self.note = f'{path}: a ROS 1 bag; its JointState messages are converted to ROS 2'
         self._ros1 = get_typestore(Stores.ROS1_NOETIC)

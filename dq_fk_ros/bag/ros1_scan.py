@@ -7,8 +7,8 @@ nothing, although every chunk before it is intact. :class:`Ros1ChunkScan` walks 
 in file order instead ([ROS bag format 2.0]: a record is ``header_len, header, data_len,
 data``; a chunk holds connection and message records): connections come from the chunks
 themselves, a damaged chunk is skipped and reported, and after a damaged record the scan
-resynchronises on the next intact chunk. Chunks are decompressed within
-:data:`~dq_fk_ros.bag.mcap_stream.MAX_CHUNK_BYTES` (:func:`decompress_ros1_chunk`).
+resynchronises on the next intact chunk. Chunks are decompressed within their declared
+size (:func:`~dq_fk_ros.bag.decompress.decompress_chunk`).
 """
 
 import mmap
@@ -16,7 +16,7 @@ import os
 import re
 import struct
 
-from dq_fk_ros.bag.mcap_stream import ChunkRefused, MAX_CHUNK_BYTES
+from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
 
 OP_MESSAGE, OP_BAG_HEADER, OP_INDEX, OP_CHUNK, OP_CHUNK_INFO, OP_CONNECTION = \
     0x02, 0x03, 0x04, 0x05, 0x06, 0x07
@@ -28,57 +28,6 @@ _CHUNK_OP = re.compile(re.escape(b'\x04\x00\x00\x00op=\x05'))
 
 class _Damaged(Exception):
     """A record that cannot be read; the message says why in a few words."""
-
-
-def _at_most(data, compression, limit):
-    """Decompress ``none``, ``bz2`` or ``lz4`` data to at most ``limit + 1`` bytes."""
-    if compression == 'none':
-        return bytes(data[:limit + 1])
-    if compression == 'bz2':
-        import bz2
-        try:
-            return bz2.BZ2Decompressor().decompress(data, max_length=limit + 1)
-        except (OSError, EOFError, ValueError) as exc:
-            raise ChunkRefused(f'its bz2 data is damaged ({exc})') from None
-    if compression == 'lz4':
-        import lz4.frame
-        try:
-            return lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=limit + 1)
-        except (RuntimeError, ValueError) as exc:
-            raise ChunkRefused(f'its lz4 data is damaged ({exc})') from None
-    raise ChunkRefused(f'unsupported compression {compression[:20]!r}')
-
-
-def decompress_ros1_chunk(data, compression, size):
-    """Return a ROS 1 chunk's records: ``none``, ``bz2`` or ``lz4``, exactly ``size`` bytes."""
-    if size > MAX_CHUNK_BYTES:
-        raise ChunkRefused(f'it declares {size} bytes uncompressed; chunks over '
-                           f'{MAX_CHUNK_BYTES >> 20} MiB are skipped')
-    raw = _at_most(data, compression, size)
-    if len(raw) != size:
-        raise ChunkRefused(f'it decompresses to {"more" if len(raw) > size else "fewer"} '
-                           f'bytes than the {size} it declares')
-    return raw
-
-
-def bound_rosbags_ros1_decompression():
-    """
-    Make rosbags' ROS 1 reader decompress chunks within :data:`MAX_CHUNK_BYTES`.
-
-    Its chunk records carry no size it passes on, so the bound is the limit itself.
-    """
-    from rosbags.rosbag1 import reader
-    for name in ('bz2', 'lz4'):
-        reader.decompressors[name] = \
-            lambda data, name=name: _bounded(data, name)
-
-
-def _bounded(data, compression):
-    """Decompress up to the limit; more is refused (the size is not known to the caller)."""
-    raw = _at_most(data, compression, MAX_CHUNK_BYTES)
-    if len(raw) > MAX_CHUNK_BYTES:
-        raise ChunkRefused(f'a chunk decompresses to more than {MAX_CHUNK_BYTES >> 20} MiB')
-    return raw
 
 
 def _fields(buf, start, end):
@@ -195,7 +144,7 @@ class Ros1ChunkScan:
             op = fields[b'op'][0]
             if op == OP_CHUNK:
                 try:
-                    raw = decompress_ros1_chunk(
+                    raw = decompress_chunk(
                         buf[start:stop], fields.get(b'compression', b'').decode('latin-1'),
                         _u32(fields, b'size'))
                     records = list(self._chunk_records(memoryview(raw)))
@@ -243,7 +192,7 @@ class Ros1ChunkScan:
                     fields, begin, stop, _ = _record(memoryview(buf), at, end)
                     if fields[b'op'][0] != OP_CHUNK:
                         continue
-                    raw = decompress_ros1_chunk(
+                    raw = decompress_chunk(
                         memoryview(buf)[begin:stop],
                         fields.get(b'compression', b'').decode('latin-1'),
                         _u32(fields, b'size'))
@@ -254,4 +203,4 @@ class Ros1ChunkScan:
         return None
 
 
-__all__ = ['bound_rosbags_ros1_decompression', 'decompress_ros1_chunk', 'Ros1ChunkScan']
+__all__ = ['Ros1ChunkScan']

@@ -35,7 +35,8 @@ import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.robot_model import (
     _listing, JOINT_NAME, MAX_FILE_BYTES, MAX_LENGTH_M, MAX_NAME_CHARS, MAX_ROWS,
-    parse_robot_description, RobotDescriptionError, rpy_matrix, TF_FRAME_ID, yaml_number)
+    parse_robot_description, printable_line, RobotDescriptionError, rpy_matrix, TF_FRAME_ID,
+    yaml_number)
 from dq_fk_ros.description.xacro_sandbox import (
     default_read_roots, expand_xacro, TIME_LIMIT_S, XacroRefused)
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
@@ -712,7 +713,7 @@ def _value(value):
 
 def _comment(text):
     """Make user text a one-line YAML comment (no line breaks, printable only)."""
-    return ''.join(c if c.isprintable() else '?' for c in str(text))[:300]
+    return printable_line(text, 300)
 
 
 def _yaml(tree, source, base, tip, convention, frame0, dh_names, rows, links, skipped,

@@ -12,8 +12,8 @@ import os
 from dq_fk_ros.description.from_urdf import (
     load_urdf_description, OPTIONS, read_urdf_text, urdf_to_description)
 from dq_fk_ros.description.robot_model import (
-    load_robot_description, parse_robot_description, RobotDescriptionError, shipped_robot_path,
-    shipped_robots)
+    load_robot_description, parse_robot_description, printable_line, RobotDescriptionError,
+    shipped_robot_path, shipped_robots)
 from dq_fk_ros.description.xacro_sandbox import ros_package_roots, TIME_LIMIT_S
 
 URDF_SUFFIXES = ('.urdf', '.xacro')
@@ -47,7 +47,7 @@ class LoadedRobot:
         if self.conversion is None:
             return ''
         c = self.conversion
-        skipped = ', '.join(f'{_printable(j.name, 80)} -> {_printable(j.child, 80)}'
+        skipped = ', '.join(f'{printable_line(j.name, 80)} -> {printable_line(j.child, 80)}'
                             for j in c.skipped)
         skipped = f'; skipped side branches: {skipped}' if skipped else ''
         optional = (f'; optional side-branch joints: {", ".join(self.model.optional_joints)}'
@@ -104,24 +104,20 @@ class FileAccess:
 
     def check(self, path):
         """Return the real path of ``path`` if it lies in one of :attr:`dirs`; else raise."""
-        real = os.path.realpath(path)
+        real, shown = os.path.realpath(path), printable_line(path, 200)
         for folder in self.dirs:
             folder = os.path.realpath(folder)
             if os.path.commonpath([real, folder]) == folder:
                 break
         else:
-            raise RobotDescriptionError(f'{_printable(path)}: not in the folders robot files '
-                                        f'may be read from (robot_description_dirs: '
+            raise RobotDescriptionError(f'{shown}: not in the folders robot files may be read '
+                                        f'from (robot_description_dirs: '
                                         f'{", ".join(self.dirs)})')
-        if is_urdf(path) and path.lower().endswith('.xacro') and not self.xacro:
+        if path.lower().endswith('.xacro') and not self.xacro:
             raise RobotDescriptionError(
-                f'{_printable(path)}: a .xacro file is a program and is not run when set at '
-                f"run time (the node's read-only parameter allow_runtime_xacro is off)")
+                f'{shown}: a .xacro file is a program and is not run when set at run time '
+                f"(the node's read-only parameter allow_runtime_xacro is off)")
         return real
-
-
-def _printable(text, at_most=200):
-    return ''.join(c if c.isprintable() else '?' for c in str(text))[:at_most]
 
 
 def load_robot(spec, base=None, tip=None, convention='standard', access=None, packages=None,

@@ -919,6 +919,12 @@ def _listing(names, at_most=20):
     return text + (f' ... ({len(names) - at_most} more)' if len(names) > at_most else '')
 
 
+def printable_line(text, at_most=None):
+    """Return ``text`` for one line of a message or log: every unprintable character as ``?``."""
+    text = ''.join(c if c.isprintable() else '?' for c in str(text))
+    return text if at_most is None else text[:at_most]
+
+
 def _short(value):
     """``repr(value)``, shortened to about 60 characters."""
     text = repr(value)

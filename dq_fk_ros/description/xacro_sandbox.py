@@ -29,6 +29,7 @@ import re
 import signal
 import subprocess
 import sys
+import time
 
 TIME_LIMIT_S = 10.0            # wall clock for one expansion (tools, the node at start-up)
 MEMORY_LIMIT_BYTES = 1 << 30   # the child's address space
@@ -150,7 +151,6 @@ def expand_xacro(path, read_roots, time_limit_s=TIME_LIMIT_S,
 
 def _communicate(child, request, time_limit_s, should_stop):
     """Send the request and collect the output, in slices so that ``should_stop`` is asked."""
-    import time
     deadline = time.monotonic() + time_limit_s
     step = 0.1 if should_stop is not None else time_limit_s
     pending = request
@@ -282,7 +282,7 @@ def _child_main():
 
 def _one_line(exc):
     """Return xacro's message in one line, without ``<class '...'>:`` and the repeat after."""
-    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    lines = [line.strip() for line in str(exc)[:2000].splitlines() if line.strip()]
     text = ' '.join(lines) if lines else type(exc).__name__
     text = re.sub(r"<class '[\w.]+'>: ", '', text)
     for cut in range(len(text) // 2, 0, -1):  # "A A rest": say A once

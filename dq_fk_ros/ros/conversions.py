@@ -68,7 +68,7 @@ class FrameMessages:
         """
         self.model = model
         self.prefix = frame_prefix
-        fixed = model.tf_frame_id(model.fixed_frame, frame_prefix)
+        self.fixed_frame_id = fixed = model.tf_frame_id(model.fixed_frame, frame_prefix)
         self.frame_ids = [frame_prefix + name for name in model.frame_names]
         self._parent_ids = [model.tf_frame_id(p, frame_prefix) for p in model.parent_frames]
         self.hidden = hidden_frames(model, shown_optional)
@@ -161,15 +161,14 @@ class FrameBytes:
 
     def __init__(self, messages):
         """Lay out the messages of a :class:`FrameMessages` (same robot, same prefix)."""
-        model = messages.model
         self.helpers = messages.helpers
         self.moving_edges = messages.moving_edges
         self._moving = [k for _, k in self.moving_edges]
+        self.sends_tf = bool(messages.tf.transforms)  # a robot with nothing moving: no /tf
         edges = [(t.header.frame_id, t.child_frame_id) for t in messages.tf.transforms]
         tf = tf_message_template(edges)
-        fixed = model.tf_frame_id(model.fixed_frame, messages.prefix)
-        pose = pose_stamped_template(fixed)
-        twist = twist_stamped_template(fixed)
+        pose = pose_stamped_template(messages.fixed_frame_id)
+        twist = twist_stamped_template(messages.fixed_frame_id)
         self.templates = {'tf': tf, 'pose': pose, 'twist': twist}  # layouts, for the tests
         self._tf = tf.packer()
         self._pose = pose.packer()

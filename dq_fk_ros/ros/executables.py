@@ -59,6 +59,8 @@ def spin_until_shutdown(program, make_node, user_errors, args=None):
         rclpy.spin(node)
     except (*user_errors, RCLError, ParameterException, InvalidParameterValueException,
             NameValidationException) as exc:
+        if node is None and not rclpy.ok():
+            return 0  # SIGINT while starting: rclpy failed on the context it shut down
         print(f'{program}: {_one_line(exc)}', file=sys.stderr)
         return 1
     except InvalidParameterTypeException as exc:
@@ -67,6 +69,10 @@ def spin_until_shutdown(program, make_node, user_errors, args=None):
         return 1
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        if node is None and not rclpy.ok():
+            return 0  # SIGINT while starting, in the middle of rclpy's own set-up
+        raise
     finally:
         if node is not None:
             node.destroy_node()

@@ -13,10 +13,11 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from dq_fk_ros.description.from_urdf import NODE_OPTIONS
+from dq_fk_ros.description.from_urdf import NODE_OPTIONS, tf_name
 from dq_fk_ros.description.loading import (
     FileAccess, load_robot, resolve_robot, robot_from_urdf_text, shipped_robots_dir)
-from dq_fk_ros.description.robot_model import FRAME_ID, MAX_NAME_CHARS, RobotDescriptionError
+from dq_fk_ros.description.robot_model import (
+    FRAME_ID, MAX_NAME_CHARS, printable_line, RobotDescriptionError, TF_FRAME_ID)
 from dq_fk_ros.description.urdf import description_urdf
 from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
@@ -216,11 +217,10 @@ class DqFkNode(Node):
                                             f'{rate:g}')
         for name in ('urdf_base_link', 'urdf_tip_link'):
             link = new.get(name, '')
-            if link and (len(link) > MAX_NAME_CHARS or not FRAME_ID.fullmatch(link)):
+            if link and (len(link) > MAX_NAME_CHARS or not TF_FRAME_ID.fullmatch(tf_name(link))):
                 raise RobotDescriptionError(
-                    f'parameter {name} {_printable(link[:70])!r} is not a link name this node '
-                    f'can publish (letters, digits, underscores, inner slashes; at most '
-                    f'{MAX_NAME_CHARS})')
+                    f'parameter {name} {printable_line(link, 70)!r} is not a link name tf2 '
+                    f'takes (printable ASCII without spaces; at most {MAX_NAME_CHARS})')
         depth = new.get('qos_depth', 1)
         if not 1 <= depth <= QOS_DEPTH_MAX:
             raise RobotDescriptionError(f'parameter qos_depth must be an integer from 1 to '
@@ -299,11 +299,18 @@ class DqFkNode(Node):
         with self._lock:
             return self._set_parameters(new, model)
 
-    def _refuse(self, exc):
-        """Refuse a parameter change for ``exc``: one line, in the log and the reply."""
+    def _refuse(self, exc, quote=False):
+        """
+        Refuse a parameter change for ``exc``: one line, in the log and the reply.
+
+        :param quote: whether an unexpected exception's text may be shown (not while a file
+            is read: it may hold the file's text).
+        """
         if isinstance(exc, RobotDescriptionError):
-            reason = _printable(exc.public)
-        else:  # its text may come from a file: say only what kind of failure it was
+            reason = printable_line(exc.public)
+        elif quote and str(exc).strip():
+            reason = f'{type(exc).__name__}: {printable_line(str(exc).strip().splitlines()[0])}'
+        else:
             reason = f'{type(exc).__name__} while applying the change'
         self.get_logger().error(f'parameter change refused: {reason}')
         return SetParametersResult(successful=False, reason=reason)
@@ -325,8 +332,8 @@ class DqFkNode(Node):
             if model is not None or 'frame_prefix' in new:
                 outputs = self._build_outputs(model or self._model,
                                               new.get('frame_prefix', self._frame_prefix))
-        except Exception as exc:  # nothing a user sets may stop the node
-            return self._refuse(exc)
+        except Exception as exc:  # nothing a user sets may stop the node (a name too long...)
+            return self._refuse(exc, quote=True)
         resend_static = new.get('publish_tf', self._publish_tf) and not self._publish_tf
         resend_description = new.get('publish_robot_description', self._publish_description) \
             and not self._publish_description
@@ -553,7 +560,7 @@ class DqFkNode(Node):
             relative = model.transform_poses(q)
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self._bytes
-        if self._publish_tf and self._messages.tf.transforms:  # nothing moving: no /tf
+        if self._publish_tf and out.sends_tf:
             self._send_tf(out.tf(sec, nanosec, relative, q))
         if poses:
             for send, data in zip(self._send_read_poses,
@@ -652,11 +659,6 @@ class DqFkNode(Node):
             msg.status = [self.diagnostics()]
             self._lost_reported = self._gaps.lost
         self._diag_pub.publish(msg)
-
-
-def _printable(text):
-    """``text`` with every character that would break a log line shown as ``?``."""
-    return ''.join(c if c.isprintable() else '?' for c in str(text))
 
 
 def main(args=None):

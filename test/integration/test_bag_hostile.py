@@ -507,14 +507,13 @@ def test_a_ros1_bag_with_a_damaged_index_is_read_chunk_by_chunk(tmp_path, capsys
 
 def test_a_ros1_chunk_is_decompressed_within_the_limit():
     import bz2
-    from dq_fk_ros.bag.mcap_stream import ChunkRefused
-    from dq_fk_ros.bag.ros1_scan import decompress_ros1_chunk
+    from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
     bomb = bz2.compress(bytes(64 << 20))
     with pytest.raises(ChunkRefused, match='more bytes than the 1024 it declares'):
-        decompress_ros1_chunk(bomb, 'bz2', 1024)
+        decompress_chunk(bomb, 'bz2', 1024)
     with pytest.raises(ChunkRefused, match='chunks over 256 MiB are skipped'):
-        decompress_ros1_chunk(bomb, 'bz2', 10**11)
-    assert decompress_ros1_chunk(bz2.compress(b'abc'), 'bz2', 3) == b'abc'
+        decompress_chunk(bomb, 'bz2', 10**11)
+    assert decompress_chunk(bz2.compress(b'abc'), 'bz2', 3) == b'abc'
 
 
 @pytest.mark.parametrize('compression', ['zstd', 'lz4'])

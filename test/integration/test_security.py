@@ -23,7 +23,8 @@ from ros_harness import start
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
                                 'unit'))
-from test_xacro_sandbox import escapes, macro_bomb  # noqa: E402, I100 (the unit tests' own)
+from test_from_urdf import chain_urdf  # noqa: E402, I100 (the unit tests' own)
+from test_xacro_sandbox import escapes, macro_bomb  # noqa: E402, I100
 
 RL15_JOINTS = [f'joint_{i}' for i in range(1, 7)]
 SECRET = 'root:*:20228:0:99999:7::'
@@ -135,13 +136,6 @@ def test_run_time_files_outside_the_folders_are_refused_and_nothing_is_quoted(
 
 
 # -- freezes: one parameter set may not stop the node ---------------------------------------
-def chain_urdf(n):
-    links = ''.join(f'<link name="l{k}"/>' for k in range(n + 1))
-    joints = ''.join(f'<joint name="j{k}" type="fixed"><parent link="l{k}"/>'
-                     f'<child link="l{k + 1}"/></joint>' for k in range(n))
-    return f'<robot name="long">{links}{joints}</robot>'
-
-
 def test_a_huge_urdf_and_a_macro_bomb_are_answered_while_the_node_keeps_publishing(
         tmp_path, processes, listener):
     (tmp_path / 'big.urdf').write_text(chain_urdf(20_000))
