@@ -43,6 +43,7 @@ class BagOutputs:
         self.model = model
         self.writer = writer
         self.typestore = typestore
+        self.prefix = frame_prefix
         self.frame_ids = [frame_prefix + name for name in model.frame_names]
         parents = [model.tf_frame_id(p, frame_prefix) for p in model.parent_frames]
         self.moving_edges = model.moving_edges
@@ -61,22 +62,23 @@ class BagOutputs:
                           offered_qos_profiles=qos(10, volatile)) for k in self.pose_frames]
         # the URDF's helper links, as the node publishes them (children of their DH frames)
         self.helpers = HelperFrames(model)
-        # side-branch links (their joints optional) go in /tf messages of their own, written
-        # for the messages whose joint states have named their joints, as the node does
-        edge_needs = model.edge_needs
-        base = [(k, r) for k, r in self.moving_edges if not edge_needs[k]]
-        self.base_poses = [i for i, k in enumerate(self.pose_frames) if not edge_needs[k]]
-        self.branches = []
+        # transforms and poses that depend on optional joints (side branches, every joint of
+        # a tree) are written where the message's state has named those joints, as the node
+        # does: each message's /tf holds the transforms whose joints are known
+        edge_needs, frame_needs = model.edge_needs, model.frame_needs
         index = {name: i for i, name in enumerate(model.joint_names)}
-        for group in sorted(set(edge_needs) - {frozenset()}, key=sorted):
-            edges = [(k, r) for k, r in self.moving_edges if edge_needs[k] == group]
-            self.branches.append((
-                [index[name] for name in sorted(group)],
-                tf_message_template([(parents[k], self.frame_ids[k]) for k, _ in edges])
-                if edges else None,
-                [r for _, r in edges],
-                [i for i, k in enumerate(self.pose_frames) if edge_needs[k] == group]))
-        self.moving_edges = base
+        self.gated_edges = [(k, r) for k, r in self.moving_edges if edge_needs[k]]
+        self._edge_columns = [[index[n] for n in edge_needs[k]] for k, _ in self.gated_edges]
+        self._parents = parents
+        self._tf_templates = {}
+        self.base_poses = [i for i, k in enumerate(self.pose_frames) if not frame_needs[k]]
+        self.pose_groups = []   # (joint columns, [pose index, ...]) per set of needs
+        for group in sorted({frame_needs[self.pose_frames[i]] for i in
+                             range(len(self.pose_frames))} - {frozenset()}, key=sorted):
+            self.pose_groups.append(([index[n] for n in sorted(group)],
+                                     [i for i, k in enumerate(self.pose_frames)
+                                      if frame_needs[k] == group]))
+        self.moving_edges = [(k, r) for k, r in self.moving_edges if not edge_needs[k]]
         self.tf_template = tf_message_template(
             [(parents[k], self.frame_ids[k]) for k, _ in self.moving_edges]
             + [(self.frame_ids[k], frame_prefix + name) for name, k in self.helpers.moving])
@@ -125,31 +127,52 @@ class BagOutputs:
         if self.helpers.moving:  # (a cylindrical row's first motion: rare, per message)
             moving = np.array([np.concatenate(self.helpers.moving_poses(row)) for row in q])
             relative = np.concatenate([relative, moving], axis=1)
+        stamps_ns, log_times_ns = np.asarray(stamps_ns), np.asarray(log_times_ns)
         pose_rows = [self.pose_template.fill(stamps_ns, absolute[:, self.pose_frames[i]])
                      for i in self.base_poses]
         channels = [self.poses[i] for i in self.base_poses]
-        if relative.shape[1]:  # a robot with nothing moving has no /tf (as the node)
+        if self.gated_edges:
+            self._write_gated_tf(all_relative, relative, stamps_ns, log_times_ns, seen)
+        elif relative.shape[1]:  # a robot with nothing moving has no /tf (as the node)
             channels.insert(0, self.tf)
             pose_rows.insert(0, self.tf_template.fill(stamps_ns, relative))
         if channels:
             self.writer.write_rows(channels, log_times_ns, pose_rows)
-        for columns, template, edges, poses in self.branches:
+        for columns, poses in self.pose_groups:
             rows = np.ones(n, bool) if seen is None else seen[:, columns].all(axis=1)
-            if not rows.any():
-                continue
-            stamps, times = np.asarray(stamps_ns)[rows], np.asarray(log_times_ns)[rows]
-            channels, payloads = [], []
-            if template is not None:
-                channels.append(self.tf)
-                payloads.append(template.fill(stamps, dq_to_pose_xyzw(
-                    all_relative[rows][:, edges]).reshape(int(rows.sum()), -1)))
-            for i in poses:
-                channels.append(self.poses[i])
-                payloads.append(self.pose_template.fill(stamps,
-                                                        absolute[rows, self.pose_frames[i]]))
-            if channels:
-                self.writer.write_rows(channels, times, payloads)
+            if rows.any():
+                self.writer.write_rows(
+                    [self.poses[i] for i in poses], log_times_ns[rows],
+                    [self.pose_template.fill(stamps_ns[rows], absolute[rows, self.pose_frames[i]])
+                     for i in poses])
         return absolute[:, self.end]
+
+    def _write_gated_tf(self, all_relative, relative, stamps_ns, log_times_ns, seen):
+        """Write /tf where transforms need optional joints: one message per state, as the node."""
+        n = len(stamps_ns)
+        if seen is None:
+            shown = np.ones((n, len(self.gated_edges)), bool)
+        else:
+            shown = np.stack([seen[:, cols].all(axis=1) for cols in self._edge_columns], axis=1)
+        patterns, inverse = np.unique(shown, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        for p, pattern in enumerate(patterns):
+            rows = inverse == p
+            chosen = [edge for edge, on in zip(self.gated_edges, pattern) if on]
+            if not relative.shape[1] and not chosen:
+                continue  # nothing known to move yet: no /tf (as the node)
+            key = pattern.tobytes()
+            template = self._tf_templates.get(key)
+            if template is None:
+                template = self._tf_templates[key] = tf_message_template(
+                    [(self._parents[k], self.frame_ids[k]) for k, _ in self.moving_edges]
+                    + [(self.frame_ids[k], self.prefix + name) for name, k in self.helpers.moving]
+                    + [(self._parents[k], self.frame_ids[k]) for k, _ in chosen])
+            values = np.concatenate([relative[rows], dq_to_pose_xyzw(
+                all_relative[rows][:, [r for _, r in chosen]]).reshape(int(rows.sum()), -1)],
+                axis=1)
+            self.writer.write_rows([self.tf], log_times_ns[rows],
+                                   [template.fill(stamps_ns[rows], values)])
 
     def copy(self, conn, time_ns, raw):
         """Copy an input message through unchanged."""
@@ -374,7 +397,7 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
                       progress, chunk, in_path):
     """Read, merge, compute and write chunk by chunk; return the summary dict."""
     merger = JointStateMerger(model.joint_names, model.limits, out_of_limits,
-                              required=model.chain.dof)
+                              required=len(model.required_joints))
     cache = JointStateNames()
     ids = {c.id for c in conns}
     meter = Progress(sum(c.msgcount for c in conns), 'dq_fk_bag process', enabled=progress)

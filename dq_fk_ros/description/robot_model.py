@@ -29,7 +29,8 @@ import os
 import re
 
 from dq_fk_ros.kinematics.dh import (
-    CONVENTIONS, DHJoint, joint_value_list, KinematicChain, unrolled_frame_poses)
+    CONVENTIONS, DHJoint, joint_value_list, KinematicChain, run_chain_program,
+    unrolled_frame_poses)
 from dq_fk_ros.kinematics.dual_quaternion import (
     dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, DualQuaternion,
     pose_xyzw_from_coeffs, quat_from_matrix)
@@ -56,7 +57,8 @@ MAX_ROWS = 256                  # ... and at most this many DH rows
 MAX_LENGTH_M = 1e6              # offsets (xyz, d, a) of at most 1000 km: no overflow in FK
 
 TOP_FIELDS = ('robot', 'description', 'convention', 'units', 'fixed_frame', 'base', 'chain',
-              'tool', 'links', 'end_effector')
+              'tool', 'chains', 'links', 'end_effector')
+CHAIN_FIELDS = ('parent', 'base', 'chain', 'tool')
 LINK_FIELDS = ('frame', 'parent', 'tf_parent', 'xyz', 'rpy', 'quaternion', 'type', 'axis',
                'joint', 'limits', 'max_velocity', 'mimic')
 LINK_TYPES = ('fixed', 'revolute', 'prismatic')
@@ -110,12 +112,30 @@ class LinkFrame:
 
 
 @dataclass(frozen=True)
+class Branch:
+    """
+    A DH chain hanging from a frame of the robot: an arm on a torso, a finger on a palm.
+
+    ``parent`` is the frame it hangs from (the fixed frame or a frame of an earlier chain);
+    the chain's ``base`` is frame 0 posed in ``parent``. ``external`` names the variables of
+    ``chain`` that are other chains' joints (rows mimicking them read their values).
+    """
+
+    parent: str
+    chain: KinematicChain
+    external: tuple = ()
+
+
+@dataclass(frozen=True)
 class RobotModel:
     """
-    A validated robot: its kinematic chain and the names ROS needs.
+    A validated robot: a tree of DH chains, the links fixed to them, and the names ROS needs.
 
-    ``frame_names`` are the chain's frames (frame 0 = ``base.frame``, the row frames, the
-    tool frame if any; the order of :meth:`KinematicChain.forward_all`), then the ``links``.
+    ``chain`` is the first chain (from the fixed frame), ``branches`` the others
+    (:class:`Branch`, each hanging from a frame of an earlier one). ``frame_names`` are the
+    first chain's frames (frame 0 = ``base.frame``, the row frames, the tool frame if any;
+    the order of :meth:`KinematicChain.forward_all`), each branch's the same way, then the
+    ``links``.
     ``parent_frames[i]`` is the TF parent of ``frame_names[i]`` (frame 0's is
     ``fixed_frame``); ``moving[i]`` says whether that parent -> child transform depends on
     joint values (else it is static). ``end_effector`` names the frame a user means by
@@ -134,21 +154,50 @@ class RobotModel:
     links: tuple = ()
     end_effector: str = ''
     urdf: str = None
+    branches: tuple = ()
 
     @cached_property
     def joint_names(self):
         """
-        Joint names in the order ``q`` is given: the chain's, then the links' own joints.
+        Joint names in the order ``q`` is given: each chain's own, then the links' own joints.
 
-        The chain's are required (nothing is published until each has a value); the links'
-        own (:attr:`optional_joints`, side branches such as a gripper) are not.
+        A robot of one chain needs every chain joint before anything is published
+        (:attr:`required_joints`); the links' own joints (side branches such as a gripper)
+        and, in a tree of chains, every joint are optional: a frame is published once the
+        joints it depends on are known (:attr:`frame_needs`, :attr:`edge_needs`).
         """
-        return self.chain.joint_names + self.optional_joints
+        return global_joint_names(self.chain, self.branches, self.links)
+
+    @property
+    def required_joints(self):
+        """Name the joints every update needs: the chain's for one chain, none for a tree."""
+        return () if self.branches else self.chain.joint_names
 
     @cached_property
     def optional_joints(self):
-        """Joints of side-branch links (after the chain's in ``joint_names``)."""
-        return tuple(link.joint for link in self.links if link.joint)
+        """Name the joints after :attr:`required_joints` in ``joint_names``."""
+        return self.joint_names[len(self.required_joints):]
+
+    @cached_property
+    def chains(self):
+        """``((parent frame, KinematicChain, index of its frame 0), ...)``: the first first."""
+        out, start = [], 0
+        for parent, chain in [(self.fixed_frame, self.chain)] + [
+                (b.parent, b.chain) for b in self.branches]:
+            out.append((parent, chain, start))
+            start += chain.n_frames
+        return tuple(out)
+
+    @property
+    def n_dh_frames(self):
+        """Count the frames of all chains: the first ones of ``frame_names`` (links follow)."""
+        return sum(chain.n_frames for _, chain, _ in self.chains)
+
+    @cached_property
+    def _q_maps(self):
+        """Per chain: where each of its variables is in ``q`` (indices into joint_names)."""
+        index = {name: k for k, name in enumerate(self.joint_names)}
+        return tuple(tuple(index[n] for n in chain.joint_names) for _, chain, _ in self.chains)
 
     @property
     def dof(self):
@@ -158,39 +207,82 @@ class RobotModel:
     @cached_property
     def limits(self):
         """Joint limits ``(dof, 2)``, lower and upper, in rad or m (+-inf: none given)."""
-        own = [link.limits for link in self.links if link.joint]
-        return np.vstack([self.chain.limits, np.array(own, dtype=float).reshape(-1, 2)])
+        own = {}
+        for branch, (_, chain, _) in zip((None,) + self.branches, self.chains):
+            external = branch.external if branch is not None else ()
+            own.update((n, lim) for n, lim in zip(chain.joint_names, chain.limits.tolist())
+                       if n not in external)
+        own.update((link.joint, link.limits) for link in self.links if link.joint)
+        return np.array([own[n] for n in self.joint_names], dtype=float).reshape(-1, 2)
 
     @property
     def angular(self):
         """Per joint (``joint_names`` order): True where the value is an angle (rad), else m."""
         index = {name: k for k, name in enumerate(self.joint_names)}
         mask = np.zeros(len(index), dtype=bool)
-        for j in self.chain.joints:
-            if j.joint_type in ('revolute', 'cylindrical') and not j.follows:
-                mask[index[j.name]] = True
+        for branch, (_, chain, _) in zip((None,) + self.branches, self.chains):
+            external = branch.external if branch is not None else ()
+            for j in chain.joints:
+                if j.joint_type in ('revolute', 'cylindrical') and not j.follows and \
+                        j.name not in external:
+                    mask[index[j.name]] = True
         for link in self.links:
             if link.joint and link.motion[0] == 'revolute':
                 mask[index[link.joint]] = True
         return mask
 
     @cached_property
-    def frame_needs(self):
-        """Per frame: the optional joints its pose depends on (a frozenset, mostly empty)."""
-        needs = {name: frozenset() for name in self.frame_names[:self.n_chain_frames]}
-        needs[self.fixed_frame] = frozenset()
+    def _paths(self):
+        """
+        ``(paths, reads)``: per frame name, the moving rows and links its pose depends on.
+
+        ``paths[frame]`` is a frozenset of moving elements (``(chain, row)`` or ``('link',
+        k)``) between the fixed frame and it; ``reads[element]`` the joints that one reads.
+        """
+        paths = {self.fixed_frame: frozenset()}
+        reads = {}
+        for c, (parent, chain, start) in enumerate(self.chains):
+            here = paths[parent]
+            paths[self.frame_names[start]] = here
+            for i, joint in enumerate(chain.joints):
+                if joint.joint_type != 'fixed':
+                    reads[(c, i)] = frozenset(
+                        chain.joint_names[int(k)] for k in
+                        (chain._theta_index[i], chain._d_index[i]) if k >= 0)
+                    here = here | {(c, i)}
+                paths[self.frame_names[start + i + 1]] = here
+            if chain.tool is not None:
+                paths[self.frame_names[start + chain.n_frames - 1]] = here
+        for k, link in enumerate(self.links):
+            here = paths[link.parent]
+            if link.motion is not None:
+                reads[('link', k)] = frozenset((link.motion[2],))
+                here = here | {('link', k)}
+            paths[link.frame] = here
+        return paths, reads
+
+    def _needs(self, elements):
+        paths, reads = self._paths
         optional = set(self.optional_joints)
-        for link in self.links:
-            own = {link.motion[2]} & optional if link.motion is not None else set()
-            needs[link.frame] = needs[link.parent] | own
-        return tuple(needs[name] for name in self.frame_names)
+        return frozenset().union(*(reads[e] for e in elements)) & optional
+
+    @cached_property
+    def frame_needs(self):
+        """Per frame: the optional joints its pose in the fixed frame depends on (frozensets)."""
+        paths, _ = self._paths
+        return tuple(self._needs(paths[name]) for name in self.frame_names)
 
     @cached_property
     def edge_needs(self):
-        """Per frame: the optional joints its TF transform needs (its own and its parent's)."""
-        needs = dict(zip(self.frame_names, self.frame_needs))
-        needs[self.fixed_frame] = frozenset()
-        return tuple(needs[name] | needs[parent]
+        """
+        Per frame: the optional joints its TF transform (from its TF parent) depends on.
+
+        Those on the way between the two frames only, as robot_state_publisher sends a
+        joint's transform once a message names that joint: a gripper's links need the
+        gripper's joints, not the arm's.
+        """
+        paths, _ = self._paths
+        return tuple(self._needs(paths[name] ^ paths[parent])
                      for name, parent in zip(self.frame_names, self.parent_frames))
 
     def tf_frame_id(self, name, prefix=''):
@@ -243,41 +335,66 @@ class RobotModel:
         return tuple(plan)
 
     @cached_property
+    def _relative_index(self):
+        """Per frame: its transform's index in ``frame_poses``' relative, or -1 (base, tool)."""
+        out = [-1] * len(self.frame_names)
+        r = 0
+        for _, chain, start in self.chains:
+            for i in range(len(chain.joints)):
+                out[start + i + 1] = r
+                r += 1
+        for j in range(len(self.links)):
+            out[self.n_dh_frames + j] = r + j
+        return tuple(out)
+
+    @cached_property
     def moving_edges(self):
         """``(frame index, index in frame_poses' relative)`` of every moving TF transform."""
-        n_rows = len(self.chain.joints)
-        edges = [(k, k - 1) for k in range(1, n_rows + 1) if self.moving[k]]
-        start = self.n_chain_frames
-        edges += [(start + j, n_rows + j) for j in range(len(self.links))
-                  if self.moving[start + j]]
-        return tuple(edges)
+        return tuple((k, r) for k, r in enumerate(self._relative_index) if self.moving[k])
+
+    @cached_property
+    def _branch_plan(self):
+        """Per branch: ``(chain, index of the frame it hangs from (-1: fixed), q indices)``."""
+        index = {name: k for k, name in enumerate(self.frame_names)}
+        index[self.fixed_frame] = -1
+        return tuple((chain, index[parent], q_map) for (parent, chain, _), q_map in
+                     zip(self.chains[1:], self._q_maps[1:]))
 
     def frame_poses(self, q):
         """
         Poses for publishing, tuples ``(x, y, z, qx, qy, qz, qw)`` (``qw >= 0``), at ``q``.
 
         Returns ``(absolute, relative)``: every frame of ``frame_names`` in the fixed frame,
-        and the TF transforms: every DH row's (frame i-1 -> frame i), then every link's
-        (``tf_parent`` -> link).
+        and the TF transforms: every DH row's (frame i-1 -> frame i, chain by chain), then
+        every link's (``tf_parent`` -> link). Straight-line code (``unrolled_frame_poses``);
+        the reference is :meth:`frame_poses_general`, held equal to the bit by
+        ``test_links.py`` and ``test_chains.py``.
         """
-        if not self.links:
+        if not self.links and not self.branches:
             return self.chain.frame_poses(q)
         return self._unrolled(joint_value_list(q, self.joint_names))
 
     @cached_property
     def _unrolled(self):
         """:meth:`frame_poses` as straight-line code (``unrolled_frame_poses``)."""
-        return unrolled_frame_poses(self.chain, self._link_plan, _motion)
+        return unrolled_frame_poses(self.chain, self._link_plan, _motion, self._branch_plan)
 
     def frame_poses_general(self, q):
         """:meth:`frame_poses` by the general (looping) path: the reference the tests use."""
-        if not self.links:
+        if not self.links and not self.branches:
             return self.chain.frame_poses_general(q)
         q = joint_value_list(q, self.joint_names)
         q_chain = q[:self.chain.dof]
         coeffs = self.chain.frame_coeffs(q_chain)
-        absolute = [pose_xyzw_from_coeffs(h) for h in coeffs]
         relative = self.chain.row_poses(q_chain)
+        for chain, parent, q_map in self._branch_plan:
+            q_branch = [q[k] for k in q_map]
+            base = dq_multiply_coeffs(coeffs[parent], chain._base_t) if parent >= 0 \
+                else chain._base_t
+            frames = run_chain_program(chain, base, q_branch, math.cos, math.sin)
+            coeffs += frames
+            relative += chain.row_poses(q_branch)
+        absolute = [pose_xyzw_from_coeffs(h) for h in coeffs]
         for attach, tf_parent, offset, motion in self._link_plan:
             parent = coeffs[attach] if attach >= 0 else _IDENTITY
             if motion is not None:
@@ -297,15 +414,18 @@ class RobotModel:
         """
         Return the TF transforms of :meth:`frame_poses` alone (``relative``), at ``q``.
 
-        Without links these are the DH rows' transforms, computed without the absolute
-        poses (about half the work); with links, :meth:`frame_poses` runs whole.
+        For one chain without links these are the DH rows' transforms, computed without the
+        absolute poses (about half the work); else :meth:`frame_poses` runs whole.
         """
-        return self.frame_poses(q)[1] if self.links else self.chain.row_poses(q)
+        if self.links or self.branches:
+            return self.frame_poses(q)[1]
+        return self.chain.row_poses(q)
 
     def forward_all(self, q):
         """Every frame of ``frame_names`` in the fixed frame: ``(n, 8)``, ``w >= 0``."""
-        return self.forward_all_batch(np.asarray(q, dtype=float)[None, :])[0] if self.links \
-            else self.chain.forward_all(q)
+        if self.links or self.branches:
+            return self.forward_all_batch(np.asarray(q, dtype=float)[None, :])[0]
+        return self.chain.forward_all(q)
 
     def forward_all_batch(self, q):
         """Every frame of ``frame_names`` for N configurations: ``(N, n, 8)``, ``w >= 0``."""
@@ -332,13 +452,23 @@ class RobotModel:
                              f'got shape {q.shape}')
         absolute = chain.forward_all_batch(q[:, :chain.dof])
         rel = chain.relative_all_batch(q[:, :chain.dof]) if relative else None
-        if not self.links:
+        if not self.links and not self.branches:
             return absolute, rel
         n = absolute.shape[0]
         frames = [absolute[:, k] for k in range(absolute.shape[1])]
-        extra = []
+        rels = [rel] if relative else []
         identity = np.broadcast_to(np.array(_IDENTITY), (n, 8))
-        columns = np.asarray(q, dtype=float).T
+        for branch, parent, q_map in self._branch_plan:
+            q_branch = q[:, list(q_map)]
+            base = dq_multiply_array(frames[parent], np.array(branch._base_t)) if parent >= 0 \
+                else np.broadcast_to(np.array(branch._base_t), (n, 8))
+            columns = np.ascontiguousarray(q_branch.T)
+            out = run_chain_program(branch, tuple(base.T), columns, np.cos, np.sin)
+            frames += [np.stack(np.broadcast_arrays(*f), axis=-1) for f in out]
+            if relative:
+                rels.append(branch.relative_all_batch(q_branch))
+        extra = []
+        columns = q.T
         for attach, tf_parent, offset, motion in self._link_plan:
             offset = np.broadcast_to(np.array(offset), (n, 8))
             if motion is not None:
@@ -355,31 +485,36 @@ class RobotModel:
         absolute = np.stack(frames, axis=1)
         absolute[absolute[..., 0] < 0.0] *= -1.0
         if relative:
-            rel = np.concatenate([rel, np.stack(extra, axis=1)], axis=1)
+            if extra:
+                rels.append(np.stack(extra, axis=1))
+            rel = np.concatenate(rels, axis=1)
         return absolute, rel
 
     def static_transforms(self):
         """``[(frame index, (x, y, z, qx, qy, qz, qw)), ...]``: every static TF transform."""
-        chain = self.chain
-        n_rows = len(chain.joints)
         _, relative = self.frame_poses([0.0] * self.dof)
+        special = {}
+        for _, chain, start in self.chains:
+            special[start] = chain.base.to_pose_xyzw()
+            if chain.tool is not None:
+                special[start + chain.n_frames - 1] = chain.tool.to_pose_xyzw()
         out = []
-        for k in range(len(self.frame_names)):
-            if self.moving[k]:
-                continue
-            if k == 0:
-                pose = chain.base.to_pose_xyzw()
-            elif k <= n_rows:
-                pose = relative[k - 1]
-            elif k < self.n_chain_frames:
-                pose = chain.tool.to_pose_xyzw()
-            else:
-                pose = relative[n_rows + k - self.n_chain_frames]
-            out.append((k, tuple(float(v) for v in pose)))
+        for k, r in enumerate(self._relative_index):
+            if not self.moving[k]:
+                pose = relative[r] if r >= 0 else special[k]
+                out.append((k, tuple(float(v) for v in pose)))
         return out
 
 
 _IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def global_joint_names(chain, branches=(), links=()):
+    """Name the joints of ``q``: ``chain``'s, each branch's own, then the links' own."""
+    names = list(chain.joint_names)
+    for branch in branches:
+        names += [n for n in branch.chain.joint_names if n not in branch.external]
+    return tuple(names) + tuple(link.joint for link in links if link.joint)
 
 
 def _motion(motion, q, cos, sin):
@@ -489,7 +624,7 @@ def parse_robot_description(text, source='<string>'):
                                     f'{source}: not valid YAML') from None
     if not _looks_like_description(data):
         public = (f'{source}: not a robot description (a YAML mapping with the fields robot, '
-                  f'base and chain, and no others than {", ".join(TOP_FIELDS)})')
+                  f'base and chain (or chains), and no others than {", ".join(TOP_FIELDS)})')
         try:
             _Parser(source).robot(data)
         except RecursionError:
@@ -506,7 +641,7 @@ def parse_robot_description(text, source='<string>'):
 def _looks_like_description(data):
     """Say whether YAML data is a robot description at its top: then errors may quote it."""
     return isinstance(data, dict) and all(isinstance(k, str) and k in TOP_FIELDS for k in data) \
-        and all(k in data for k in ('robot', 'base', 'chain'))
+        and 'robot' in data and (all(k in data for k in ('base', 'chain')) or 'chains' in data)
 
 
 class _Parser:
@@ -580,7 +715,7 @@ class _Parser:
 
     # -- sections ------------------------------------------------------------------------
     def robot(self, data):
-        data = self.mapping(data, '', TOP_FIELDS, required=('robot', 'base', 'chain'))
+        data = self.mapping(data, '', TOP_FIELDS, required=('robot',))
         name = data['robot']
         if not isinstance(name, str) or not name.strip() or not name.isprintable() or \
                 len(name) > MAX_NAME_CHARS:
@@ -599,15 +734,8 @@ class _Parser:
         self.angle = ANGLE_UNITS[self.choice(units.get('angle', 'rad'), 'units', 'angle',
                                              tuple(ANGLE_UNITS))]
         fixed_frame = self.frame(data.get('fixed_frame', 'world'), '', 'fixed_frame')
-        base_frame, base = self.transform(data['base'], 'base')
-        rows = data['chain']
-        if not isinstance(rows, list) or not rows:
-            self.fail('chain', f'expected a non-empty list of DH rows, got {_describe(rows)}')
-        if len(rows) > MAX_ROWS:
-            self.fail('chain', f'{len(rows)} rows; a robot description has at most {MAX_ROWS}')
-        parsed = [self.row(row, k) for k, row in enumerate(rows)]
-        tool_frame, tool = (self.transform(data['tool'], 'tool') if 'tool' in data
-                            else (None, None))
+        seen = {fixed_frame: 'fixed_frame'}
+        specs = self.chain_specs(data, fixed_frame, seen)
         link_rows = data.get('links', [])
         if not isinstance(link_rows, list):
             self.fail('links', f'expected a list of {{frame, parent, xyz, rpy | quaternion}}, '
@@ -616,23 +744,21 @@ class _Parser:
             self.fail('links', f'{len(link_rows)} links; a robot description has at most '
                       f'{MAX_ROWS}')
 
-        frames = [base_frame] + [p['frame'] for p in parsed]
-        if tool_frame:
-            frames.append(tool_frame)
-        seen = {fixed_frame: 'fixed_frame'}
-        places = ['base'] + [f"chain[{k}] (frame {_short(p['frame'])})" for k, p in
-                             enumerate(parsed)] + ['tool']
-        for frame, place in zip(frames, places):
-            if frame in seen:
-                self.fail(place, f'frame {frame!r} is already used by {seen[frame]}; '
-                          f'frame names must be unique')
-            seen[frame] = place
         # the rigid body each frame moves with: a moving row starts a new one
-        body = {fixed_frame: 0, base_frame: 0}
-        for k, p in enumerate(parsed):
-            body[p['frame']] = k + 1 if p['type'] != 'fixed' else body[frames[k]]
-        if tool_frame:
-            body[tool_frame] = body[frames[len(parsed)]]
+        body = {fixed_frame: 0}
+        frames, parents, moving = [], [], []
+        for spec in specs:
+            chain_frames = spec['frames']
+            body[chain_frames[0]] = body[spec['parent']]
+            for k, p in enumerate(spec['parsed']):
+                body[p['frame']] = (spec['prefix'], k) if p['type'] != 'fixed' \
+                    else body[chain_frames[k]]
+            if spec['tool_frame']:
+                body[spec['tool_frame']] = body[chain_frames[len(spec['parsed'])]]
+            frames += chain_frames
+            parents += [spec['parent']] + chain_frames[:-1]
+            moving += [False] + [p['type'] != 'fixed' for p in spec['parsed']] + \
+                ([False] if spec['tool_frame'] else [])
         links = []
         for k, row in enumerate(link_rows):
             link = self.link(row, k, seen)
@@ -640,19 +766,17 @@ class _Parser:
             # a link that moves (a mimic) is a rigid body of its own
             body[link.frame] = body[link.parent] if link.motion is None else f'links[{k}]'
             links.append(link)
-        end_effector = frames[-1]
+        end_effector = specs[0]['frames'][-1]
         if 'end_effector' in data:
             end_effector = self.frame(data['end_effector'], '', 'end_effector')
             if end_effector not in seen or end_effector == fixed_frame:
                 self.fail('', f"field 'end_effector' names {end_effector!r}, which is not a "
                           f'frame of the robot; frames: {_listing(list(seen)[1:])}')
 
-        joints = self.joints(parsed)
-        try:
-            chain = KinematicChain(joints, convention, base=base, tool=tool)
-        except ValueError as exc:  # anything the core refuses that the checks above missed
-            self.fail('chain', str(exc))
-        joint_names = list(chain.joint_names)
+        chains = self.chains(specs, convention)
+        chain = chains[0][1]
+        branches = tuple(Branch(parent, c, external) for parent, c, external in chains[1:])
+        joint_names = list(global_joint_names(chain, branches))
         for k, link in enumerate(links):
             if link.joint:
                 if link.joint in joint_names:
@@ -667,9 +791,10 @@ class _Parser:
                           f"field 'joint' names {link.motion[2]!r}, which no row or link "
                           f'has; joints: {_listing(joint_names)}')
         velocity = {}
-        for p in parsed:
-            velocity.update(p['velocity'])
-        moving = [False] + [p['type'] != 'fixed' for p in parsed] + ([False] if tool else [])
+        for spec in specs:
+            for p in spec['parsed']:
+                velocity.update(p['velocity'])
+        velocity.update((link.joint, link.max_velocity) for link in links if link.joint)
         moving += [body[link.frame] != body[link.tf_parent] for link in links]
         topics = {}
         for frame in frames + [link.frame for link in links]:
@@ -682,11 +807,111 @@ class _Parser:
         return RobotModel(
             name=name, source=self.source, fixed_frame=fixed_frame,
             frame_names=tuple(frames + [link.frame for link in links]),
-            parent_frames=tuple([fixed_frame] + frames[:-1] + [link.tf_parent for link in links]),
+            parent_frames=tuple(parents + [link.tf_parent for link in links]),
             moving=tuple(moving), chain=chain,
-            max_velocity=np.array([velocity.get(n, math.inf) for n in chain.joint_names]
-                                  + [link.max_velocity for link in links if link.joint]),
-            links=tuple(links), end_effector=end_effector)
+            max_velocity=np.array([velocity.get(n, math.inf) for n in joint_names]),
+            links=tuple(links), end_effector=end_effector, branches=branches)
+
+    def chain_specs(self, data, fixed_frame, seen):
+        """Parse ``base``/``chain``/``tool`` or ``chains``: one dict per chain, frames noted."""
+        if 'chains' in data:
+            for field in ('base', 'chain', 'tool'):
+                if field in data:
+                    self.fail('', f"field {field!r} goes inside an entry of 'chains' when the "
+                              f"file has 'chains' (give either chains, or base and chain)")
+            entries = data['chains']
+            if not isinstance(entries, list) or not entries:
+                self.fail('chains', f'expected a non-empty list of {{parent, base, chain, '
+                          f'tool}}, got {_describe(entries)}')
+            if len(entries) > MAX_ROWS:
+                self.fail('chains', f'{len(entries)} chains; a robot description has at '
+                          f'most {MAX_ROWS}')
+            entries = [(self.mapping(e, f'chains[{c}]', CHAIN_FIELDS,
+                                     required=('parent', 'base', 'chain')), f'chains[{c}].')
+                       for c, e in enumerate(entries)]
+        else:
+            for field in ('base', 'chain'):
+                if field not in data:
+                    self.fail('', f'missing field {field!r} (required: robot, base, chain; '
+                              f'or robot, chains)')
+            entries = [({'parent': fixed_frame, **{f: data[f] for f in ('base', 'chain', 'tool')
+                                                   if f in data}}, '')]
+        specs, total = [], 0
+        for c, (entry, prefix) in enumerate(entries):
+            parent = self.frame(entry['parent'], prefix[:-1], 'parent')
+            if c == 0 and parent != fixed_frame:
+                self.fail(prefix[:-1], f"field 'parent' of the first chain must be the fixed "
+                          f'frame {fixed_frame!r}, got {parent!r}')
+            if parent not in seen:
+                self.fail(prefix[:-1], f"field 'parent' names {parent!r}, which is not the "
+                          f'fixed frame or a frame of an earlier chain; frames so far: '
+                          f'{_listing(seen)}')
+            base_frame, base = self.transform(entry['base'], prefix + 'base')
+            rows = entry['chain']
+            if not isinstance(rows, list) or not rows:
+                self.fail(prefix + 'chain', f'expected a non-empty list of DH rows, got '
+                          f'{_describe(rows)}')
+            total += len(rows)
+            if total > MAX_ROWS:
+                self.fail(prefix + 'chain', f'{total} rows; a robot description has at most '
+                          f'{MAX_ROWS}')
+            parsed = [self.row(row, k, prefix) for k, row in enumerate(rows)]
+            tool_frame, tool = (self.transform(entry['tool'], prefix + 'tool')
+                                if 'tool' in entry else (None, None))
+            frames = [base_frame] + [p['frame'] for p in parsed]
+            if tool_frame:
+                frames.append(tool_frame)
+            places = [prefix + 'base'] + [p['where'] for p in parsed] + [prefix + 'tool']
+            for frame, place in zip(frames, places):
+                if frame in seen:
+                    self.fail(place, f'frame {frame!r} is already used by {seen[frame]}; '
+                              f'frame names must be unique')
+                seen[frame] = place
+            specs.append({'parent': parent, 'prefix': prefix, 'base': base, 'tool': tool,
+                          'parsed': parsed, 'frames': frames, 'tool_frame': tool_frame})
+        return specs
+
+    def chains(self, specs, convention):
+        """Return ``[(parent, KinematicChain, external variables), ...]`` of the specs."""
+        owners, chain_of = {}, {}
+        for c, spec in enumerate(specs):
+            for p in spec['parsed']:
+                for key in ('joint', 'd_joint'):
+                    if key in p:
+                        if p[key] in owners:
+                            self.fail(p['where'], f'joint {p[key]!r} is already read by '
+                                      f'{owners[p[key]]}; joint names must be unique')
+                        owners[p[key]] = p['where']
+                        chain_of[p[key]] = c
+        out = []
+        for c, spec in enumerate(specs):
+            joints, external = [], []
+            for p in spec['parsed']:
+                follows, name = p.get('follows', ''), p.get('joint', '')
+                if follows and follows not in owners:
+                    self.fail(p['where'] + ' mimic', f"field 'joint' names {follows!r}, "
+                              f'which no row reads; joints: {_listing(owners) or "none"}')
+                if follows and chain_of[follows] != c:
+                    if c == 0:
+                        self.fail(p['where'] + ' mimic', f"field 'joint' names {follows!r}, "
+                                  f"a joint of another chain; the first chain's rows mimic "
+                                  f'its own joints')
+                    if follows not in external:  # the row reads that joint's value itself
+                        external.append(follows)
+                        follows, name = '', follows
+                limits = p.get('limits')
+                if p['type'] == 'cylindrical':
+                    limits = (limits, p.get('d_limits'))
+                joints.append(DHJoint(
+                    a=p['a'], alpha=p['alpha'], d=p['d'], theta=p['theta'],
+                    joint_type=p['type'], scale=p['scale'], name=name,
+                    d_name=p.get('d_joint', ''), follows=follows, limits=limits))
+            try:
+                chain = KinematicChain(joints, convention, base=spec['base'], tool=spec['tool'])
+            except ValueError as exc:  # anything the core refuses that the checks missed
+                self.fail(spec['prefix'] + 'chain', str(exc))
+            out.append((spec['parent'], chain, tuple(external)))
+        return out
 
     def link(self, row, k, seen):
         """One entry of ``links``: a frame fixed to an earlier frame (``seen``: name -> place)."""
@@ -764,10 +989,10 @@ class _Parser:
             rotation = quat_from_matrix(rpy_matrix(roll, pitch, yaw))
         return frame, DualQuaternion.from_pose(rotation, xyz)
 
-    def row(self, row, k):
-        where = f'chain[{k}]'
+    def row(self, row, k, prefix=''):
+        where = f'{prefix}chain[{k}]'
         if isinstance(row, dict) and isinstance(row.get('frame'), str):
-            where = f"chain[{k}] (frame {_short(row['frame'])})"
+            where = f"{prefix}chain[{k}] (frame {_short(row['frame'])})"
         row = self.mapping(row, where, ROW_FIELDS, required=('frame', 'theta', 'd', 'a',
                                                              'alpha'))
         frame = self.frame(row['frame'], where)
@@ -842,29 +1067,6 @@ class _Parser:
             self.fail(where, f'field {field!r} must be a positive speed (per second), '
                       f'got {_short(row[field])}')
         out['velocity'][joint] = value
-
-    def joints(self, parsed):
-        owners = {}
-        for p in parsed:
-            for key in ('joint', 'd_joint'):
-                if key in p:
-                    if p[key] in owners:
-                        self.fail(p['where'], f'joint {p[key]!r} is already read by '
-                                  f'{owners[p[key]]}; joint names must be unique')
-                    owners[p[key]] = p['where']
-        joints = []
-        for p in parsed:
-            if 'follows' in p and p['follows'] not in owners:
-                self.fail(p['where'] + ' mimic', f"field 'joint' names {p['follows']!r}, "
-                          f'which no row reads; joints: {", ".join(owners) or "none"}')
-            limits = p.get('limits')
-            if p['type'] == 'cylindrical':
-                limits = (limits, p.get('d_limits'))
-            joints.append(DHJoint(
-                a=p['a'], alpha=p['alpha'], d=p['d'], theta=p['theta'], joint_type=p['type'],
-                scale=p['scale'], name=p.get('joint', ''), d_name=p.get('d_joint', ''),
-                follows=p.get('follows', ''), limits=limits))
-        return joints
 
 
 def pose_topic_name(frame):

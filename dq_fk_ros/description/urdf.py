@@ -9,7 +9,7 @@ post`` becomes a URDF joint with origin ``pre * Rz(theta0) Tz(d0)`` and axis z, 
 Every constant joint offset is drawn as a thin cylinder in its parent link.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from xml.sax.saxutils import quoteattr
 
@@ -98,14 +98,42 @@ def urdf_joints(model):
     link ``<frame>_dh_z`` (and ``<frame>_dh_z0`` for the first of a cylindrical row's two
     motions) between the row's parent frame and its frame.
     """
-    chain = model.chain
-    joints = [UrdfJoint(f'{model.frame_names[0]}_fixed', 'fixed', model.fixed_frame,
-                        model.frame_names[0], chain.base)]
-    velocity = dict(zip(chain.joint_names, model.max_velocity))
-    limits = dict(zip(chain.joint_names, chain.limits))
+    joints = []
+    velocity = dict(zip(model.joint_names, model.max_velocity))
+    limits = dict(zip(model.joint_names, model.limits.tolist()))
+    for branch, (parent, chain, start) in zip((None,) + model.branches, model.chains):
+        external = branch.external if branch is not None else ()
+        joints += _chain_joints(model, chain, start, parent, external, velocity, limits)
+    for link in model.links:  # fixed to the frame they are attached to, or its mimic
+        if link.motion is None:
+            joints.append(UrdfJoint(f'{link.frame}_fixed', 'fixed', link.parent, link.frame,
+                                    link.offset))
+            continue
+        kind, axis, variable, multiplier, offset = link.motion
+        lower, upper = link.limits
+        bounded = math.isfinite(lower) and math.isfinite(upper)
+        speed = link.max_velocity if math.isfinite(link.max_velocity) else NO_LIMIT_SPEED
+        limits = None
+        if link.joint and bounded:
+            limits = (float(lower), float(upper), float(speed), NO_LIMIT_SPEED)
+        elif kind == 'prismatic':
+            limits = (-NO_LIMIT_STROKE_M, NO_LIMIT_STROKE_M, float(speed), NO_LIMIT_SPEED)
+        joints.append(UrdfJoint(
+            link.joint or f'{link.frame}_joint', kind if limits else 'continuous', link.parent,
+            link.frame, link.offset, axis, limits,
+            None if link.joint else (variable, multiplier, offset), variable))
+    return joints
+
+
+def _chain_joints(model, chain, start, parent_frame, external, velocity, limits):
+    """Return the URDF joints of one chain: its base, rows (and helper links), tool."""
+    names = model.frame_names[start:start + chain.n_frames]
+    joints = [UrdfJoint(f'{names[0]}_fixed', 'fixed', parent_frame, names[0], chain.base)]
     modified = chain.convention == 'modified'
     for i, joint in enumerate(chain.joints):
-        parent, child = model.frame_names[i], model.frame_names[i + 1]
+        parent, child = names[i], names[i + 1]
+        if joint.name in external:  # a row mimicking another chain's joint
+            joint = replace(joint, follows=joint.name)
         pre = (_rot_x(joint.alpha) * _tx(joint.a)) if modified else DualQuaternion.identity()
         post = DualQuaternion.identity() if modified else (_tx(joint.a) * _rot_x(joint.alpha))
         if joint.joint_type == 'fixed':
@@ -134,7 +162,7 @@ def urdf_joints(model):
             else:
                 name, mimic, axis = variable, None, (0.0, 0.0, sign)
                 lower, upper = limits[variable]
-            anchor = None if target == child else i + 1
+            anchor = None if target == child else start + i + 1
             bounded = math.isfinite(lower) and math.isfinite(upper)
             note = ''
             if kind == 'revolute' and not bounded:
@@ -154,29 +182,8 @@ def urdf_joints(model):
             link, origin = target, DualQuaternion.identity()
         if has_post:
             joints.append(UrdfJoint(f'{child}_dh_x', 'fixed', link, child, post))
-    n_chain = model.n_chain_frames
     if chain.tool is not None:
-        joints.append(UrdfJoint(f'{model.frame_names[n_chain - 1]}_fixed', 'fixed',
-                                model.frame_names[n_chain - 2], model.frame_names[n_chain - 1],
-                                chain.tool))
-    for link in model.links:  # fixed to the frame they are attached to, or its mimic
-        if link.motion is None:
-            joints.append(UrdfJoint(f'{link.frame}_fixed', 'fixed', link.parent, link.frame,
-                                    link.offset))
-            continue
-        kind, axis, variable, multiplier, offset = link.motion
-        lower, upper = link.limits
-        bounded = math.isfinite(lower) and math.isfinite(upper)
-        speed = link.max_velocity if math.isfinite(link.max_velocity) else NO_LIMIT_SPEED
-        limits = None
-        if link.joint and bounded:
-            limits = (float(lower), float(upper), float(speed), NO_LIMIT_SPEED)
-        elif kind == 'prismatic':
-            limits = (-NO_LIMIT_STROKE_M, NO_LIMIT_STROKE_M, float(speed), NO_LIMIT_SPEED)
-        joints.append(UrdfJoint(
-            link.joint or f'{link.frame}_joint', kind if limits else 'continuous', link.parent,
-            link.frame, link.offset, axis, limits,
-            None if link.joint else (variable, multiplier, offset), variable))
+        joints.append(UrdfJoint(f'{names[-1]}_fixed', 'fixed', names[-2], names[-1], chain.tool))
     return joints
 
 

@@ -208,39 +208,41 @@ def _product_code(a, b):
     return out
 
 
-def unrolled_frame_poses(chain, links=(), motion=None):
+def run_chain_program(chain, base, q, cos, sin):
     """
-    Write and compile ``frame_poses`` as straight-line code for one chain (and its links).
+    Return the frames of ``chain`` (frame 0..n, then the tool) starting from ``base``.
 
-    The loops of :func:`_run_program` and :meth:`KinematicChain.row_poses` unrolled, with
-    each row's constants in place and the half-angle cosine and sine shared by the row's
-    z factor and its pose: the same floating-point operations in the same order, so the
-    same results to the bit, in about half the time.
+    ``base`` is frame 0 (8 coefficients: floats, or arrays for a batch); a branch of a tree
+    starts from its parent frame times its base transform. ``q``: the chain's variables.
+    """
+    frames = _run_program(chain._program, base, q, cos, sin)
+    if chain._tool_t is not None:
+        frames.append(dq_multiply_coeffs(frames[-1], chain._tool_t))
+    return frames
 
-    :param links: rigid frames attached to the chain's frames, as
-        :class:`~dq_fk_ros.description.robot_model.RobotModel` plans them: ``(attachment
-        index, TF-parent index, offset 8-tuple, motion)`` (index -1: the fixed frame); a
-        constant offset is multiplied in with its zero terms left out.
-    :param motion: ``motion(motion, q, cos, sin) -> 8-tuple`` for links that move.
-    :returns: ``f(q_list) -> (absolute, relative)`` as ``frame_poses`` returns them; its
-        source is ``f.source``.
+
+def _chain_code(chain, q_index, first, keep):
+    """
+    Write the straight-line code of one chain, starting from the frame 0 in ``aw..bz``.
+
+    ``q_index``: where each chain variable is in ``q``; ``first``: the index of frame 0
+    among all frames (the names ``f<k>`` of kept frames); ``keep``: keep frames as ``f<k>``.
     """
     r = repr
-    base_pose = pose_xyzw_from_coeffs(chain._base_t)
-    lines = ['def frame_poses(q):', 'absolute, relative = [], []',
-             f'{_DQ} = {chain._base_t!r}', f'absolute.append({base_pose!r})']
-    if links:  # keep the frames the links hang from
-        lines.append(f'f0 = ({_DQ})')
+    lines = list(_MARK)
+    if keep:
+        lines.append(f'f{first} = ({_DQ})')
     modified = chain.convention == 'modified'
     for i, joint in enumerate(chain.joints):
         ti, di = int(chain._theta_index[i]), int(chain._d_index[i])
         ca, sa, a, theta, d, scale, _, _, s_alpha, c_alpha = chain._pose_rows[i]
         if ti >= 0:
-            lines += [f'half = 0.5 * ({r(theta)} + {r(scale)} * q[{ti}])',
+            lines += [f'half = 0.5 * ({r(theta)} + {r(scale)} * q[{q_index[ti]}])',
                       'ct, st = cos(half), sin(half)']
         else:
             lines.append(f'ct, st = {r(math.cos(0.5 * theta))}, {r(math.sin(0.5 * theta))}')
-        lines.append(f'd = {r(d)} + {r(scale)} * q[{di}]' if di >= 0 else f'd = {r(d)}')
+        lines.append(f'd = {r(d)} + {r(scale)} * q[{q_index[di]}]' if di >= 0 else
+                     f'd = {r(d)}')
         for op, p1, _, _, p4, p5, _ in _row_program(joint, ti, di, modified):
             if op == _Z:
                 lines += ['c, s = ct, st', _Z_STEP]
@@ -256,8 +258,8 @@ def unrolled_frame_poses(chain, links=(), motion=None):
                     lines += [f'c, s = {r(math.cos(0.5 * joint.alpha))}, '
                               f'{r(math.sin(0.5 * joint.alpha))}', _X_STEP]
         lines += list(_MARK)
-        if links:
-            lines.append(f'f{i + 1} = ({_DQ})')
+        if keep:
+            lines.append(f'f{first + i + 1} = ({_DQ})')
         if modified:
             lines += [f'qx, qy, qz, qw = {r(sa)} * ct, -{r(sa)} * st, {r(ca)} * st, {r(ca)} * ct',
                       f'x, y, z = {r(a)}, -d * {r(s_alpha)}, d * {r(c_alpha)}']
@@ -266,12 +268,46 @@ def unrolled_frame_poses(chain, links=(), motion=None):
                       f'x, y, z = {r(a)} * (1.0 - 2.0 * st * st), 2.0 * {r(a)} * st * ct, d']
         lines += ['if qw < 0.0:', '    qx, qy, qz, qw = -qx, -qy, -qz, -qw',
                   'relative.append((x, y, z, qx, qy, qz, qw))']
-    n_frames = len(chain.joints) + 1
     if chain._tool_t is not None:
         lines += [f'{_DQ} = multiply(({_DQ}), {chain._tool_t!r})'] + list(_MARK)
-        if links:
-            lines.append(f'f{n_frames} = ({_DQ})')
-        n_frames += 1
+        if keep:
+            lines.append(f'f{first + chain.n_frames - 1} = ({_DQ})')
+    return lines
+
+
+def unrolled_frame_poses(chain, links=(), motion=None, branches=()):
+    """
+    Write and compile ``frame_poses`` as straight-line code for a chain (its branches, links).
+
+    The loops of :func:`_run_program` and :meth:`KinematicChain.row_poses` unrolled, with
+    each row's constants in place and the half-angle cosine and sine shared by the row's
+    z factor and its pose: the same floating-point operations in the same order, so the
+    same results to the bit, in about half the time.
+
+    :param links: rigid frames attached to the chain's frames, as
+        :class:`~dq_fk_ros.description.robot_model.RobotModel` plans them: ``(attachment
+        index, TF-parent index, offset 8-tuple, motion)`` (index -1: the fixed frame); a
+        constant offset is multiplied in with its zero terms left out.
+    :param motion: ``motion(motion, q, cos, sin) -> 8-tuple`` for links that move.
+    :param branches: the other chains of a tree, ``(chain, index of the frame it hangs from
+        (-1: the fixed frame), index in q of each of its variables)``, in order; their
+        frames follow the chain's, their rows' transforms its rows'.
+    :returns: ``f(q_list) -> (absolute, relative)`` as ``frame_poses`` returns them; its
+        source is ``f.source``.
+    """
+    keep = bool(links or branches)  # keep the frames the links and branches hang from
+    lines = ['def frame_poses(q):', 'absolute, relative = [], []', f'{_DQ} = {chain._base_t!r}']
+    lines += _chain_code(chain, range(chain.dof), 0, keep)
+    n_frames = chain.n_frames
+    for branch, parent, q_index in branches:
+        if parent >= 0:
+            lines += [f'{_PARENT} = f{parent}',
+                      f'{_DQ} = (' + ', '.join(_product_code(_PARENT.split(', '),
+                                                             branch._base_t)) + ')']
+        else:
+            lines.append(f'{_DQ} = {branch._base_t!r}')
+        lines += _chain_code(branch, q_index, n_frames, keep)
+        n_frames += branch.n_frames
     for j, (attach, tf_parent, offset, moves) in enumerate(links):
         k = n_frames + j
         parent = f'f{attach}' if attach >= 0 else repr(_IDENTITY)
@@ -295,7 +331,8 @@ def unrolled_frame_poses(chain, links=(), motion=None):
     namespace = {'cos': math.cos, 'sin': math.sin, 'multiply': dq_multiply_coeffs,
                  'inverse': dq_inverse_coeffs, 'pose': pose_xyzw_from_coeffs,
                  'motion': motion}
-    exec(compile(source, f'<frame_poses of a {len(chain.joints)}-row chain, '
+    rows = len(chain.joints) + sum(len(b.joints) for b, _, _ in branches)
+    exec(compile(source, f'<frame_poses of {1 + len(branches)} chain(s), {rows} rows, '
                          f'{len(links)} links>', 'exec'), namespace)
     function = namespace['frame_poses']
     function.source = source

@@ -72,8 +72,10 @@ class FrameMessages:
         self.frame_ids = [frame_prefix + name for name in model.frame_names]
         self._parent_ids = [model.tf_frame_id(p, frame_prefix) for p in model.parent_frames]
         self.hidden = hidden_frames(model, shown_optional)
-        # moving TF transforms: DH rows and links on other bodies than their TF parents
-        self.moving_edges = tuple(e for e in model.moving_edges if e[0] not in self.hidden)
+        # moving TF transforms: DH rows and links on other bodies than their TF parents,
+        # those whose joints are known (robot_state_publisher's rule)
+        hidden_edges = hidden_frames(model, shown_optional, model.edge_needs)
+        self.moving_edges = tuple(e for e in model.moving_edges if e[0] not in hidden_edges)
         self.helpers = HelperFrames(model)
         self.tf = TFMessage(transforms=[
             _transform_stamped(self._parent_ids[k], self.frame_ids[k])
@@ -130,12 +132,18 @@ class FrameMessages:
         return TFMessage(transforms=transforms)
 
 
-def hidden_frames(model, shown_optional):
-    """Return the indices of the frames whose pose (or TF parent's) needs a joint not shown."""
+def hidden_frames(model, shown_optional, needs=None):
+    """
+    Return the indices of the frames that need an optional joint not in ``shown_optional``.
+
+    :param needs: per frame, the joints it needs: ``model.frame_needs`` (default: its pose
+        in the fixed frame) or ``model.edge_needs`` (its TF transform).
+    """
     if not model.optional_joints:
         return frozenset()
     shown = frozenset(shown_optional)
-    return frozenset(k for k, needs in enumerate(model.edge_needs) if not needs <= shown)
+    needs = model.frame_needs if needs is None else needs
+    return frozenset(k for k, need in enumerate(needs) if not need <= shown)
 
 
 def _transform_stamped(parent, child, stamp=None, pose=None):

@@ -17,7 +17,7 @@ from dq_fk_ros.description.from_urdf import NODE_OPTIONS, tf_name
 from dq_fk_ros.description.loading import (
     FileAccess, load_robot, resolve_robot, robot_from_urdf_text, shipped_robots_dir)
 from dq_fk_ros.description.robot_model import (
-    FRAME_ID, MAX_NAME_CHARS, printable_line, RobotDescriptionError, TF_FRAME_ID)
+    _listing, FRAME_ID, MAX_NAME_CHARS, printable_line, RobotDescriptionError, TF_FRAME_ID)
 from dq_fk_ros.description.urdf import description_urdf
 from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
@@ -393,7 +393,7 @@ class DqFkNode(Node):
         unknown = self._merger.unknown if self._merger is not None else set()
         self._model = model
         self._merger = JointStateMerger(model.joint_names, model.limits, self._out_of_limits,
-                                        required=model.chain.dof)
+                                        required=len(model.required_joints))
         if counts is not None:
             self._merger.counts = counts
         self._merger.unknown = {n for n in unknown if n not in model.joint_names}
@@ -407,10 +407,14 @@ class DqFkNode(Node):
             self._bytes = FrameBytes(self._messages)
             self._shown_optional = ()
             self._refresh_readers()
-            if model.optional_joints:
+            if model.branches:
                 self.get_logger().info(
-                    f'side-branch joints {", ".join(model.optional_joints)}: their links are '
-                    f'published once joint states name them')
+                    f'{len(model.branches) + 1} chains, {model.dof} joints: each transform is '
+                    f'published once joint states have named the joints it depends on')
+            elif model.optional_joints:
+                self.get_logger().info(
+                    f'side-branch joints {_listing(model.optional_joints, 10)}: their links '
+                    f'are published once joint states name them')
         if self._publish_tf:
             self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
         self._send_description()
@@ -542,8 +546,8 @@ class DqFkNode(Node):
         self._pose_read = [read and k not in hidden for k, read in enumerate(self._pose_read)]
         self._note_read_poses()
         if new:
-            self.get_logger().info(f'joint states name side-branch joints {", ".join(new)}: '
-                                   f'publishing their links')
+            self.get_logger().info(f'joint states name joints {_listing(new, 10)}: publishing '
+                                   f'the links that depend on them')
 
     def _publish(self, stamp_ns, q, qdot):
         """Publish /tf and the read pose and twist topics, serialized, stamped ``stamp_ns``."""
@@ -554,6 +558,8 @@ class DqFkNode(Node):
                 self._show_branches(seen)
         poses = self._publish_poses and bool(self._read_poses)
         twists = self._publish_twist and qdot is not None and self._any_twist_read
+        if twists and model.branches:  # a tree: the first chain's velocities may be unknown
+            twists = all(map(math.isfinite, qdot[:model.chain.dof]))
         if poses or twists:
             absolute, relative = model.frame_poses(q)
         else:  # /tf alone needs the transforms only (half the work for a DH chain)
