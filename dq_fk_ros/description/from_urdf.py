@@ -46,6 +46,7 @@ MOVING = ('revolute', 'continuous', 'prismatic')
 PARALLEL_TOL = 1e-9         # |sin| of the angle between two axes below which they are parallel
 LENGTH_TOL_M = 1e-9         # distances below which two points (or lines) meet
 NOISE = 1e-15               # numbers written as 0 (m or rad; far below the tests' 1e-12)
+FAR_NORMAL_M = 10.0         # a common normal this far from the joints splits the chain
 MAX_URDF_ELEMENTS = 4096    # links, and joints, in one URDF (talos: 100; the checks are linear)
 # how the tools call the base and tip links (messages name the option of the tool that said it)
 OPTIONS = ('--base', '--tip')
@@ -375,18 +376,20 @@ def _common_normal(p1, u1, p2, u2, through, x_before):
         if np.linalg.norm(gap) < LENGTH_TOL_M:
             return through, through, x_before, 'coincident'
         return through, foot2, _unit(gap), 'parallel'
-    b = np.dot(u1, u2)
-    d, e = np.dot(u1, w), np.dot(u2, w)
-    denominator = 1.0 - b * b
-    s = (b * e - d) / denominator
-    t = (e - b * d) / denominator
+    # the feet p1 + s u1, p2 + t u2, with 1 - (u1.u2)^2 = |u1 x u2|^2 and the numerators
+    # as cross products: no cancellation for nearly parallel axes (Romeo's thumbs, 1e-7 rad)
+    denominator = np.dot(cross, cross)
+    s = -np.dot(np.cross(u2, cross), w) / denominator
+    t = -np.dot(np.cross(u1, cross), w) / denominator
     foot1, foot2 = p1 + s * u1, p2 + t * u2
     gap = foot2 - foot1
     if np.linalg.norm(gap) < LENGTH_TOL_M:
         middle = 0.5 * (foot1 + foot2)
         x = cross / sin
         return middle, middle, (-x if np.dot(x, x_before) < 0.0 else x), 'intersecting'
-    return foot1, foot2, _unit(gap), 'skew'
+    # the normal is along u1 x u2: exact, where the direction of a short gap is not
+    x = cross / sin
+    return foot1, foot2, (-x if np.dot(x, gap) < 0.0 else x), 'skew'
 
 
 def _frames_on_axes(lines, convention):
@@ -481,7 +484,6 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
     if convention not in ('standard', 'modified'):
         raise RobotDescriptionError(f'convention {convention!r}; allowed: standard, modified')
     tree = parse_urdf(text, source)
-    chose_tip = tip is None
     base, tip, path = chain_joints(tree, base, tip, options)
     for link in [base] + [j.child for j in path]:
         _check_frame(link, source)
@@ -489,44 +491,251 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
     if len(moving) > MAX_ROWS:
         raise RobotDescriptionError(f'{source}: {len(moving)} moving joints; a robot '
                                     f'description has at most {MAX_ROWS} rows')
-    chain_names = {j.name for j in moving}
     for j in moving:
         _check_joint(j.name, source)
-        if j.mimic is not None and j.mimic[0] not in chain_names - {j.name}:
+    chain_names = {j.name for j in moving}
+    published = _publishable(tree, base)
+    for j in moving:
+        if j.mimic is not None and _mimic_source(tree, j, published)[0] not in chain_names:
             raise RobotDescriptionError(
                 f'{source}: joint {j.name!r} on the chain mimics {j.mimic[0]!r}, which is not '
                 f'a moving joint of the chain {base!r} -> {tip!r}')
-        if j.mimic is not None and tree_joint(tree, j.mimic[0]).mimic is not None:
-            raise RobotDescriptionError(f'{source}: joint {j.name!r} mimics {j.mimic[0]!r}, '
-                                        f'itself a mimic joint')
 
-    # poses at zero, in the base link, of every link on the chain; the joint axes as lines
+    # poses at zero, in the base link, of every link published
     pose = {base: np.eye(4)}
-    body = {base: 0}
-    lines = []
-    for j in path:
-        frame = pose[j.parent] @ j.origin
-        pose[j.child] = frame
+    for link in _below(tree, base, published):
+        joint = tree.joints[link]
+        pose[link] = pose[joint.parent] @ joint.origin
+    plans = [part for plan in [_ChainPlan(base, base, tuple(path), tip)]
+             + _branch_plans(tree, base, path, published) for part in _split(plan, pose)]
+    if sum(len(plan.moving) for plan in plans) > MAX_ROWS:
+        raise RobotDescriptionError(f'{source}: {sum(len(p.moving) for p in plans)} moving '
+                                    f'joints; a robot description has at most {MAX_ROWS} rows')
+    taken = set(tree.links)
+    body = {base: base}          # link -> the DH frame (or the base link) it moves with
+    frame_pose = {base: np.eye(4)}
+    chains = []
+    order = list(_below(tree, base, published))
+    for c, plan in enumerate(plans + [None]):
+        for link in order:  # links fixed to a link of known body move with it
+            joint = tree.joints[link]
+            if link not in body and joint.kind not in MOVING and joint.parent in body:
+                body[link] = body[joint.parent]
+        if plan is not None:
+            chains.append(_chain_entry(plan, c, pose, body, frame_pose, taken, convention,
+                                       published, tree))
+    links = []
+    for link in _below(tree, base, published):
+        links.append(_link_entry(tree.joints[link], pose, body, frame_pose))
+    skipped = [j for j in tree.joints.values() if j.parent in pose and j.child not in pose]
+    end_effector = tip
+    if not moving:  # the fixed frame cannot be the end effector: the deepest link
+        end_effector = links[-1][0]['frame'] if links else chains[0]['names'][1]
+    text = _yaml(tree, source, base, tip, convention, chains, links, skipped, end_effector)
+    parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here
+    warnings = ()
+    loose = [j for j in skipped if j.kind in ('floating', 'planar')]
+    if loose:
+        warnings += (f'{source}: {len(loose)} floating or planar joint(s) get no transform, as '
+                     f'in robot_state_publisher (their links are not on TF): '
+                     f'{_listing([_comment(j.name)[:80] for j in loose], 5)}',)
+    if tree.slashed:
+        shown = ', '.join(_comment(n)[:80] for n in tree.slashed[:5])
+        more = f' and {len(tree.slashed) - 5} more' if len(tree.slashed) > 5 else ''
+        warnings += (f'{source}: link names with a leading slash are published without it, '
+                     f'as tf2 strips it: {shown}{more}',)
+    return Conversion(text, base, tip, tuple(skipped), warnings)
+
+
+@dataclass(frozen=True)
+class _ChainPlan:
+    """One DH chain of the tree: its joints (fixed ones too) from ``anchor`` to ``tip``."""
+
+    anchor: str      # the link its first joint hangs from (frame 0 is placed in its axes)
+    parent: str      # the same link; its DH frame is the chain's parent
+    path: tuple      # the joints from anchor down to tip
+    tip: str
+
+    @property
+    def moving(self):
+        """Return the moving joints of the path (one DH row each)."""
+        return [j for j in self.path if j.kind in MOVING]
+
+
+def _split(plan, pose):
+    """
+    Split a chain where two axes are so nearly parallel that DH would lose precision.
+
+    Such axes (Romeo's thumbs: 1e-7 rad apart, 18 mm) have their common normal
+    :data:`FAR_NORMAL_M` or more away: rows with offsets of kilometres, whose rounding
+    shows at 1e-9 m. The rest of the chain becomes a chain of its own, hanging from the
+    DH frame before (its base transform is exact).
+    """
+    moving = [k for k, j in enumerate(plan.path) if j.kind in MOVING]
+    for a, b in zip(moving, moving[1:]):
+        first, second = plan.path[a], plan.path[b]
+        m1 = pose[first.parent] @ first.origin
+        m2 = pose[second.parent] @ second.origin
+        p1, u1 = m1[:3, 3], m1[:3, :3] @ first.axis
+        p2, u2 = m2[:3, 3], m2[:3, :3] @ second.axis
+        cross = np.cross(u1, u2)
+        if np.linalg.norm(cross) < PARALLEL_TOL:
+            continue
+        w = p1 - p2
+        s = -np.dot(np.cross(u2, cross), w) / np.dot(cross, cross)
+        t = -np.dot(np.cross(u1, cross), w) / np.dot(cross, cross)
+        if max(abs(s), abs(t)) > FAR_NORMAL_M:
+            head = _ChainPlan(plan.anchor, plan.parent, plan.path[:b], plan.path[b - 1].child)
+            tail = _ChainPlan(second.parent, second.parent, plan.path[b:], plan.tip)
+            return [head] + _split(tail, pose)
+    return [plan]
+
+
+def _publishable(tree, base):
+    """
+    Return the names of the joints below ``base`` that get a transform.
+
+    Floating and planar joints get none (robot_state_publisher's rule), nor anything below
+    them; nor joints with names this package cannot publish, nor mimics of joints that are
+    not published (followed to their source through chains of mimics).
+    """
+    ok, stack = set(), [base]
+    while stack:
+        link = stack.pop()
+        for j in tree.children.get(link, []):
+            if j.kind in ('floating', 'planar'):
+                continue
+            if len(j.child) > MAX_NAME_CHARS or not TF_FRAME_ID.fullmatch(j.child):
+                continue
+            if j.kind in MOVING and j.mimic is None and not JOINT_NAME.fullmatch(j.name):
+                continue
+            ok.add(j.name)
+            stack.append(j.child)
+    while True:  # mimics whose source is not published are not either (nor what is below)
+        bad = {name for name in ok if tree.by_name[name].mimic is not None
+               and _mimic_source(tree, tree.by_name[name], ok)[0] is None}
+        if not bad:
+            return _reachable(tree, base, ok)
+        ok -= bad
+        ok = _reachable(tree, base, ok)
+
+
+def _reachable(tree, base, ok):
+    """Return the joints of ``ok`` reached from ``base`` through joints of ``ok``."""
+    out, stack = set(), [base]
+    while stack:
+        for j in tree.children.get(stack.pop(), []):
+            if j.name in ok:
+                out.add(j.name)
+                stack.append(j.child)
+    return out
+
+
+def _mimic_source(tree, joint, published):
+    """
+    Return ``(source, multiplier, offset)``: a mimic joint followed to a joint of its own.
+
+    Chains of mimics compose (``m2 (m1 q + o1) + o2``); ``(None, ...)`` when the source is
+    not a published joint, the chain loops, or a joint is not moving.
+    """
+    multiplier, offset, seen = 1.0, 0.0, set()
+    while joint.mimic is not None:
+        if joint.name in seen:
+            return None, 0.0, 0.0
+        seen.add(joint.name)
+        name, m, o = joint.mimic
+        # this joint is m * q(name) + o, and the first one multiplier * q(this) + offset
+        multiplier, offset = multiplier * m, offset + multiplier * o
+        source = tree.by_name.get(name)
+        if source is None or source.kind not in MOVING or name not in published:
+            return None, 0.0, 0.0
+        joint = source
+    return joint.name, multiplier, offset
+
+
+def _below(tree, base, published):
+    """Yield the links below ``base`` reached through published joints, parents first."""
+    order = [base]
+    for link in order:
+        for j in tree.children.get(link, []):
+            if j.name in published:
+                order.append(j.child)
+                yield j.child
+
+
+def _longest_path(tree, link, published):
+    """Return the joints of the path below ``link`` with most moving joints (first on ties)."""
+    best = []
+    best_count = 0
+    stack = [(link, [])]
+    while stack:
+        at, path = stack.pop()
+        count = sum(j.kind in MOVING for j in path)
+        if count > best_count:
+            best, best_count = path, count
+        for j in reversed(tree.children.get(at, [])):
+            if j.name in published:
+                stack.append((j.child, path + [j]))
+    while best and best[-1].kind not in MOVING:
+        best = best[:-1]
+    return best
+
+
+def _branch_plans(tree, base, main_path, published):
+    """
+    Return the other chains of the tree: every moving joint not on the first chain is on one.
+
+    Walking the URDF from ``base`` (parents first, the URDF's order), a moving joint not yet
+    on a chain starts one: it and the longest path of moving joints below it.
+    """
+    covered = {j.name for j in main_path}
+    plans = []
+    for link in [base] + list(_below(tree, base, published)):
+        for j in tree.children.get(link, []):
+            if j.name not in published or j.name in covered or j.kind not in MOVING:
+                continue
+            path = [j] + _longest_path(tree, j.child, published)
+            covered.update(joint.name for joint in path)
+            plans.append(_ChainPlan(link, link, tuple(path), path[-1].child))
+    return plans
+
+
+def _chain_entry(plan, c, pose, body, frame_pose, taken, convention, published, tree):
+    """
+    Convert one chain of the tree: its DH frames on the joint axes, its rows and base.
+
+    Records in ``body`` the DH frame each link of its path moves with, and in ``frame_pose``
+    every DH frame's pose at zero (base link coordinates).
+    """
+    anchor = pose[plan.anchor]
+    to_anchor = np.linalg.inv(anchor)
+    lines, at = [], {}
+    for j in plan.path:
         if j.kind in MOVING:
-            lines.append((frame[:3, 3], frame[:3, :3] @ j.axis))
-            body[j.child] = len(lines)
-        else:
-            body[j.child] = body[j.parent]
+            local = to_anchor @ pose[j.parent] @ j.origin
+            lines.append((local[:3, 3], local[:3, :3] @ j.axis))
+        at[j.child] = len(lines)
     if lines:
         frames, kinds = _frames_on_axes(lines, convention)
     else:  # no moving joint: one fixed row, every link fixed to the base (only /tf_static)
         frames, kinds = [np.eye(4), np.eye(4)], ['first']
-    dh_names = _dh_frame_names(len(frames), set(tree.links))
-
+    frames = [anchor @ f for f in frames]   # in base link coordinates
+    names = _dh_frame_names(len(frames), taken, '' if c == 0 else plan.tip, c)
+    taken.update(names)
+    parent = body[plan.parent]
+    for name, f in zip(names, frames):
+        frame_pose[name] = f
+    for j in plan.path:
+        body[j.child] = names[at[j.child]] if at[j.child] else body[j.parent]
     rows = []
-    for i, j in enumerate(moving):
+    for i, j in enumerate(plan.moving):
         theta, d, a, alpha = _dh_row(frames[i], frames[i + 1], convention)
-        row = {'frame': dh_names[i + 1]}
+        row = {'frame': names[i + 1]}
         if j.kind == 'prismatic':
             row['type'] = 'prismatic'
         if j.mimic is not None:
-            row['mimic'] = {'joint': j.mimic[0], 'multiplier': j.mimic[1],
-                            'offset': j.mimic[2]}
+            source, multiplier, offset = _mimic_source(tree, j, published)
+            row['mimic'] = {'joint': source, 'multiplier': multiplier, 'offset': offset}
         else:
             row['joint'] = j.name
         row.update(theta=theta, d=d, a=a, alpha=alpha)
@@ -537,83 +746,13 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
         note = (f'URDF joint {j.name} ({j.kind}{", mimic" if j.mimic else ""}): '
                 f'{j.parent} -> {j.child}; axis {kinds[i]}{" to the previous" if i else ""}')
         rows.append((row, note))
-    if not moving:
-        rows.append(({'frame': dh_names[1], 'type': 'fixed', 'theta': 0.0, 'd': 0.0, 'a': 0.0,
+    if not plan.moving:
+        rows.append(({'frame': names[1], 'type': 'fixed', 'theta': 0.0, 'd': 0.0, 'a': 0.0,
                       'alpha': 0.0}, 'no moving joint: a fixed row (every link is static)'))
-
-    # every link of the chain and everything hanging off it: fixed, mimic or with a joint
-    # of its own (a side branch, optional in joint states); a mimic of a joint that is not
-    # published is skipped, so the walk repeats until that settles
-    sources = chain_names | {j.name for j in tree.joints.values()
-                             if j.kind in MOVING and j.mimic is None}
-    while True:
-        links, skipped, owned = _walk_links(tree, base, path, pose, body, frames, dh_names,
-                                            sources)
-        if sources == chain_names | owned:
-            break
-        sources = chain_names | owned
-    end_effector = tip
-    if not moving:  # the fixed frame cannot be the end effector: the deepest link
-        end_effector = links[-1][0]['frame'] if links else dh_names[1]
-    text = _yaml(tree, source, base, tip, convention, frames[0], dh_names, rows, links,
-                 skipped, end_effector)
-    parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here
-    warnings = ()
-    loose = [j for j in skipped if j.kind in ('floating', 'planar')]
-    if loose:
-        warnings += (f'{source}: {len(loose)} floating or planar joint(s) get no transform, as '
-                     f'in robot_state_publisher (their links are not on TF): '
-                     f'{_listing([_comment(j.name)[:80] for j in loose], 5)}',)
-    equal = [t for t in longest_chain_tips(tree, base) if t not in (None, tip)] \
-        if chose_tip else []
-    if equal:
-        warnings += (f'{source}: {len(equal) + 1} chains of equal length below {base!r}: the '
-                     f'DH chain ends at {tip!r} (the first in the URDF), '
-                     f'{_listing([_comment(t)[:80] for t in equal], 5)} are side branches, '
-                     f'published once joint states name their joints (another: {options[1]})',)
-    if tree.slashed:
-        shown = ', '.join(_comment(n)[:80] for n in tree.slashed[:5])
-        more = f' and {len(tree.slashed) - 5} more' if len(tree.slashed) > 5 else ''
-        warnings += (f'{source}: link names with a leading slash are published without it, '
-                     f'as tf2 strips it: {shown}{more}',)
-    return Conversion(text, base, tip, tuple(skipped), warnings)
-
-
-def _walk_links(tree, base, path, pose, body, frames, dh_names, sources):
-    """
-    Return ``(links entries, skipped joints, own joints)`` of everything below ``base``.
-
-    ``sources``: the joints a mimic joint may follow to be published.
-    """
-    pose, body = dict(pose), dict(body)
-    links, skipped, owned = [], [], set()
-    order = [base]
-    path_names = {j.name for j in path}
-    for link in order:
-        for j in tree.children.get(link, []):
-            on_path = j.name in path_names
-            usable = True
-            if on_path:
-                pass
-            elif j.kind == 'fixed':
-                pose[j.child] = pose[link] @ j.origin
-                body[j.child] = body[link]
-            elif j.kind in MOVING and (j.mimic is None or j.mimic[0] in sources):
-                pose[j.child] = pose[link] @ j.origin
-                body[j.child] = j.name       # a rigid body of its own
-                usable = j.mimic is not None or JOINT_NAME.fullmatch(j.name) is not None
-            else:
-                usable = False
-            if usable and not on_path:
-                usable = len(j.child) <= MAX_NAME_CHARS and TF_FRAME_ID.fullmatch(j.child)
-            if not usable:
-                skipped.append(j)
-                continue
-            if j.kind in MOVING and not on_path and j.mimic is None:
-                owned.add(j.name)
-            order.append(j.child)
-            links.append(_link_entry(j, link, pose, body, frames, dh_names, base, on_path))
-    return links, skipped, owned
+    base_offset = np.linalg.solve(frame_pose[parent], frames[0]) if parent in frame_pose \
+        else frames[0]
+    return {'parent': parent, 'base': base_offset, 'names': names, 'rows': rows,
+            'plan': plan}
 
 
 def tree_joint(tree, name):
@@ -624,39 +763,18 @@ def tree_joint(tree, name):
     return joint
 
 
-def _link_entry(joint, parent_link, pose, body, frames, dh_names, base, on_path):
-    """One ``links`` entry: the child link of ``joint``, in the DH frame it moves with."""
+def _link_entry(joint, pose, body, frame_pose):
+    """One ``links`` entry: the child link of ``joint``, fixed to the DH frame it moves with."""
     child = joint.child
-    entry = {'frame': child}
-    if isinstance(body[child], str):  # on a side branch: posed in its URDF parent
-        entry['parent'] = parent_link
-        offset = joint.origin
-        if joint.kind in MOVING:
-            entry['type'] = 'revolute' if joint.kind != 'prismatic' else 'prismatic'
-            entry['axis'] = joint.axis.tolist()
-            if joint.mimic is not None:
-                entry['mimic'] = {'joint': joint.mimic[0], 'multiplier': joint.mimic[1],
-                                  'offset': joint.mimic[2]}
-            else:
-                entry['joint'] = joint.name
-                if joint.kind != 'continuous' and joint.lower is not None:
-                    entry['limits'] = [joint.lower, joint.upper]
-                if joint.velocity is not None and joint.velocity > 0:
-                    entry['max_velocity'] = joint.velocity
-    elif body[child] == 0:
-        entry['parent'] = base
-        offset = pose[child]
-    else:
-        k = body[child]
-        entry['parent'] = dh_names[k]
-        offset = np.linalg.solve(frames[k], pose[child])
-    if entry['parent'] != parent_link:
-        entry['tf_parent'] = parent_link
+    entry = {'frame': child, 'parent': body[child]}
+    if entry['parent'] != joint.parent:
+        entry['tf_parent'] = joint.parent
+    offset = np.linalg.solve(frame_pose[body[child]], pose[child])
     entry['xyz'] = offset[:3, 3].tolist()
     w, x, y, z = quat_from_matrix(offset[:3, :3])
     entry['quaternion'] = [x, y, z, w]
     note = (f'URDF link {child}: child of {joint.name} ({joint.kind}'
-            f'{", mimic" if joint.mimic else ""}) on {parent_link}')
+            f'{", mimic" if joint.mimic else ""}) on {joint.parent}')
     return entry, note
 
 
@@ -669,13 +787,21 @@ def _why_skipped(joint):
     return 'a name this package cannot publish'
 
 
-def _dh_frame_names(count, taken):
-    """``dh0``, ``dh1``... (``dh_0``... if the URDF already has such links)."""
-    for pattern in ('dh{}', 'dh_{}', 'dq_fk_dh{}'):
+def _dh_frame_names(count, taken, tip='', chain=0):
+    """
+    Name the DH frames of a chain: ``dh0``, ``dh1``... for the first, ``<tip>_dh0``... else.
+
+    Names the URDF (or an earlier chain) already uses, or too long, get another pattern
+    (the last: ``dq_fk_chain<chain>_dh0``...).
+    """
+    patterns = ('dh{}', 'dh_{}', 'dq_fk_dh{}') if not tip else \
+        (tip + '_dh{}', tip + '_dh_{}', tip + '_dq_fk_dh{}', f'dq_fk_chain{chain}_dh{{}}')
+    for pattern in patterns:
         names = [pattern.format(k) for k in range(count)]
-        if not taken.intersection(names):
+        if not taken.intersection(names) and all(len(n) <= MAX_NAME_CHARS for n in names):
             return names
-    raise RobotDescriptionError('the URDF uses every DH frame name dq_fk would give')
+    raise RobotDescriptionError(f'the URDF uses every DH frame name dq_fk would give '
+                                f'({patterns[0].format(0)[:80]}...)')
 
 
 def _check_frame(link, source):
@@ -716,15 +842,21 @@ def _comment(text):
     return printable_line(text, 300)
 
 
-def _yaml(tree, source, base, tip, convention, frame0, dh_names, rows, links, skipped,
-          end_effector):
-    w, x, y, z = quat_from_matrix(frame0[:3, :3])
+def _transform(frame, m):
+    w, x, y, z = quat_from_matrix(m[:3, :3])
+    return _flow({'frame': frame, 'xyz': m[:3, 3].tolist(), 'quaternion': [x, y, z, w]})
+
+
+def _yaml(tree, source, base, tip, convention, chains, links, skipped, end_effector):
+    first = chains[0]['names']
+    more = f' and {len(chains) - 1} more chains' if len(chains) > 1 else ''
     lines = [
         f'# Converted by `dq_fk from-urdf` from {_comment(source)}: the chain {_comment(base)} '
-        f'-> {_comment(tip)}.',
+        f'-> {_comment(tip)}{more}.',
         f'# {convention} DH frames on the joint axes by their common normals (docs/'
         f'robot_description.md, "From a URDF"); the DH frames are published as '
-        f'{dh_names[0]}..{dh_names[-1]}, the URDF links under their URDF parents.',
+        f'{first[0]}..{first[-1]}' + (' (<tip>_dh0... for the other chains)' if more else '')
+        + ', the URDF links under their URDF parents.',
     ]
     for joint in skipped:
         lines.append(f'# skipped: side branch {_comment(joint.name)} ({joint.kind}) -> '
@@ -732,13 +864,28 @@ def _yaml(tree, source, base, tip, convention, frame0, dh_names, rows, links, sk
     lines += [
         f'robot: {json.dumps(_comment(tree.name)[:128])}',
         f'convention: {convention}',
-        f'fixed_frame: {base}',
-        '# frame 0 of the DH chain, in the base link',
-        'base: ' + _flow({'frame': dh_names[0], 'xyz': frame0[:3, 3].tolist(),
-                          'quaternion': [x, y, z, w]}),
-        'chain:']
-    for row, note in rows:
-        lines += [f'  # {_comment(note)}', f'  - {_flow(row)}']
+        f'fixed_frame: {base}']
+
+    def rows(chain, indent):
+        out = []
+        for row, note in chain['rows']:
+            out += [f'{indent}# {_comment(note)}', f'{indent}- {_flow(row)}']
+        return out
+
+    if len(chains) == 1:
+        lines += ['# frame 0 of the DH chain, in the base link',
+                  'base: ' + _transform(first[0], chains[0]['base']), 'chain:']
+        lines += rows(chains[0], '  ')
+    else:
+        lines.append('chains:')
+        for chain in chains:
+            plan = chain['plan']
+            lines += [f'  # from {_comment(plan.anchor)} to {_comment(plan.tip)}; frame 0 in '
+                      f'{_comment(chain["parent"])}',
+                      f'  - parent: {json.dumps(chain["parent"])}',
+                      '    base: ' + _transform(chain['names'][0], chain['base']),
+                      '    chain:']
+            lines += rows(chain, '      ')
     if links:
         lines.append('links:')
         for entry, note in links:

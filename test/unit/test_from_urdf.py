@@ -126,12 +126,15 @@ def test_z1_gripper_is_a_side_branch_with_an_optional_joint():
         os.path.join(robots_dir(), 'z1_description/urdf/z1.urdf'), tip='link06')
     model = parse_robot_description(conversion.text)
     assert conversion.skipped == ()
-    assert model.optional_joints == ('jointGripper',)
     assert model.joint_names[-1] == 'jointGripper' and model.chain.dof == 6
+    assert [b.parent for b in model.branches] == ['dh6']  # the gripper: a chain on link06's
     mover = model.frame_names.index('gripperMover')
     assert model.moving[mover] and model.parent_frames[mover] == 'gripperStator'
-    assert model.frame_needs[mover] == frozenset({'jointGripper'})
-    assert model.frame_needs[model.frame_names.index('link06')] == frozenset()
+    # the gripper's links on TF once its joint is named; their poses need the arm's too
+    assert model.edge_needs[mover] == frozenset({'jointGripper'})
+    assert model.frame_needs[mover] == frozenset(model.joint_names)
+    assert model.frame_needs[model.frame_names.index('link06')] == \
+        frozenset(model.chain.joint_names)
     assert_matches_pinocchio(model, text, conversion.base, 200)
 
 
@@ -202,11 +205,12 @@ def test_round_trip_of_every_shipped_robot(name, convention):
     original = load_robot_description(shipped_robot_path(name))
     conversion = urdf_to_description(robot_to_urdf(original), name, convention=convention)
     again = parse_robot_description(conversion.text)
-    assert again.joint_names == original.joint_names
+    assert sorted(again.joint_names) == sorted(original.joint_names)
     assert set(original.frame_names) <= set(again.frame_names)
     qs = random_configurations(original, 500, seed=3)
     before = homogeneous_from_dq(original.forward_all_batch(qs))
-    after = homogeneous_from_dq(again.forward_all_batch(qs))
+    after = homogeneous_from_dq(again.forward_all_batch(
+        qs[:, [original.joint_names.index(n) for n in again.joint_names]]))
     for k, frame in enumerate(original.frame_names):
         np.testing.assert_allclose(after[:, again.frame_names.index(frame)], before[:, k],
                                    rtol=0, atol=1e-12, err_msg=frame)
@@ -404,9 +408,14 @@ def test_a_side_branch_mimicking_a_side_branch_joint_moves_with_it():
         '<limit lower="-0.04" upper="0" effort="1" velocity="0.1"/></joint>\n</robot>\n')
     conversion = urdf_to_description(text, tip='l3')
     model = parse_robot_description(conversion.text)
-    assert conversion.skipped == () and model.optional_joints == ('grip',)
+    # a tree: the arm, and each jaw a chain of its own; the mirror jaw's row mimics grip
+    assert conversion.skipped == () and len(model.branches) == 2
+    assert model.joint_names == ('j1', 'j2', 'j3', 'grip') and model.required_joints == ()
     assert model.limits[-1].tolist() == [0.0, 0.04] and model.max_velocity[-1] == 0.1
+    assert model.branches[1].external == ('grip',)
     assert {'jaw_a', 'jaw_b'} <= set(model.frame_names)
+    jaw_b = model.frame_names.index('jaw_b')
+    assert model.edge_needs[jaw_b] == frozenset({'grip'})
     assert_matches_pinocchio(model, text, 'base', 200)
 
 
@@ -485,7 +494,7 @@ def test_a_continuous_side_branch_without_limits():
         '<child link="spinner"/><origin xyz="0 0 0.1"/><axis xyz="0 0 1"/></joint>\n'
         '</robot>\n')
     model = parse_robot_description(urdf_to_description(text, tip='l3').text)
-    assert model.optional_joints == ('spin',)
+    assert model.joint_names[-1] == 'spin' and len(model.branches) == 1
     assert model.limits[-1].tolist() == [-math.inf, math.inf]
     assert model.max_velocity[-1] == math.inf
 
@@ -722,8 +731,9 @@ def test_every_tool_spells_base_and_tip_alike_and_messages_name_its_option(capsy
         urdf_to_description(two_roots, 'v.urdf')
     with pytest.raises(RobotDescriptionError, match='choose one with urdf_base_link$'):
         urdf_to_description(two_roots, 'v.urdf', options=NODE_OPTIONS)
-    assert urdf_to_description(text, 'v.urdf', options=NODE_OPTIONS).warnings[0].endswith(
-        'published once joint states name their joints (another: urdf_tip_link)')
+    # two equally long chains: both published, no option needed
+    both = parse_robot_description(urdf_to_description(text, 'v.urdf').text)
+    assert {'l', 'r'} <= set(both.frame_names) and sorted(both.joint_names) == ['jl', 'jr']
     with pytest.raises(RobotDescriptionError, match="urdf_base_link 'x' is not a link"):
         urdf_to_description(text, 'v.urdf', base='x', options=NODE_OPTIONS)
     import tempfile
