@@ -2,17 +2,17 @@
 End to end over DDS: a raw JointState publisher -> dq_fk_node -> a raw /tf subscriber.
 
 Three processes on loopback. The publisher (this script with ``--publish``) sends
-pre-serialized RL15 joint states, stamped at sending, at a fixed rate; this script
-subscribes to /tf as a tf2 listener would (reliable; but depth 1000, not a listener's 100:
-a stall of this script is not the node's loss) without building message objects, so that
-the figures measure the node (node on CPU 1, publisher on CPU 0 with ``taskset``, this
-subscriber where the scheduler puts it). For each rate and repetition it
-prints: updates sent, the node's published updates and the joint states it counted lost
-at its input (``updates_lost``), /tf messages received, lost, latency from the JointState
-stamp to arrival (p50, p99, max), the node's CPU use (share of one core) from the first
-/tf message received to the last, split by thread (the input thread, Fast DDS's threads,
-the rest), and the major page faults of the node and of this subscriber during the run
-(all from /proc).
+pre-serialized joint states of ``--robot`` (RL15 by default; every joint in one message),
+stamped at sending, at a fixed rate; this script subscribes to /tf as a tf2 listener would
+(reliable; but depth 1000, not a listener's 100: a stall of this script is not the node's
+loss) without building message objects, so that the figures measure the node (node on
+CPU 1, publisher on CPU 0 with ``taskset``, this subscriber where the scheduler puts it).
+For each rate and repetition it prints: updates sent, the node's published updates and the
+joint states it counted lost at its input (``updates_lost``), /tf messages received, lost,
+latency from the JointState stamp to arrival (p50, p99, max), the node's CPU use (share of
+one core) from the first /tf message received to the last, split by thread (the input
+thread, Fast DDS's threads, the rest), and the major page faults of the node and of this
+subscriber during the run (all from /proc).
 
 ``--capacity S``: a flood instead. The publisher sends as fast as it can for S seconds
 (best effort, the node's default input), the node publishes every output
@@ -101,17 +101,22 @@ def pinned(argv, core):
 
 
 # -- the publisher process ----------------------------------------------------------------
-def publish(rate_hz, count, reliable):
+def publish(rate_hz, count, reliable, robot='rl15'):
     """Send ``count`` pre-serialized joint states at ``rate_hz`` (0: as fast as possible)."""
+    from dq_fk_ros.description.loading import load_robot
+    model = load_robot(robot).model
+    names = list(model.joint_names)
+    # a sine trajectory within the limits (+-0.8 rad or m where there are none), all joints
+    limits = np.clip(model.limits, -0.8, 0.8)
+    middle, half = limits.mean(axis=1), 0.5 * (limits[:, 1] - limits[:, 0])
     rclpy.init(args=LOG)
     node = rclpy.create_node('dq_fk_bench_publisher')
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE if reliable
                      else ReliabilityPolicy.BEST_EFFORT)
     pub = node.create_publisher(JointState, 'joint_states', qos)
-    names = [f'joint_{i}' for i in range(1, 7)]
     frames = []
-    for k in range(500):  # a sine trajectory, serialized once
-        q = 0.8 * np.sin(np.arange(1, 7) * k * 0.01)
+    for k in range(500):  # serialized once
+        q = middle + half * np.sin(np.arange(1, len(names) + 1) * k * 0.01)
         frames.append(bytearray(serialize_message(JointState(name=names, position=q.tolist()))))
     deadline = time.monotonic() + 20
     while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
@@ -141,9 +146,9 @@ def start_node(params=()):
     return subprocess.Popen(pinned(argv, 1), start_new_session=True)
 
 
-def start_publisher(rate_hz, count, reliable):
+def start_publisher(rate_hz, count, reliable, robot='rl15'):
     argv = [sys.executable, os.path.abspath(__file__), '--publish', str(rate_hz), str(count),
-            '1' if reliable else '0']
+            '1' if reliable else '0', '--robot', robot]
     return subprocess.Popen(pinned(argv, 0), start_new_session=True)
 
 
@@ -159,9 +164,10 @@ def stop(*procs):
                 proc.kill()
 
 
-def run_rate(rate_hz, seconds, reliable, extra=()):
+def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
     """One run at ``rate_hz``; returns a dict of figures."""
-    params = (['joint_states_reliability:=reliable'] if reliable else []) + list(extra)
+    params = (['joint_states_reliability:=reliable'] if reliable else []) + list(extra) + \
+        [f'robot_description_file:={robot}']
     node_proc = start_node(params)
     rclpy.init(args=LOG)
     probe = rclpy.create_node('dq_fk_bench_e2e')
@@ -202,7 +208,7 @@ def run_rate(rate_hz, seconds, reliable, extra=()):
             if time.monotonic() > deadline:
                 raise RuntimeError('dq_fk_node did not come up within 20 s')
             executor.spin_once(timeout_sec=0.05)
-        pub_proc = start_publisher(rate_hz, total, reliable)
+        pub_proc = start_publisher(rate_hz, total, reliable, robot)
         faults_start = major_faults(node_proc.pid), major_faults(os.getpid())
         deadline = time.monotonic() + seconds * 3 + 20
         last_count, quiet_since = 0, time.monotonic()
@@ -290,6 +296,8 @@ def main(argv=None):
                         help="the node's input_batch_ms parameter (default: its default)")
     parser.add_argument('--capacity', type=float, default=10.0, metavar='S',
                         help='seconds of flood for the capacity figure (0: skip)')
+    parser.add_argument('--robot', default='rl15',
+                        help='the robot: a shipped name, a DH file or a URDF (default rl15)')
     parser.add_argument('--publish', nargs=3, metavar=('RATE', 'COUNT', 'RELIABLE'),
                         help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -297,7 +305,7 @@ def main(argv=None):
         from rclpy._rclpy_pybind11 import RCLError
         try:
             return publish(float(args.publish[0]), int(args.publish[1]),
-                           args.publish[2] == '1')
+                           args.publish[2] == '1', args.robot)
         except (KeyboardInterrupt, RCLError):  # the flood ends with SIGINT (context gone)
             return 0
     extra = [f'input_thread:={args.input_thread}']
@@ -309,9 +317,9 @@ def main(argv=None):
     # 250 ms in one run of three on this project's machines (the node lost nothing then)
     gc.freeze()  # its own garbage collection stays out of the latencies
     gc.disable()
-    rows = [run_rate(rate, args.seconds, rate >= 5000, extra) for rate in args.rates
+    rows = [run_rate(rate, args.seconds, rate >= 5000, extra, args.robot) for rate in args.rates
             for _ in range(args.repeat)]
-    print(f'# end to end: raw publisher -> dq_fk_node -> raw /tf subscriber, RL15, '
+    print(f'# end to end: raw publisher -> dq_fk_node -> raw /tf subscriber, {args.robot}, '
           f'{args.seconds:g} s per run, {os.cpu_count()} CPUs, loopback; node on CPU 1, '
           f'publisher on CPU 0 (taskset), this subscriber unpinned; nothing else running; '
           f'input_thread:={args.input_thread}'

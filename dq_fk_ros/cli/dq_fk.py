@@ -134,9 +134,10 @@ def cmd_validate(args):
             failed += 1
             continue
         model = robot.model
-        print(f'{path}: ok ({model.name}, {model.chain.convention} DH, '
-              f'{len(model.chain.joints)} rows, {model.chain.dof} joints, '
-              f'{len(model.frame_names)} frames)')
+        rows = sum(len(chain.joints) for _, chain, _ in model.chains)
+        chains = f'{len(model.chains)} chains, ' if model.branches else ''
+        print(f'{path}: ok ({model.name}, {model.chain.convention} DH, {chains}'
+              f'{rows} rows, {model.dof} joints, {len(model.frame_names)} frames)')
         if robot.conversion is not None:
             print(f'  {robot.summary()}')
         for line in robot.warnings:
@@ -250,7 +251,7 @@ def cmd_from_urdf(args):
 def cmd_list(args):
     for name in shipped_robots():
         model = load_robot_description(shipped_robot_path(name))
-        print(f'{name:20s} {model.chain.dof} joints  {shipped_robot_path(name)}')
+        print(f'{name:20s} {model.dof} joints  {shipped_robot_path(name)}')
     return 0
 
 

@@ -3,9 +3,13 @@ A DH robot description from a URDF: ``dq_fk from-urdf`` and the node's URDF inpu
 
 Plain Python (xml.etree, numpy; ``xacro`` from PyPI for ``.xacro`` files), no ROS.
 
-The serial chain from ``base`` to ``tip`` is read at zero joint values: every moving joint
-is a line in space (its axis through its origin). The DH frames are built on those lines
-by their common normals ([Radavelli2014] Sec. 2, Spong's or Craig's rules):
+The whole tree below ``base`` becomes DH chains: the first from ``base`` to ``tip`` (default:
+the end of the longest chain), then, walking the URDF parents first, every moving joint not
+yet on a chain starts one that follows the longest path of moving joints below it, hanging
+from the DH frame its first joint's parent moves with. Each chain is read at zero joint
+values: every moving joint is a line in space (its axis through its origin). The DH frames
+are built on those lines by their common normals ([Radavelli2014] Sec. 2, Spong's or
+Craig's rules):
 
 * skew axes: the unique common normal; ``x`` points from one axis to the next;
 * intersecting axes: ``x = z_prev x z_next`` through the intersection (``a = 0``);
@@ -17,13 +21,13 @@ by their common normals ([Radavelli2014] Sec. 2, Spong's or Craig's rules):
   previous one's axes (``a_n = alpha_n = 0``); in modified DH frame 0 is frame 1 at zero.
 
 ``z`` always points along the URDF axis, so every row has ``scale: 1``; a row's zero value
-(``theta`` or ``d``) is its offset at the URDF's zero. The base transform places frame 0 in
-the base link; every URDF link of the chain, and every link fixed to it, becomes a
-``links`` entry (its pose in the DH frame it moves with, published under its URDF parent),
-so TF carries the URDF's own tree. A moving side branch (a gripper) becomes moving links:
-a mimic joint moves with the joint it follows, any other joint is a joint of its own that
-joint states may name (optional: its links are published once they do). Floating and
-planar joints, and mimics of joints that are not published, are skipped and named.
+(``theta`` or ``d``) is its offset at the URDF's zero.
+The base transform places frame 0 in its parent; every URDF link becomes a ``links``
+entry (its pose in the DH frame it moves with, published under its URDF parent), so TF
+carries the URDF's own tree. A mimic joint is a mimic row (chains of mimics followed to
+their source). A chain is split where two axes are so nearly parallel that their common
+normal lies :data:`FAR_NORMAL_M` away. Floating and planar joints (and what is below them),
+and mimics of joints that are not published, are skipped and named.
 """
 
 from dataclasses import dataclass

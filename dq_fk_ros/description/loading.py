@@ -12,8 +12,8 @@ import os
 from dq_fk_ros.description.from_urdf import (
     load_urdf_description, OPTIONS, read_urdf_text, urdf_to_description)
 from dq_fk_ros.description.robot_model import (
-    load_robot_description, parse_robot_description, printable_line, RobotDescriptionError,
-    shipped_robot_path, shipped_robots)
+    _listing, load_robot_description, parse_robot_description, printable_line,
+    RobotDescriptionError, shipped_robot_path, shipped_robots)
 from dq_fk_ros.description.xacro_sandbox import ros_package_roots, TIME_LIMIT_S
 
 URDF_SUFFIXES = ('.urdf', '.xacro')
@@ -50,14 +50,21 @@ class LoadedRobot:
         skipped = ', '.join(f'{printable_line(j.name, 80)} -> {printable_line(j.child, 80)}'
                             for j in c.skipped)
         skipped = f'; skipped side branches: {skipped}' if skipped else ''
-        optional = (f'; optional side-branch joints: {", ".join(self.model.optional_joints)}'
-                    if self.model.optional_joints else '')
+        model = self.model
+        optional = (f'; optional side-branch joints: {_listing(model.optional_joints, 10)}'
+                    if model.optional_joints and not model.branches else '')
         if not self.model.dof:
             return (f'converted URDF {self.model.source}: no moving joint below {c.base}: '
                     f'{len(self.model.links)} URDF links, all static (/tf_static only)')
-        return (f'converted URDF {self.model.source}: chain {c.base} -> {c.tip}, '
-                f'{len(self.model.chain.joints)} DH rows ({self.model.chain.convention}), '
-                f'{len(self.model.links)} URDF links{optional}{skipped}')
+        if model.branches:
+            rows = sum(len(chain.joints) for _, chain, _ in model.chains)
+            return (f'converted URDF {model.source}: {len(model.chains)} DH chains from {c.base} '
+                    f'(the first to {c.tip}), {rows} DH rows ({model.chain.convention}), '
+                    f'{len(model.links)} URDF links; each transform published once joint '
+                    f'states name its joints{skipped}')
+        return (f'converted URDF {model.source}: chain {c.base} -> {c.tip}, '
+                f'{len(model.chain.joints)} DH rows ({model.chain.convention}), '
+                f'{len(model.links)} URDF links{optional}{skipped}')
 
 
 def resolve_robot(spec):

@@ -1,5 +1,5 @@
 """
-The robot description: one YAML file per serial chain, validated into a :class:`RobotModel`.
+The robot description: one YAML file per robot (a DH chain or a tree of them), validated.
 
 Plain Python (PyYAML + numpy), no ROS. The file format is documented in
 ``docs/robot_description.md``; in short::
@@ -15,6 +15,8 @@ Plain Python (PyYAML + numpy), no ROS. The file format is documented in
     tool: {frame: tcp, xyz: [0, 0, 100], quaternion: [0, 0, 0, 1]}   # x y z w
     links:                      # named frames fixed to the others (URDF links, sensors)
       - {frame: flange, parent: tcp, xyz: [0, 0, 10], rpy: [0, 0, 0]}
+
+or, for a tree, ``chains: [{parent, base, chain, tool}, ...]`` instead of base/chain/tool.
 
 Every length and angle in the file is in the file's ``units``; the model holds metres and
 radians only (REP 103). Any mistake raises :class:`RobotDescriptionError` with a single

@@ -131,6 +131,11 @@ class JointStateMerger:
         return tuple(n for n, s in zip(self.joint_names[:self.required], self._seen) if not s)
 
     @property
+    def never_seen_any(self):
+        """Name every joint, required or optional, that no accepted message has given yet."""
+        return tuple(n for n, s in zip(self.joint_names, self._seen) if not s)
+
+    @property
     def seen_optional(self):
         """Name the optional joints an accepted message gave a value (since the last reset)."""
         n = self.required

@@ -615,7 +615,9 @@ class DqFkNode(Node):
     def diagnostics(self):
         """Return the node's counters as one DiagnosticStatus."""
         counts = self._merger.counts
-        never_seen = self._merger.never_seen
+        # a tree waits for no joint: its transforms wait for theirs, so every joint counts
+        never_seen = self._merger.never_seen_any if self._model.branches else \
+            self._merger.never_seen
         age = ('never' if self._last_update_ns is None else
                f'{(self.get_clock().now().nanoseconds - self._last_update_ns) / 1e9:.3f}')
         values = {'robot': self._model.name,

@@ -114,6 +114,36 @@ def test_missing_joints_hold_publishing_back(ros):
     assert ros.spin_until(lambda: poses, publish=rest)
 
 
+def test_a_tree_publishes_each_chain_when_its_joints_arrive_and_a_mimic_with_its_source(ros):
+    """config/dual_arm.yaml: an arm, then the gripper (one joint, the other finger a mimic)."""
+    node = ros.start_node(robot_description_file='dual_arm')
+    tf = ros.listen(TFMessage, '/tf', 100)
+    static = ros.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+
+    def children():
+        return [t.child_frame_id for t in tf[-1].transforms] if tf else []
+    arm = ros.joint_state(['left_shoulder_pitch', 'left_elbow', 'left_wrist_roll'],
+                          [0.1, 0.2, 0.3])
+    assert ros.spin_until(lambda: 'left_wrist' in children(), publish=arm)
+    assert children() == ['left_upper_arm', 'left_forearm', 'left_wrist']
+    status = {v.key: v.value for v in node.diagnostics().values}
+    assert status['joints_never_seen'] == ('waist, right_shoulder_pitch, right_elbow, '
+                                           'right_wrist_roll, left_gripper')
+    grip = ros.joint_state(['left_gripper'], [0.03])
+    assert ros.spin_until(lambda: 'left_finger_b' in children(), publish=grip)
+    assert children() == ['left_upper_arm', 'left_forearm', 'left_wrist', 'left_finger_a',
+                          'left_finger_b']
+    transforms = {t.child_frame_id: t for t in tf[-1].transforms}
+    for finger in ('left_finger_a', 'left_finger_b'):  # d = 0.01 m + the gripper's 0.03 m
+        t = transforms[finger].transform
+        assert (t.translation.x, t.translation.y, t.translation.z) == pytest.approx(
+            (0.0, 0.0, 0.04), abs=1e-12)
+    assert 'waist' in {v.value for v in node.diagnostics().values
+                       if v.key == 'joints_never_seen'}.pop()
+    assert {t.child_frame_id for t in static[-1].transforms} >= {
+        'pedestal', 'left_shoulder', 'right_shoulder', 'left_tcp', 'head_camera'}
+
+
 def test_reload_with_a_bad_file_keeps_the_old_model(ros, tmp_path):
     node = ros.start_node(robot_description_dirs=str(tmp_path))
     bad = tmp_path / 'bad.yaml'

@@ -11,6 +11,7 @@ import os
 import xml.etree.ElementTree as ElementTree
 
 from builtin_interfaces.msg import Time
+from dq_fk_ros.description.loading import load_robot
 import homogeneous_tf as htf
 import numpy as np
 import pinocchio_oracle as oracle
@@ -19,7 +20,7 @@ from rclpy.parameter import Parameter
 from ros_harness import Harness, TF_STATIC_QOS
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
-from vendor_urdfs import PANDA, UR5, vendor_path, vendor_robot, Z1
+from vendor_urdfs import PANDA, robots_dir, UR5, vendor_path, vendor_robot, Z1
 
 pytestmark = pytest.mark.integration
 
@@ -143,7 +144,7 @@ def test_publish_frequency_throttles_by_stamps_unless_ignore_timestamp(ros_domai
 def test_a_side_branch_joint_is_published_once_joint_states_name_it(ros_domain_id):
     robot = vendor_robot(Z1)
     model = robot.model
-    assert model.optional_joints == ('jointGripper',)
+    assert model.joint_names[-1] == 'jointGripper' and len(model.branches) == 1
     chain = list(model.joint_names[:6])
     harness = Harness()
     try:
@@ -161,6 +162,60 @@ def test_a_side_branch_joint_is_published_once_joint_states_name_it(ros_domain_i
             t.child_frame_id == 'gripperMover' for t in tf[-1].transforms), publish=gripper)
         # the same tree as the vendor's URDF, gripper and all, by pinocchio
         check_tf_tree(harness, model, robot.urdf, np.random.default_rng(2), rounds=2)
+    finally:
+        harness.close()
+
+
+TIAGO = 'tiago_description/robots/tiago.urdf'
+
+
+def test_each_branch_of_a_mobile_manipulator_appears_when_its_joints_do(ros_domain_id):
+    """
+    Arm, then head, then hand controllers, each its own JointState, as robot_state_publisher.
+
+    TIAGo (example-robot-data): the torso and arm, the head and the hand are chains of the
+    tree; the wheels are never named, and never published.
+    """
+    robot = load_robot(os.path.join(robots_dir(), TIAGO))
+    model = robot.model
+    arm = ['torso_lift_joint'] + [f'arm_{k}_joint' for k in range(1, 8)]
+    head = ['head_1_joint', 'head_2_joint']
+    hand = ['hand_thumb_joint', 'hand_index_joint', 'hand_mrl_joint']
+    assert set(arm + head + hand) <= set(model.joint_names)
+    harness = Harness()
+    try:
+        harness.start_node(robot_description_file=os.path.join(robots_dir(), TIAGO))
+        tf = harness.listen(TFMessage, '/tf', 100)
+        static = harness.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+
+        def children():
+            return {t.child_frame_id for t in tf[-1].transforms} if tf else set()
+        values = dict(zip(arm, np.random.default_rng(5).uniform(0.0, 0.3, len(arm))))
+        state = harness.joint_state(arm, [values[n] for n in arm])
+        assert harness.spin_until(lambda: 'arm_7_link' in children(), publish=state)
+        seen = children()
+        assert {'torso_lift_link', 'arm_1_link', 'arm_7_link'} <= seen
+        assert not {'head_1_link', 'head_2_link', 'hand_thumb_link', 'wheel_left_link'} & seen
+        values.update(head_1_joint=0.4, head_2_joint=-0.3)
+        state = harness.joint_state(head, [0.4, -0.3])
+        assert harness.spin_until(lambda: 'head_2_link' in children(), publish=state)
+        assert 'arm_7_link' in children() and 'hand_thumb_link' not in children()
+        values.update(hand_thumb_joint=0.5, hand_index_joint=0.6, hand_mrl_joint=0.7)
+        state = harness.joint_state(hand, [0.5, 0.6, 0.7])
+        assert harness.spin_until(lambda: 'hand_thumb_link' in children(), publish=state)
+        assert 'wheel_left_link' not in children()  # never named: never on /tf
+        # each link published (under its URDF parent) is where pinocchio puts it
+        transforms = static[-1].transforms + tf[-1].transforms
+        parents = urdf_parents(robot.urdf)
+        pin_model = oracle.urdf_model(robot.urdf)
+        pin_q = oracle.configuration(pin_model, values)
+        links = sorted(children() & set(parents))
+        expected = oracle.link_placements(pin_model, pin_q, links + [model.fixed_frame])
+        root = np.linalg.inv(expected[model.fixed_frame])
+        for link in links:
+            np.testing.assert_allclose(htf.compose(transforms, model.fixed_frame, link),
+                                       root @ expected[link], atol=1e-9, err_msg=link)
+            assert htf.parent_of(transforms, link) == parents[link], link
     finally:
         harness.close()
 
