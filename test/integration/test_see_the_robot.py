@@ -59,7 +59,13 @@ def test_every_urdf_link_resolves_in_tf_with_the_urdfs_own_kinematics(ros_domain
             assert harness.spin_until(lambda: static and tf and tf[-1].transforms[0].header
                                       .stamp == msg.header.stamp, publish=msg), robot
             transforms = static[-1].transforms + tf[-1].transforms
-            pin_q = oracle.configuration(pin_model, dict(zip(model.joint_names, q)))
+            values = dict(zip(model.joint_names, q))
+            for joint in ET.fromstring(urdf).iter('joint'):  # mimic joints, as the URDF says
+                mimic = joint.find('mimic')
+                if mimic is not None:
+                    values[joint.get('name')] = float(mimic.get('multiplier')) * \
+                        values[mimic.get('joint')] + float(mimic.get('offset'))
+            pin_q = oracle.configuration(pin_model, values)
             expected = oracle.link_placements(pin_model, pin_q, links)
             for link in links:
                 composed = htf.compose(transforms, model.fixed_frame, link)

@@ -66,10 +66,10 @@ def test_urdf_kinematics_equal_the_dh_chain(name):
     model = load_robot_description(shipped_robot_path(name))
     text = robot_to_urdf(model)
     rng = np.random.default_rng(8)
-    for q in rng.uniform(-2, 2, size=(30, model.chain.dof)):
+    for q in rng.uniform(-2, 2, size=(30, model.dof)):
         poses, root = urdf_link_poses(text, dict(zip(model.joint_names, q)))
         assert root == model.fixed_frame
-        expected = homogeneous_from_dq(model.chain.forward_all(q))
+        expected = homogeneous_from_dq(model.forward_all(q))  # every chain, every link
         for frame, m in zip(model.frame_names, expected):
             np.testing.assert_allclose(poses[frame], m, atol=1e-12)
 
