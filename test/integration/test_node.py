@@ -140,6 +140,7 @@ def test_a_tree_publishes_each_chain_when_its_joints_arrive_and_a_mimic_with_its
             (0.0, 0.0, 0.04), abs=1e-12)
     assert 'waist' in {v.value for v in node.diagnostics().values
                        if v.key == 'joints_never_seen'}.pop()
+    assert ros.spin_until(lambda: static)  # transient local: may come after /tf
     assert {t.child_frame_id for t in static[-1].transforms} >= {
         'pedestal', 'left_shoulder', 'right_shoulder', 'left_tcp', 'head_camera'}
 
