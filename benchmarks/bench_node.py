@@ -107,6 +107,8 @@ def main(argv=None):
             raws.append(serialize_message(msg))
         info = {'publication_sequence_number': None}
         update = lambda raw: node._on_joint_state(raw, info)  # noqa: E731
+        update(raws[0])  # every joint named: a tree's branches are all shown from now on
+        out = node._bytes
         cache = JointStateNames()
         qs = [np.array(m.position) for m in msgs]
         poses = [model.frame_poses(q) for q in qs]

@@ -416,12 +416,19 @@ class RobotModel:
         """
         Return the TF transforms of :meth:`frame_poses` alone (``relative``), at ``q``.
 
-        For one chain without links these are the DH rows' transforms, computed without the
-        absolute poses (about half the work); else :meth:`frame_poses` runs whole.
+        Computed without converting the absolute poses (for one chain without links, without
+        them at all: about half the work); the same values as :meth:`frame_poses`' to the
+        bit (``test_chains.py``).
         """
         if self.links or self.branches:
-            return self.frame_poses(q)[1]
+            return self._unrolled_transforms(joint_value_list(q, self.joint_names))[1]
         return self.chain.row_poses(q)
+
+    @cached_property
+    def _unrolled_transforms(self):
+        """:meth:`transform_poses` of a tree or links: ``frame_poses`` without the poses."""
+        return unrolled_frame_poses(self.chain, self._link_plan, _motion, self._branch_plan,
+                                    absolute=False)
 
     def forward_all(self, q):
         """Every frame of ``frame_names`` in the fixed frame: ``(n, 8)``, ``w >= 0``."""

@@ -221,15 +221,16 @@ def run_chain_program(chain, base, q, cos, sin):
     return frames
 
 
-def _chain_code(chain, q_index, first, keep):
+def _chain_code(chain, q_index, first, keep, mark=_MARK):
     """
     Write the straight-line code of one chain, starting from the frame 0 in ``aw..bz``.
 
     ``q_index``: where each chain variable is in ``q``; ``first``: the index of frame 0
-    among all frames (the names ``f<k>`` of kept frames); ``keep``: keep frames as ``f<k>``.
+    among all frames (the names ``f<k>`` of kept frames); ``keep``: keep frames as ``f<k>``;
+    ``mark``: the lines that append a frame's pose to ``absolute`` (none: not wanted).
     """
     r = repr
-    lines = list(_MARK)
+    lines = list(mark)
     if keep:
         lines.append(f'f{first} = ({_DQ})')
     modified = chain.convention == 'modified'
@@ -257,7 +258,7 @@ def _chain_code(chain, q_index, first, keep):
                 if p4:
                     lines += [f'c, s = {r(math.cos(0.5 * joint.alpha))}, '
                               f'{r(math.sin(0.5 * joint.alpha))}', _X_STEP]
-        lines += list(_MARK)
+        lines += list(mark)
         if keep:
             lines.append(f'f{first + i + 1} = ({_DQ})')
         if modified:
@@ -269,13 +270,13 @@ def _chain_code(chain, q_index, first, keep):
         lines += ['if qw < 0.0:', '    qx, qy, qz, qw = -qx, -qy, -qz, -qw',
                   'relative.append((x, y, z, qx, qy, qz, qw))']
     if chain._tool_t is not None:
-        lines += [f'{_DQ} = multiply(({_DQ}), {chain._tool_t!r})'] + list(_MARK)
+        lines += [f'{_DQ} = multiply(({_DQ}), {chain._tool_t!r})'] + list(mark)
         if keep:
             lines.append(f'f{first + chain.n_frames - 1} = ({_DQ})')
     return lines
 
 
-def unrolled_frame_poses(chain, links=(), motion=None, branches=()):
+def unrolled_frame_poses(chain, links=(), motion=None, branches=(), absolute=True):
     """
     Write and compile ``frame_poses`` as straight-line code for a chain (its branches, links).
 
@@ -292,12 +293,15 @@ def unrolled_frame_poses(chain, links=(), motion=None, branches=()):
     :param branches: the other chains of a tree, ``(chain, index of the frame it hangs from
         (-1: the fixed frame), index in q of each of its variables)``, in order; their
         frames follow the chain's, their rows' transforms its rows'.
+    :param absolute: False: the TF transforms alone (``absolute`` is returned empty; the
+        frames' poses are not converted, about a third less work for a tree).
     :returns: ``f(q_list) -> (absolute, relative)`` as ``frame_poses`` returns them; its
         source is ``f.source``.
     """
     keep = bool(links or branches)  # keep the frames the links and branches hang from
+    mark = _MARK if absolute else ()
     lines = ['def frame_poses(q):', 'absolute, relative = [], []', f'{_DQ} = {chain._base_t!r}']
-    lines += _chain_code(chain, range(chain.dof), 0, keep)
+    lines += _chain_code(chain, range(chain.dof), 0, keep, mark)
     n_frames = chain.n_frames
     for branch, parent, q_index in branches:
         if parent >= 0:
@@ -306,7 +310,7 @@ def unrolled_frame_poses(chain, links=(), motion=None, branches=()):
                                                              branch._base_t)) + ')']
         else:
             lines.append(f'{_DQ} = {branch._base_t!r}')
-        lines += _chain_code(branch, q_index, n_frames, keep)
+        lines += _chain_code(branch, q_index, n_frames, keep, mark)
         n_frames += branch.n_frames
     for j, (attach, tf_parent, offset, moves) in enumerate(links):
         k = n_frames + j
@@ -319,7 +323,7 @@ def unrolled_frame_poses(chain, links=(), motion=None, branches=()):
                       f'{_DQ} = (' + ', '.join(_product_code(_PARENT.split(', '), offset)) + ')']
         else:
             lines.append(f'{_DQ} = {dq_multiply_coeffs(_IDENTITY, offset)!r}')
-        lines += [f'f{k} = ({_DQ})'] + list(_MARK)
+        lines += [f'f{k} = ({_DQ})'] + list(mark)
         if tf_parent == attach:
             lines.append('relative.append(pose(o))' if moves is not None else
                          f'relative.append({pose_xyzw_from_coeffs(offset)!r})')

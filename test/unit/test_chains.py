@@ -92,6 +92,7 @@ def test_the_straight_line_code_of_a_tree_is_the_general_path_to_the_bit():
     model = dual_arm()
     for q in configurations(model, 50, seed=1):
         assert model.frame_poses(q) == model.frame_poses_general(q)
+        assert model.transform_poses(q) == model.frame_poses_general(q)[1]
     relative = model.relative_batch(configurations(model, 5, seed=2))
     assert relative.shape == (5, 9 + 1, 8)  # the rows, then the link
 
