@@ -96,6 +96,13 @@ bench: setup $(BENCH_VENV)/.stamp
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_e2e.py
 	@echo
+	@for robot in tiago_description/robots/tiago_dual.urdf talos_data/robots/talos_full_v2.urdf \
+	  solo_description/robots/solo12.urdf; do \
+	  ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_node.py --example-robot-data $$robot \
+	    --updates 500 --rounds 3 || exit 1; echo; done
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_e2e.py --example-robot-data \
+	  tiago_description/robots/tiago_dual.urdf --rates 1000 --repeat 2 --capacity 0
+	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_rclpy_floor.py
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_view.py

@@ -298,6 +298,8 @@ def main(argv=None):
                         help='seconds of flood for the capacity figure (0: skip)')
     parser.add_argument('--robot', default='rl15',
                         help='the robot: a shipped name, a DH file or a URDF (default rl15)')
+    parser.add_argument('--example-robot-data', metavar='PATH', help='a URDF of the '
+                        'example-robot-data wheel, e.g. tiago_description/robots/tiago_dual.urdf')
     parser.add_argument('--publish', nargs=3, metavar=('RATE', 'COUNT', 'RELIABLE'),
                         help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -308,6 +310,9 @@ def main(argv=None):
                            args.publish[2] == '1', args.robot)
         except (KeyboardInterrupt, RCLError):  # the flood ends with SIGINT (context gone)
             return 0
+    if args.example_robot_data:
+        from bench_node import example_robot_data  # (this folder)
+        args.robot = example_robot_data(args.example_robot_data)
     extra = [f'input_thread:={args.input_thread}']
     if args.qos_depth:
         extra.append(f'qos_depth:={args.qos_depth}')
@@ -346,15 +351,16 @@ def main(argv=None):
               'output published, node pinned to one core')
         print(f'sustained updates published: {rate:,.0f} per second, node CPU {cpu:.0f} % '
               f'of a core')
-    print_targets(rows, rate)
+    print_targets(rows, rate, args.robot == 'rl15')
     return 0
 
 
-def print_targets(rows, capacity_rate):
-    """Print the issue's targets beside the worst repetition measured (not asserted)."""
+def print_targets(rows, capacity_rate, rl15=True):
+    """Print the issues' targets beside the worst repetition measured (not asserted)."""
     def verdict(ok):
         return 'met' if ok else 'NOT met'
-    print('\n# targets (issue "A node with headroom"), worst repetition')
+    print('\n# targets (issues "A node with headroom" for the RL15, "Every robot" for a tree: '
+          'the 1 kHz row), worst repetition')
     at_1k = [r for r in rows if r['rate'] == 1000]
     if at_1k:
         lost = max(r['lost'] for r in at_1k)
@@ -362,7 +368,8 @@ def print_targets(rows, capacity_rate):
         cpu = max(r['cpu'] for r in at_1k)
         print(f'- 1 kHz: 0 lost and p99 < 5 ms in every repetition: lost {lost}, p99 '
               f'{p99:.2f} ms: {verdict(lost == 0 and p99 < 5.0)}')
-        print(f'- node CPU at 1 kHz <= 15 % of a core: {cpu:.1f} %: {verdict(cpu <= 15)}')
+        if rl15:
+            print(f'- node CPU at 1 kHz <= 15 % of a core: {cpu:.1f} %: {verdict(cpu <= 15)}')
     at_5k = [r for r in rows if r['rate'] == 5000 and r['reliable']]
     if at_5k:
         lost = max(r['lost'] for r in at_5k)

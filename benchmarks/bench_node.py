@@ -77,17 +77,32 @@ def wait_for(predicate, what, timeout_s=10.0):
         time.sleep(0.05)
 
 
+def example_robot_data(path):
+    """Return the file ``path`` of the example-robot-data wheel's ``robots`` folder."""
+    import glob
+    import sysconfig
+    found = glob.glob(os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share',
+                                   'example-robot-data', 'robots', path))
+    if not found:
+        sys.exit(f'no {path} in example-robot-data (pip install -r requirements/dev.txt)')
+    return found[0]
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--updates', type=int, default=4000, help='updates timed per round')
     parser.add_argument('--rounds', type=int, default=5, help='rounds per case')
     parser.add_argument('--robot', default='rl15', help='DH file, URDF or shipped name')
+    parser.add_argument('--example-robot-data', metavar='PATH', help='a URDF of the '
+                        'example-robot-data wheel, e.g. tiago_description/robots/tiago_dual.urdf')
     parser.add_argument('--tip', '--urdf-tip', dest='urdf_tip', default='',
                         help="for a URDF: the chain's last link")
     parser.add_argument('--probe', nargs='+', help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.probe:
         return probe_main(args.probe)
+    if args.example_robot_data:
+        args.robot = example_robot_data(args.example_robot_data)
     rclpy.init(args=LOG)
     node = DqFkNode(parameter_overrides=[
         Parameter('robot_description_file', value=args.robot),
@@ -100,7 +115,8 @@ def main(argv=None):
         n_frames = len(model.frame_names)
         rng = np.random.default_rng(0)
         msgs, raws = [], []
-        for q in rng.uniform(-1, 1, size=(args.updates, len(names))):
+        limits = np.clip(model.limits, -1.0, 1.0)  # within the limits, as a robot's states
+        for q in rng.uniform(limits[:, 0], limits[:, 1], size=(args.updates, len(names))):
             msg = JointState(name=names, position=q.tolist())
             msg.header.stamp = node.get_clock().now().to_msg()
             msgs.append(msg)
