@@ -59,12 +59,14 @@ class FrameMessages:
     as children of their DH frames: constant ones on /tf_static, moving ones on /tf.
     """
 
-    def __init__(self, model, frame_prefix='', shown_optional=()):
+    def __init__(self, model, frame_prefix='', shown_optional=(), helpers=None):
         """
         Build the message objects for ``model``.
 
-        :param shown_optional: the optional (side-branch) joints whose links are published;
-            the links of the others are left out of /tf and the poses (``hidden``).
+        :param shown_optional: the optional joints (side branches, a tree's) named so far:
+            transforms and poses that need others are left out (``hidden``).
+        :param helpers: the model's :class:`HelperFrames` if already made (they depend on
+            the model alone; making them for a big robot takes tens of ms).
         """
         self.model = model
         self.prefix = frame_prefix
@@ -76,7 +78,7 @@ class FrameMessages:
         # those whose joints are known (robot_state_publisher's rule)
         hidden_edges = hidden_frames(model, shown_optional, model.edge_needs)
         self.moving_edges = tuple(e for e in model.moving_edges if e[0] not in hidden_edges)
-        self.helpers = HelperFrames(model)
+        self.helpers = HelperFrames(model) if helpers is None else helpers
         self.tf = TFMessage(transforms=[
             _transform_stamped(self._parent_ids[k], self.frame_ids[k])
             for k, _ in self.moving_edges] + [

@@ -275,6 +275,11 @@ class DqFkNode(Node):
             self.get_logger().info(robot.summary())
         for line in robot.warnings:
             self.get_logger().warn(line)
+        # compile the straight-line FK code now, outside the lock, not at the first update
+        # (a robot of 250 frames takes tens of ms: the first joint states would wait)
+        zero = [0.0] * robot.model.dof
+        robot.model.frame_poses(zero)
+        robot.model.transform_poses(zero)
         return robot.model
 
     def _on_set_parameters(self, params):
@@ -539,7 +544,7 @@ class DqFkNode(Node):
         """Publish the links of the side-branch joints ``seen`` from now on (rare: rebuild)."""
         model = self._model
         new = [name for name in seen if name not in self._shown_optional]
-        self._messages = FrameMessages(model, self._frame_prefix, seen)
+        self._messages = FrameMessages(model, self._frame_prefix, seen, self._messages.helpers)
         self._bytes = FrameBytes(self._messages)
         self._shown_optional = seen
         hidden = self._messages.hidden

@@ -205,6 +205,7 @@ def test_each_branch_of_a_mobile_manipulator_appears_when_its_joints_do(ros_doma
         assert harness.spin_until(lambda: 'hand_thumb_link' in children(), publish=state)
         assert 'wheel_left_link' not in children()  # never named: never on /tf
         # each link published (under its URDF parent) is where pinocchio puts it
+        assert harness.spin_until(lambda: static)  # transient local: may come after /tf
         transforms = static[-1].transforms + tf[-1].transforms
         parents = urdf_parents(robot.urdf)
         pin_model = oracle.urdf_model(robot.urdf)
