@@ -3,16 +3,26 @@
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { CSS2DObject, CSS2DRenderer } from 'three/addons/renderers/CSS2DRenderer.js';
+import { OBJLoader } from 'three/addons/loaders/OBJLoader.js';
 import URDFLoader from 'urdf-loader';
 
 const GREY = new THREE.Color(0xb0b0b0);
 const AXIS_LENGTH_M = 0.1;
+const PLACEHOLDER_M = 0.05;   // the grey box standing for a mesh that could not be loaded
+// frames that exist for the DH method only (docs/robot_description.md): hidden by default
+const HELPER_FRAME = /^(dh|dh_|dq_fk_dh)\d+$|_dh_z\d*$|_dh_x$|_(dh|dh_|dq_fk_dh)\d+$|^dq_fk_chain\d+_dh\d+$/;
 
 const view = {
   frames: {},          // name -> {parent, position: [x, y, z], quaternion: [x, y, z, w], stale}
   selected: null,
   fixedFrame: null,
   robotLinks: [],      // the URDF's links, placed by TF
+  visuals: [],         // per <visual>: {link, index, kind: mesh|box|cylinder|sphere, uri,
+                       //   state: pending|loading|loaded|placeholder|primitive}
+  showHelpers: false,  // DH helper frames (dhN, *_dh_z, <tip>_dhN) shown
+  isHelper: (name) => HELPER_FRAME.test(name),
+  visualPoses,         // () -> [{link, index, kind, state, position, quaternion}] in the fixed frame
+  labelBoxes,          // () -> [{frame, left, top, right, bottom}] of the visible labels
   robotVersion: 0,
   messages: 0,
   arrivals: [],        // the last 1000 frames messages: [newest /tf stamp (ns), arrival (ms)]
@@ -79,14 +89,18 @@ function frameObject(name) {
   object.add(axes);
   const element = document.createElement('div');
   element.className = 'frame-label';
-  element.textContent = name;
+  const text = document.createElement('span');  // moved down when it would overlap another
+  text.className = 'frame-label-text';
+  text.textContent = name;
+  element.appendChild(text);
   element.dataset.frame = name;
   element.addEventListener('pointerdown', (event) => { event.stopPropagation(); select(name); });
   const label = new CSS2DObject(element);
   label.center.set(0, 0.5);  // the name starts at the frame's origin, to its right
   object.add(label);
   scene.add(object);
-  entry = frameObjects[name] = { object, axes, label, element, stale: null };
+  entry = frameObjects[name] = { object, axes, label, element, text, stale: null };
+  object.visible = view.showHelpers || !view.isHelper(name);
   return entry;
 }
 
@@ -131,16 +145,73 @@ function onFrames(message) {
   updatePanel();
 }
 
+function shown(name) {
+  return view.showHelpers || !view.isHelper(name);
+}
+
 function stackLabels() {
   // frames at one place (wrist frames, a tool at its flange): their names one under another
   const places = new Map();
   for (const name of Object.keys(view.frames).sort()) {
+    if (!shown(name)) continue;
     const key = view.frames[name].position.map((v) => Math.round(v * 1e4)).join(',');
     const k = places.get(key) || 0;
     places.set(key, k + 1);
     frameObjects[name].label.center.set(0, 0.5 - 1.1 * k);
   }
 }
+
+function separateLabels() {
+  // labels whose boxes overlap on the screen (frames close together): each moved down below
+  // the ones placed before it, top to bottom
+  const entries = Object.entries(frameObjects).filter(([name]) => shown(name));
+  for (const [, entry] of entries) entry.text.style.top = '0px';
+  const boxes = entries.map(([name, entry]) => ({ entry, name,
+                                                   rect: entry.text.getBoundingClientRect() }))
+    .filter((b) => b.rect.width > 0)
+    .sort((a, b) => a.rect.top - b.rect.top || a.name.localeCompare(b.name));
+  const placed = [];
+  for (const box of boxes) {
+    let { top } = box.rect;
+    const height = box.rect.bottom - box.rect.top;
+    let moved = true;
+    while (moved) {
+      moved = false;
+      for (const other of placed) {
+        if (box.rect.left < other.right && other.left < box.rect.right &&
+            top < other.bottom && other.top < top + height) {
+          top = other.bottom + 1;
+          moved = true;
+        }
+      }
+    }
+    box.entry.text.style.top = `${top - box.rect.top}px`;
+    placed.push({ left: box.rect.left, right: box.rect.right, top, bottom: top + height });
+  }
+}
+
+function labelBoxes() {
+  return Object.entries(frameObjects).filter(([name]) => shown(name)).map(([frame, entry]) => {
+    const r = entry.text.getBoundingClientRect();
+    return { frame, left: r.left, top: r.top, right: r.right, bottom: r.bottom };
+  }).filter((b) => b.right > b.left);
+}
+
+function setShowHelpers(on) {
+  view.showHelpers = on;
+  for (const [name, entry] of Object.entries(frameObjects)) entry.object.visible = shown(name);
+  const box = document.getElementById('show-helpers');
+  if (box) box.checked = on;
+  stackLabels();
+  updatePanel(true);
+}
+view.setShowHelpers = setShowHelpers;
+
+function setRobotVisible(on) {  // for tests and screenshots: the robot's pixels alone
+  robotHidden = !on;
+  placeRobot();
+}
+view.setRobotVisible = setRobotVisible;
 
 function frameTheRobot(count) {
   const points = Object.values(view.frames).map((f) => new THREE.Vector3(...f.position));
@@ -156,40 +227,142 @@ function frameTheRobot(count) {
   framedCount = count;
 }
 
+function placeholder(material) {
+  const box = new THREE.Mesh(new THREE.BoxGeometry(PLACEHOLDER_M, PLACEHOLDER_M, PLACEHOLDER_M),
+                             new THREE.MeshPhongMaterial({ color: 0x999999 }));
+  box.name = 'placeholder';
+  return box;
+}
+
+function loadMesh(url, manager, material, done) {
+  // STL and COLLADA by urdf-loader's own loader, OBJ by three's OBJLoader
+  if (/\.obj$/i.test(url)) {
+    new OBJLoader(manager).load(url, (object) => {
+      object.traverse((child) => { if (child.isMesh && material) child.material = material; });
+      done(object);
+    }, null, (error) => done(null, error));
+  } else {
+    URDFLoader.prototype.defaultMeshLoader(url, manager, material, done);
+  }
+}
+
+let robotHidden = false;
+const visualObjects = [];  // the three.js object of each entry of view.visuals
+const segmentMaterial = new THREE.LineBasicMaterial({ color: 0x777777 });
+let segments = null;       // links without a visual: a line from the parent link's origin
+
 function onRobot(message) {
   for (const group of Object.values(linkGroups)) scene.remove(group);
   for (const name of Object.keys(linkGroups)) delete linkGroups[name];
+  if (segments) scene.remove(segments.object);
+  segments = null;
   view.robotLinks = [];
+  view.visuals = [];
+  visualObjects.length = 0;
+  const meshes = message.meshes || {};
   let robot;
   try {
     const loader = new URDFLoader();
-    loader.loadMeshCb = (path, manager, done) => {  // meshes the page cannot fetch: none
-      loader.defaultMeshLoader(path, manager, (mesh, error) => done(error ? null : mesh));
+    loader.packages = (pkg) => `package://${pkg}`;  // paths stay the URDF's URIs: see meshes
+    loader.loadMeshCb = (uri, manager, material, done) => {
+      const record = view.visuals.find((v) => v.uri === uri && v.state === 'pending');
+      const fallback = (why) => {
+        if (record) record.state = 'placeholder';
+        if (why) console.warn(`dq_fk_view: mesh ${uri}: ${why}`);
+        done(placeholder(material));
+      };
+      if (record) record.state = 'loading';
+      const url = meshes[uri];
+      if (!url) { fallback('not served (see the server log)'); return; }
+      try {
+        loadMesh(url, manager, material, (object, error) => {
+          if (error || !object) { fallback(error ? String(error) : 'no model'); return; }
+          if (record) record.state = 'loaded';
+          done(object);
+        });
+      } catch (error) {
+        fallback(String(error));
+      }
     };
+    // the visuals in URDF order, noted before the loader asks for their meshes
+    const xml = new DOMParser().parseFromString(message.urdf, 'text/xml');
+    for (const link of xml.querySelectorAll('robot > link')) {
+      [...link.children].filter((n) => n.nodeName === 'visual').forEach((visual, index) => {
+        const geometry = visual.querySelector('geometry > *');
+        const kind = geometry ? geometry.nodeName : 'none';
+        view.visuals.push({ link: link.getAttribute('name'), index, kind,
+                            uri: kind === 'mesh' ? geometry.getAttribute('filename') : null,
+                            state: kind === 'mesh' ? 'pending' : 'primitive' });
+      });
+    }
     robot = loader.parse(message.urdf);
   } catch (error) {
     console.warn('dq_fk_view: the robot description could not be read', error);
     view.robotVersion += 1;
     return;
   }
+  const withVisual = new Set();
   for (const [name, link] of Object.entries(robot.links)) {
     const group = new THREE.Group();
     group.name = `link:${name}`;
-    for (const visual of link.children.filter((child) => child.isURDFVisual)) {
+    link.children.filter((child) => child.isURDFVisual).forEach((visual, index) => {
       group.add(visual);  // placed by TF, not by the URDF's joints
-    }
+      const k = view.visuals.findIndex((v) => v.link === name && v.index === index);
+      if (k >= 0) visualObjects[k] = visual;
+      withVisual.add(name);
+    });
     linkGroups[name] = group;
     scene.add(group);
+  }
+  // a link without any visual: a thin segment from its parent link's origin, as dq_fk plot
+  const pairs = Object.values(robot.joints)
+    .filter((joint) => !withVisual.has(joint.child && joint.child.name))
+    .map((joint) => [joint.parent && joint.parent.name, joint.child && joint.child.name])
+    .filter(([parent, child]) => parent && child);
+  if (pairs.length) {
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(pairs.length * 6), 3));
+    const object = new THREE.LineSegments(geometry, segmentMaterial);
+    object.frustumCulled = false;
+    segments = { object, pairs };
+    scene.add(object);
   }
   view.robotLinks = Object.keys(robot.links);
   view.robotVersion += 1;
   placeRobot();
 }
 
+function visualPoses() {
+  scene.updateMatrixWorld(true);
+  return view.visuals.map((v, k) => {
+    const object = visualObjects[k];
+    const position = new THREE.Vector3();
+    const quaternion = new THREE.Quaternion();
+    const scale = new THREE.Vector3();
+    if (object) object.matrixWorld.decompose(position, quaternion, scale);
+    return { link: v.link, index: v.index, kind: v.kind, state: v.state, uri: v.uri,
+             placed: Boolean(object && linkGroups[v.link] && linkGroups[v.link].visible),
+             position: position.toArray(), quaternion: quaternion.toArray() };
+  });
+}
+
 function placeRobot() {
+  if (segments) {
+    const positions = segments.object.geometry.attributes.position;
+    segments.pairs.forEach(([parent, child], k) => {
+      const a = view.frames[parent] ? view.frames[parent].position : [0, 0, 0];
+      const b = view.frames[child] ? view.frames[child].position : a;
+      positions.setXYZ(2 * k, ...a);
+      positions.setXYZ(2 * k + 1, ...b);
+    });
+    positions.needsUpdate = true;
+  }
+  if (segments) segments.object.visible = !robotHidden;
   for (const [name, group] of Object.entries(linkGroups)) {
     const frame = view.frames[name];
-    if (frame) {
+    if (robotHidden) {
+      group.visible = false;
+    } else if (frame) {
       group.visible = true;
       group.position.set(...frame.position);
       group.quaternion.set(...frame.quaternion);
@@ -215,7 +388,7 @@ function fixed(value) {
   return text === '-0.000000' ? '0.000000' : text;
 }
 
-function updatePanel() {
+function updatePanel(force = false) {
   const name = view.selected;
   const frame = name ? view.frames[name] : null;
   document.getElementById('selected-name').textContent = name || '(no frame)';
@@ -226,8 +399,8 @@ function updatePanel() {
       `quaternion x y z w\n${frame.quaternion.map(fixed).join(' ')}`
     : '';
   const list = document.getElementById('frame-list');
-  const names = Object.keys(view.frames).sort();
-  if (list.dataset.names !== names.join('\n')) {
+  const names = Object.keys(view.frames).filter(shown).sort();
+  if (force || list.dataset.names !== names.join('\n')) {
     list.replaceChildren(...names.map((frameName) => {
       const item = document.createElement('li');
       item.textContent = frameName;
@@ -273,12 +446,18 @@ function connect() {
   });
 }
 
+let renders = 0;
 function render() {
   requestAnimationFrame(render);
   controls.update();
   if (renderer) renderer.render(scene, camera);
   labelRenderer.render(scene, camera);
+  renders += 1;
+  if (renders % 6 === 0) separateLabels();  // ten times a second at 60 fps
 }
+
+const helperBox = document.getElementById('show-helpers');
+if (helperBox) helperBox.addEventListener('change', () => setShowHelpers(helperBox.checked));
 
 connect();
 render();

@@ -32,6 +32,8 @@ import sys
 import threading
 import time
 
+from dq_fk_ros.description.meshes import check_mesh_file, mesh_allow_list
+from dq_fk_ros.description.packages import PackageResolver
 from dq_fk_ros.kinematics.tree import compose_tree, depths, roots
 from dq_fk_ros.messages.cdr import CdrError, TfLatest
 
@@ -67,9 +69,22 @@ def web_root():
 class ViewState:
     """What the page shows, shared by the ROS callbacks and the web server (under a lock)."""
 
-    def __init__(self, fixed_frame='', select='', stale_after_s=STALE_AFTER_S):
-        """Start empty; ``fixed_frame`` and ``select`` empty: chosen from the TF tree."""
+    def __init__(self, fixed_frame='', select='', stale_after_s=STALE_AFTER_S, resolver=None,
+                 mesh_dirs=(), log=None):
+        """
+        Start empty; ``fixed_frame`` and ``select`` empty: chosen from the TF tree.
+
+        :param resolver: finds the packages of ``package://`` meshes (a
+            :class:`PackageResolver`; default: the ament index and ``ROS_PACKAGE_PATH``).
+        :param mesh_dirs: folders ``file://`` meshes may be in.
+        :param log: called with one line per mesh that cannot be served (default: stderr).
+        """
         self.lock = threading.Lock()
+        self.resolver = resolver or PackageResolver()
+        self.mesh_dirs = tuple(mesh_dirs)
+        self.log = log or (lambda line: print(f'dq_fk_view: {line}', file=sys.stderr,
+                                              flush=True))
+        self.meshes = ()          # the MeshFiles of the current URDF: all that /mesh serves
         self.edges = {}          # child -> (parent, pose, static, monotonic time received)
         self.last_stamp_ns = 0   # the newest /tf stamp received (the page reports latency)
         # /tf arrives serialized (up to kHz): only the newest message of each layout
@@ -104,11 +119,42 @@ class ViewState:
                 self.counts['bad_tf'] = self.counts.get('bad_tf', 0) + 1
 
     def take_description(self, text):
-        """Record a new robot description (URDF XML)."""
+        """Record a new robot description (URDF XML) and the meshes it allows to be served."""
         with self.lock:
-            if text != self.urdf:
-                self.urdf = text
-                self.urdf_version += 1
+            if text == self.urdf:
+                return
+        meshes = mesh_allow_list(text, self.resolver, self.mesh_dirs)
+        for mesh in meshes:
+            if mesh.problem:
+                self.log(f'{mesh.problem} (a grey box stands for it)')
+        with self.lock:
+            self.urdf = text
+            self.meshes = meshes
+            self.urdf_version += 1
+
+    def robot_message(self):
+        """Return the JSON text of the robot: its URDF and where the page gets each mesh."""
+        with self.lock:
+            urdf, meshes = self.urdf, self.meshes
+        return json.dumps({'type': 'robot', 'urdf': urdf,
+                           'meshes': {m.uri: m.url or None for m in meshes}})
+
+    def mesh_path(self, index, name):
+        """Return the file served as ``/mesh/<index>/<name>``, or None (not on the list)."""
+        from urllib.parse import quote
+        with self.lock:
+            meshes = self.meshes
+        if not (0 <= index < len(meshes)) or meshes[index].path is None or \
+                meshes[index].url != f'/mesh/{index}/{quote(name)}':
+            return None
+        path = meshes[index].path
+        try:  # as it is now: the file may have been replaced since the list was made
+            if os.path.realpath(path) != path:
+                return None
+            check_mesh_file(path)
+        except ValueError:
+            return None
+        return path
 
     def frames_message(self):
         """Return the JSON text of every frame's pose in the fixed frame (None: no frames)."""
@@ -260,6 +306,24 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()):
         return web.FileResponse(os.path.join(root, 'app.js'),
                                 headers={'Content-Type': 'text/javascript'})
 
+    async def mesh(request):
+        """Serve a mesh of the current URDF's allow-list (``ViewState.mesh_path``), else 404."""
+        try:
+            index = int(request.match_info['index'])
+        except ValueError:
+            index = -1
+        path = state.mesh_path(index, request.match_info['name'])
+        if path is None:
+            with state.lock:
+                state.counts['refused_meshes'] = state.counts.get('refused_meshes', 0) + 1
+            return web.Response(status=404, text='not found\n')
+        kind = {'.stl': 'model/stl', '.dae': 'model/vnd.collada+xml',
+                '.obj': 'model/obj'}[os.path.splitext(path)[1].lower()]
+        return web.FileResponse(path, headers={'Content-Type': kind})
+
+    async def no_icon(_):
+        return web.Response(status=204)  # the page has none; a browser asks anyway
+
     async def status(_):
         with state.lock:
             body = dict(state.counts, frames=len(state.edges), robot=state.urdf is not None)
@@ -275,7 +339,7 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()):
             urdf = state.urdf
         try:
             if urdf is not None:
-                await ws.send_str(json.dumps({'type': 'robot', 'urdf': urdf}))
+                await ws.send_str(state.robot_message())
             text = state.frames_message()
             if text is not None:
                 await ws.send_str(text)
@@ -308,8 +372,8 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()):
             with state.lock:
                 urdf, urdf_version = state.urdf, state.urdf_version
             messages = []
-            if urdf_version != last_urdf:
-                messages.append(json.dumps({'type': 'robot', 'urdf': urdf}))
+            if urdf_version != last_urdf and urdf is not None:
+                messages.append(state.robot_message())
                 last_urdf = urdf_version
             text = state.frames_message()
             if text is not None and text != last_text:
@@ -339,6 +403,8 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()):
     app.router.add_get('/app.js', app_js)
     app.router.add_get('/status', status)
     app.router.add_get('/ws', socket)
+    app.router.add_get('/favicon.ico', no_icon)
+    app.router.add_get(r'/mesh/{index:[0-9]+}/{name}', mesh)
     for package in VENDOR_PACKAGES:
         folder = os.path.join(root, 'node_modules', package)
         if os.path.isdir(folder):
@@ -377,6 +443,12 @@ def parse_args(argv):
     parser.add_argument('--rate', type=float, default=DEFAULT_RATE_HZ,
                         help=f'poses sent to pages per second at most (default '
                         f'{DEFAULT_RATE_HZ:g})')
+    parser.add_argument('--package', action='append', default=[], metavar='NAME=DIR',
+                        help="where package NAME is, for the URDF's package:// meshes "
+                        '(repeatable; before the ament index and ROS_PACKAGE_PATH)')
+    parser.add_argument('--mesh-dir', action='append', default=[], metavar='DIR',
+                        help='a folder file:// meshes may be served from (repeatable; '
+                        'none by default)')
     parser.add_argument('--stale-after', type=float, default=STALE_AFTER_S,
                         help='seconds without an update after which a frame is greyed')
     args = parser.parse_args(argv)
@@ -386,6 +458,14 @@ def parse_args(argv):
         parser.error(f'--rate {args.rate:g}: give more than 0 and at most 1000')
     if not (args.stale_after > 0):
         parser.error('--stale-after: give a positive number of seconds')
+    from dq_fk_ros.description.packages import parse_package_option
+    try:
+        args.packages = dict(parse_package_option(option) for option in args.package)
+    except ValueError as exc:
+        parser.error(str(exc))
+    for folder in args.mesh_dir:
+        if not os.path.isdir(folder):
+            parser.error(f'--mesh-dir {folder}: no such folder')
     return args
 
 
@@ -425,7 +505,8 @@ def main(argv=None):
     except (FileNotFoundError, ImportError) as exc:
         print(f'dq_fk_view: {exc} (make setup installs what it needs)', file=sys.stderr)
         return 1
-    state = ViewState(args.fixed_frame, args.select, args.stale_after)
+    state = ViewState(args.fixed_frame, args.select, args.stale_after,
+                      PackageResolver(args.packages), args.mesh_dir)
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = make_node(state)
     executor = SingleThreadedExecutor()

@@ -28,7 +28,6 @@ from ros_harness import start
 pytestmark = pytest.mark.integration
 
 RL15_Q = [0.2, 0.3, -0.2, 0.1, 0.4, -0.5]
-CHROMIUM, CHROMEDRIVER = '/usr/bin/chromium', '/usr/bin/chromedriver'
 SCREENSHOT_ENV = 'DQ_FK_VIEW_SCREENSHOT'  # also save the screenshot there (README picture)
 
 
@@ -47,29 +46,6 @@ def start_view(processes, *args):
         if proc.poll() is not None:
             break
     raise AssertionError(f'dq_fk_view did not start: {"".join(seen)}')
-
-
-@pytest.fixture
-def browser():
-    """Headless Chromium through chromedriver (Debian's packages); quit at teardown."""
-    missing = [p for p in (CHROMIUM, CHROMEDRIVER) if not shutil.which(p)]
-    if missing:
-        pytest.fail(f"the browser tests need Debian's chromium and chromium-driver (missing: "
-                    f'{", ".join(missing)}): apt-get install chromium chromium-driver')
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for flag in ('--headless=new', '--no-sandbox', '--disable-gpu', '--use-angle=swiftshader',
-                 '--enable-unsafe-swiftshader', '--disable-background-networking',
-                 '--disable-component-update', '--disable-sync', '--no-first-run',
-                 '--window-size=1280,800', '--force-device-scale-factor=1'):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
-    try:
-        yield driver
-    finally:
-        driver.quit()
 
 
 def wait_for(driver, script, timeout_s=20.0):

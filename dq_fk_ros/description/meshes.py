@@ -1,0 +1,114 @@
+"""
+The mesh files a URDF's visuals name: where they are, and which of them may be served.
+
+``dq_fk_view`` serves a robot's meshes to its page. A robot description may come from any
+peer on the DDS domain, so the files it names are an allow-list built from the URDF each
+time it changes, and nothing else: a ``package://`` URI is resolved by
+:class:`~dq_fk_ros.description.packages.PackageResolver` and must stay inside its package
+(symbolic links included); a ``file://`` URI or a plain path only inside a folder the user
+allowed at start (``--mesh-dir``); every file must be a regular file ending in ``.stl``,
+``.dae`` or ``.obj`` and at most :data:`MAX_MESH_BYTES`. Plain Python, no ROS.
+"""
+
+from dataclasses import dataclass
+import os
+import stat
+from urllib.parse import quote, unquote
+import xml.etree.ElementTree as ElementTree
+
+from dq_fk_ros.description.packages import PackageNotFound
+from dq_fk_ros.description.robot_model import printable_line
+
+MESH_EXTENSIONS = ('.stl', '.dae', '.obj')
+MAX_MESH_BYTES = 64 << 20     # a vendor's visual mesh is a few MiB at most
+MAX_MESHES = 4096             # distinct mesh files in one URDF
+
+
+@dataclass(frozen=True)
+class MeshFile:
+    """
+    One mesh a URDF names: ``uri`` as written, ``path`` the file (None: not served).
+
+    ``url`` is where the page fetches it (``/mesh/<index>/<file name>``, empty when not
+    served); ``problem`` says in one line why it is not served.
+    """
+
+    uri: str
+    path: str = None
+    url: str = ''
+    problem: str = ''
+
+
+def visual_mesh_uris(urdf_text):
+    """Return the distinct ``filename`` of every ``<visual>``'s ``<mesh>``, in URDF order."""
+    try:
+        root = ElementTree.fromstring(urdf_text)
+    except ElementTree.ParseError:
+        return []
+    uris = []
+    for mesh in root.iterfind('link/visual/geometry/mesh'):
+        uri = mesh.get('filename')
+        if uri and uri not in uris:
+            uris.append(uri)
+    return uris[:MAX_MESHES]
+
+
+def mesh_allow_list(urdf_text, resolver, mesh_dirs=()):
+    """
+    Return a :class:`MeshFile` per mesh of the URDF's visuals: the files that may be served.
+
+    :param resolver: a :class:`~dq_fk_ros.description.packages.PackageResolver`.
+    :param mesh_dirs: folders ``file://`` URIs and plain paths may name files in.
+    """
+    allowed = [os.path.realpath(folder) for folder in mesh_dirs]
+    out = []
+    for index, uri in enumerate(visual_mesh_uris(urdf_text)):
+        shown = printable_line(uri, 200)
+        try:
+            path = _mesh_path(uri, resolver, allowed)
+        except (PackageNotFound, ValueError) as exc:
+            out.append(MeshFile(uri, problem=f'mesh {shown}: {printable_line(exc, 300)}'))
+            continue
+        name = quote(os.path.basename(path))
+        out.append(MeshFile(uri, path, f'/mesh/{index}/{name}'))
+    return tuple(out)
+
+
+def _mesh_path(uri, resolver, allowed):
+    """Return the real file ``uri`` names, or raise ValueError / PackageNotFound saying why."""
+    if not uri.lower().endswith(MESH_EXTENSIONS):
+        raise ValueError(f'not a mesh this page draws ({", ".join(MESH_EXTENSIONS)})')
+    if uri.startswith('package://'):
+        name = uri[len('package://'):].partition('/')[0]
+        path = resolver.resolve(uri)
+        root = os.path.realpath(resolver.find(name))
+        roots = [root]
+    elif uri.startswith('file://') or '://' not in uri:
+        path = unquote(uri[len('file://'):]) if uri.startswith('file://') else uri
+        if not os.path.isabs(path):
+            raise ValueError('a relative path; give package:// or file:// with --mesh-dir')
+        roots = allowed
+    else:
+        raise ValueError('only package:// and file:// meshes are served')
+    real = os.path.realpath(path)
+    if not any(os.path.commonpath([real, root]) == root for root in roots):
+        where = 'its package' if uri.startswith('package://') else (
+            'the --mesh-dir folders' if roots else 'a folder given with --mesh-dir (none given)')
+        raise ValueError(f'outside {where}')
+    check_mesh_file(real)
+    return real
+
+
+def check_mesh_file(path):
+    """Raise ValueError unless ``path`` is a regular mesh file of at most MAX_MESH_BYTES."""
+    try:
+        info = os.stat(path)
+    except OSError as exc:
+        raise ValueError(f'cannot be read ({exc.strerror})') from None
+    if not stat.S_ISREG(info.st_mode):
+        raise ValueError('not a regular file')
+    if info.st_size > MAX_MESH_BYTES:
+        raise ValueError(f'larger than {MAX_MESH_BYTES >> 20} MiB')
+
+
+__all__ = ['check_mesh_file', 'mesh_allow_list', 'MeshFile', 'visual_mesh_uris']

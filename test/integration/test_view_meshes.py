@@ -1,0 +1,262 @@
+"""
+dq_fk_view draws the robot a user knows: the vendor's meshes, the URDF's shapes, no helpers.
+
+Vendor URDFs of example-robot-data (a dev requirement): dq_fk_node publishes them, the fake
+joint publisher holds fixed joint values, dq_fk_view serves the page and the meshes the URDF
+names (``--package example-robot-data=...``), and headless Chromium draws them. Every visual
+of the URDF is compared with pinocchio's placement of its link times the visual's origin.
+"""
+
+import math
+import os
+import shutil
+import urllib.error
+import urllib.request
+import xml.etree.ElementTree as ElementTree
+
+from dq_fk_ros.description.loading import load_robot
+from dq_fk_ros.description.robot_model import shipped_robot_path
+import homogeneous_tf as htf
+import numpy as np
+import pinocchio_oracle as oracle
+import pytest
+from ros_harness import start
+from test_view import start_view, wait_for
+from vendor_urdfs import robots_dir
+
+pytestmark = pytest.mark.integration
+SCREENSHOT_DIR_ENV = 'DQ_FK_VIEW_SCREENSHOTS'  # also save the pictures there (README, make)
+VENDORS = {'ur5': 'ur_description/urdf/ur5_robot.urdf',
+           'panda': 'panda_description/urdf/panda.urdf'}
+
+
+def erd_package():
+    """Return ``--package example-robot-data=<its share folder>``."""
+    return f'--package=example-robot-data={os.path.dirname(robots_dir())}'
+
+
+def fixed_positions(model):
+    """Joint values inside every joint's limits, away from zero (a pose that shows the arm)."""
+    values = []
+    for k, (lower, upper) in enumerate(model.limits):
+        value = 0.4 if k % 2 else -0.6
+        values.append(float(np.clip(value, lower, upper)) if math.isfinite(lower) else value)
+    return values
+
+
+def origin_matrix(element):
+    """Return the 4x4 of a URDF ``<origin>`` (identity if absent)."""
+    if element is None:
+        return np.eye(4)
+    xyz = [float(v) for v in element.get('xyz', '0 0 0').split()]
+    roll, pitch, yaw = (float(v) for v in element.get('rpy', '0 0 0').split())
+    from dq_fk_ros.description.robot_model import rpy_matrix
+    m = np.eye(4)
+    m[:3, :3] = rpy_matrix(roll, pitch, yaw)
+    m[:3, 3] = xyz
+    return m
+
+
+def urdf_visuals(text):
+    """Return ``[(link, index, kind, origin 4x4), ...]`` of every ``<visual>``."""
+    out = []
+    for link in ElementTree.fromstring(text).iter('link'):
+        for index, visual in enumerate(link.findall('visual')):
+            geometry = visual.find('geometry')
+            kind = geometry[0].tag if geometry is not None and len(geometry) else 'none'
+            out.append((link.get('name'), index, kind, origin_matrix(visual.find('origin'))))
+    return out
+
+
+def show(processes, urdf_path, *view_args, positions=None):
+    """Start the node, fixed joint states and the view for a URDF; return (model, view, url)."""
+    model = load_robot(urdf_path).model
+    positions = fixed_positions(model) if positions is None else positions
+    start(processes, 'dq_fk_node', f'robot_description_file:={urdf_path}')
+    start(processes, 'fake_joint_publisher', f'robot_description_file:={urdf_path}',
+          'mode:=fixed', f'positions:=[{", ".join(repr(v) for v in positions)}]',
+          'rate_hz:=20.0')
+    view, url = start_view(processes, erd_package(), *view_args)
+    return model, positions, view, url
+
+
+def read_lines(proc, seconds):
+    """Return the lines a process prints within ``seconds`` (its merged stdout and stderr)."""
+    import select
+    import time
+    lines, deadline = [], time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([proc.stdout], [], [], 0.1)
+        if ready:
+            line = proc.stdout.readline()
+            if not line:
+                break
+            lines.append(line)
+    return lines
+
+
+def robot_pixels(browser, tmp_path, name):
+    """Screenshots with and without the robot: ``(image, mask of the robot's pixels)``."""
+    from matplotlib.image import imread
+    browser.execute_script('window.dqFkView.setRobotVisible(true)')
+    wait_for(browser, 'return new Promise((r) => requestAnimationFrame(() => '
+                      'requestAnimationFrame(() => r(true))))')
+    shot = tmp_path / f'{name}.png'
+    browser.save_screenshot(str(shot))
+    browser.execute_script('window.dqFkView.setRobotVisible(false)')
+    wait_for(browser, 'return new Promise((r) => requestAnimationFrame(() => '
+                      'requestAnimationFrame(() => r(true))))')
+    bare = tmp_path / f'{name}-bare.png'
+    browser.save_screenshot(str(bare))
+    browser.execute_script('window.dqFkView.setRobotVisible(true)')
+    if os.environ.get(SCREENSHOT_DIR_ENV):
+        shutil.copy(shot, os.path.join(os.environ[SCREENSHOT_DIR_ENV], f'dq_fk_view_{name}.png'))
+    image, without = imread(shot)[:, :, :3], imread(bare)[:, :, :3]
+    return image, np.abs(image - without).max(axis=2) > 0.05
+
+
+@pytest.mark.parametrize('name', sorted(VENDORS))
+def test_a_vendor_robot_is_drawn_with_its_meshes_where_pinocchio_puts_them(
+        name, processes, browser, tmp_path):
+    urdf_path = os.path.join(robots_dir(), VENDORS[name])
+    model, positions, view, url = show(processes, urdf_path)
+    urdf = load_robot(urdf_path).urdf
+    visuals = urdf_visuals(urdf)
+    browser.get(url + '/')
+    wait_for(browser, f'return window.dqFkView.visuals.length == {len(visuals)} && '
+                      "window.dqFkView.visuals.every((v) => v.state == 'loaded' || "
+                      "v.state == 'primitive') && window.dqFkView.visualPoses()"
+                      '.every((v) => v.placed)', timeout_s=40)
+    wait_for(browser, 'return Object.keys(window.dqFkView.frames).length >= '
+                      f'{len(model.frame_names)}')
+    page = browser.execute_script('return window.dqFkView.visualPoses()')
+    assert [(v['link'], v['index'], v['kind']) for v in page] == \
+        [(link, index, kind) for link, index, kind, _ in visuals]
+    assert all(v['state'] == 'loaded' for v in page if v['kind'] == 'mesh')
+    # every visual where pinocchio puts its link, times the visual's origin
+    pin_model = oracle.urdf_model(urdf, mimic=False)
+    values = dict(zip(model.joint_names, positions))
+    for joint in ElementTree.fromstring(urdf).iter('joint'):  # the mimic finger's value
+        mimic = joint.find('mimic')
+        if mimic is not None:
+            values[joint.get('name')] = float(mimic.get('multiplier', '1')) * \
+                values[mimic.get('joint')] + float(mimic.get('offset', '0'))
+    fixed = browser.execute_script('return window.dqFkView.fixedFrame')
+    links = sorted({link for link, _, _, _ in visuals} | {fixed})
+    placements = oracle.link_placements(pin_model, oracle.configuration(pin_model, values),
+                                        links)
+    root = np.linalg.inv(placements[fixed])
+    for (link, index, kind, origin), shown in zip(visuals, page):
+        expected = root @ placements[link] @ origin
+        np.testing.assert_allclose(
+            htf.pose_matrix_of_tuple(shown['position'] + shown['quaternion']), expected,
+            atol=1e-9, err_msg=f'{name}: {link} visual {index}')
+    # no request of the page went unanswered (meshes, scripts, icon)
+    failed = browser.execute_script(
+        'return performance.getEntriesByType("resource").filter((e) => e.responseStatus '
+        '&& e.responseStatus >= 400).map((e) => [e.name, e.responseStatus])')
+    assert failed == []
+    # the robot's own pixels, where the camera projects its links
+    image, robot = robot_pixels(browser, tmp_path, name)
+    assert robot.mean() > 0.01, 'the robot draws next to no pixels'
+    near = 0
+    drawn = sorted({link for link, _, kind, _ in visuals if kind == 'mesh'})
+    for link in drawn:
+        where = browser.execute_script(f'return window.dqFkView.project({link!r})')
+        if where is None:
+            continue
+        row, col = int(where['y']), int(where['x'])
+        near += bool(robot[max(row - 25, 0):row + 25, max(col - 25, 0):col + 25].any())
+    assert near >= 0.8 * len(drawn), f'{near} of {len(drawn)} links have robot pixels'
+
+
+def test_a_missing_mesh_is_a_grey_box_and_one_log_line(processes, browser, tmp_path):
+    urdf_path = os.path.join(robots_dir(), VENDORS['ur5'])
+    text = load_robot(urdf_path).urdf
+    gone = 'package://example-robot-data/robots/ur_description/meshes/ur5/visual/forearm.dae'
+    assert gone in text
+    broken = tmp_path / 'ur5_broken.urdf'
+    broken.write_text(text.replace(gone, gone.replace('forearm.dae', 'no_such_mesh.dae')))
+    _, _, view, url = show(processes, str(broken))
+    browser.get(url + '/')
+    states = wait_for(browser, 'const v = window.dqFkView.visuals; return v.length == 7 && '
+                               "v.every((x) => x.state == 'loaded' || x.state == "
+                               "'placeholder') && v.map((x) => [x.link, x.state])",
+                      timeout_s=40)
+    assert dict(states) == {'base_link': 'loaded', 'shoulder_link': 'loaded',
+                            'upper_arm_link': 'loaded', 'forearm_link': 'placeholder',
+                            'wrist_1_link': 'loaded', 'wrist_2_link': 'loaded',
+                            'wrist_3_link': 'loaded'}
+    lines = [line for line in read_lines(view, 2.0) if 'no_such_mesh' in line]
+    assert len(lines) == 1 and lines[0].startswith(
+        'dq_fk_view: mesh package://example-robot-data/robots/ur_description/meshes/ur5/'
+        'visual/no_such_mesh.dae: cannot be read (No such file or directory)')
+
+
+def test_the_server_serves_only_the_current_robots_meshes(processes, listener, tmp_path):
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    urdf_path = os.path.join(robots_dir(), VENDORS['ur5'])
+    _, _, view, url = show(processes, urdf_path)
+
+    def status(path):
+        try:
+            with urllib.request.urlopen(url + path, timeout=5) as response:
+                return response.status
+        except urllib.error.HTTPError as exc:
+            return exc.code
+
+    assert listener.spin_until(lambda: status('/mesh/0/base.dae') == 200, timeout_s=20)
+    secret = tmp_path / 'secret.dae'
+    secret.write_text('<COLLADA>secret</COLLADA>')
+    for path in ('/mesh/0/../../../../etc/passwd', '/mesh/0/%2e%2e%2f%2e%2e%2fetc%2fpasswd',
+                 '/mesh/0/base.stl', '/mesh/99/base.dae', '/mesh/-1/base.dae',
+                 f'/mesh/0/{secret}', '/mesh/0/%2Fetc%2Fpasswd', '/mesh/x/base.dae',
+                 '/vendor/../setup.py', '/mesh/0/shoulder.dae'):
+        assert status(path) == 404, path
+    # a robot reload: the list follows the new robot's URDF
+    client = AsyncParameterClient(listener.probe, 'dq_fk_node')
+    assert client.wait_for_services(timeout_sec=10.0)
+    future = client.set_parameters([Parameter('robot_description_file',
+                                              value=shipped_robot_path('rl15'))])
+    listener.spin_until(future.done)
+    assert future.result().results[0].successful
+    assert listener.spin_until(lambda: status('/mesh/0/base.dae') == 404, timeout_s=20)
+
+
+def test_helper_frames_are_hidden_until_asked_and_no_labels_overlap(processes, browser,
+                                                                    tmp_path):
+    start(processes, 'dq_fk_node')
+    start(processes, 'fake_joint_publisher', 'mode:=fixed',
+          'positions:=[0.2, 0.3, -0.2, 0.1, 0.4, -0.5]', 'rate_hz:=20.0')
+    _, url = start_view(processes)
+    browser.get(url + '/')
+    wait_for(browser, "return window.dqFkView.frames['eeCarry_seg6'] && "
+                      "window.dqFkView.frames['wrist_seg5_dh_z']")
+    listed = browser.execute_script(
+        "return [...document.querySelectorAll('#frame-list li')].map((li) => li.textContent)")
+    assert 'eeCarry_seg6' in listed and not [n for n in listed if '_dh_z' in n]
+    hidden = browser.execute_script(
+        "return Object.keys(window.dqFkView.frames).filter((n) => n.endsWith('_dh_z'))"
+        '.map((n) => document.querySelector(`.frame-label[data-frame="${n}"]`))'
+        '.map((e) => e ? e.getBoundingClientRect().width : 0)')  # never drawn, or not shown
+    assert len(hidden) == 5 and all(width == 0 for width in hidden)
+    # no two visible labels overlap (their boxes, measured in the page)
+    wait_for(browser, 'return new Promise((r) => setTimeout(() => r(true), 500))')
+    boxes = browser.execute_script('return window.dqFkView.labelBoxes()')
+    assert len(boxes) == 7
+    for a in boxes:
+        for b in boxes:
+            if a['frame'] < b['frame']:
+                overlap = (min(a['right'], b['right']) - max(a['left'], b['left']) > 0.5 and
+                           min(a['bottom'], b['bottom']) - max(a['top'], b['top']) > 0.5)
+                assert not overlap, (a, b)
+    if os.environ.get(SCREENSHOT_DIR_ENV):
+        browser.save_screenshot(os.path.join(os.environ[SCREENSHOT_DIR_ENV], 'dq_fk_view.png'))
+    # the toggle shows them, in the list and in the view
+    browser.find_element('id', 'show-helpers').click()
+    listed = wait_for(browser, "const l = [...document.querySelectorAll('#frame-list li')]"
+                               '.map((li) => li.textContent); return l.some((n) => '
+                               "n.endsWith('_dh_z')) && l")
+    assert len([n for n in listed if n.endswith('_dh_z')]) == 5
+    assert browser.execute_script('return window.dqFkView.showHelpers') is True

@@ -1,0 +1,114 @@
+"""The meshes dq_fk_view may serve: exactly the files the URDF's visuals name, nothing else."""
+
+import os
+
+from dq_fk_ros.description.meshes import (
+    MAX_MESH_BYTES, mesh_allow_list, visual_mesh_uris)
+from dq_fk_ros.description.packages import PackageResolver
+from dq_fk_ros.ros.view import ViewState
+import pytest
+
+
+def robot(*meshes, collision='package://arm/meshes/secret.stl'):
+    """Write a URDF with one link per mesh URI (and a collision mesh, never served)."""
+    links = ''.join(f'<link name="l{k}"><visual><geometry><mesh filename="{uri}" '
+                    f'scale="0.001 0.001 0.001"/></geometry></visual></link>'
+                    for k, uri in enumerate(meshes))
+    return (f'<robot name="r">{links}<link name="c"><collision><geometry><mesh '
+            f'filename="{collision}"/></geometry></collision></link></robot>')
+
+
+@pytest.fixture
+def arm(tmp_path):
+    """Make a package ``arm`` with meshes, a file outside it and a symbolic link out of it."""
+    package = tmp_path / 'arm'
+    (package / 'meshes').mkdir(parents=True)
+    (package / 'package.xml').write_text('<package><name>arm</name></package>')
+    for name in ('base.stl', 'upper.dae', 'hand.obj', 'secret.stl'):
+        (package / 'meshes' / name).write_text('solid x\nendsolid x\n')
+    (tmp_path / 'outside.stl').write_text('solid secret\nendsolid secret\n')
+    os.symlink(tmp_path / 'outside.stl', package / 'meshes' / 'escape.stl')
+    (package / 'meshes' / 'notes.txt').write_text('not a mesh')
+    return package
+
+
+def test_the_visuals_meshes_are_listed_once_and_collisions_left_out():
+    text = robot('package://arm/meshes/base.stl', 'package://arm/meshes/base.stl',
+                 'file:///m/a.obj')
+    assert visual_mesh_uris(text) == ['package://arm/meshes/base.stl', 'file:///m/a.obj']
+    assert visual_mesh_uris('not xml <') == []
+
+
+def test_only_files_inside_their_package_or_an_allowed_folder_are_served(arm, tmp_path):
+    extra = tmp_path / 'extra'
+    extra.mkdir()
+    (extra / 'tool.stl').write_text('solid t\nendsolid t\n')
+    uris = ['package://arm/meshes/base.stl', 'package://arm/meshes/upper.dae',
+            'package://arm/meshes/hand.obj', 'package://arm/../outside.stl',
+            'package://arm/meshes/escape.stl', 'package://arm/meshes/notes.txt',
+            'package://nobody/meshes/x.stl', f'file://{tmp_path}/outside.stl',
+            f'file://{extra}/tool.stl', 'meshes/base.stl', 'http://example.com/a.stl',
+            'package://arm/meshes/missing.stl']
+    resolver = PackageResolver({'arm': str(arm)}, environ={})
+    listed = mesh_allow_list(robot(*uris), resolver, [str(extra)])
+    served = {m.uri: m.path for m in listed if m.path}
+    assert served == {
+        'package://arm/meshes/base.stl': str(arm / 'meshes' / 'base.stl'),
+        'package://arm/meshes/upper.dae': str(arm / 'meshes' / 'upper.dae'),
+        'package://arm/meshes/hand.obj': str(arm / 'meshes' / 'hand.obj'),
+        f'file://{extra}/tool.stl': str(extra / 'tool.stl')}
+    problems = {m.uri: m.problem for m in listed if not m.path}
+    assert 'leaves package' in problems['package://arm/../outside.stl']
+    assert problems['package://arm/meshes/escape.stl'].endswith('outside its package')
+    assert 'not a mesh this page draws' in problems['package://arm/meshes/notes.txt']
+    assert "package 'nobody' not found; searched: --package arm" in \
+        problems['package://nobody/meshes/x.stl']
+    assert problems[f'file://{tmp_path}/outside.stl'].endswith('outside the --mesh-dir folders')
+    assert 'a relative path' in problems['meshes/base.stl']
+    assert 'only package:// and file://' in problems['http://example.com/a.stl']
+    assert 'cannot be read (No such file or directory)' in \
+        problems['package://arm/meshes/missing.stl']
+    assert all('\n' not in p and 'solid' not in p for p in problems.values())
+    # the page fetches /mesh/<index>/<file name>; the collision mesh is never listed
+    assert [m.url for m in listed[:3]] == ['/mesh/0/base.stl', '/mesh/1/upper.dae',
+                                           '/mesh/2/hand.obj']
+    assert all('secret' not in m.uri for m in listed)
+
+
+def test_a_file_mesh_without_a_mesh_dir_is_refused(tmp_path):
+    (tmp_path / 'a.stl').write_text('solid\n')
+    (listed,) = mesh_allow_list(robot(f'file://{tmp_path}/a.stl'), PackageResolver(environ={}))
+    assert listed.path is None and listed.problem.endswith(
+        'outside a folder given with --mesh-dir (none given)')
+
+
+def test_a_mesh_too_big_is_not_served(arm):
+    with open(arm / 'meshes' / 'base.stl', 'wb') as stream:
+        stream.truncate(MAX_MESH_BYTES + 1)
+    (listed,) = mesh_allow_list(robot('package://arm/meshes/base.stl'),
+                                PackageResolver({'arm': str(arm)}, environ={}))
+    assert listed.path is None and listed.problem.endswith('larger than 64 MiB')
+
+
+def test_the_server_serves_the_current_list_only(arm, tmp_path):
+    lines = []
+    state = ViewState(resolver=PackageResolver({'arm': str(arm)}, environ={}),
+                      log=lines.append)
+    state.take_description(robot('package://arm/meshes/base.stl',
+                                 'package://arm/meshes/escape.stl'))
+    assert state.mesh_path(0, 'base.stl') == str(arm / 'meshes' / 'base.stl')
+    assert lines == ['mesh package://arm/meshes/escape.stl: outside its package (a grey box '
+                     'stands for it)']
+    for index, name in ((1, 'escape.stl'), (0, 'upper.dae'), (2, 'base.stl'), (-1, 'base.stl'),
+                        (0, '../base.stl'), (0, '%2e%2e')):
+        assert state.mesh_path(index, name) is None, (index, name)
+    # replaced by a link out of the package after the list was made: refused then too
+    (arm / 'meshes' / 'base.stl').unlink()
+    os.symlink(tmp_path / 'outside.stl', arm / 'meshes' / 'base.stl')
+    assert state.mesh_path(0, 'base.stl') is None
+    # a new robot: the list follows it
+    state.take_description(robot('package://arm/meshes/upper.dae'))
+    assert state.mesh_path(0, 'upper.dae') == str(arm / 'meshes' / 'upper.dae')
+    assert state.mesh_path(0, 'base.stl') is None
+    message = state.robot_message()
+    assert '"meshes": {"package://arm/meshes/upper.dae": "/mesh/0/upper.dae"}' in message
