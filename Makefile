@@ -115,9 +115,12 @@ mutate: setup
 	@$(PY) scripts/mutate.py
 
 # The README's picture of dq_fk_view, taken by its browser test (headless Chromium)
+# the README's pictures of dq_fk_view (RL15, UR5, Panda with their meshes), made by the
+# browser tests that check them (test/integration/test_view_meshes.py)
 screenshot: setup
-	@DQ_FK_VIEW_SCREENSHOT=$(CURDIR)/docs/dq_fk_view.png $(PY) -m pytest -q -p no:cacheprovider \
-	  test/integration/test_view.py -k kinematics_put_it
+	@DQ_FK_VIEW_SCREENSHOTS=$(CURDIR)/docs $(PY) -m pytest -q -p no:cacheprovider \
+	  test/integration/test_view_meshes.py -k 'vendor_robot or helper_frames'
+	@echo 'screenshot: docs/dq_fk_view.png, docs/dq_fk_view_ur5.png, docs/dq_fk_view_panda.png'
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(BENCH_VENV)-logs build install log .pytest_cache \

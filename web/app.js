@@ -17,6 +17,7 @@ const view = {
   selected: null,
   fixedFrame: null,
   robotLinks: [],      // the URDF's links, placed by TF
+  segments: [],        // [parent link, link] of the links drawn as a segment (no visual)
   visuals: [],         // per <visual>: {link, index, kind: mesh|box|cylinder|sphere, uri,
                        //   state: pending|loading|loaded|placeholder|primitive}
   showHelpers: false,  // DH helper frames (dhN, *_dh_z, <tip>_dhN) shown
@@ -315,10 +316,12 @@ function onRobot(message) {
     scene.add(group);
   }
   // a link without any visual: a thin segment from its parent link's origin, as dq_fk plot
-  const pairs = Object.values(robot.joints)
-    .filter((joint) => !withVisual.has(joint.child && joint.child.name))
-    .map((joint) => [joint.parent && joint.parent.name, joint.child && joint.child.name])
-    .filter(([parent, child]) => parent && child);
+  // (urdf-loader nests each joint in its parent link, its child link in it)
+  const pairs = Object.values(robot.joints).map((joint) => {
+    const child = joint.children.find((object) => object.isURDFLink);
+    return [joint.parent && joint.parent.isURDFLink ? joint.parent.name : null,
+            child ? child.name : null];
+  }).filter(([parent, child]) => parent && child && !withVisual.has(child));
   if (pairs.length) {
     const geometry = new THREE.BufferGeometry();
     geometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(pairs.length * 6), 3));
@@ -328,6 +331,7 @@ function onRobot(message) {
     scene.add(object);
   }
   view.robotLinks = Object.keys(robot.links);
+  view.segments = pairs;
   view.robotVersion += 1;
   placeRobot();
 }
@@ -340,7 +344,15 @@ function visualPoses() {
     const quaternion = new THREE.Quaternion();
     const scale = new THREE.Vector3();
     if (object) object.matrixWorld.decompose(position, quaternion, scale);
-    return { link: v.link, index: v.index, kind: v.kind, state: v.state, uri: v.uri,
+    let color = null;  // the colour the first drawn mesh of the visual has
+    if (object) {
+      object.traverse((child) => {
+        if (color === null && child.isMesh && child.material && child.material.color) {
+          color = child.material.color.toArray();
+        }
+      });
+    }
+    return { link: v.link, index: v.index, kind: v.kind, state: v.state, uri: v.uri, color,
              placed: Boolean(object && linkGroups[v.link] && linkGroups[v.link].visible),
              position: position.toArray(), quaternion: quaternion.toArray() };
   });

@@ -219,7 +219,7 @@ def cmd_plot(args):
     model = _robot(args)
     q = parse_joint_values(model, args.joints, args.deg)
     try:
-        save_robot_plot(model, q, args.output, view)
+        save_robot_plot(model, q, args.output, view, args.helpers)
     except ImportError:
         raise UsageError('dq_fk plot needs matplotlib (pip install matplotlib; on a ROS '
                          'install: apt install python3-matplotlib)') from None
@@ -291,6 +291,8 @@ def build_parser():
                    help='the picture to write (.png or .svg)')
     p.add_argument('--view', nargs=2, type=float, metavar=('AZIMUTH', 'ELEVATION'),
                    default=None, help='camera direction in degrees (default -60 25)')
+    p.add_argument('--helpers', action='store_true',
+                   help="also draw the DH method's helper frames (dh0..., <tip>_dh0...)")
     add_urdf_chain_options(p)
     add_package_option(p)
     p.set_defaults(func=cmd_plot)

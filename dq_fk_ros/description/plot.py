@@ -1,16 +1,19 @@
 """
 A picture of the robot at given joint values, without RViz: ``dq_fk plot``.
 
-Headless matplotlib (the Agg canvas, no pyplot state): the links as the segments the URDF
-draws (:func:`~dq_fk_ros.description.urdf.link_segments`), every published frame's x, y, z
-axes in red, green, blue with its name, a grid on the fixed frame's xy plane, equal scale
-on all three axes, and a title with the robot and the joint values. A DH mistake (a wrong
-sign of alpha, a length in the wrong row) shows at a glance.
+Headless matplotlib (the Agg canvas, no pyplot state): the links as segments (for a DH
+file the cylinders of its URDF, :func:`~dq_fk_ros.description.urdf.link_segments`; for a
+robot from a URDF one segment from each link's URDF parent to it), every published frame's
+x, y, z axes in red, green, blue with its name (the DH method's helper frames, ``dh0``...,
+only with ``helpers``: :func:`~dq_fk_ros.description.urdf.is_helper_frame`), a grid on the
+fixed frame's xy plane, equal scale on all three axes, and a title with the robot and the
+joint values. A DH mistake (a wrong sign of alpha, a length in the wrong row) shows at a
+glance.
 """
 
 import math
 
-from dq_fk_ros.description.urdf import link_segments
+from dq_fk_ros.description.urdf import is_helper_frame, link_segments
 import numpy as np
 
 AXIS_COLOURS = ('#d62728', '#2ca02c', '#1f77b4')  # x red, y green, z blue (as RViz)
@@ -18,12 +21,13 @@ SEGMENT_COLOUR = '#7f7f86'
 DEFAULT_VIEW = (-60.0, 25.0)   # azimuth, elevation in degrees
 
 
-def draw_robot(model, q, view=DEFAULT_VIEW, size_in=(8.0, 7.0), dpi=100):
+def draw_robot(model, q, view=DEFAULT_VIEW, size_in=(8.0, 7.0), dpi=100, helpers=False):
     """
     Return a matplotlib ``Figure`` of ``model`` at joint values ``q`` (chain order).
 
     :param view: ``(azimuth, elevation)`` of the camera, degrees.
     :param size_in: figure size in inches; ``dpi``: its resolution.
+    :param helpers: draw the DH method's helper frames too (hidden by default).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -33,7 +37,8 @@ def draw_robot(model, q, view=DEFAULT_VIEW, size_in=(8.0, 7.0), dpi=100):
     ax = fig.add_subplot(projection='3d')
     frames = list(model.forward_all(q))
     origins = np.array([_matrix(h)[:3, 3] for h in frames])
-    segments = link_segments(model, q)
+    segments = link_segments(model, q) if model.urdf is None else \
+        urdf_link_segments(model, origins)
     points = np.vstack([origins, np.zeros((1, 3))] + [np.array(s) for s in segments])
     low, high = points.min(axis=0), points.max(axis=0)
     span = float(max((high - low).max(), 1e-3))
@@ -47,6 +52,9 @@ def draw_robot(model, q, view=DEFAULT_VIEW, size_in=(8.0, 7.0), dpi=100):
                 solid_capstyle='round', zorder=1)
     matrices = [np.eye(4)] + [_matrix(h) for h in frames]
     names = [model.fixed_frame] + list(model.frame_names)
+    if not helpers:
+        kept = [k for k, name in enumerate(names) if k == 0 or not is_helper_frame(name)]
+        matrices, names = [matrices[k] for k in kept], [names[k] for k in kept]
     for m in matrices:
         _axes(ax, m, axis_length)
     # one label per place: frames at the same origin share it, one name per line
@@ -76,9 +84,26 @@ def draw_robot(model, q, view=DEFAULT_VIEW, size_in=(8.0, 7.0), dpi=100):
     return fig
 
 
-def save_robot_plot(model, q, path, view=DEFAULT_VIEW):
+def urdf_link_segments(model, origins):
+    """
+    Return ``[(start, end), ...]``: from each URDF link's URDF parent to it (fixed frame).
+
+    ``origins``: every frame's origin, in ``model.frame_names`` order (the links are the
+    frames after the DH chains', their TF parents their URDF parents).
+    """
+    where = dict(zip(model.frame_names, origins))
+    where[model.fixed_frame] = np.zeros(3)
+    segments = []
+    for name, parent in zip(model.frame_names[model.n_dh_frames:],
+                            model.parent_frames[model.n_dh_frames:]):
+        if np.linalg.norm(where[name] - where[parent]) > 1e-9:
+            segments.append((where[parent], where[name]))
+    return segments
+
+
+def save_robot_plot(model, q, path, view=DEFAULT_VIEW, helpers=False):
     """Draw ``model`` at ``q`` and save it as PNG or SVG (by the file's extension)."""
-    fig = draw_robot(model, q, view)
+    fig = draw_robot(model, q, view, helpers=helpers)
     fig.savefig(path)
     return fig
 

@@ -11,12 +11,24 @@ Every constant joint offset is drawn as a thin cylinder in its parent link.
 
 from dataclasses import dataclass, replace
 import math
+import re
 from xml.sax.saxutils import quoteattr
 
 from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
 import numpy as np
 
 LINK_RADIUS_M = 0.02
+# Frames that exist for the DH method only: the DH frames `dq_fk from-urdf` names (dh0...,
+# dh_0..., dq_fk_dh0..., <tip>_dh0... of the other chains, dq_fk_chain<k>_dh0...) and the
+# helper links of the URDF written here (<frame>_dh_z, _dh_z0, _dh_x). The view and the plot
+# hide them by default; web/app.js has the same pattern (HELPER_FRAME).
+HELPER_FRAME = re.compile(r'^(dh|dh_|dq_fk_dh)\d+$|_dh_z\d*$|_dh_x$|_(dh|dh_|dq_fk_dh)\d+$'
+                          r'|^dq_fk_chain\d+_dh\d+$')
+
+
+def is_helper_frame(name):
+    """Say whether frame ``name`` exists for the DH method only (:data:`HELPER_FRAME`)."""
+    return HELPER_FRAME.search(name) is not None
 
 
 def _rot_x(alpha):
@@ -335,5 +347,5 @@ def _segment(origin):
             f'      <material name="dq_fk_grey"/>\n    </visual>')
 
 
-__all__ = ['description_urdf', 'HelperFrames', 'link_poses', 'link_segments', 'matrix_to_rpy',
-           'robot_to_urdf', 'urdf_joints', 'UrdfJoint']
+__all__ = ['description_urdf', 'HELPER_FRAME', 'HelperFrames', 'is_helper_frame', 'link_poses',
+           'link_segments', 'matrix_to_rpy', 'robot_to_urdf', 'urdf_joints', 'UrdfJoint']

@@ -34,6 +34,7 @@ import time
 
 from dq_fk_ros.description.meshes import check_mesh_file, mesh_allow_list
 from dq_fk_ros.description.packages import PackageResolver
+from dq_fk_ros.description.urdf import is_helper_frame
 from dq_fk_ros.kinematics.tree import compose_tree, depths, roots
 from dq_fk_ros.messages.cdr import CdrError, TfLatest
 
@@ -43,7 +44,6 @@ STALE_AFTER_S = 1.0
 MAX_CLIENT_MESSAGE_BYTES = 64 * 1024
 LOOPBACK_NAMES = ('localhost', 'localhost.localdomain', 'ip6-localhost')
 TF_QUEUE_DEPTH = 1000  # /tf messages DDS keeps for the view between two takes
-HELPER_SUFFIXES = ('_dh_z', '_dh_z0')  # dq_fk_node's URDF helper frames: never the default
 VENDOR_PACKAGES = ('three', 'urdf-loader')
 
 
@@ -196,7 +196,7 @@ def _largest_root(edges):
 
 def _deepest(below):
     """Return the frame farthest from the root, not a URDF helper (the end effector, often)."""
-    names = [n for n in below if not n.endswith(HELPER_SUFFIXES)] or list(below)
+    names = [n for n in below if not is_helper_frame(n)] or list(below)  # never a helper
     return min(names, key=lambda n: (-below[n], n)) if names else ''
 
 

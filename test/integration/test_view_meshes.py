@@ -260,3 +260,63 @@ def test_helper_frames_are_hidden_until_asked_and_no_labels_overlap(processes, b
                                "n.endsWith('_dh_z')) && l")
     assert len([n for n in listed if n.endswith('_dh_z')]) == 5
     assert browser.execute_script('return window.dqFkView.showHelpers') is True
+
+
+PRIMITIVES = """<?xml version="1.0"?>
+<robot name="shapes">
+  <material name="red"><color rgba="1 0 0 1"/></material>
+  <link name="base"/>
+  <link name="post">
+    <visual><origin xyz="0 0 0.2" rpy="0 0 0"/><geometry><box size="0.1 0.2 0.4"/></geometry>
+      <material name="red"/></visual>
+  </link>
+  <link name="arm">
+    <visual><origin xyz="0.15 0 0" rpy="0 1.5707963267948966 0"/>
+      <geometry><cylinder radius="0.03" length="0.3"/></geometry>
+      <material name="green"><color rgba="0 1 0 1"/></material></visual>
+  </link>
+  <link name="bare"/>
+  <link name="ball">
+    <visual><origin xyz="0 0 0" rpy="0.3 0.2 0.1"/><geometry><sphere radius="0.05"/></geometry>
+      <material name="blue"><color rgba="0 0 1 1"/></material></visual>
+  </link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="post"/>
+    <origin xyz="0 0 0.1"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="post"/><child link="arm"/>
+    <origin xyz="0 0 0.4" rpy="0 0 0.5"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="fixed" type="fixed"><parent link="arm"/><child link="bare"/>
+    <origin xyz="0.3 0 0"/></joint>
+  <joint name="j3" type="continuous"><parent link="bare"/><child link="ball"/>
+    <origin xyz="0.05 0 0"/><axis xyz="1 0 0"/></joint>
+</robot>
+"""
+
+
+def test_the_urdfs_own_shapes_with_their_colours_and_a_segment_for_a_bare_link(
+        processes, browser, tmp_path):
+    path = tmp_path / 'shapes.urdf'
+    path.write_text(PRIMITIVES)
+    model, positions, _, url = show(processes, str(path), positions=[0.4, -0.7, 1.1])
+    browser.get(url + '/')
+    wait_for(browser, 'return window.dqFkView.visuals.length == 3 && window.dqFkView'
+                      '.visualPoses().every((v) => v.placed)')
+    wait_for(browser, "return window.dqFkView.frames['ball']")
+    page = browser.execute_script('return window.dqFkView.visualPoses()')
+    assert [(v['link'], v['kind'], v['state']) for v in page] == [
+        ('post', 'box', 'primitive'), ('arm', 'cylinder', 'primitive'),
+        ('ball', 'sphere', 'primitive')]
+    assert [v['color'] for v in page] == [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+    pin_model = oracle.urdf_model(PRIMITIVES)
+    placements = oracle.link_placements(
+        pin_model, oracle.configuration(pin_model, dict(zip(model.joint_names, positions))),
+        ['base', 'post', 'arm', 'ball'])
+    root = np.linalg.inv(placements['base'])
+    for (link, index, kind, origin), shown in zip(urdf_visuals(PRIMITIVES), page):
+        np.testing.assert_allclose(
+            htf.pose_matrix_of_tuple(shown['position'] + shown['quaternion']),
+            root @ placements[link] @ origin, atol=1e-9, err_msg=link)
+    # the links without a visual: a segment from their parent link (as dq_fk plot draws)
+    assert sorted(map(tuple, browser.execute_script('return window.dqFkView.segments'))) == \
+        [('arm', 'bare')]

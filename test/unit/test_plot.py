@@ -214,3 +214,35 @@ def test_a_long_title_wraps_and_keeps_every_joint():
     lines = title.split('\n')
     assert len(lines) == 2 and all(len(line) <= 100 for line in lines)
     assert all(title.count(f'{name}=14.3°') == 1 for name in model.joint_names)
+
+
+def test_a_urdf_robot_is_drawn_by_its_links_and_helper_frames_only_when_asked():
+    import os
+    import sys
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    from vendor_urdfs import UR5, vendor_robot
+    model = vendor_robot(UR5).model
+    q = np.array([0.3, -1.2, 1.0, -0.5, 0.8, 0.2])
+    fig = draw_robot(model, q)
+    names = {n for t in fig.axes[0].texts for n in t.get_text().split()}
+    assert {'shoulder_link', 'wrist_3_link', 'tool0'} <= names
+    assert not {n for n in names if n.startswith('dh')}, names  # dh0..dh6 hidden
+    shown = {n for t in draw_robot(model, q, helpers=True).axes[0].texts
+             for n in t.get_text().split()}
+    assert {f'dh{k}' for k in range(7)} <= shown
+    # one segment per URDF joint with an offset, from the parent link's origin to the link's
+    from dq_fk_ros.description.plot import urdf_link_segments
+    from dq_fk_ros.kinematics.dh import homogeneous_from_dq
+    frames = homogeneous_from_dq(model.forward_all(q))
+    origins = frames[:, :3, 3]
+    segments = urdf_link_segments(model, origins)
+    where = dict(zip(model.frame_names, origins))
+    where[model.fixed_frame] = np.zeros(3)
+    import xml.etree.ElementTree as ElementTree
+    pairs = [(j.find('parent').get('link'), j.find('child').get('link'))
+             for j in ElementTree.fromstring(vendor_robot(UR5).urdf).findall('joint')]
+    want = [(where[p], where[c]) for p, c in pairs if np.linalg.norm(where[c] - where[p]) > 1e-9]
+    assert len(segments) == len(want) >= 6
+    for (a, b), (c, d) in zip(sorted(segments, key=lambda s: tuple(s[1])),
+                              sorted(want, key=lambda s: tuple(s[1]))):
+        np.testing.assert_allclose(np.concatenate([a, b]), np.concatenate([c, d]), atol=1e-12)
