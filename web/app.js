@@ -8,7 +8,8 @@ import URDFLoader from 'urdf-loader';
 
 const GREY = new THREE.Color(0xb0b0b0);
 const AXIS_LENGTH_M = 0.1;
-const PLACEHOLDER_M = 0.05;   // the grey box standing for a mesh that could not be loaded
+const PLACEHOLDER_M = 0.05;
+const MANY_FRAMES = 40;       // above this many shown frames, only the selected one is named   // the grey box standing for a mesh that could not be loaded
 // frames that exist for the DH method only (docs/robot_description.md): hidden by default
 const HELPER_FRAME = /^(dh|dh_|dq_fk_dh)\d+$|_dh_z\d*$|_dh_x$|_(dh|dh_|dq_fk_dh)\d+$|^dq_fk_chain\d+_dh\d+$/;
 
@@ -21,11 +22,13 @@ const view = {
   visuals: [],         // per <visual>: {link, index, kind: mesh|box|cylinder|sphere, uri,
                        //   state: pending|loading|loaded|placeholder|primitive}
   showHelpers: false,  // DH helper frames (dhN, *_dh_z, <tip>_dhN) shown
+  showNames: null,     // every shown frame named (null: yes up to MANY_FRAMES frames)
   isHelper: (name) => HELPER_FRAME.test(name),
   visualPoses,         // () -> [{link, index, kind, state, position, quaternion}] in the fixed frame
   labelBoxes,          // () -> [{frame, left, top, right, bottom}] of the visible labels
   robotVersion: 0,
   messages: 0,
+  renders: 0,          // pictures drawn (only when something changed)
   arrivals: [],        // the last 1000 frames messages: [newest /tf stamp (ns), arrival (ms)]
   connected: false,
   webgl: true,
@@ -69,6 +72,12 @@ let framedCount = 0;       // frames the camera was last fitted to
 let userMoved = false;     // once the user orbits or zooms, the camera is theirs
 let userSelected = false;  // once the user picks a frame, the selection is theirs
 controls.addEventListener('start', () => { userMoved = true; });
+// drawn when something changed (poses, the robot, a mesh arriving, the camera, a toggle), not
+// every animation frame: a big robot in a software-rendered browser stays responsive, and
+// a robot standing still costs nothing
+let needsRender = true;
+function redraw() { needsRender = true; }
+controls.addEventListener('change', redraw);
 
 function resize() {
   const width = container.clientWidth;
@@ -77,6 +86,7 @@ function resize() {
   camera.updateProjectionMatrix();
   if (renderer) renderer.setSize(width, height);
   labelRenderer.setSize(width, height);
+  redraw();
 }
 window.addEventListener('resize', resize);
 resize();
@@ -112,6 +122,12 @@ function onFrames(message) {
   const seen = new Set();
   for (const [name, parent, x, y, z, qx, qy, qz, qw, stale] of message.frames) {
     seen.add(name);
+    const before = view.frames[name];
+    if (!before || before.stale !== stale || before.parent !== parent ||
+        [x, y, z, qx, qy, qz, qw].some((v, k) => v !== [...before.position,
+                                                          ...before.quaternion][k])) {
+      redraw();
+    }
     view.frames[name] = { parent, position: [x, y, z], quaternion: [qx, qy, qz, qw], stale };
     const entry = frameObject(name);
     entry.object.position.set(x, y, z);
@@ -126,6 +142,7 @@ function onFrames(message) {
   }
   for (const name of Object.keys(view.frames)) {
     if (!seen.has(name)) {
+      redraw();
       scene.remove(frameObjects[name].object);
       frameObjects[name].element.remove();
       delete frameObjects[name];
@@ -133,6 +150,7 @@ function onFrames(message) {
     }
   }
   stackLabels();
+  updateLabels();
   // the server's choice (the deepest frame, or --select) until the user picks one: the tree
   // may still be growing
   if ((!userSelected || !view.frames[view.selected]) && message.select &&
@@ -150,6 +168,29 @@ function shown(name) {
   return view.showHelpers || !view.isHelper(name);
 }
 
+function namesOn() {
+  if (view.showNames !== null) return view.showNames;
+  return Object.keys(view.frames).filter(shown).length <= MANY_FRAMES;
+}
+
+function updateLabels() {
+  // a big robot (a humanoid, a mobile manipulator): only the selected frame's name, unless
+  // the panel's box asks for all
+  const all = namesOn();
+  for (const [name, entry] of Object.entries(frameObjects)) {
+    entry.label.visible = all || name === view.selected;
+  }
+  const box = document.getElementById('show-names');
+  if (box) box.checked = all;
+}
+
+function setShowNames(on) {
+  redraw();
+  view.showNames = on;
+  updateLabels();
+}
+view.setShowNames = setShowNames;
+
 function stackLabels() {
   // frames at one place (wrist frames, a tool at its flange): their names one under another
   const places = new Map();
@@ -165,7 +206,8 @@ function stackLabels() {
 function separateLabels() {
   // labels whose boxes overlap on the screen (frames close together): each moved down below
   // the ones placed before it, top to bottom
-  const entries = Object.entries(frameObjects).filter(([name]) => shown(name));
+  const entries = Object.entries(frameObjects).filter(([name, entry]) => shown(name) &&
+                                                      entry.label.visible);
   for (const [, entry] of entries) entry.text.style.top = '0px';
   const boxes = entries.map(([name, entry]) => ({ entry, name,
                                                    rect: entry.text.getBoundingClientRect() }))
@@ -192,13 +234,15 @@ function separateLabels() {
 }
 
 function labelBoxes() {
-  return Object.entries(frameObjects).filter(([name]) => shown(name)).map(([frame, entry]) => {
+  return Object.entries(frameObjects).filter(([name, entry]) => shown(name) &&
+                                            entry.label.visible).map(([frame, entry]) => {
     const r = entry.text.getBoundingClientRect();
     return { frame, left: r.left, top: r.top, right: r.right, bottom: r.bottom };
   }).filter((b) => b.right > b.left);
 }
 
 function setShowHelpers(on) {
+  redraw();
   view.showHelpers = on;
   for (const [name, entry] of Object.entries(frameObjects)) entry.object.visible = shown(name);
   const box = document.getElementById('show-helpers');
@@ -211,6 +255,7 @@ view.setShowHelpers = setShowHelpers;
 function setRobotVisible(on) {  // for tests and screenshots: the robot's pixels alone
   robotHidden = !on;
   placeRobot();
+  redraw();
 }
 view.setRobotVisible = setRobotVisible;
 
@@ -277,6 +322,7 @@ function onRobot(message) {
       if (!url) { fallback('not served (see the server log)'); return; }
       try {
         loadMesh(url, manager, material, (object, error) => {
+          redraw();
           if (error || !object) { fallback(error ? String(error) : 'no model'); return; }
           if (record) record.state = 'loaded';
           done(object);
@@ -334,6 +380,7 @@ function onRobot(message) {
   view.segments = pairs;
   view.robotVersion += 1;
   placeRobot();
+  redraw();
 }
 
 function visualPoses() {
@@ -353,6 +400,7 @@ function visualPoses() {
       });
     }
     return { link: v.link, index: v.index, kind: v.kind, state: v.state, uri: v.uri, color,
+             matrix: object ? object.matrixWorld.toArray() : null,  // column-major, scale in
              placed: Boolean(object && linkGroups[v.link] && linkGroups[v.link].visible),
              position: position.toArray(), quaternion: quaternion.toArray() };
   });
@@ -387,8 +435,10 @@ function placeRobot() {
 }
 
 function select(name, byUser = true) {
+  redraw();
   userSelected = userSelected || byUser;
   view.selected = name;
+  updateLabels();
   for (const [frame, entry] of Object.entries(frameObjects)) {
     entry.element.classList.toggle('selected', frame === name);
   }
@@ -458,18 +508,21 @@ function connect() {
   });
 }
 
-let renders = 0;
 function render() {
   requestAnimationFrame(render);
   controls.update();
+  if (!needsRender) return;
+  needsRender = false;
   if (renderer) renderer.render(scene, camera);
   labelRenderer.render(scene, camera);
-  renders += 1;
-  if (renders % 6 === 0) separateLabels();  // ten times a second at 60 fps
+  separateLabels();
+  view.renders += 1;
 }
 
 const helperBox = document.getElementById('show-helpers');
 if (helperBox) helperBox.addEventListener('change', () => setShowHelpers(helperBox.checked));
+const namesBox = document.getElementById('show-names');
+if (namesBox) namesBox.addEventListener('change', () => setShowNames(namesBox.checked));
 
 connect();
 render();

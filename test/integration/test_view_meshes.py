@@ -27,7 +27,8 @@ from vendor_urdfs import robots_dir
 pytestmark = pytest.mark.integration
 SCREENSHOT_DIR_ENV = 'DQ_FK_VIEW_SCREENSHOTS'  # also save the pictures there (README, make)
 VENDORS = {'ur5': 'ur_description/urdf/ur5_robot.urdf',
-           'panda': 'panda_description/urdf/panda.urdf'}
+           'panda': 'panda_description/urdf/panda.urdf',
+           'tiago_dual': 'tiago_description/robots/tiago_dual.urdf'}  # a whole tree
 
 
 def erd_package():
@@ -58,13 +59,17 @@ def origin_matrix(element):
 
 
 def urdf_visuals(text):
-    """Return ``[(link, index, kind, origin 4x4), ...]`` of every ``<visual>``."""
+    """Return ``[(link, index, kind, origin 4x4 times the mesh's scale), ...]`` per visual."""
     out = []
-    for link in ElementTree.fromstring(text).iter('link'):
+    for link in ElementTree.fromstring(text).findall('link'):
         for index, visual in enumerate(link.findall('visual')):
             geometry = visual.find('geometry')
             kind = geometry[0].tag if geometry is not None and len(geometry) else 'none'
-            out.append((link.get('name'), index, kind, origin_matrix(visual.find('origin'))))
+            scale = np.eye(4)
+            if kind == 'mesh' and geometry[0].get('scale'):
+                scale[:3, :3] = np.diag([float(v) for v in geometry[0].get('scale').split()])
+            out.append((link.get('name'), index, kind,
+                        origin_matrix(visual.find('origin')) @ scale))
     return out
 
 
@@ -147,10 +152,9 @@ def test_a_vendor_robot_is_drawn_with_its_meshes_where_pinocchio_puts_them(
                                         links)
     root = np.linalg.inv(placements[fixed])
     for (link, index, kind, origin), shown in zip(visuals, page):
-        expected = root @ placements[link] @ origin
-        np.testing.assert_allclose(
-            htf.pose_matrix_of_tuple(shown['position'] + shown['quaternion']), expected,
-            atol=1e-9, err_msg=f'{name}: {link} visual {index}')
+        expected = root @ placements[link] @ origin  # (a mirrored mesh: a negative scale)
+        np.testing.assert_allclose(np.array(shown['matrix']).reshape(4, 4).T, expected,
+                                   atol=1e-9, err_msg=f'{name}: {link} visual {index}')
     # no request of the page went unanswered (meshes, scripts, icon)
     failed = browser.execute_script(
         'return performance.getEntriesByType("resource").filter((e) => e.responseStatus '
