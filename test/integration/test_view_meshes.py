@@ -324,3 +324,66 @@ def test_the_urdfs_own_shapes_with_their_colours_and_a_segment_for_a_bare_link(
     # the links without a visual: a segment from their parent link (as dq_fk plot draws)
     assert sorted(map(tuple, browser.execute_script('return window.dqFkView.segments'))) == \
         [('arm', 'bare')]
+
+
+XACRO = """<?xml version="1.0"?>
+<robot name="parts" xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:property name="pkg" value="package://parts_description/meshes"/>
+  <xacro:macro name="part" params="name file z">
+    <link name="${name}">
+      <visual><origin xyz="0 0 ${z}"/>
+        <geometry><mesh filename="${pkg}/${file}" scale="0.5 0.5 0.5"/></geometry></visual>
+    </link>
+  </xacro:macro>
+  <link name="base"/>
+  <xacro:part name="obj_part" file="tetra.obj" z="0.1"/>
+  <xacro:part name="stl_part" file="tetra.stl" z="0.2"/>
+  <joint name="a" type="revolute"><parent link="base"/><child link="obj_part"/>
+    <axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="b" type="revolute"><parent link="obj_part"/><child link="stl_part"/>
+    <origin xyz="0.3 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+</robot>
+"""
+TETRA = [(0, 0, 0), (0.2, 0, 0), (0, 0.2, 0), (0, 0, 0.2)]
+FACES = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+
+
+def test_obj_and_stl_meshes_of_a_xacro_package(processes, browser, tmp_path):
+    package = tmp_path / 'parts_description'
+    (package / 'meshes').mkdir(parents=True)
+    (package / 'urdf').mkdir()
+    (package / 'package.xml').write_text('<package><name>parts_description</name></package>')
+    (package / 'meshes' / 'tetra.obj').write_text(
+        ''.join(f'v {x} {y} {z}\n' for x, y, z in TETRA) +
+        ''.join(f'f {a + 1} {b + 1} {c + 1}\n' for a, b, c in FACES))
+    (package / 'meshes' / 'tetra.stl').write_text(
+        'solid tetra\n' + ''.join(
+            'facet normal 0 0 0\nouter loop\n' +
+            ''.join(f'vertex {TETRA[k][0]} {TETRA[k][1]} {TETRA[k][2]}\n' for k in face) +
+            'endloop\nendfacet\n' for face in FACES) + 'endsolid tetra\n')
+    xacro = package / 'urdf' / 'parts.urdf.xacro'
+    xacro.write_text(XACRO)
+    start(processes, 'dq_fk_node', f'robot_description_file:={xacro}')
+    start(processes, 'fake_joint_publisher', f'robot_description_file:={xacro}',
+          'mode:=fixed', 'positions:=[0.5, -0.8]', 'rate_hz:=20.0')
+    _, url = start_view(processes, f'--package=parts_description={package}')
+    browser.get(url + '/')
+    page = wait_for(browser, 'const v = window.dqFkView.visualPoses(); return v.length == 2 && '
+                             "v.every((x) => x.state == 'loaded' && x.placed) && v",
+                    timeout_s=30)
+    assert [(v['link'], v['uri']) for v in page] == [
+        ('obj_part', 'package://parts_description/meshes/tetra.obj'),
+        ('stl_part', 'package://parts_description/meshes/tetra.stl')]
+    # where the URDF puts them, their scale included
+    c, s = math.cos(0.5), math.sin(0.5)
+    obj_link = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    c2, s2 = math.cos(-0.8), math.sin(-0.8)
+    stl_link = obj_link @ np.array([[1, 0, 0, 0.3], [0, c2, -s2, 0], [0, s2, c2, 0],
+                                    [0, 0, 0, 1]])
+    half = np.diag([0.5, 0.5, 0.5, 1.0])
+    for shown, link, z in ((page[0], obj_link, 0.1), (page[1], stl_link, 0.2)):
+        lift = np.eye(4)
+        lift[2, 3] = z
+        np.testing.assert_allclose(np.array(shown['matrix']).reshape(4, 4).T,
+                                   link @ lift @ half, atol=1e-9, err_msg=shown['link'])
