@@ -79,3 +79,13 @@ class Harness:
             node.destroy_node()
         self.executor.shutdown()
         rclpy.shutdown(context=self.context)
+
+
+def set_robot_file(harness, path, node='dq_fk_node'):
+    """Set a running node's ``robot_description_file`` through its parameter service."""
+    from rclpy.parameter_client import AsyncParameterClient
+    client = AsyncParameterClient(harness.probe, node)
+    assert client.wait_for_services(timeout_sec=10.0)
+    future = client.set_parameters([Parameter('robot_description_file', value=str(path))])
+    harness.spin_until(future.done)
+    assert future.result().results[0].successful

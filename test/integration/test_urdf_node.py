@@ -51,14 +51,20 @@ def check_tf_tree(harness, model, urdf, rng, mimic=False, rounds=4):
         assert harness.spin_until(lambda: static and tf and tf[-1].transforms[0].header
                                   .stamp == msg.header.stamp, publish=msg)
         transforms = static[-1].transforms + tf[-1].transforms
-        pin_q = oracle.configuration(pin_model, dict(zip(model.joint_names, q)))
-        expected = oracle.link_placements(pin_model, pin_q, links + [model.fixed_frame])
-        root = np.linalg.inv(expected[model.fixed_frame])
-        for link in links:
-            np.testing.assert_allclose(htf.compose(transforms, model.fixed_frame, link),
-                                       root @ expected[link], atol=1e-9, err_msg=link)
-            assert htf.parent_of(transforms, link) == parents[link], link
+        assert_tf_is_pinocchios(transforms, model.fixed_frame, pin_model,
+                                dict(zip(model.joint_names, q)), links, parents)
     return links
+
+
+def assert_tf_is_pinocchios(transforms, fixed_frame, pin_model, values, links, parents):
+    """Each link composed from ``transforms`` is pinocchio's, under its URDF parent (1e-9)."""
+    pin_q = oracle.configuration(pin_model, values)
+    expected = oracle.link_placements(pin_model, pin_q, links + [fixed_frame])
+    root = np.linalg.inv(expected[fixed_frame])
+    for link in links:
+        np.testing.assert_allclose(htf.compose(transforms, fixed_frame, link),
+                                   root @ expected[link], atol=1e-9, err_msg=link)
+        assert htf.parent_of(transforms, link) == parents[link], link
 
 
 def test_a_ur5_urdf_file_gives_its_own_link_names_and_tree(ros_domain_id):
@@ -208,15 +214,8 @@ def test_each_branch_of_a_mobile_manipulator_appears_when_its_joints_do(ros_doma
         assert harness.spin_until(lambda: static)  # transient local: may come after /tf
         transforms = static[-1].transforms + tf[-1].transforms
         parents = urdf_parents(robot.urdf)
-        pin_model = oracle.urdf_model(robot.urdf)
-        pin_q = oracle.configuration(pin_model, values)
-        links = sorted(children() & set(parents))
-        expected = oracle.link_placements(pin_model, pin_q, links + [model.fixed_frame])
-        root = np.linalg.inv(expected[model.fixed_frame])
-        for link in links:
-            np.testing.assert_allclose(htf.compose(transforms, model.fixed_frame, link),
-                                       root @ expected[link], atol=1e-9, err_msg=link)
-            assert htf.parent_of(transforms, link) == parents[link], link
+        assert_tf_is_pinocchios(transforms, model.fixed_frame, oracle.urdf_model(robot.urdf),
+                                values, sorted(children() & set(parents)), parents)
     finally:
         harness.close()
 

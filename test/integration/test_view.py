@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from ros_harness import start
+from ros_harness import set_robot_file, start
 
 pytestmark = pytest.mark.integration
 
@@ -124,12 +124,7 @@ def test_the_page_shows_every_frame_where_the_kinematics_put_it(
         'css selector', '.frame-label[data-frame="eeCarry_seg6"]').get_attribute('class')
     # a robot reload: the page rebuilds the model from the new description
     version = browser.execute_script('return window.dqFkView.robotVersion')
-    client = AsyncParameterClient(listener.probe, 'dq_fk_node')
-    assert client.wait_for_services(timeout_sec=10.0)
-    future = client.set_parameters([Parameter('robot_description_file',
-                                              value=shipped_robot_path('puma560'))])
-    listener.spin_until(future.done)
-    assert future.result().results[0].successful
+    set_robot_file(listener, shipped_robot_path('puma560'))
     links = wait_for(browser, f'return window.dqFkView.robotVersion > {version} && '
                               f'window.dqFkView.robotLinks')
     assert 'puma_link6' in links and 'eeCarry_seg6' not in links

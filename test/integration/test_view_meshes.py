@@ -20,7 +20,7 @@ import homogeneous_tf as htf
 import numpy as np
 import pinocchio_oracle as oracle
 import pytest
-from ros_harness import start
+from ros_harness import set_robot_file, start
 from test_view import start_view, wait_for
 from vendor_urdfs import robots_dir
 
@@ -198,8 +198,6 @@ def test_a_missing_mesh_is_a_grey_box_and_one_log_line(processes, browser, tmp_p
 
 
 def test_the_server_serves_only_the_current_robots_meshes(processes, listener, tmp_path):
-    from rclpy.parameter import Parameter
-    from rclpy.parameter_client import AsyncParameterClient
     urdf_path = os.path.join(robots_dir(), VENDORS['ur5'])
     _, _, view, url = show(processes, urdf_path)
 
@@ -219,12 +217,7 @@ def test_the_server_serves_only_the_current_robots_meshes(processes, listener, t
                  '/vendor/../setup.py', '/mesh/0/shoulder.dae'):
         assert status(path) == 404, path
     # a robot reload: the list follows the new robot's URDF
-    client = AsyncParameterClient(listener.probe, 'dq_fk_node')
-    assert client.wait_for_services(timeout_sec=10.0)
-    future = client.set_parameters([Parameter('robot_description_file',
-                                              value=shipped_robot_path('rl15'))])
-    listener.spin_until(future.done)
-    assert future.result().results[0].successful
+    set_robot_file(listener, shipped_robot_path('rl15'))
     assert listener.spin_until(lambda: status('/mesh/0/base.dae') == 404, timeout_s=20)
 
 
