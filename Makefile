@@ -15,13 +15,13 @@ DEMO_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 80) + 20 )))
 
 BENCH_VENV ?= .venv-bench
 
-.PHONY: help setup demo demo-live test bench mutate screenshot clean
+.PHONY: help setup browser demo demo-live test bench mutate screenshot clean
 
 help:
 	@echo 'make setup  create .venv with ROS 2 Jazzy (PyPI), tf2_msgs and dq_fk_ros'
 	@echo 'make demo   setup, then node + fake joint publisher: print every RL15 frame pose'
 	@echo 'make demo-live  the same, sweeping the joints, and dq_fk_view: the robot in a browser (Ctrl-C)'
-	@echo 'make test   setup, then run linters, unit and integration tests'
+	@echo 'make test   setup (and Chromium for the browser tests), then linters, unit and integration tests'
 	@echo 'make bench  benchmarks: the core against its peers (installed in .venv-bench)'
 	@echo 'make mutate mutation testing of the pure modules (minutes; not part of make test)'
 	@echo 'make screenshot  the README picture of dq_fk_view, made by its browser test'
@@ -76,8 +76,25 @@ demo: setup
 demo-live: setup
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.ros.demo --live --view
 
-test: setup
+test: setup browser
 	@scripts/run_tests $(PY)
+
+# the browser tests need Debian's Chromium and its driver (system packages, like cmake):
+# installed with apt when missing and this runs as root, else one line saying how
+browser:
+	@if ! command -v chromium >/dev/null || ! command -v chromedriver >/dev/null; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo 'setup: installing chromium and chromium-driver (apt-get; for the browser tests)'; \
+	    mkdir -p $(LOGS); \
+	    { apt-get install -y -q chromium chromium-driver || { apt-get update -q && \
+	      apt-get install -y -q chromium chromium-driver; }; } > $(LOGS)/browser.log 2>&1 || \
+	    { echo "setup FAILED: apt-get install chromium chromium-driver (see $(LOGS)/browser.log)" >&2; \
+	      exit 1; }; \
+	  else \
+	    echo 'setup FAILED: the browser tests need chromium and chromium-driver; run: sudo apt-get install chromium chromium-driver' >&2; \
+	    exit 1; \
+	  fi; \
+	fi
 
 $(BENCH_VENV)/.stamp: requirements/bench.txt setup.py
 	@echo 'bench: installing benchmark peers into $(BENCH_VENV) (requirements/bench.txt)'
@@ -117,7 +134,7 @@ mutate: setup
 # The README's picture of dq_fk_view, taken by its browser test (headless Chromium)
 # the README's pictures of dq_fk_view (RL15, UR5, Panda with their meshes), made by the
 # browser tests that check them (test/integration/test_view_meshes.py)
-screenshot: setup
+screenshot: setup browser
 	@DQ_FK_VIEW_SCREENSHOTS=$(CURDIR)/docs $(PY) -m pytest -q -p no:cacheprovider \
 	  test/integration/test_view_meshes.py -k 'vendor_robot or helper_frames'
 	@echo 'screenshot: docs/dq_fk_view.png, docs/dq_fk_view_ur5.png, docs/dq_fk_view_panda.png'

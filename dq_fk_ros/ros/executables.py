@@ -28,15 +28,20 @@ def executable(name):
     return [sys.executable, '-m', MODULES[name]]
 
 
-def spin_until_shutdown(program, make_node, user_errors, args=None):
+def spin_until_shutdown(program, make_node, user_errors, args=None, usage=None):
     """
     Create a node with ``make_node()`` and spin it until SIGINT/SIGTERM; return the exit code.
 
     As Jazzy's rclpy examples do, with try/finally. A user error while starting (an
     exception of ``user_errors`` such as a bad robot file, a parameter of the wrong type, a
     missing ``--params-file``) is printed as one line ``program: message`` and gives exit
-    code 1, without a traceback.
+    code 1, without a traceback. ``-h``/``--help`` (before ``--ros-args``) prints ``usage``
+    and exits 0 without starting ROS.
     """
+    from dq_fk_ros.ros.parameters import wants_help
+    if usage is not None and wants_help(sys.argv if args is None else args):
+        print(usage, end='')
+        return 0
     import rclpy
     from rclpy._rclpy_pybind11 import RCLError
     from rclpy.exceptions import (

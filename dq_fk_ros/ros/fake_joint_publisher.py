@@ -15,8 +15,8 @@ from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.description.robot_model import RobotDescriptionError
 from dq_fk_ros.ros.executables import MATCH_SETTLE_S, spin_until_shutdown
 from dq_fk_ros.ros.package_paths import declare_package_paths
+from dq_fk_ros.ros.parameters import declare, help_text, Param
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -27,6 +27,26 @@ FAULTS = ('wrong_length', 'nan', 'unknown_names')
 # range swept by joints without limits: +-1 rad (revolute) or +-0.1 m (prismatic)
 UNBOUNDED_HALF_RANGE = 1.0
 ACK_TIMEOUT_S = 5.0  # max_messages: longest wait for reliable subscribers before exiting
+
+
+# the publisher's parameters (declared from this table; `fake_joint_publisher --help`)
+FAKE_PARAMETERS = (
+    Param('robot_description_file', '',
+          'the robot whose joints to publish (every joint of a tree): DH YAML, URDF/xacro or '
+          'a shipped name; empty: rl15'),
+    Param('urdf_base_link', '', 'for a URDF: the link the robot starts at'),
+    Param('urdf_tip_link', '', 'for a URDF: the link the first DH chain ends at'),
+    Param('mode', 'sine', f'one of {", ".join(MODES)}'),
+    Param('rate_hz', 50.0, 'messages per second'),
+    Param('positions', [0.0], "joint positions for fixed mode (rad, m), in the robot's joint "
+          'order'),
+    Param('publish_velocities', True, 'fill JointState.velocity'),
+    Param('amplitude', 0.8, 'sine: fraction of each half range swept'),
+    Param('seed', 0, 'random_walk and fault injection seed'),
+    Param('fault_fraction', 0.0, 'fraction of messages sent malformed (0..1)'),
+    Param('max_messages', 0, 'stop publishing after this many; 0: never'),
+    Param('wait_for_subscribers', 0, 'start publishing once this many subscriptions matched'),
+)
 
 
 class JointMotion:
@@ -98,26 +118,15 @@ class FakeJointPublisher(Node):
         """Declare parameters, load the robot and start the timer."""
         super().__init__('fake_joint_publisher', **kwargs)
 
-        def declare(name, default, description):
-            return self.declare_parameter(
-                name, default, ParameterDescriptor(description=description)).value
-        path = declare('robot_description_file', '',
-                       'the robot whose joints to publish: DH YAML, URDF/xacro or a shipped '
-                       'name; empty: rl15')
-        base = declare('urdf_base_link', '', 'for a URDF: first link of the chain')
-        tip = declare('urdf_tip_link', '', 'for a URDF: last link of the chain')
-        mode = declare('mode', 'sine', f'one of {", ".join(MODES)}')
-        rate_hz = declare('rate_hz', 50.0, 'messages per second')
-        positions = declare('positions', [0.0], 'joint positions for fixed mode (rad, m)')
-        self._with_velocity = declare('publish_velocities', True, 'fill JointState.velocity')
-        amplitude = declare('amplitude', 0.8, 'sine: fraction of each half range swept')
-        seed = declare('seed', 0, 'random_walk and fault injection seed')
-        self._fault_fraction = declare('fault_fraction', 0.0,
-                                       'fraction of messages sent malformed (0..1)')
-        self._max_messages = declare('max_messages', 0, 'stop publishing after this many; '
-                                     '0: never')
-        self._wait_for = declare('wait_for_subscribers', 0,
-                                 'start publishing once this many subscriptions matched')
+        value = declare(self, FAKE_PARAMETERS)
+        path, base, tip = (value[k] for k in ('robot_description_file', 'urdf_base_link',
+                                              'urdf_tip_link'))
+        mode, rate_hz, positions = value['mode'], value['rate_hz'], value['positions']
+        amplitude, seed = value['amplitude'], value['seed']
+        self._with_velocity = value['publish_velocities']
+        self._fault_fraction = value['fault_fraction']
+        self._max_messages = value['max_messages']
+        self._wait_for = value['wait_for_subscribers']
         if not 0.0 <= self._fault_fraction <= 1.0:
             raise ValueError(f'fault_fraction must be in [0, 1], got {self._fault_fraction}')
         if not rate_hz > 0.0:
@@ -173,8 +182,11 @@ class FakeJointPublisher(Node):
 
 def main(args=None):
     """Run fake_joint_publisher until SIGINT/SIGTERM."""
+    usage = help_text('fake_joint_publisher', "sensor_msgs/JointState of a robot's joints on "
+                      'joint_states, for demos and tests (zeros, fixed, sine, random_walk; '
+                      'malformed messages mixed in on request).', FAKE_PARAMETERS)
     return spin_until_shutdown('fake_joint_publisher', FakeJointPublisher,
-                               (RobotDescriptionError, ValueError), args)
+                               (RobotDescriptionError, ValueError), args, usage)
 
 
 if __name__ == '__main__':

@@ -27,10 +27,11 @@ from dq_fk_ros.ros.conversions import (
     FrameBytes, FrameMessages, joint_state_fields, NS_PER_S)
 from dq_fk_ros.ros.executables import spin_until_shutdown
 from dq_fk_ros.ros.package_paths import declare_package_paths
+from dq_fk_ros.ros.parameters import declare, help_text, Param
 from dq_fk_ros.ros.raw_input import raw_publisher, RawSubscriptionThread, take_queued
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -51,6 +52,68 @@ INPUT_BATCH_MS_MAX = 100.0
 MIN_RATE_HZ = 0.01  # publish_frequency, max_publish_rate_hz: 0 (off) or at least this
 MAX_RATE_HZ = 1e6
 RUN_TIME_XACRO_LIMIT_S = 5.0  # a xacro set at run time (allow_runtime_xacro) is stopped then
+
+
+# the node's parameters (declared from this table; `dq_fk_node --help` prints it)
+NODE_PARAMETERS = (
+    Param('robot_description_file', '',
+          'the robot: a DH YAML file, a URDF or xacro file (converted on load), or a shipped '
+          'robot name (rl15, ur5e...); empty: rl15. Setting it at run time reloads the robot if '
+          'it is valid.'),
+    Param('robot_description', '',
+          'URDF XML, as robot_state_publisher takes it; if set, used instead of '
+          'robot_description_file'),
+    Param('urdf_base_link', '',
+          'for a URDF: the link the robot starts at (the fixed frame; the tree below it is '
+          'published); empty: the root link'),
+    Param('urdf_tip_link', '',
+          'for a URDF: the link the first DH chain ends at (the end effector); empty: the child '
+          'of the last moving joint of the longest chain'),
+    Param('publish_frequency', 0.0,
+          'as robot_state_publisher: at most this many /tf updates per second of JointState '
+          'stamps; 0: every update (robot_state_publisher defaults to 20)'),
+    Param('ignore_timestamp', False,
+          'as robot_state_publisher: publish every update whatever publish_frequency says'),
+    Param('frame_prefix', '',
+          'prepended to every frame id except the fixed frame'),
+    Param('publish_tf', True,
+          'publish /tf and /tf_static'),
+    Param('publish_poses', True,
+          'publish ~/pose/<frame> (PoseStamped in the fixed frame)'),
+    Param('publish_robot_description', True,
+          'publish the URDF of the robot on robot_description (transient local), as '
+          'robot_state_publisher does; re-sent on reload'),
+    Param('publish_unread_topics', False,
+          'fill and publish ~/pose and ~/twist topics that nobody subscribes to (by default '
+          'they are skipped; /tf is always published)'),
+    Param('publish_twist', True,
+          'publish ~/twist/<frame> for the end effector (and tool) when every joint has a '
+          'velocity'),
+    Param('use_joint_state_stamp', True,
+          'stamp outputs with the JointState stamp (a zero stamp: the node clock); false: '
+          'always the node clock'),
+    Param('max_publish_rate_hz', 0.0,
+          'at most this many updates per second; 0: all'),
+    Param('out_of_limits', 'warn',
+          'joint values outside their limits: warn | clamp | reject'),
+    Param('robot_description_dirs', '',
+          'folders (separated by colons, as ROS_PACKAGE_PATH) that robot_description_file may '
+          "name at run time, symlinks resolved; empty: the start-up file's folder. The shipped "
+          'robots are always allowed', read_only=True),
+    Param('allow_runtime_xacro', False,
+          'expand a .xacro file set as robot_description_file at run time (a xacro file is a '
+          'program; any peer on the domain may set parameters)', read_only=True),
+    Param('qos_depth', 1000,
+          f'depth of the joint_states subscription (1 to {QOS_DEPTH_MAX})', read_only=True),
+    Param('input_thread', True,
+          'take joint states in a thread of their own (true) or in the executor', read_only=True),
+    Param('input_batch_ms', INPUT_BATCH_MS_DEFAULT,
+          'with input_thread: after an update the input thread looks for the next joint states '
+          'this much later (ms; 0: at once): one wake-up serves several messages above 1 / this '
+          'rate, adding at most this much latency', read_only=True),
+    Param('joint_states_reliability', 'best_effort',
+          'best_effort (matches reliable and best-effort publishers) | reliable', read_only=True),
+)
 
 
 class DqFkNode(Node):
@@ -141,64 +204,7 @@ class DqFkNode(Node):
 
     # -- parameters ----------------------------------------------------------------------
     def _declare_parameters(self):
-        def declare(name, default, description, read_only=False):
-            self.declare_parameter(name, default, ParameterDescriptor(
-                description=description, read_only=read_only))
-        declare('robot_description_file', '',
-                'the robot: a DH YAML file, a URDF or xacro file (converted on load), or a '
-                'shipped robot name (rl15, ur5e...); empty: rl15. Setting it at run time '
-                'reloads the robot if it is valid.')
-        declare('robot_description', '',
-                'URDF XML, as robot_state_publisher takes it; if set, used instead of '
-                'robot_description_file')
-        declare('urdf_base_link', '', 'for a URDF: the link the DH chain starts at (fixed '
-                'frame); empty: the root link')
-        declare('urdf_tip_link', '', 'for a URDF: the link the DH chain ends at; empty: the '
-                'child of the last moving joint of the longest chain')
-        declare('publish_frequency', 0.0,
-                'as robot_state_publisher: at most this many /tf updates per second of '
-                'JointState stamps; 0: every update (robot_state_publisher defaults to 20)')
-        declare('ignore_timestamp', False,
-                'as robot_state_publisher: publish every update whatever publish_frequency says')
-        declare('frame_prefix', '', 'prepended to every frame id except the fixed frame')
-        declare('publish_tf', True, 'publish /tf and /tf_static')
-        declare('publish_poses', True, 'publish ~/pose/<frame> (PoseStamped in the fixed frame)')
-        declare('publish_robot_description', True,
-                'publish the URDF of the robot on robot_description (transient local), '
-                'as robot_state_publisher does; re-sent on reload')
-        declare('publish_unread_topics', False,
-                'fill and publish ~/pose and ~/twist topics that nobody subscribes to (by '
-                'default they are skipped; /tf is always published)')
-        declare('publish_twist', True,
-                'publish ~/twist/<frame> for the end effector (and tool) when every joint '
-                'has a velocity')
-        declare('use_joint_state_stamp', True,
-                'stamp outputs with the JointState stamp (a zero stamp: the node clock); '
-                'false: always the node clock')
-        declare('max_publish_rate_hz', 0.0, 'at most this many updates per second; 0: all')
-        declare('out_of_limits', 'warn',
-                'joint values outside their limits: warn | clamp | reject')
-        declare('robot_description_dirs', '',
-                'folders (separated by colons, as ROS_PACKAGE_PATH) that robot_description_file '
-                "may name at run time, symlinks resolved; empty: the start-up file's folder. "
-                'The shipped robots are always allowed', read_only=True)
-        declare('allow_runtime_xacro', False,
-                'expand a .xacro file set as robot_description_file at run time (a xacro file '
-                'is a program; any peer on the domain may set parameters)', read_only=True)
-        declare('qos_depth', 1000,
-                f'depth of the joint_states subscription (1 to {QOS_DEPTH_MAX})',
-                read_only=True)
-        declare('input_thread', True,
-                'take joint states in a thread of their own (true) or in the executor',
-                read_only=True)
-        declare('input_batch_ms', INPUT_BATCH_MS_DEFAULT,
-                'with input_thread: after an update the input thread looks for the next '
-                'joint states this much later (ms; 0: at once): one wake-up serves several '
-                'messages above 1 / this rate, adding at most this much latency',
-                read_only=True)
-        declare('joint_states_reliability', 'best_effort',
-                'best_effort (matches reliable and best-effort publishers) | reliable',
-                read_only=True)
+        declare(self, NODE_PARAMETERS)
 
     def _check_choice(self, name, value, allowed):
         if value not in allowed:
@@ -676,7 +682,10 @@ class DqFkNode(Node):
 
 def main(args=None):
     """Run dq_fk_node until SIGINT/SIGTERM (as ``ros2 run dq_fk_ros dq_fk_node``)."""
-    return spin_until_shutdown('dq_fk_node', DqFkNode, RobotDescriptionError, args)
+    usage = help_text('dq_fk_node', 'sensor_msgs/JointState in (joint_states), every link '
+                      'frame out: /tf, /tf_static, ~/pose/<frame>, ~/twist/<frame>, the '
+                      'robot_description; see the README, "dq_fk_node".', NODE_PARAMETERS)
+    return spin_until_shutdown('dq_fk_node', DqFkNode, RobotDescriptionError, args, usage)
 
 
 if __name__ == '__main__':

@@ -163,3 +163,21 @@ def test_two_robots_with_different_prefixes_do_not_mix(processes, listener):
     np.testing.assert_allclose(htf.compose(transforms, 'world', 'right/panda_link8'), expected,
                                atol=1e-9)
     np.testing.assert_allclose(htf.pose_matrix(right[-1].pose), expected, atol=1e-9)
+
+
+@pytest.mark.parametrize('program', ['dq_fk_node', 'fake_joint_publisher', 'dq_fk_view',
+                                     'dq_fk', 'dq_fk_bag'])
+@pytest.mark.parametrize('flag', ['--help', '-h'])
+def test_every_program_answers_help_with_its_options_and_starts_nothing(program, flag,
+                                                                        processes):
+    from dq_fk_ros.ros.executables import executable
+    proc = processes.start(executable(program) + [flag])
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0, out
+    assert out.startswith('usage: ') and program in out.splitlines()[0], out[:200]
+    if program == 'dq_fk_node':  # its ROS parameters, from the table it declares
+        from dq_fk_ros.ros.node import NODE_PARAMETERS
+        assert all(f'  {p.name} (' in out for p in NODE_PARAMETERS)
+        assert '  package_paths ([], read only)' in out
+    if program == 'fake_joint_publisher':
+        assert '  positions ([0.0])' in out and "  mode ('sine')" in out
