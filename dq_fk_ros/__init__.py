@@ -9,4 +9,44 @@ Layers, bottom up (a layer imports only those below it; the README's "Architectu
 * :mod:`dq_fk_ros.bag`: rosbag2 files (rosbags, mcap), no rclpy.
 * :mod:`dq_fk_ros.ros`: the rclpy nodes and message conversion.
 * :mod:`dq_fk_ros.cli`: the ``dq_fk`` and ``dq_fk_bag`` command lines.
+
+The surface a user imports (``from dq_fk_ros import load_robot``); each name is loaded on
+first use, so ``import dq_fk_ros`` stays light (no ROS, no rosbags until asked):
+
+* :func:`load_robot` (a DH file, a URDF or xacro, a shipped name) -> ``LoadedRobot`` whose
+  ``model`` is a :class:`RobotModel` (``forward_all(q)``, ``frame_poses(q)``, ...);
+* :class:`KinematicChain`, :class:`DHJoint`, :class:`DualQuaternion`: the numerical core;
+* :func:`process_bag`: joint states in a bag -> every frame's pose and TF in another;
+* the errors: :class:`DqFkError` and under it :class:`RobotDescriptionError`,
+  :class:`ParameterError`, :class:`BagError`, :class:`CdrError`.
 """
+
+_SURFACE = {
+    'load_robot': 'dq_fk_ros.description.loading',
+    'RobotModel': 'dq_fk_ros.description.robot_model',
+    'KinematicChain': 'dq_fk_ros.kinematics.dh',
+    'DHJoint': 'dq_fk_ros.kinematics.dh',
+    'DualQuaternion': 'dq_fk_ros.kinematics.dual_quaternion',
+    'process_bag': 'dq_fk_ros.bag.process',
+    'DqFkError': 'dq_fk_ros.description.errors',
+    'RobotDescriptionError': 'dq_fk_ros.description.errors',
+    'ParameterError': 'dq_fk_ros.description.errors',
+    'BagError': 'dq_fk_ros.bag.reading',
+    'CdrError': 'dq_fk_ros.messages.cdr',
+}
+__all__ = sorted(_SURFACE)
+
+
+def __getattr__(name):
+    """Import a name of the surface on first use (PEP 562)."""
+    if name not in _SURFACE:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    import importlib
+    value = getattr(importlib.import_module(_SURFACE[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    """List the surface with the module's own names."""
+    return sorted(set(globals()) | set(_SURFACE))

@@ -27,6 +27,7 @@ import struct
 import zlib
 
 from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
+from dq_fk_ros.bag.text import printable
 from rosbags.interfaces import (
     Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat)
 from rosbags.rosbag2.metadata import parse_qos
@@ -171,7 +172,6 @@ class McapStreamBag:
             for channel_id, count in per_channel.items():
                 conn = self._by_channel.get((file_index, channel_id))
                 topics[conn.topic if conn is not None else f'channel {channel_id}'] += count
-            from dq_fk_ros.bag.reading import printable
             held = f'{sum(topics.values())} messages (' + ', '.join(
                 f'{printable(topic)}: {n}' for topic, n in sorted(topics.items())) + ')'
         self._report(f'{path}: the chunk at byte {offset} is damaged ({why}); skipped {held}')

@@ -12,8 +12,8 @@ import os
 import shutil
 
 from dq_fk_ros.bag.progress import Progress
-from dq_fk_ros.bag.reading import (
-    BagError, joint_state_connections, open_reader, printable, Ros1Bag)
+from dq_fk_ros.bag.reading import BagError, joint_state_connections, open_reader, Ros1Bag
+from dq_fk_ros.bag.text import printable
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.description.urdf import description_urdf, HelperFrames
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw

@@ -10,10 +10,13 @@ import os
 import re
 import struct
 
+from dq_fk_ros.bag.text import one_line, printable
+from dq_fk_ros.description.errors import DqFkError
+
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 
 
-class BagError(Exception):
+class BagError(DqFkError):
     """A bag problem for the user; the message is one line."""
 
 
@@ -51,11 +54,11 @@ def open_reader(path):
         mcaps = _mcap_files(path)
         if not mcaps:
             hint = ' (a ROS 1 bag is a single .bag file)' if os.path.isdir(path) else ''
-            raise BagError(f'{path}: not a readable rosbag2{hint} ({_one_line(exc)})') \
+            raise BagError(f'{path}: not a readable rosbag2{hint} ({one_line(exc)})') \
                 from None
         if not os.path.exists(os.path.join(path, 'metadata.yaml')):
             exc = 'no metadata.yaml'
-        return _stream_bag(mcaps, path, _one_line(exc))
+        return _stream_bag(mcaps, path, one_line(exc))
     mcaps = _mcap_files(path)
     damaged = [f for f in mcaps if not _summary_intact(f)]
     if damaged:
@@ -66,19 +69,6 @@ def open_reader(path):
     reader.fallback = (lambda: _stream_bag(mcaps, path, 'a damaged chunk')) if mcaps \
         else (lambda: None)
     return reader
-
-
-def printable(text, limit=80):
-    """Return a name read from a bag safe for a one-line message (escaped, shortened)."""
-    text = str(text)
-    if not text.isprintable():
-        text = text.encode('unicode_escape').decode('ascii')
-    return text if len(text) <= limit else text[:limit - 15] + '...' + text[-12:]
-
-
-def _one_line(exc):
-    text = str(exc).strip().splitlines()
-    return printable(text[0], 200) if text else type(exc).__name__
 
 
 def _summary_intact(path):
@@ -153,13 +143,13 @@ class Ros1Bag:
                 MemoryError, OverflowError) as exc:
             self._reader = None
             self.note = (f'{path}: a ROS 1 bag whose index cannot be read '
-                         f'({_one_line(exc)}); read chunk by chunk, its JointState messages '
+                         f'({one_line(exc)}); read chunk by chunk, its JointState messages '
                          f'converted to ROS 2')
         if self._reader is None:
             try:
                 self._scan = Ros1ChunkScan(path, JOINT_STATE)
             except Exception as exc:  # not a bag after all, or unreadable
-                raise BagError(f'{path}: not a readable ROS 1 bag ({_one_line(exc)})') \
+                raise BagError(f'{path}: not a readable ROS 1 bag ({one_line(exc)})') \
                     from None
             source = self._scan
             self.all_topics = self._scan.all_topics

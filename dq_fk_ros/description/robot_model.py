@@ -30,6 +30,7 @@ import math
 import os
 import re
 
+from dq_fk_ros.description.errors import RobotDescriptionError  # noqa: F401 (its home was here)
 from dq_fk_ros.kinematics.dh import (
     CONVENTIONS, DHJoint, joint_value_list, KinematicChain, run_chain_program,
     unrolled_frame_poses)
@@ -69,21 +70,6 @@ TRANSFORM_FIELDS = ('frame', 'xyz', 'rpy', 'quaternion')
 ROW_FIELDS = ('frame', 'joint', 'type', 'theta', 'd', 'a', 'alpha', 'scale', 'limits',
               'max_velocity', 'mimic', 'd_joint', 'd_limits', 'd_max_velocity')
 MIMIC_FIELDS = ('joint', 'multiplier', 'offset')
-
-
-class RobotDescriptionError(ValueError):
-    """
-    A robot description file that cannot be used; the message is one line for the user.
-
-    ``public`` is the same without any text of the file: what may be told to someone who
-    only named the file (a remote parameter client). It differs from the message only where
-    the file did not parse as a robot description (it may be any file, a secret one).
-    """
-
-    def __init__(self, message, public=None):
-        """Take the message for the user, and the one without file text if it differs."""
-        super().__init__(message)
-        self.public = message if public is None else public
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ import operator
 import struct
 from typing import NamedTuple
 
+from dq_fk_ros.description.errors import DqFkError
 import numpy as np
 
 CDR_LE_HEADER = b'\x00\x01\x00\x00'
@@ -29,7 +30,7 @@ MAX_JOINT_STATE_NAMES = 1024
 MAX_JOINT_STATE_BYTES = 64 * 1024
 
 
-class CdrError(ValueError):
+class CdrError(DqFkError, ValueError):
     """A serialized message that cannot be read."""
 
 

@@ -97,5 +97,5 @@ def _missing_params_files(argv):
 
 def _one_line(exc):
     """Return the first line of an exception's message, without rcl's source locations."""
-    text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-    return text.split(', at /')[0]
+    from dq_fk_ros.description.errors import first_line
+    return first_line(exc).split(', at /')[0]

@@ -10,9 +10,9 @@ stream, for robustness tests. The motion itself is plain Python (:class:`JointMo
 import math
 import sys
 
+from dq_fk_ros.description.errors import DqFkError
 from dq_fk_ros.description.from_urdf import NODE_OPTIONS
 from dq_fk_ros.description.loading import load_robot
-from dq_fk_ros.description.robot_model import RobotDescriptionError
 from dq_fk_ros.ros.executables import MATCH_SETTLE_S, spin_until_shutdown
 from dq_fk_ros.ros.package_paths import declare_package_paths
 from dq_fk_ros.ros.parameters import declare, help_text, Param
@@ -186,7 +186,7 @@ def main(args=None):
                       'joint_states, for demos and tests (zeros, fixed, sine, random_walk; '
                       'malformed messages mixed in on request).', FAKE_PARAMETERS)
     return spin_until_shutdown('fake_joint_publisher', FakeJointPublisher,
-                               (RobotDescriptionError, ValueError), args, usage)
+                               (DqFkError, ValueError), args, usage)
 
 
 if __name__ == '__main__':

@@ -13,6 +13,7 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from dq_fk_ros.description.errors import DqFkError, first_line, ParameterError
 from dq_fk_ros.description.from_urdf import NODE_OPTIONS, tf_name
 from dq_fk_ros.description.loading import (
     FileAccess, load_robot, resolve_robot, robot_from_urdf_text, shipped_robots_dir)
@@ -23,8 +24,7 @@ from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
     INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH,
     REJECTED, SequenceGaps)
-from dq_fk_ros.ros.conversions import (
-    FrameBytes, FrameMessages, joint_state_fields, NS_PER_S)
+from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S
 from dq_fk_ros.ros.executables import spin_until_shutdown
 from dq_fk_ros.ros.package_paths import declare_package_paths
 from dq_fk_ros.ros.parameters import declare, help_text, Param
@@ -208,37 +208,37 @@ class DqFkNode(Node):
 
     def _check_choice(self, name, value, allowed):
         if value not in allowed:
-            raise RobotDescriptionError(f'parameter {name} is {value!r}; allowed: '
-                                        f'{", ".join(allowed)}')
+            raise ParameterError(f'parameter {name} is {value!r}; allowed: '
+                                 f'{", ".join(allowed)}')
 
     def _check_values(self, new):
-        """Raise RobotDescriptionError (one line) for a value the node cannot use."""
+        """Raise ParameterError (one line) for a value the node cannot use."""
         if 'out_of_limits' in new:
             self._check_choice('out_of_limits', new['out_of_limits'], OUT_OF_LIMITS_POLICIES)
         for name in ('max_publish_rate_hz', 'publish_frequency'):
             rate = new.get(name, 0.0)
             if not (rate == 0.0 or MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
-                raise RobotDescriptionError(f'parameter {name} must be 0 (publish every update) '
-                                            f'or from {MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}, got '
-                                            f'{rate:g}')
+                raise ParameterError(f'parameter {name} must be 0 (publish every update) '
+                                     f'or from {MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}, got '
+                                     f'{rate:g}')
         for name in ('urdf_base_link', 'urdf_tip_link'):
             link = new.get(name, '')
             if link and (len(link) > MAX_NAME_CHARS or not TF_FRAME_ID.fullmatch(tf_name(link))):
-                raise RobotDescriptionError(
+                raise ParameterError(
                     f'parameter {name} {printable_line(link, 70)!r} is not a link name tf2 '
                     f'takes (printable ASCII without spaces; at most {MAX_NAME_CHARS})')
         depth = new.get('qos_depth', 1)
         if not 1 <= depth <= QOS_DEPTH_MAX:
-            raise RobotDescriptionError(f'parameter qos_depth must be an integer from 1 to '
-                                        f'{QOS_DEPTH_MAX}, got {depth}')
+            raise ParameterError(f'parameter qos_depth must be an integer from 1 to '
+                                 f'{QOS_DEPTH_MAX}, got {depth}')
         batch_ms = new.get('input_batch_ms', 0.0)
         if not (math.isfinite(batch_ms) and 0.0 <= batch_ms <= INPUT_BATCH_MS_MAX):
-            raise RobotDescriptionError(f'parameter input_batch_ms must be a number from 0 to '
-                                        f'{INPUT_BATCH_MS_MAX:g} (0: take each joint state at '
-                                        f'once), got {batch_ms}')
+            raise ParameterError(f'parameter input_batch_ms must be a number from 0 to '
+                                 f'{INPUT_BATCH_MS_MAX:g} (0: take each joint state at '
+                                 f'once), got {batch_ms}')
         prefix = new.get('frame_prefix', '')
         if prefix and (len(prefix) > 64 or not FRAME_ID.fullmatch(prefix + 'x')):
-            raise RobotDescriptionError(
+            raise ParameterError(
                 f'parameter frame_prefix {prefix[:70]!r} would not give valid frame ids: use '
                 f'letters, digits, underscores and inner slashes, e.g. robot1/ (at most 64)')
 
@@ -256,8 +256,8 @@ class DqFkNode(Node):
                 dirs.append(os.path.dirname(os.path.realpath(resolve_robot(start))))
         for folder in dirs:
             if not os.path.isdir(folder):
-                raise RobotDescriptionError(f'parameter robot_description_dirs: {folder!r} is '
-                                            f'not a folder')
+                raise ParameterError(f'parameter robot_description_dirs: {folder!r} is '
+                                     f'not a folder')
         dirs = [os.path.realpath(d) for d in dirs] + [shipped_robots_dir()]
         return FileAccess(tuple(dict.fromkeys(dirs)), xacro, RUN_TIME_XACRO_LIMIT_S,
                           lambda: not self.context.ok())
@@ -320,7 +320,7 @@ class DqFkNode(Node):
         if isinstance(exc, RobotDescriptionError):
             reason = printable_line(exc.public)
         elif quote and str(exc).strip():
-            reason = f'{type(exc).__name__}: {printable_line(str(exc).strip().splitlines()[0])}'
+            reason = f'{type(exc).__name__}: {printable_line(first_line(exc))}'
         else:
             reason = f'{type(exc).__name__} while applying the change'
         self.get_logger().error(f'parameter change refused: {reason}')
@@ -489,10 +489,6 @@ class DqFkNode(Node):
             self._merger.count_rejected('internal_error')
             self.get_logger().error(f'joint state not processed: {exc!r}',
                                     throttle_duration_sec=WARN_EVERY_S)
-
-    def _handle(self, msg):
-        """Handle a ``sensor_msgs/JointState`` message object (in-process use, benchmarks)."""
-        self._handle_fields(*joint_state_fields(msg))
 
     def _handle_fields(self, names, positions, velocities, stamp_ns):
         result = self._merger.merge(names, positions, velocities, stamp_ns)
@@ -685,7 +681,7 @@ def main(args=None):
     usage = help_text('dq_fk_node', 'sensor_msgs/JointState in (joint_states), every link '
                       'frame out: /tf, /tf_static, ~/pose/<frame>, ~/twist/<frame>, the '
                       'robot_description; see the README, "dq_fk_node".', NODE_PARAMETERS)
-    return spin_until_shutdown('dq_fk_node', DqFkNode, RobotDescriptionError, args, usage)
+    return spin_until_shutdown('dq_fk_node', DqFkNode, DqFkError, args, usage)
 
 
 if __name__ == '__main__':

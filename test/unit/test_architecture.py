@@ -80,3 +80,52 @@ def test_the_rules_catch_a_breach(tmp_path, monkeypatch):
     for path in ('kinematics/leak.py', 'kinematics/up.py'):
         with pytest.raises(AssertionError, match='imports'):
             test_imports_follow_the_layers('kinematics', path)
+
+
+def test_the_surface_imports_what_it_names_and_the_errors_have_one_base():
+    import subprocess
+    import dq_fk_ros
+    for name in dq_fk_ros.__all__:
+        assert getattr(dq_fk_ros, name).__name__ == name
+    for error in ('RobotDescriptionError', 'ParameterError', 'BagError', 'CdrError'):
+        assert issubclass(getattr(dq_fk_ros, error), dq_fk_ros.DqFkError), error
+    # importing the package loads neither ROS nor rosbags
+    code = ('import sys, dq_fk_ros; dq_fk_ros.load_robot; print(sorted(m for m in sys.modules '
+            "if m.split('.')[0] in ('rclpy', 'rosbags', 'matplotlib')))")
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == '[]'
+
+
+def import_graph():
+    """Return ``{module: {dq_fk_ros modules it imports}}`` of every module of the package."""
+    graph = {}
+    for _, rel in modules():
+        name = 'dq_fk_ros.' + rel[:-3].replace(os.sep, '.')
+        name = name[:-len('.__init__')] if name.endswith('.__init__') else name
+        graph[name] = {m for m in imported(rel) if m and m.startswith('dq_fk_ros.')}
+    return graph
+
+
+def test_no_import_cycle_between_modules():
+    graph = import_graph()
+    state = {}
+
+    def visit(node, path):
+        state[node] = 'open'
+        for target in graph.get(node, ()):
+            assert state.get(target) != 'open', ' -> '.join(path + [target])
+            if target not in state:
+                visit(target, path + [target])
+        state[node] = 'done'
+    for node in graph:
+        if node not in state:
+            visit(node, [node])
+
+
+def test_a_cycle_would_be_found(monkeypatch):
+    """The walk above fails on two modules that import each other."""
+    graph = {'dq_fk_ros.a': {'dq_fk_ros.b'}, 'dq_fk_ros.b': {'dq_fk_ros.a'}}
+    monkeypatch.setattr(sys.modules[__name__], 'import_graph', lambda: graph)
+    with pytest.raises(AssertionError, match='dq_fk_ros.a -> dq_fk_ros.b -> dq_fk_ros.a'):
+        test_no_import_cycle_between_modules()
