@@ -27,17 +27,15 @@ import struct
 import zlib
 
 from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
+from dq_fk_ros.bag.mcap_format import (
+    KNOWN_OPCODES, MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER,
+    OP_HEADER, OP_MESSAGE, OP_MESSAGE_INDEX, OP_METADATA, OP_SCHEMA)
 from dq_fk_ros.bag.text import printable
 from rosbags.interfaces import (
     Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat)
 from rosbags.rosbag2.metadata import parse_qos
 
-MAGIC = b'\x89MCAP0\r\n'
-OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x02, 0x03, 0x04, 0x05, 0x06
-OP_HEADER, OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_METADATA = 0x01, 0x07, 0x08, 0x0C
-OP_DATA_END = 0x0F
 END_LENGTHS = {OP_DATA_END: 4, OP_FOOTER: 20}   # the body sizes of the records that end data
-KNOWN_OPCODES = range(0x01, 0x11)
 # what a resynchronisation looks for, and how an intact schema or channel record looks
 _CANDIDATE = re.compile(rb'[\x03\x04\x06]')
 _NAME = re.compile(r'[A-Za-z0-9_]+(/[A-Za-z0-9_]+)*')

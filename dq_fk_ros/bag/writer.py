@@ -20,19 +20,16 @@ from importlib.metadata import PackageNotFoundError, version
 import struct
 import zlib
 
+from dq_fk_ros.bag.mcap_format import (
+    MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER, OP_HEADER, OP_MESSAGE,
+    OP_MESSAGE_INDEX, OP_METADATA, OP_METADATA_INDEX, OP_SCHEMA, OP_STATISTICS,
+    OP_SUMMARY_OFFSET)
 import numpy as np
 from rosbags.interfaces import MessageDefinitionFormat
 from rosbags.rosbag2 import CompressionMode, StoragePlugin, Writer, WriterError
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
-MCAP_MAGIC = b'\x89MCAP0\r\n'
 CHUNK_BYTES = 1 << 20          # close a chunk once its records exceed this (rosbags: 1 MiB)
-
-# MCAP opcodes
-OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE = 0x01, 0x02, 0x03, 0x04, 0x05
-OP_CHUNK, OP_MESSAGE_INDEX, OP_CHUNK_INDEX = 0x06, 0x07, 0x08
-OP_STATISTICS, OP_METADATA, OP_METADATA_INDEX = 0x0B, 0x0C, 0x0D
-OP_SUMMARY_OFFSET, OP_DATA_END = 0x0E, 0x0F
 
 MESSAGE_HEADER_BYTES = 31      # opcode u8, length u64, channel u16, sequence u32, 2 x time u64
 _U16, _U32, _U64 = struct.Struct('<H'), struct.Struct('<I'), struct.Struct('<Q')
@@ -83,7 +80,7 @@ class McapChunkStorage:
         self.start_ns, self.end_ns = None, None
         self._pending = bytearray()
         self._pending_index = {}     # channel id -> [(log time, offset)]
-        self._emit(MCAP_MAGIC)
+        self._emit(MAGIC)
         self._emit(_record(OP_HEADER, _string('ros2') + _string(_library())))
 
     def _emit(self, data):
@@ -239,7 +236,7 @@ class McapChunkStorage:
         footer = (bytes((OP_FOOTER,)) + _U64.pack(20) + _U64.pack(summary_start)
                   + _U64.pack(offsets_start))
         crc = zlib.crc32(footer, zlib.crc32(offsets, zlib.crc32(summary)))
-        self.file.write(bytes(summary) + offsets + footer + _U32.pack(crc) + MCAP_MAGIC)
+        self.file.write(bytes(summary) + offsets + footer + _U32.pack(crc) + MAGIC)
         self.file.close()
 
     def abort(self):

@@ -62,6 +62,15 @@ def build_parser():
                    help='pose topics written: every frame (default), the end effector, none')
     p.add_argument('--out-of-limits', choices=('warn', 'clamp', 'reject'), default='warn')
     p.add_argument('--quiet', action='store_true', help='no progress output')
+    p = sub.add_parser('example', help='write a bag of joint states (a sine sweep) to try '
+                       'the other commands on')
+    p.add_argument('out_bag', metavar='OUT_BAG')
+    p.add_argument('--robot', default='rl15',
+                   help='DH robot file, URDF/xacro file or shipped robot name (default rl15)')
+    add_urdf_chain_options(p)
+    add_package_option(p)
+    p.add_argument('--seconds', type=finite, default=10.0, help='length (default 10 s)')
+    p.add_argument('--rate', type=finite, default=100.0, help='messages per second (100)')
     p = sub.add_parser('play', help='publish the JointState messages with recorded timing')
     p.add_argument('bag', metavar='BAG')
     p.add_argument('--topic', help='JointState topic (default: the only one in the bag)')
@@ -74,6 +83,24 @@ def build_parser():
                    help='start once N subscriptions are matched (default 0: at once)')
     p.add_argument('--quiet', action='store_true', help='no progress output')
     return parser
+
+
+def write_example(args):
+    """Write ``dq_fk_bag example``'s bag: the robot's joints sweeping as fake_joint_publisher."""
+    import os
+    from dq_fk_ros.bag.example import write_example_bag
+    from dq_fk_ros.ros.fake_joint_publisher import JointMotion
+    if not (0 < args.seconds <= 3600 and 0 < args.rate <= 10000):
+        raise BagError('--seconds must be from 0 to 3600 and --rate from 0 to 10000')
+    if os.path.lexists(args.out_bag):
+        raise BagError(f'{args.out_bag}: exists; choose another path')
+    model = load_robot(args.robot, args.urdf_base, args.urdf_tip,
+                       packages=dict(args.package)).model
+    motion = JointMotion('sine', model.limits)
+    count = write_example_bag(args.out_bag, model.joint_names, motion.sample, args.seconds,
+                              args.rate)
+    print(f'{args.out_bag}: {count} JointState messages of {model.name} on /joint_states')
+    return 0
 
 
 def finite(text):
@@ -107,6 +134,8 @@ def main(argv=None):
                             out_of_limits=args.out_of_limits, progress=not args.quiet,
                             poses=args.poses)
             print(summary_line(args.in_bag, s))
+        elif args.command == 'example':
+            return write_example(args)
         else:
             from dq_fk_ros.ros.bag_play import play_bag  # rclpy only where it is needed
             s = play_bag(args.bag, topic=args.topic, rate=args.rate, loop=args.loop,

@@ -32,7 +32,7 @@ import re
 
 from dq_fk_ros.description.errors import RobotDescriptionError  # noqa: F401 (its home was here)
 from dq_fk_ros.kinematics.dh import (
-    CONVENTIONS, DHJoint, joint_value_list, KinematicChain, run_chain_program,
+    CONVENTIONS, DHJoint, JOINT_TYPES, joint_value_list, KinematicChain, run_chain_program,
     unrolled_frame_poses)
 from dq_fk_ros.kinematics.dual_quaternion import (
     dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, DualQuaternion,
@@ -42,7 +42,7 @@ import yaml
 
 LENGTH_UNITS = {'m': 1.0, 'cm': 0.01, 'mm': 0.001}
 ANGLE_UNITS = {'rad': 1.0, 'deg': math.pi / 180.0}
-ROW_TYPES = ('revolute', 'prismatic', 'cylindrical', 'fixed')
+ROW_TYPES = JOINT_TYPES  # a row's type is its joint's
 # A frame id as tf2 takes it: printable ASCII without spaces, not starting with a slash (tf2
 # strips a leading one). The Allegro hand's link_11.0 and names with '-' are frame ids; the
 # node's topic for a frame (~/pose/<topic name>) is made from it by pose_topic_name.

@@ -20,6 +20,7 @@ import time
 
 from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
 from dq_fk_ros.ros.executables import executable
+from dq_fk_ros.ros.view import DEFAULT_PORT
 from geometry_msgs.msg import PoseStamped
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -63,7 +64,8 @@ def main(argv=None):
                         help='keep running in sine mode, printing the end-effector pose')
     parser.add_argument('--view', action='store_true',
                         help='also start dq_fk_view (the robot in a browser; prints its URL)')
-    parser.add_argument('--port', type=int, default=8765, help='dq_fk_view port (8765)')
+    parser.add_argument('--port', type=int, default=DEFAULT_PORT,
+                        help=f'dq_fk_view port ({DEFAULT_PORT})')
     parser.add_argument('--timeout', type=float, default=30.0,
                         help='seconds to wait for the first poses (default 30)')
     args = parser.parse_args(argv)

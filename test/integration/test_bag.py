@@ -492,3 +492,31 @@ def test_a_robot_with_no_moving_joint_gets_tf_static_and_poses_only(tmp_path):
     assert read_topic(tmp_path / 'out', '/tf') == []
     poses = read_topic(tmp_path / 'out', '/dq_fk_node/pose/camera')
     assert len(poses) == 4 and poses[0][1].header.frame_id == 'r1/mount'
+
+
+def test_the_example_bag_holds_the_sweep_it_says(tmp_path, capsys):
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import get_typestore, Stores
+    from dq_fk_ros.cli.dq_fk_bag import main
+    from dq_fk_ros.description.loading import load_robot
+    from dq_fk_ros.ros.fake_joint_publisher import JointMotion
+    out = tmp_path / 'example'
+    assert main(['example', str(out), '--robot', 'panda', '--seconds', '1', '--rate', '50']) == 0
+    assert capsys.readouterr().out == f'{out}: 50 JointState messages of panda on /joint_states\n'
+    model = load_robot('panda').model
+    motion = JointMotion('sine', model.limits)
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Reader(out) as reader:
+        (conn,) = reader.connections
+        assert (conn.topic, conn.msgtype) == ('/joint_states', 'sensor_msgs/msg/JointState')
+        msgs = [(t, store.deserialize_cdr(raw, conn.msgtype))
+                for _, t, raw in reader.messages()]
+    assert len(msgs) == 50
+    for k, (t, msg) in enumerate(msgs):
+        assert list(msg.name) == list(model.joint_names)
+        assert t == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        assert t - msgs[0][0] == k * 20_000_000
+        positions, velocities = motion.sample(k / 50)
+        np.testing.assert_allclose(msg.position, positions, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(msg.velocity, velocities, rtol=0, atol=1e-15)
+    assert main(['example', str(out)]) == 2  # never over an existing path
