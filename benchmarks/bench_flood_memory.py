@@ -1,5 +1,5 @@
 """
-The node's memory under a flood of oversized JointStates (README "Security").
+The node's memory under a flood of oversized JointStates (docs/security.md).
 
 Starts dq_fk_node (RL15) with each ``qos_depth``, then publishes, as fast as one process can,
 JointStates of ``names`` joints for ``--seconds`` per kind: kinds the node refuses (more
@@ -66,7 +66,7 @@ def main():
     args = parser.parse_args()
     import subprocess
     print('dq_fk_node memory under a flood of oversized JointStates (VmRSS; no target: the '
-          'README states the bound qos_depth x message size)')
+          'docs/security.md states the bound qos_depth x message size)')
     for depth in args.depths:
         proc = subprocess.Popen(executable('dq_fk_node') + ['--ros-args', '-p',
                                                             f'qos_depth:={depth}'],

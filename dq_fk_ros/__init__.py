@@ -1,7 +1,7 @@
 """
 Dual-quaternion forward kinematics from a DH table, published to ROS 2.
 
-Layers, bottom up (a layer imports only those below it; the README's "Architecture"):
+Layers, bottom up (a layer imports only those below it; docs/architecture.md):
 
 * :mod:`dq_fk_ros.kinematics`: dual quaternions and DH chains, numpy only.
 * :mod:`dq_fk_ros.description`: the YAML robot description, URDF output.

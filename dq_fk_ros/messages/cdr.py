@@ -25,7 +25,7 @@ CDR_LE_HEADER = b'\x00\x01\x00\x00'
 _U32 = struct.Struct('<I')
 _STAMP = struct.Struct('<iI')
 # a JointState naming more joints, or larger, is refused (malformed_cdr): a robot has far
-# fewer, and what a message names is cached and listed (see README "Security")
+# fewer, and what a message names is cached and listed (see docs/security.md)
 MAX_JOINT_STATE_NAMES = 1024
 MAX_JOINT_STATE_BYTES = 64 * 1024
 

@@ -3,7 +3,7 @@ The dq_fk_node executable: ``sensor_msgs/JointState`` in, every link frame out.
 
 Thin glue: :mod:`dq_fk_ros.messages.joint_states` decides what a message means,
 :mod:`dq_fk_ros.kinematics.dh` computes the frames, :mod:`dq_fk_ros.ros.conversions` fills the
-messages. See the README for topics and parameters.
+messages. The README lists its topics and parameters; docs/node.md says how it acts.
 """
 
 import math
@@ -47,7 +47,7 @@ WARN_EVERY_S = 5.0
 READERS_REFRESH_S = 0.5
 DRAIN_MAX = 64  # queued joint states worked through per executor wake-up
 QOS_DEPTH_MAX = 100_000  # joint states the subscription may queue (tens of MB for an arm)
-INPUT_BATCH_MS_DEFAULT = 2.0  # see README "How it keeps up"
+INPUT_BATCH_MS_DEFAULT = 2.0  # see docs/node.md, "How it keeps up"
 INPUT_BATCH_MS_MAX = 100.0
 MIN_RATE_HZ = 0.01  # publish_frequency, max_publish_rate_hz: 0 (off) or at least this
 MAX_RATE_HZ = 1e6

@@ -1,5 +1,5 @@
 """
-The layers of the package (README "Architecture"): who may import whom.
+The layers of the package (docs/architecture.md): who may import whom.
 
 Every module of ``dq_fk_ros`` is parsed (not imported) and every import in it, also those
 inside functions, is checked against the layer rules.
@@ -129,3 +129,11 @@ def test_a_cycle_would_be_found(monkeypatch):
     monkeypatch.setattr(sys.modules[__name__], 'import_graph', lambda: graph)
     with pytest.raises(AssertionError, match='dq_fk_ros.a -> dq_fk_ros.b -> dq_fk_ros.a'):
         test_no_import_cycle_between_modules()
+
+
+def test_docs_architecture_names_every_module():
+    text = open(os.path.join(os.path.dirname(PACKAGE), 'docs', 'architecture.md'),
+                encoding='utf-8').read()
+    missing = [rel for layer, rel in modules() if layer and not rel.endswith('__init__.py')
+               and f'`{rel}`' not in text]
+    assert missing == []

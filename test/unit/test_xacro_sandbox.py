@@ -168,8 +168,8 @@ def test_bombs_are_stopped_within_the_limits(tmp_path, name, body):
     assert '\n' not in str(caught.value)
 
 
-def test_the_default_limit_is_what_the_readme_says():
-    readme = open(os.path.join(os.path.dirname(__file__), '..', '..', 'README.md'),
+def test_the_default_limit_is_what_the_docs_say():
+    readme = open(os.path.join(os.path.dirname(__file__), '..', '..', 'docs', 'security.md'),
                   encoding='utf-8').read()
     assert f'{TIME_LIMIT_S:g} s' in readme and '1 GiB' in readme
 
