@@ -368,7 +368,12 @@ class RobotModel:
         return unrolled_frame_poses(self.chain, self._link_plan, _motion, self._branch_plan)
 
     def frame_poses_general(self, q):
-        """:meth:`frame_poses` by the general (looping) path: the reference the tests use."""
+        """
+        :meth:`frame_poses` by the general (looping) path: the reference.
+
+        The fast path is :meth:`frame_poses` (straight-line code); test_links.py and
+        test_chains.py hold them equal to the bit.
+        """
         if not self.links and not self.branches:
             return self.chain.frame_poses_general(q)
         q = joint_value_list(q, self.joint_names)

@@ -531,7 +531,12 @@ class KinematicChain:
         return unrolled_frame_poses(self)
 
     def frame_poses_general(self, q):
-        """:meth:`frame_poses` by the general (looping) path: the reference the tests use."""
+        """
+        :meth:`frame_poses` by the general (looping) path: the reference.
+
+        The fast path is the straight-line code of :func:`unrolled_frame_poses`; test_dh.py's
+        ``test_the_unrolled_frame_poses_are_the_general_path_to_the_bit`` holds them equal.
+        """
         absolute = [pose_xyzw_from_coeffs(h) for h in self._absolute_tuples(q)]
         return absolute, self.row_poses(q)
 

@@ -155,6 +155,9 @@ class _JointStateLayout:
     """
     Where one JointState's values are, and the bytes that say another message has the same.
 
+    One message at a time (the node); :class:`_Layout` is the batch version (bags), held
+    equal by test_cdr.py's ``test_batch_parse_equals_parsing_one_by_one``.
+
     Same size, same bytes from the frame id to the end of the names, and the same three
     array lengths (read in one ``struct`` call): the values are at the same offsets.
     """
@@ -258,7 +261,11 @@ class MalformedJointState(NamedTuple):
 
 
 class _Layout:
-    """One message's layout: its size, the bytes that must match, where the values are."""
+    """
+    One message's layout: its size, the bytes that must match, where the values are.
+
+    The batch version of :class:`_JointStateLayout` (see there for the test holding them equal).
+    """
 
     def __init__(self, raw, cache):
         spans, counts = _joint_state_spans(raw, with_counts=True)

@@ -142,7 +142,14 @@ class JointStateMerger:
         return tuple(name for name, s in zip(self.joint_names[n:], self._seen[n:]) if s)
 
     def merge(self, names, positions, velocities=(), stamp_ns=0):
-        """Merge one message's content; returns a :class:`MergeResult` (never raises)."""
+        """
+        Merge one message's content; returns a :class:`MergeResult` (never raises).
+
+        The reference path (:meth:`_merge`) beside its fast one for a repeated complete
+        layout (:meth:`_merge_complete`; held equal by test_joint_states.py's
+        ``test_the_short_path_for_complete_messages_changes_nothing``); :meth:`merge_many`
+        is the array version (``test_merge_many_equals_merging_one_by_one``).
+        """
         self.counts['received'] += 1
         complete = self._complete_names
         if complete is not None and (names is complete or tuple(names) == complete):
@@ -316,6 +323,8 @@ class JointStateMerger:
     def _merge_complete(self, positions, velocities, stamp_ns):
         """
         Merge a message of the cached complete layout: the outcome :meth:`_merge` gives.
+
+        Fast path; the reference is :meth:`_merge` (see :meth:`merge` for the test).
 
         Every required joint is named once (optional ones may be) and nothing else, so there
         are no unknown names, no duplicates, and a valid message always completes the joint

@@ -163,6 +163,10 @@ class FrameBytes:
     """
     The node's /tf, pose and twist messages of one robot, serialized per update.
 
+    The fast path; the reference is :class:`FrameMessages` (rclpy's message objects), held
+    equal byte for byte by test_frame_bytes.py's
+    ``test_serialized_output_equals_the_message_objects``.
+
     Each message's fixed bytes (frame ids, padding) are laid out once; an update packs them
     with its stamp and float64 fields in one ``struct`` call
     (:class:`~dq_fk_ros.messages.cdr.CdrPacker`) and hands ``bytes`` to
