@@ -147,6 +147,9 @@ def cmd_validate(args):
 
 def cmd_fk(args):
     model = _robot(args)
+    if args.code:  # the straight-line FK code the node runs for this robot
+        print(model.frame_poses_code(), end='')
+        return 0
     q = parse_joint_values(model, args.joints, args.deg)
     lower, upper = model.limits[:, 0], model.limits[:, 1]
     for n, v, lo, hi in zip(model.joint_names, q, lower, upper):
@@ -273,6 +276,9 @@ def build_parser():
     p.add_argument('--rpy', action='store_true', help='also print roll, pitch, yaw (rad)')
     p.add_argument('--matrix', action='store_true', help='also print the 4x4 matrix')
     p.add_argument('--json', action='store_true', help='print JSON instead of a table')
+    p.add_argument('--code', action='store_true',
+                   help="print the robot's generated straight-line FK code (frame_poses) and "
+                   'stop')
     add_urdf_chain_options(p)
     add_package_option(p)
     p.set_defaults(func=cmd_fk)

@@ -362,6 +362,12 @@ class RobotModel:
             return self.chain.frame_poses(q)
         return self._unrolled(joint_value_list(q, self.joint_names))
 
+    def frame_poses_code(self):
+        """Return the Python source of :meth:`frame_poses`' straight-line code (generated)."""
+        if not self.links and not self.branches:
+            return self.chain._unrolled.source
+        return self._unrolled.source
+
     @cached_property
     def _unrolled(self):
         """:meth:`frame_poses` as straight-line code (``unrolled_frame_poses``)."""

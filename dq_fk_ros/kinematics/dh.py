@@ -21,6 +21,7 @@ from array import array
 from dataclasses import dataclass
 from functools import cached_property
 import math
+from typing import NamedTuple
 
 from dq_fk_ros.kinematics.dual_quaternion import (
     canonical, dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, dq_translation_array,
@@ -99,14 +100,40 @@ def _row_modified(ca, sa, a, theta, d):
 _Z, _X = 0, 1
 
 
+class ZStep(NamedTuple):
+    """
+    A row's z factor ``Rz(theta) Tz(d)``: theta = theta + scale q[ti], d = d + scale q[di].
+
+    An index of -1 means constant; ``mark``: the row's frame is complete after this step.
+    """
+
+    kind: int          # _Z
+    theta: float
+    scale: float
+    ti: int
+    d: float
+    di: int
+    mark: bool
+
+
+class XStep(NamedTuple):
+    """A row's x factor ``Tx(a) Rx(alpha)``, constant; ``mark`` as for :class:`ZStep`."""
+
+    kind: int          # _X
+    half_a: float
+    cos_half_alpha: float
+    sin_half_alpha: float
+    has_rotation: bool
+    unused: int        # (the same length as ZStep: the loops unpack both alike)
+    mark: bool
+
+
 def _row_program(joint, ti, di, modified):
     """
-    Compile one DH row into its z and x factors; the last one marks the row's frame.
+    Compile one DH row into its z and x factors (:class:`ZStep`, :class:`XStep`).
 
     Standard: ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``; modified: ``Rx(alpha) Tx(a) Rz(theta)
-    Tz(d)``. Op tuples: ``(_Z, theta, scale, ti, d, di, mark)`` with theta = theta + scale
-    q[ti] and d = d + scale q[di] (index -1: constant); ``(_X, a/2, cos(alpha/2),
-    sin(alpha/2), has_rotation, -, mark)``.
+    Tz(d)``; the last factor marks the row's frame.
     """
     ops = [[_Z, joint.theta, joint.scale, ti, joint.d, di, False]]
     if joint.a or joint.alpha:
@@ -115,7 +142,7 @@ def _row_program(joint, ti, di, modified):
         if modified:
             ops.reverse()
     ops[-1][-1] = True
-    return [tuple(op) for op in ops]
+    return [ZStep(*op) if op[0] == _Z else XStep(*op) for op in ops]
 
 
 def _run_program(program, base, q, cos, sin):

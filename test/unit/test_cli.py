@@ -4,6 +4,7 @@ import json
 
 from dq_fk_ros.cli.dq_fk import main
 from dq_fk_ros.description.robot_model import shipped_robot_path
+import numpy as np
 import pytest
 
 
@@ -112,3 +113,17 @@ def test_validate_of_files_that_crashed_it_is_one_line_each(capsys, tmp_path):
         f"{huge}: chain[0] (frame 'shoulder_seg1'): field 'a' must be a finite number, "
         f'got an integer of 400 digits',
         f'{deep}: YAML nested too deeply to be a robot description']
+
+
+@pytest.mark.parametrize('robot', ['rl15', 'dual_arm'])
+def test_fk_code_prints_the_code_the_node_runs(robot, capsys):
+    from dq_fk_ros.description.robot_model import load_robot_description
+    assert main(['fk', robot, '--code']) == 0
+    source = capsys.readouterr().out
+    assert source.startswith('def frame_poses(q):')
+    model = load_robot_description(shipped_robot_path(robot))
+    namespace = {}
+    exec(compile(source, 'printed', 'exec'), model._unrolled.__globals__ if model.branches
+         else model.chain._unrolled.__globals__, namespace)
+    q = np.linspace(-0.5, 0.5, model.dof).tolist()
+    assert namespace['frame_poses'](q) == model.frame_poses(q)  # the same function, printed
