@@ -1,9 +1,11 @@
 """
-The package's errors: one base, :class:`DqFkError`, whose message is one line for the user.
+The package's errors, one base whose message is one line, and the helpers for that line.
 
-Under it: :class:`RobotDescriptionError` (a robot file, URDF or xacro), :class:`ParameterError`
-(a node parameter), and in their layers ``BagError`` (a bag) and ``CdrError`` (a serialized
-message). :func:`first_line` is how any exception becomes one line.
+:class:`DqFkError`; under it :class:`RobotDescriptionError` (a robot file, URDF or xacro),
+:class:`ParameterError` (a node parameter), and in their layers ``BagError`` (a bag) and
+``CdrError`` (a serialized message). :func:`first_line`, :func:`printable_line`,
+:func:`listing`, :func:`short` and :func:`describe` make an exception, any text, a list of
+names or a value fit one line.
 """
 
 
@@ -35,6 +37,42 @@ class ParameterError(RobotDescriptionError):
     """
 
 
+def describe(value):
+    """Describe a YAML value briefly for an error message (one line, at most ~80 chars)."""
+    if value is None:
+        return 'nothing'
+    if isinstance(value, bool):
+        return f'{value!r} (a boolean)'
+    if isinstance(value, (dict, list)):
+        kind = 'a mapping' if isinstance(value, dict) else f'a list of {len(value)}'
+        return kind
+    if isinstance(value, int) and abs(value) > 10**15:
+        try:
+            return f'an integer of {len(str(abs(value)))} digits'
+        except ValueError:  # beyond Python's int-to-text limit
+            return f'an integer of about {int(value.bit_length() * 0.30103)} digits'
+    return f'{short(value)} ({type(value).__name__})'
+
+
+def listing(names, at_most=20):
+    """Join names for an error message: at most ``at_most`` of them, then how many more."""
+    names = list(names)
+    text = ', '.join(names[:at_most])
+    return text + (f' ... ({len(names) - at_most} more)' if len(names) > at_most else '')
+
+
+def printable_line(text, at_most=None):
+    """Return ``text`` for one line of a message or log: every unprintable character as ``?``."""
+    text = ''.join(c if c.isprintable() else '?' for c in str(text))
+    return text if at_most is None else text[:at_most]
+
+
+def short(value):
+    """``repr(value)``, shortened to about 60 characters."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:40] + '...' + text[-12:]
+
+
 def first_line(exc, limit=None):
     """Return the first line of an exception's message (its type's name if it has none)."""
     lines = str(exc).strip().splitlines()
@@ -42,4 +80,5 @@ def first_line(exc, limit=None):
     return text if limit is None else text[:limit]
 
 
-__all__ = ['DqFkError', 'first_line', 'ParameterError', 'RobotDescriptionError']
+__all__ = ['describe', 'DqFkError', 'first_line', 'listing', 'ParameterError',
+           'printable_line', 'RobotDescriptionError', 'short']

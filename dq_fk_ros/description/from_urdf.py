@@ -37,10 +37,10 @@ import math
 import os
 import xml.etree.ElementTree as ElementTree
 
+from dq_fk_ros.description.errors import listing, printable_line, RobotDescriptionError
 from dq_fk_ros.description.robot_model import (
-    _listing, JOINT_NAME, MAX_FILE_BYTES, MAX_LENGTH_M, MAX_NAME_CHARS, MAX_ROWS,
-    parse_robot_description, printable_line, RobotDescriptionError, rpy_matrix, TF_FRAME_ID,
-    yaml_number)
+    JOINT_NAME, MAX_FILE_BYTES, MAX_LENGTH_M, MAX_NAME_CHARS, MAX_ROWS, rpy_matrix, TF_FRAME_ID)
+from dq_fk_ros.description.schema import parse_robot_description, yaml_number
 from dq_fk_ros.description.xacro_sandbox import (
     default_read_roots, expand_xacro, TIME_LIMIT_S, XacroRefused)
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
@@ -298,11 +298,11 @@ def chain_joints(tree, base=None, tip=None, options=OPTIONS):
     for name, value in ((base_option, base), (tip_option, tip)):
         if value is not None and value not in tree.links:
             raise RobotDescriptionError(f'{source}: {name} {value!r} is not a link of the URDF; '
-                                        f'links: {_listing(tree.links)}')
+                                        f'links: {listing(tree.links)}')
     if base is None:
         roots = tree.roots
         if len(roots) > 1:
-            raise RobotDescriptionError(f'{source}: several root links ({_listing(roots)}); '
+            raise RobotDescriptionError(f'{source}: several root links ({listing(roots)}); '
                                         f'choose one with {base_option}')
         base = roots[0]
     if tip is None:
@@ -542,7 +542,7 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
     if loose:
         warnings += (f'{source}: {len(loose)} floating or planar joint(s) get no transform, as '
                      f'in robot_state_publisher (their links are not on TF): '
-                     f'{_listing([_comment(j.name)[:80] for j in loose], 5)}',)
+                     f'{listing([_comment(j.name)[:80] for j in loose], 5)}',)
     if tree.slashed:
         shown = ', '.join(_comment(n)[:80] for n in tree.slashed[:5])
         more = f' and {len(tree.slashed) - 5} more' if len(tree.slashed) > 5 else ''

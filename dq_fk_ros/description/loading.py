@@ -9,11 +9,11 @@ and ``robot_from_urdf_text(xml)`` all give a :class:`LoadedRobot`; a URDF is con
 from dataclasses import dataclass, replace
 import os
 
+from dq_fk_ros.description.errors import listing, printable_line, RobotDescriptionError
 from dq_fk_ros.description.from_urdf import (
     load_urdf_description, OPTIONS, read_urdf_text, urdf_to_description)
-from dq_fk_ros.description.robot_model import (
-    _listing, load_robot_description, parse_robot_description, printable_line,
-    RobotDescriptionError, shipped_robot_path, shipped_robots)
+from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.description.xacro_sandbox import ros_package_roots, TIME_LIMIT_S
 
 URDF_SUFFIXES = ('.urdf', '.xacro')
@@ -51,7 +51,7 @@ class LoadedRobot:
                             for j in c.skipped)
         skipped = f'; skipped side branches: {skipped}' if skipped else ''
         model = self.model
-        optional = (f'; optional side-branch joints: {_listing(model.optional_joints, 10)}'
+        optional = (f'; optional side-branch joints: {listing(model.optional_joints, 10)}'
                     if model.optional_joints and not model.branches else '')
         if not self.model.dof:
             return (f'converted URDF {self.model.source}: no moving joint below {c.base}: '
@@ -86,11 +86,6 @@ def resolve_robot(spec):
 def is_urdf(path):
     """Say whether ``path`` names a URDF (``.urdf``, ``.xacro``, ``.urdf.xacro``)."""
     return os.fspath(path).lower().endswith(URDF_SUFFIXES)
-
-
-def shipped_robots_dir():
-    """Return the folder of the robots shipped with the package."""
-    return os.path.dirname(shipped_robot_path('rl15'))
 
 
 @dataclass(frozen=True)
@@ -173,4 +168,4 @@ def robot_from_urdf_text(text, source='robot_description', base=None, tip=None,
 
 
 __all__ = ['FileAccess', 'is_urdf', 'load_robot', 'LoadedRobot', 'resolve_robot',
-           'robot_from_urdf_text', 'shipped_robots_dir']
+           'robot_from_urdf_text']

@@ -18,7 +18,8 @@ import subprocess
 import sys
 import time
 
-from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.description.schema import load_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.ros.executables import executable
 from dq_fk_ros.ros.view import DEFAULT_PORT
 from geometry_msgs.msg import PoseStamped

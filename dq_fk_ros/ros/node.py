@@ -13,17 +13,18 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from dq_fk_ros.description.errors import DqFkError, first_line, ParameterError
+from dq_fk_ros.description.errors import (
+    DqFkError, first_line, listing, ParameterError, printable_line, RobotDescriptionError)
 from dq_fk_ros.description.from_urdf import NODE_OPTIONS, tf_name
 from dq_fk_ros.description.loading import (
-    FileAccess, load_robot, resolve_robot, robot_from_urdf_text, shipped_robots_dir)
-from dq_fk_ros.description.robot_model import (
-    _listing, FRAME_ID, MAX_NAME_CHARS, printable_line, RobotDescriptionError, TF_FRAME_ID)
+    FileAccess, load_robot, resolve_robot, robot_from_urdf_text)
+from dq_fk_ros.description.robot_model import FRAME_ID, MAX_NAME_CHARS, TF_FRAME_ID
+from dq_fk_ros.description.shipped import shipped_robots_dir
 from dq_fk_ros.description.urdf import description_urdf
 from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
-    INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH,
-    REJECTED, SequenceGaps)
+    INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH, REJECTED,
+    SequenceGaps)
 from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S
 from dq_fk_ros.ros.executables import spin_until_shutdown
 from dq_fk_ros.ros.package_paths import declare_package_paths
@@ -424,7 +425,7 @@ class DqFkNode(Node):
                     f'published once joint states have named the joints it depends on')
             elif model.optional_joints:
                 self.get_logger().info(
-                    f'side-branch joints {_listing(model.optional_joints, 10)}: their links '
+                    f'side-branch joints {listing(model.optional_joints, 10)}: their links '
                     f'are published once joint states name them')
         if self._publish_tf:
             self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
@@ -553,7 +554,7 @@ class DqFkNode(Node):
         self._pose_read = [read and k not in hidden for k, read in enumerate(self._pose_read)]
         self._note_read_poses()
         if new:
-            self.get_logger().info(f'joint states name joints {_listing(new, 10)}: publishing '
+            self.get_logger().info(f'joint states name joints {listing(new, 10)}: publishing '
                                    f'the links that depend on them')
 
     def _publish(self, stamp_ns, q, qdot):

@@ -34,6 +34,7 @@ import time
 
 from dq_fk_ros.description.meshes import check_mesh_file, mesh_allow_list
 from dq_fk_ros.description.packages import PackageResolver
+from dq_fk_ros.description.shipped import share_folders
 from dq_fk_ros.description.urdf import is_helper_frame
 from dq_fk_ros.kinematics.tree import compose_tree, depths, roots
 from dq_fk_ros.messages.cdr import CdrError, TfLatest
@@ -49,14 +50,7 @@ VENDOR_PACKAGES = ('three', 'urdf-loader')
 
 def web_root():
     """Return the folder of the page (``web/``: installed share directory, or source tree)."""
-    candidates = []
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        candidates.append(os.path.join(get_package_share_directory('dq_fk_ros'), 'web'))
-    except Exception:  # not installed through ament: the source tree
-        pass
-    here = os.path.dirname(os.path.abspath(__file__))
-    candidates.append(os.path.join(os.path.dirname(os.path.dirname(here)), 'web'))
+    candidates = share_folders('web')
     pages = [f for f in candidates if os.path.isfile(os.path.join(f, 'index.html'))]
     for folder in pages:  # one with three.js and urdf-loader installed (npm ci) first
         if os.path.isdir(os.path.join(folder, 'node_modules', 'three')):

@@ -9,7 +9,7 @@ import os
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from dq_fk_ros.description.robot_model import shipped_robot_path
+from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.ros.executables import executable
 from geometry_msgs.msg import PoseStamped
 import numpy as np

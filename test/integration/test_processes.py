@@ -11,7 +11,8 @@ import signal
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.description.schema import load_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path
 from geometry_msgs.msg import PoseStamped
 import homogeneous_tf as htf
 import numpy as np

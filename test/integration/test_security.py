@@ -12,7 +12,7 @@ import signal
 import sys
 import time
 
-from dq_fk_ros.description.robot_model import shipped_robot_path
+from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.ros.executables import executable
 from geometry_msgs.msg import PoseStamped
 import numpy as np

@@ -9,8 +9,8 @@ URDF that ``dq_fk urdf`` writes with pinocchio's kinematics of that same URDF.
 import math
 import xml.etree.ElementTree as ET
 
-from dq_fk_ros.description.robot_model import (
-    load_robot_description, shipped_robot_path, shipped_robots)
+from dq_fk_ros.description.schema import load_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.description.urdf import robot_to_urdf
 import homogeneous_tf as htf
 import numpy as np

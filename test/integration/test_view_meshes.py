@@ -15,7 +15,7 @@ import urllib.request
 import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.loading import load_robot
-from dq_fk_ros.description.robot_model import shipped_robot_path
+from dq_fk_ros.description.shipped import shipped_robot_path
 import homogeneous_tf as htf
 import numpy as np
 import pinocchio_oracle as oracle

@@ -3,7 +3,7 @@
 import json
 
 from dq_fk_ros.cli.dq_fk import main
-from dq_fk_ros.description.robot_model import shipped_robot_path
+from dq_fk_ros.description.shipped import shipped_robot_path
 import numpy as np
 import pytest
 
@@ -117,7 +117,7 @@ def test_validate_of_files_that_crashed_it_is_one_line_each(capsys, tmp_path):
 
 @pytest.mark.parametrize('robot', ['rl15', 'dual_arm'])
 def test_fk_code_prints_the_code_the_node_runs(robot, capsys):
-    from dq_fk_ros.description.robot_model import load_robot_description
+    from dq_fk_ros.description.schema import load_robot_description
     assert main(['fk', robot, '--code']) == 0
     source = capsys.readouterr().out
     assert source.startswith('def frame_poses(q):')

@@ -4,8 +4,8 @@ import os
 import sys
 
 from builtin_interfaces.msg import Time
-from dq_fk_ros.description.robot_model import (
-    load_robot_description, shipped_robot_path, shipped_robots)
+from dq_fk_ros.description.schema import load_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np

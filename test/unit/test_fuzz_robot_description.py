@@ -9,9 +9,10 @@ give :class:`RobotDescriptionError` or a valid :class:`RobotModel`, never anothe
 import copy
 import math
 
-from dq_fk_ros.description.robot_model import (
-    FRAME_ID, JOINT_NAME, load_robot_description, parse_robot_description, pose_topic_name,
-    RobotDescriptionError, shipped_robot_path, shipped_robots, TF_FRAME_ID)
+from dq_fk_ros.description.errors import RobotDescriptionError
+from dq_fk_ros.description.robot_model import FRAME_ID, JOINT_NAME, pose_topic_name, TF_FRAME_ID
+from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from hypothesis import given, strategies as st
 import numpy as np
 import pytest

@@ -4,7 +4,8 @@ import math
 
 from dq_fk_ros.cli.dq_fk import main
 from dq_fk_ros.description.plot import AXIS_COLOURS, draw_robot
-from dq_fk_ros.description.robot_model import load_robot_description, shipped_robot_path
+from dq_fk_ros.description.schema import load_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path
 from matplotlib import colors
 from matplotlib.image import imread
 from mpl_toolkits.mplot3d import proj3d
@@ -175,7 +176,7 @@ def test_links_and_axes_are_drawn_where_the_kinematics_put_them():
 
 
 def test_frames_closer_than_a_thousandth_of_the_picture_share_a_label():
-    from dq_fk_ros.description.robot_model import parse_robot_description
+    from dq_fk_ros.description.schema import parse_robot_description
     model = parse_robot_description(
         'robot: r\nbase: {frame: b}\nchain:\n'
         '  - {frame: l1, joint: j1, theta: 0, d: 2.0, a: 2.0, alpha: 0}\n'

@@ -1,8 +1,8 @@
 """FrameMessages: what the node would publish, checked without DDS."""
 
 from builtin_interfaces.msg import Time
-from dq_fk_ros.description.robot_model import (
-    load_robot_description, parse_robot_description, shipped_robot_path)
+from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 from dq_fk_ros.ros.conversions import FrameMessages, ns_to_stamp, stamp_to_ns
 import homogeneous as hm

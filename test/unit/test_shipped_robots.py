@@ -2,8 +2,8 @@
 
 import math
 
-from dq_fk_ros.description.robot_model import (
-    load_robot_description, shipped_robot_path, shipped_robots)
+from dq_fk_ros.description.schema import load_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 import homogeneous as hm
 import numpy as np

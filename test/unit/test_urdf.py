@@ -4,8 +4,8 @@ import json
 import math
 import xml.etree.ElementTree as ET
 
-from dq_fk_ros.description.robot_model import (
-    load_robot_description, parse_robot_description, shipped_robot_path, shipped_robots)
+from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.description.urdf import (
     description_urdf, HelperFrames, link_poses, link_segments, NO_LIMIT_SPEED, robot_to_urdf)
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq

@@ -1,0 +1,52 @@
+"""
+The robots shipped with the package (``config/``) and the package's other shared folders.
+
+:func:`share_folder` finds a folder the package installs under ``share/dq_fk_ros`` (colcon)
+or holds in its source tree (an editable install): ``config`` for the robots, ``web`` for
+dq_fk_view's page.
+"""
+
+import os
+
+
+def share_folders(name):
+    """Return the candidate folders ``name`` (``config``, ``web``) may be in, in order."""
+    candidates = []
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        candidates.append(os.path.join(get_package_share_directory('dq_fk_ros'), name))
+    except Exception:  # not installed through ament (or ament_index missing): source tree
+        pass
+    source_tree = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    candidates.append(os.path.join(source_tree, name))
+    return candidates
+
+
+def shipped_robot_path(name):
+    """
+    Find a robot file shipped with the package by name, e.g. ``'rl15'``.
+
+    Looks in the installed share directory (colcon) first, then in the source tree's
+    ``config/`` (an editable install).
+    """
+    filename = name if name.endswith('.yaml') else name + '.yaml'
+    candidates = share_folders('config')
+    for folder in candidates:
+        path = os.path.join(folder, filename)
+        if os.path.isfile(path):
+            return path
+    raise FileNotFoundError(f'no shipped robot {filename!r} in {" or ".join(candidates)}')
+
+
+def shipped_robots_dir():
+    """Return the folder of the robots shipped with the package."""
+    return os.path.dirname(shipped_robot_path('rl15'))
+
+
+def shipped_robots():
+    """List the names of the robot files shipped in ``config/``."""
+    folder = shipped_robots_dir()
+    return sorted(f[:-5] for f in os.listdir(folder) if f.endswith('.yaml'))
+
+
+__all__ = ['share_folders', 'shipped_robot_path', 'shipped_robots', 'shipped_robots_dir']
