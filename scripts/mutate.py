@@ -48,6 +48,8 @@ MODULES = {
     'meshes': ('dq_fk_ros/description/meshes.py', ['test_meshes.py']),
     'urdf': ('dq_fk_ros/description/urdf.py', ['test_urdf.py', 'test_links.py']),
     'from_urdf': ('dq_fk_ros/description/from_urdf.py', ['test_from_urdf.py']),
+    'urdf_reader': ('dq_fk_ros/description/urdf_reader.py', ['test_from_urdf.py']),
+    'dh_fit': ('dq_fk_ros/description/dh_fit.py', ['test_from_urdf.py']),
     'loading': ('dq_fk_ros/description/loading.py', ['test_loading.py', 'test_cli.py']),
     'plot': ('dq_fk_ros/description/plot.py', ['test_plot.py']),
     'packages': ('dq_fk_ros/description/packages.py', ['test_packages.py']),

@@ -31,253 +31,22 @@ and mimics of joints that are not published, are skipped and named.
 """
 
 from dataclasses import dataclass
-from functools import cached_property
-import json
-import math
 import os
-import xml.etree.ElementTree as ElementTree
 
-from dq_fk_ros.description.errors import listing, printable_line, RobotDescriptionError
-from dq_fk_ros.description.robot_model import (
-    JOINT_NAME, MAX_FILE_BYTES, MAX_LENGTH_M, MAX_NAME_CHARS, MAX_ROWS, rpy_matrix, TF_FRAME_ID)
-from dq_fk_ros.description.schema import parse_robot_description, yaml_number
-from dq_fk_ros.description.xacro_sandbox import (
-    default_read_roots, expand_xacro, TIME_LIMIT_S, XacroRefused)
+from dq_fk_ros.description.dh_fit import dh_row, frames_on_axes, normal_feet
+from dq_fk_ros.description.errors import listing, RobotDescriptionError
+from dq_fk_ros.description.robot_model import JOINT_NAME, MAX_NAME_CHARS, MAX_ROWS, TF_FRAME_ID
+from dq_fk_ros.description.schema import parse_robot_description
+from dq_fk_ros.description.to_yaml import ChainText, comment, description_yaml
+from dq_fk_ros.description.urdf_reader import (
+    MOVING, parse_urdf, read_urdf_text, tf_name)
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
 import numpy as np
 
-MOVING = ('revolute', 'continuous', 'prismatic')
-PARALLEL_TOL = 1e-9         # |sin| of the angle between two axes below which they are parallel
-LENGTH_TOL_M = 1e-9         # distances below which two points (or lines) meet
-NOISE = 1e-15               # numbers written as 0 (m or rad; far below the tests' 1e-12)
 FAR_NORMAL_M = 10.0         # a common normal this far from the joints splits the chain
-MAX_URDF_ELEMENTS = 4096    # links, and joints, in one URDF (talos: 100; the checks are linear)
 # how the tools call the base and tip links (messages name the option of the tool that said it)
 OPTIONS = ('--base', '--tip')
 NODE_OPTIONS = ('urdf_base_link', 'urdf_tip_link')
-
-
-@dataclass(frozen=True)
-class UrdfJointSpec:
-    """One ``<joint>`` of a URDF: origin as a 4x4 matrix, axis a unit 3-vector."""
-
-    name: str
-    kind: str
-    parent: str
-    child: str
-    origin: np.ndarray
-    axis: np.ndarray
-    lower: float = None
-    upper: float = None
-    velocity: float = None
-    mimic: tuple = None          # (joint, multiplier, offset)
-
-
-@dataclass(frozen=True)
-class UrdfTree:
-    """The links and joints of a URDF: ``joints`` by child link, ``children`` by parent."""
-
-    name: str
-    source: str
-    links: tuple
-    joints: dict
-    children: dict
-    slashed: tuple = ()   # link names the URDF wrote with a leading slash (tf2 strips it)
-
-    @property
-    def roots(self):
-        """Links that are no joint's child."""
-        return [link for link in self.links if link not in self.joints]
-
-    @cached_property
-    def by_name(self):
-        """Return the joints by name."""
-        return {joint.name: joint for joint in self.joints.values()}
-
-
-def read_urdf_text(path, read_roots=None, time_limit_s=TIME_LIMIT_S, should_stop=None,
-                   packages=None, within=None):
-    """
-    Return the URDF XML of a ``.urdf`` file, or of a ``.xacro`` file expanded by xacro.
-
-    xacro runs confined (:mod:`dq_fk_ros.description.xacro_sandbox`): it may read under
-    ``read_roots`` only (default: the file's package or folder and the ROS package paths)
-    and in the packages ``$(find)`` finds (``packages``: ``{name: folder}`` first; ``within``:
-    folders the search above the file may not leave), and is stopped after ``time_limit_s``.
-    """
-    path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise RobotDescriptionError(f'{path}: no such file' if not os.path.exists(path) else
-                                    f'{path}: not a file')
-    if os.path.getsize(path) > 8 * MAX_FILE_BYTES:
-        raise RobotDescriptionError(f'{path}: larger than {8 * MAX_FILE_BYTES // 1024} KiB; a '
-                                    f'URDF is at most that big')
-    if path.endswith('.xacro'):
-        try:
-            import xacro  # noqa: F401  (the child process imports it; say here if missing)
-        except ImportError:
-            raise RobotDescriptionError(f'{path}: a .xacro file needs the xacro package '
-                                        f'(pip install xacro)') from None
-        roots = default_read_roots(path) if read_roots is None else read_roots
-        try:
-            return expand_xacro(path, roots, time_limit_s, should_stop=should_stop,
-                                packages=packages, within=within)
-        except XacroRefused as exc:
-            raise RobotDescriptionError(f'{path}: xacro failed: {exc}',
-                                        f'{path}: xacro failed') from None
-    try:
-        with open(path, 'rb') as stream:
-            data = stream.read(8 * MAX_FILE_BYTES + 1)
-        return data.decode('utf-8')
-    except UnicodeDecodeError:
-        raise RobotDescriptionError(f'{path}: not UTF-8 text') from None
-    except OSError as exc:
-        raise RobotDescriptionError(f'{path}: cannot be read ({exc.strerror})') from None
-
-
-def parse_urdf(text, source='<string>'):
-    """Parse URDF XML into a :class:`UrdfTree`; any problem is one RobotDescriptionError."""
-    if len(text) > 8 * MAX_FILE_BYTES:
-        raise RobotDescriptionError(f'{source}: larger than {8 * MAX_FILE_BYTES // 1024} KiB; '
-                                    f'a URDF is at most that big')
-    if '<!ENTITY' in text:
-        raise RobotDescriptionError(f'{source}: XML entity declarations are not accepted in a '
-                                    f'URDF')
-    try:
-        root = ElementTree.fromstring(text)
-    except ElementTree.ParseError as exc:
-        raise RobotDescriptionError(f'{source}: not valid XML: {exc}') from None
-    if root.tag != 'robot':
-        raise RobotDescriptionError(f'{source}: the root element is <{root.tag[:40]}>, not '
-                                    f'<robot>; is this a URDF?',
-                                    f'{source}: the root element is not <robot>; not a URDF')
-    name = root.get('name', '') or 'robot'
-    link_elements, joint_elements = root.findall('link'), root.findall('joint')
-    for what, elements in (('<link>', link_elements), ('<joint>', joint_elements)):
-        if len(elements) > MAX_URDF_ELEMENTS:
-            raise RobotDescriptionError(f'{source}: {len(elements)} {what} elements; a URDF '
-                                        f'has at most {MAX_URDF_ELEMENTS}')
-    links, known, slashed = [], set(), []
-    for element in link_elements:
-        link = element.get('name')
-        if link and link.startswith('/'):
-            slashed.append(link)
-            link = tf_name(link)
-        if not link:
-            raise RobotDescriptionError(f'{source}: a <link> without a name')
-        if link in known:
-            raise RobotDescriptionError(f'{source}: link {link[:70]!r} is defined twice')
-        known.add(link)
-        links.append(link)
-    if not links:
-        raise RobotDescriptionError(f'{source}: no <link> elements')
-    joints, children, names = {}, {}, set()
-    for element in joint_elements:
-        joint = _joint(element, source, known)
-        if joint.name in names:
-            raise RobotDescriptionError(f'{source}: joint {joint.name[:70]!r} is defined twice')
-        names.add(joint.name)
-        if joint.child in joints:
-            raise RobotDescriptionError(
-                f'{source}: link {joint.child[:70]!r} is the child of two joints '
-                f'({joints[joint.child].name[:70]!r} and {joint.name[:70]!r}); a URDF is a tree')
-        joints[joint.child] = joint
-        children.setdefault(joint.parent, []).append(joint)
-    tree = UrdfTree(name, source, tuple(links), joints, children, tuple(slashed))
-    if not tree.roots:
-        raise RobotDescriptionError(f'{source}: every link has a parent joint: the joints '
-                                    f'form a cycle')
-    # a cycle below a root: walking up never ends at a root. Each link is walked once: a
-    # walk stops at a link already known to reach a root
-    reaches_root = set(tree.roots)
-    for link in links:
-        path, on_path, at = [], set(), link
-        while at not in reaches_root:
-            if at in on_path:
-                raise RobotDescriptionError(f'{source}: the joints form a cycle through link '
-                                            f'{at[:70]!r}')
-            path.append(at)
-            on_path.add(at)
-            at = joints[at].parent
-        reaches_root.update(path)
-    return tree
-
-
-def tf_name(link):
-    """Return a link name as tf2 takes it: without one leading slash (``/base`` -> ``base``)."""
-    return link[1:] if link.startswith('/') else link
-
-
-def _joint(element, source, links):
-    name = element.get('name') or ''
-    kind = element.get('type') or ''
-    where = f'{source}: joint {name!r}'
-    if not name:
-        raise RobotDescriptionError(f'{source}: a <joint> without a name')
-    if kind not in MOVING + ('fixed', 'floating', 'planar'):
-        raise RobotDescriptionError(f'{where}: type {kind!r}; allowed: revolute, continuous, '
-                                    f'prismatic, fixed, floating, planar')
-    ends = {}
-    for tag in ('parent', 'child'):
-        node = element.find(tag)
-        link = node.get('link') if node is not None else None
-        link = tf_name(link) if link else link
-        if not link:
-            raise RobotDescriptionError(f'{where}: no <{tag} link="...">')
-        if link not in links:
-            raise RobotDescriptionError(f'{where}: {tag} link {link!r} is not defined (no '
-                                        f'<link name="{link[:60]}">)')
-        ends[tag] = link
-    origin = np.eye(4)
-    node = element.find('origin')
-    if node is not None:
-        xyz = _numbers(node.get('xyz', '0 0 0'), 3, f'{where}: origin xyz')
-        if max(abs(v) for v in xyz) > MAX_LENGTH_M:
-            raise RobotDescriptionError(f'{where}: origin xyz is beyond {MAX_LENGTH_M:g} m')
-        rpy = _numbers(node.get('rpy', '0 0 0'), 3, f'{where}: origin rpy')
-        origin[:3, :3] = rpy_matrix(*rpy)
-        origin[:3, 3] = xyz
-    axis = np.array([1.0, 0.0, 0.0])  # URDF's default axis
-    node = element.find('axis')
-    if node is not None:
-        axis = np.array(_numbers(node.get('xyz', '1 0 0'), 3, f'{where}: axis xyz'))
-    if kind in MOVING:
-        largest = float(np.max(np.abs(axis)))
-        if not largest > 0.0 or not largest * np.linalg.norm(axis / largest) > 1e-12:
-            raise RobotDescriptionError(f'{where}: axis xyz is all zeros')
-        axis = axis / largest  # no overflow for huge components
-        axis = axis / np.linalg.norm(axis)
-    lower = upper = velocity = None
-    node = element.find('limit')
-    if node is not None and kind in ('revolute', 'prismatic'):
-        lower = _numbers(node.get('lower', '0'), 1, f'{where}: limit lower')[0]
-        upper = _numbers(node.get('upper', '0'), 1, f'{where}: limit upper')[0]
-        if lower > upper:
-            raise RobotDescriptionError(f'{where}: limit lower {lower:g} is above upper '
-                                        f'{upper:g}')
-    if node is not None and node.get('velocity') is not None and kind in MOVING:
-        velocity = _numbers(node.get('velocity'), 1, f'{where}: limit velocity')[0]
-    mimic = None
-    node = element.find('mimic')
-    if node is not None and kind in MOVING:
-        followed = node.get('joint')
-        if not followed:
-            raise RobotDescriptionError(f'{where}: <mimic> without a joint')
-        mimic = (followed,
-                 _numbers(node.get('multiplier', '1'), 1, f'{where}: mimic multiplier')[0],
-                 _numbers(node.get('offset', '0'), 1, f'{where}: mimic offset')[0])
-    return UrdfJointSpec(name, kind, ends['parent'], ends['child'], origin, axis, lower, upper,
-                         velocity, mimic)
-
-
-def _numbers(text, size, where):
-    try:
-        values = [float(v) for v in text.split()]
-    except ValueError:
-        raise RobotDescriptionError(f'{where}: {text[:60]!r} is not {size} numbers') from None
-    if len(values) != size or not all(math.isfinite(v) for v in values):
-        raise RobotDescriptionError(f'{where}: {text[:60]!r} is not {size} finite numbers')
-    return values
 
 
 # -- the chain ---------------------------------------------------------------------------
@@ -360,106 +129,6 @@ def _default_tip(tree, base, tip_option=OPTIONS[1]):
 
 
 # -- DH frames on the joint axes -----------------------------------------------------------
-def _unit(v):
-    return v / np.linalg.norm(v)
-
-
-def _common_normal(p1, u1, p2, u2, through, x_before):
-    """
-    Return ``(foot on line 1, foot on line 2, x, kind)`` of the common normal of two lines.
-
-    Parallel lines: the normal through ``through`` (a point on line 1); coincident ones:
-    ``x_before``; intersecting ones: ``+-(u1 x u2)``, the sign nearer ``x_before``.
-    """
-    cross = np.cross(u1, u2)
-    sin = np.linalg.norm(cross)
-    w = p1 - p2
-    if sin < PARALLEL_TOL:
-        foot2 = p2 + np.dot(through - p2, u2) * u2
-        gap = foot2 - through
-        if np.linalg.norm(gap) < LENGTH_TOL_M:
-            return through, through, x_before, 'coincident'
-        return through, foot2, _unit(gap), 'parallel'
-    # the feet p1 + s u1, p2 + t u2, with 1 - (u1.u2)^2 = |u1 x u2|^2 and the numerators
-    # as cross products: no cancellation for nearly parallel axes (Romeo's thumbs, 1e-7 rad)
-    denominator = np.dot(cross, cross)
-    s = -np.dot(np.cross(u2, cross), w) / denominator
-    t = -np.dot(np.cross(u1, cross), w) / denominator
-    foot1, foot2 = p1 + s * u1, p2 + t * u2
-    gap = foot2 - foot1
-    if np.linalg.norm(gap) < LENGTH_TOL_M:
-        middle = 0.5 * (foot1 + foot2)
-        x = cross / sin
-        return middle, middle, (-x if np.dot(x, x_before) < 0.0 else x), 'intersecting'
-    # the normal is along u1 x u2: exact, where the direction of a short gap is not
-    x = cross / sin
-    return foot1, foot2, (-x if np.dot(x, gap) < 0.0 else x), 'skew'
-
-
-def _frames_on_axes(lines, convention):
-    """
-    Return the DH frames 0..n as 4x4 matrices (base link coordinates) and each axis' case.
-
-    ``lines``: ``(point, unit direction)`` of the n joint axes at zero.
-    """
-    n = len(lines)
-    p1, u1 = lines[0]
-    reference = p1 + np.dot(-p1, u1) * u1   # on axis 1, closest to the base link's origin
-    # frame 0's x: the base link's x (else y) where the first axis allows, so that the base
-    # transform is as plain as the URDF
-    x = None
-    for axis in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])):
-        projected = axis - np.dot(axis, u1) * u1
-        if np.linalg.norm(projected) > 1e-6:
-            x = _unit(projected)
-            break
-    x0 = x
-    normals, kinds = [], ['first']
-    through = reference
-    for i in range(n - 1):
-        (pa, ua), (pb, ub) = lines[i], lines[i + 1]
-        foot1, foot2, x, kind = _common_normal(pa, ua, pb, ub, through, x)
-        normals.append((foot1, foot2, x))
-        kinds.append(kind)
-        through = foot2
-    x_last = normals[-1][2] if normals else x0
-
-    def frame(origin, x_axis, z_axis):
-        m = np.eye(4)
-        x_axis = _unit(x_axis - np.dot(x_axis, z_axis) * z_axis)
-        m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x_axis, np.cross(z_axis, x_axis), z_axis, origin
-        return m
-
-    if convention == 'standard':  # frame i (0..n-1): z on axis i+1, x on the normal i/i+1
-        frames = [frame(reference, x0, u1)]
-        for i in range(1, n):
-            frames.append(frame(normals[i - 1][1], normals[i - 1][2], lines[i][1]))
-        frames.append(frames[-1].copy())
-    else:  # modified: frame i (1..n): z on axis i, x on the normal i/i+1; frame 0 = frame 1
-        frames = []
-        for i in range(n - 1):
-            frames.append(frame(normals[i][0], normals[i][2], lines[i][1]))
-        last_origin = normals[-1][1] if normals else reference
-        frames.append(frame(last_origin, x_last, lines[-1][1]))
-        frames.insert(0, frames[0].copy())
-    return frames, kinds
-
-
-def _angle(a, b, about):
-    return math.atan2(float(np.dot(np.cross(a, b), about)), float(np.dot(a, b)))
-
-
-def _dh_row(before, after, convention):
-    """Return ``(theta, d, a, alpha)`` taking DH frame ``before`` to ``after`` (4x4 each)."""
-    x0, z0, o0 = before[:3, 0], before[:3, 2], before[:3, 3]
-    x1, z1, o1 = after[:3, 0], after[:3, 2], after[:3, 3]
-    step = o1 - o0
-    if convention == 'standard':  # Rz(theta) Tz(d) Tx(a) Rx(alpha)
-        return (_angle(x0, x1, z0), float(np.dot(step, z0)), float(np.dot(step, x1)),
-                _angle(z0, z1, x1))
-    # modified: Rx(alpha) Tx(a) Rz(theta) Tz(d)
-    return (_angle(x0, x1, z1), float(np.dot(step, z1)), float(np.dot(step, x0)),
-            _angle(z0, z1, x0))
 
 
 # -- the robot description ---------------------------------------------------------------
@@ -535,16 +204,17 @@ def urdf_to_description(text, source='<string>', base=None, tip=None, convention
     end_effector = tip
     if not moving:  # the fixed frame cannot be the end effector: the deepest link
         end_effector = links[-1][0]['frame'] if links else chains[0]['names'][1]
-    text = _yaml(tree, source, base, tip, convention, chains, links, skipped, end_effector)
+    text = _description_text(tree, source, base, tip, convention, chains, links, skipped,
+                             end_effector)
     parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here
     warnings = ()
     loose = [j for j in skipped if j.kind in ('floating', 'planar')]
     if loose:
         warnings += (f'{source}: {len(loose)} floating or planar joint(s) get no transform, as '
                      f'in robot_state_publisher (their links are not on TF): '
-                     f'{listing([_comment(j.name)[:80] for j in loose], 5)}',)
+                     f'{listing([comment(j.name)[:80] for j in loose], 5)}',)
     if tree.slashed:
-        shown = ', '.join(_comment(n)[:80] for n in tree.slashed[:5])
+        shown = ', '.join(comment(n)[:80] for n in tree.slashed[:5])
         more = f' and {len(tree.slashed) - 5} more' if len(tree.slashed) > 5 else ''
         warnings += (f'{source}: link names with a leading slash are published without it, '
                      f'as tf2 strips it: {shown}{more}',)
@@ -580,15 +250,9 @@ def _split(plan, pose):
         first, second = plan.path[a], plan.path[b]
         m1 = pose[first.parent] @ first.origin
         m2 = pose[second.parent] @ second.origin
-        p1, u1 = m1[:3, 3], m1[:3, :3] @ first.axis
-        p2, u2 = m2[:3, 3], m2[:3, :3] @ second.axis
-        cross = np.cross(u1, u2)
-        if np.linalg.norm(cross) < PARALLEL_TOL:
-            continue
-        w = p1 - p2
-        s = -np.dot(np.cross(u2, cross), w) / np.dot(cross, cross)
-        t = -np.dot(np.cross(u1, cross), w) / np.dot(cross, cross)
-        if max(abs(s), abs(t)) > FAR_NORMAL_M:
+        feet = normal_feet(m1[:3, 3], m1[:3, :3] @ first.axis, m2[:3, 3],
+                           m2[:3, :3] @ second.axis)
+        if feet is not None and max(abs(feet[0]), abs(feet[1])) > FAR_NORMAL_M:
             head = _ChainPlan(plan.anchor, plan.parent, plan.path[:b], plan.path[b - 1].child)
             tail = _ChainPlan(second.parent, second.parent, plan.path[b:], plan.tip)
             return [head] + _split(tail, pose)
@@ -720,7 +384,7 @@ def _chain_entry(plan, c, pose, body, frame_pose, taken, convention, published, 
             lines.append((local[:3, 3], local[:3, :3] @ j.axis))
         at[j.child] = len(lines)
     if lines:
-        frames, kinds = _frames_on_axes(lines, convention)
+        frames, kinds = frames_on_axes(lines, convention)
     else:  # no moving joint: one fixed row, every link fixed to the base (only /tf_static)
         frames, kinds = [np.eye(4), np.eye(4)], ['first']
     frames = [anchor @ f for f in frames]   # in base link coordinates
@@ -733,7 +397,7 @@ def _chain_entry(plan, c, pose, body, frame_pose, taken, convention, published, 
         body[j.child] = names[at[j.child]] if at[j.child] else body[j.parent]
     rows = []
     for i, j in enumerate(plan.moving):
-        theta, d, a, alpha = _dh_row(frames[i], frames[i + 1], convention)
+        theta, d, a, alpha = dh_row(frames[i], frames[i + 1], convention)
         row = {'frame': names[i + 1]}
         if j.kind == 'prismatic':
             row['type'] = 'prismatic'
@@ -759,14 +423,6 @@ def _chain_entry(plan, c, pose, body, frame_pose, taken, convention, published, 
             'plan': plan}
 
 
-def tree_joint(tree, name):
-    """Return the joint called ``name`` (a :class:`UrdfJointSpec`)."""
-    joint = tree.by_name.get(name)
-    if joint is None:
-        raise RobotDescriptionError(f'{tree.source}: no joint {name[:70]!r}')
-    return joint
-
-
 def _link_entry(joint, pose, body, frame_pose):
     """One ``links`` entry: the child link of ``joint``, fixed to the DH frame it moves with."""
     child = joint.child
@@ -780,6 +436,26 @@ def _link_entry(joint, pose, body, frame_pose):
     note = (f'URDF link {child}: child of {joint.name} ({joint.kind}'
             f'{", mimic" if joint.mimic else ""}) on {joint.parent}')
     return entry, note
+
+
+def _description_text(tree, source, base, tip, convention, chains, links, skipped,
+                      end_effector):
+    """Write the converted robot's YAML: where it came from, then its chains and links."""
+    first = chains[0]['names']
+    more = f' and {len(chains) - 1} more chains' if len(chains) > 1 else ''
+    comments = [
+        f'Converted by `dq_fk from-urdf` from {comment(source)}: the chain {comment(base)} -> '
+        f'{comment(tip)}{more}.',
+        f'{convention} DH frames on the joint axes by their common normals (docs/urdf.md); '
+        f'the DH frames are published as {first[0]}..{first[-1]}'
+        + (' (<tip>_dh0... for the other chains)' if more else '')
+        + ', the URDF links under their URDF parents.']
+    comments += [f'skipped: side branch {comment(j.name)} ({j.kind}) -> {comment(j.child)}: '
+                 f'{_why_skipped(j)}' for j in skipped]
+    texts = [ChainText(c['parent'], c['base'], tuple(c['names']), tuple(c['rows']),
+                       f"from {comment(c['plan'].anchor)} to {comment(c['plan'].tip)}; frame 0 "
+                       f"in {comment(c['parent'])}") for c in chains]
+    return description_yaml(comments, tree.name, convention, base, texts, links, end_effector)
 
 
 def _why_skipped(joint):
@@ -821,83 +497,6 @@ def _check_joint(name, source):
                                     f'letter or underscore, then letters, digits, _ . / -)')
 
 
-def _flow(mapping):
-    """Write a YAML flow mapping of numbers, names and small lists (JSON is valid YAML)."""
-    parts = []
-    for key, value in mapping.items():
-        parts.append(f'{key}: {_value(value)}')
-    return '{' + ', '.join(parts) + '}'
-
-
-def _value(value):
-    if isinstance(value, dict):
-        return _flow(value)
-    if isinstance(value, (list, tuple)):
-        return '[' + ', '.join(_value(v) for v in value) + ']'
-    if isinstance(value, str):
-        return json.dumps(value)
-    value = float(value)
-    value = 0.0 if abs(value) < NOISE else value  # rounding noise (and -0.0) written as 0
-    return yaml_number(value)
-
-
-def _comment(text):
-    """Make user text a one-line YAML comment (no line breaks, printable only)."""
-    return printable_line(text, 300)
-
-
-def _transform(frame, m):
-    w, x, y, z = quat_from_matrix(m[:3, :3])
-    return _flow({'frame': frame, 'xyz': m[:3, 3].tolist(), 'quaternion': [x, y, z, w]})
-
-
-def _yaml(tree, source, base, tip, convention, chains, links, skipped, end_effector):
-    first = chains[0]['names']
-    more = f' and {len(chains) - 1} more chains' if len(chains) > 1 else ''
-    lines = [
-        f'# Converted by `dq_fk from-urdf` from {_comment(source)}: the chain {_comment(base)} '
-        f'-> {_comment(tip)}{more}.',
-        f'# {convention} DH frames on the joint axes by their common normals (docs/'
-        f'robot_description.md, "From a URDF"); the DH frames are published as '
-        f'{first[0]}..{first[-1]}' + (' (<tip>_dh0... for the other chains)' if more else '')
-        + ', the URDF links under their URDF parents.',
-    ]
-    for joint in skipped:
-        lines.append(f'# skipped: side branch {_comment(joint.name)} ({joint.kind}) -> '
-                     f'{_comment(joint.child)}: {_why_skipped(joint)}')
-    lines += [
-        f'robot: {json.dumps(_comment(tree.name)[:128])}',
-        f'convention: {convention}',
-        f'fixed_frame: {base}']
-
-    def rows(chain, indent):
-        out = []
-        for row, note in chain['rows']:
-            out += [f'{indent}# {_comment(note)}', f'{indent}- {_flow(row)}']
-        return out
-
-    if len(chains) == 1:
-        lines += ['# frame 0 of the DH chain, in the base link',
-                  'base: ' + _transform(first[0], chains[0]['base']), 'chain:']
-        lines += rows(chains[0], '  ')
-    else:
-        lines.append('chains:')
-        for chain in chains:
-            plan = chain['plan']
-            lines += [f'  # from {_comment(plan.anchor)} to {_comment(plan.tip)}; frame 0 in '
-                      f'{_comment(chain["parent"])}',
-                      f'  - parent: {json.dumps(chain["parent"])}',
-                      '    base: ' + _transform(chain['names'][0], chain['base']),
-                      '    chain:']
-            lines += rows(chain, '      ')
-    if links:
-        lines.append('links:')
-        for entry, note in links:
-            lines += [f'  # {_comment(note)}', f'  - {_flow(entry)}']
-    lines.append(f'end_effector: {end_effector}')
-    return '\n'.join(lines) + '\n'
-
-
 def load_urdf_description(path, base=None, tip=None, convention='standard', packages=None,
                           options=OPTIONS):
     """
@@ -910,5 +509,5 @@ def load_urdf_description(path, base=None, tip=None, convention='standard', pack
     return urdf_to_description(text, os.fspath(path), base, tip, convention, options), text
 
 
-__all__ = ['chain_joints', 'Conversion', 'load_urdf_description', 'parse_urdf',
-           'read_urdf_text', 'urdf_to_description', 'UrdfJointSpec', 'UrdfTree']
+__all__ = ['chain_joints', 'Conversion', 'load_urdf_description', 'NODE_OPTIONS', 'OPTIONS',
+           'urdf_to_description']

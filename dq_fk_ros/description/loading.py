@@ -10,10 +10,10 @@ from dataclasses import dataclass, replace
 import os
 
 from dq_fk_ros.description.errors import listing, printable_line, RobotDescriptionError
-from dq_fk_ros.description.from_urdf import (
-    load_urdf_description, OPTIONS, read_urdf_text, urdf_to_description)
+from dq_fk_ros.description.from_urdf import load_urdf_description, OPTIONS, urdf_to_description
 from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
+from dq_fk_ros.description.urdf_reader import read_urdf_text
 from dq_fk_ros.description.xacro_sandbox import ros_package_roots, TIME_LIMIT_S
 
 URDF_SUFFIXES = ('.urdf', '.xacro')

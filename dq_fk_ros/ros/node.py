@@ -15,12 +15,13 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dq_fk_ros.description.errors import (
     DqFkError, first_line, listing, ParameterError, printable_line, RobotDescriptionError)
-from dq_fk_ros.description.from_urdf import NODE_OPTIONS, tf_name
+from dq_fk_ros.description.from_urdf import NODE_OPTIONS
 from dq_fk_ros.description.loading import (
     FileAccess, load_robot, resolve_robot, robot_from_urdf_text)
 from dq_fk_ros.description.robot_model import FRAME_ID, MAX_NAME_CHARS, TF_FRAME_ID
 from dq_fk_ros.description.shipped import shipped_robots_dir
 from dq_fk_ros.description.urdf import description_urdf
+from dq_fk_ros.description.urdf_reader import tf_name
 from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
     INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH, REJECTED,

@@ -9,7 +9,8 @@ import os
 import time
 
 from dq_fk_ros.description.errors import RobotDescriptionError
-from dq_fk_ros.description.from_urdf import load_urdf_description, read_urdf_text
+from dq_fk_ros.description.from_urdf import load_urdf_description
+from dq_fk_ros.description.urdf_reader import read_urdf_text
 from dq_fk_ros.description.xacro_sandbox import (
     check_expression, expand_xacro, TIME_LIMIT_S, XacroRefused)
 import pytest
