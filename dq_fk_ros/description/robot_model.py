@@ -20,6 +20,9 @@ or, for a tree, ``chains: [{parent, base, chain, tool}, ...]`` instead of base/c
 
 The model holds metres and radians only (REP 103), and the rules of names and sizes every
 robot follows (frame ids as tf2 takes them, joint names, limits).
+
+Why this file is long: the model's evaluation paths (straight-line code, the general
+reference, batches) for a tree of chains stay together: they must agree to the bit.
 """
 
 from dataclasses import dataclass

@@ -6,6 +6,9 @@ file is in the file's ``units``; the model holds metres and radians only (REP 10
 mistake raises :class:`~dq_fk_ros.description.errors.RobotDescriptionError` with a single
 line naming the file, the place (row index and frame), the field, what was found and what
 is allowed. Plain Python (PyYAML + numpy), no ROS.
+
+Why this file is long: one validator per section of the file, sharing one parser state (the
+units), each error one line.
 """
 
 import math

@@ -15,6 +15,9 @@ and an optional fixed ``tool`` transform follows frame ``n``.
 
 Dual quaternions are 8-vectors (w, x, y, z, w', x', y', z'); see
 :mod:`dq_fk_ros.kinematics.dual_quaternion`.
+
+Why this file is long: the DH chain core with its generated straight-line code beside the
+general reference path it must equal to the bit.
 """
 
 from array import array

@@ -11,6 +11,9 @@ Fast CDR (little-endian, plain CDR as ROS 2 uses) for the bag tools; numpy and s
 
 Offsets follow the CDR rules: after the 4-byte encapsulation header, every primitive is
 aligned to its size, relative to the start of the payload.
+
+Why this file is long: the CDR layouts of the package's few message types, read and written,
+one message and batches side by side (the tests hold them equal).
 """
 
 import itertools

@@ -6,6 +6,10 @@ in nanoseconds) and decides whether it is valid, keeps the last value of each jo
 (several publishers may each send some joints), and says when the set is complete. It
 never raises on bad input: it returns a :class:`MergeResult` saying what happened, and
 counts every outcome for diagnostics.
+
+Why this file is long: the merge rules in their three forms (a message, the short path for a
+repeated layout, arrays of messages) stay side by side: a change to one is a change to all
+three.
 """
 
 from collections import Counter

@@ -4,6 +4,10 @@ The dq_fk_node executable: ``sensor_msgs/JointState`` in, every link frame out.
 Thin glue: :mod:`dq_fk_ros.messages.joint_states` decides what a message means,
 :mod:`dq_fk_ros.kinematics.dh` computes the frames, :mod:`dq_fk_ros.ros.conversions` fills the
 messages. The README lists its topics and parameters; docs/node.md says how it acts.
+
+Why this file is long: the node's glue (parameters checked and applied, reload, the hot
+path, readers, diagnostics); its parameter table is in the same file so --help and the node
+agree. The next split: the checks into a parameters object.
 """
 
 import math

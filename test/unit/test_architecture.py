@@ -137,3 +137,18 @@ def test_docs_architecture_names_every_module():
     missing = [rel for layer, rel in modules() if layer and not rel.endswith('__init__.py')
                and f'`{rel}`' not in text]
     assert missing == []
+
+
+MAX_MODULE_LINES = 500
+
+
+def test_a_long_module_says_why_in_its_docstring():
+    unexplained = []
+    for _, rel in modules():
+        with open(os.path.join(PACKAGE, rel), encoding='utf-8') as stream:
+            text = stream.read()
+        if text.count('\n') > MAX_MODULE_LINES:
+            doc = ast.get_docstring(ast.parse(text)) or ''
+            if 'Why this file is long:' not in doc:
+                unexplained.append(f'{rel} ({text.count(chr(10))} lines)')
+    assert unexplained == []

@@ -4,7 +4,9 @@ import json
 import time
 from types import SimpleNamespace
 
-from dq_fk_ros.ros.view import _good_client_message, host_allowed, parse_args, ViewState
+from dq_fk_ros.ros.view import parse_args
+from dq_fk_ros.ros.view_state import ViewState
+from dq_fk_ros.ros.view_web import _good_client_message, host_allowed
 from hypothesis import given, strategies as st
 import pytest
 
