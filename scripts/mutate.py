@@ -46,7 +46,7 @@ MODULES = {
                ['test_robot_model.py', 'test_links.py', 'test_chains.py',
                 'test_fuzz_robot_description.py']),
     'meshes': ('dq_fk_ros/description/meshes.py', ['test_meshes.py']),
-    'urdf': ('dq_fk_ros/description/urdf.py', ['test_urdf.py', 'test_links.py']),
+    'urdf': ('dq_fk_ros/description/to_urdf.py', ['test_urdf.py', 'test_links.py']),
     'from_urdf': ('dq_fk_ros/description/from_urdf.py', ['test_from_urdf.py']),
     'urdf_reader': ('dq_fk_ros/description/urdf_reader.py', ['test_from_urdf.py']),
     'dh_fit': ('dq_fk_ros/description/dh_fit.py', ['test_from_urdf.py']),

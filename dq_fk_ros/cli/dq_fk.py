@@ -19,7 +19,7 @@ from dq_fk_ros.description.loading import load_robot, resolve_robot
 from dq_fk_ros.description.packages import parse_package_option
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
-from dq_fk_ros.description.urdf import matrix_to_rpy, robot_to_urdf
+from dq_fk_ros.description.to_urdf import matrix_to_rpy, robot_to_urdf
 from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
 import numpy as np
 

@@ -14,7 +14,7 @@ import argparse
 import math
 import sys
 
-from dq_fk_ros.bag.process import process_bag
+from dq_fk_ros.bag.process import process_bag, ProcessOptions
 from dq_fk_ros.bag.reading import BagDamaged, BagError
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.cli.dq_fk import add_package_option, add_urdf_chain_options
@@ -127,20 +127,21 @@ def main(argv=None):
         if args.command == 'process':
             robot = load_robot(args.robot, args.urdf_base, args.urdf_tip,
                                packages=dict(args.package)).model
-            s = process_bag(args.in_bag, args.out_bag, robot, topic=args.topic,
-                            storage=args.storage, overwrite=args.overwrite, csv_path=args.csv,
-                            csv_only=args.csv_only, copy_input=args.copy_input,
-                            pose_namespace=args.pose_namespace, frame_prefix=args.frame_prefix,
-                            out_of_limits=args.out_of_limits, progress=not args.quiet,
-                            poses=args.poses)
+            options = ProcessOptions(
+                topic=args.topic, storage=args.storage, overwrite=args.overwrite,
+                csv_path=args.csv, csv_only=args.csv_only, copy_input=args.copy_input,
+                pose_namespace=args.pose_namespace, frame_prefix=args.frame_prefix,
+                out_of_limits=args.out_of_limits, progress=not args.quiet, poses=args.poses)
+            s = process_bag(args.in_bag, args.out_bag, robot, options)
             print(summary_line(args.in_bag, s))
         elif args.command == 'example':
             return write_example(args)
         else:
-            from dq_fk_ros.ros.bag_play import play_bag  # rclpy only where it is needed
-            s = play_bag(args.bag, topic=args.topic, rate=args.rate, loop=args.loop,
-                         start_s=args.start, duration_s=args.duration, clock=args.clock,
-                         progress=not args.quiet, wait_for=args.wait_for_subscribers)
+            from dq_fk_ros.ros.bag_play import play_bag, PlayOptions  # rclpy only here
+            s = play_bag(args.bag, PlayOptions(
+                topic=args.topic, rate=args.rate, loop=args.loop, start_s=args.start,
+                duration_s=args.duration, clock=args.clock, progress=not args.quiet,
+                wait_for=args.wait_for_subscribers))
             print(f"{args.bag}: published {s['sent']} JointState messages")
         for line in (s['note'], s['error']):
             if line:

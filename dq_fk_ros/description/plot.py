@@ -2,10 +2,10 @@
 A picture of the robot at given joint values, without RViz: ``dq_fk plot``.
 
 Headless matplotlib (the Agg canvas, no pyplot state): the links as segments (for a DH
-file the cylinders of its URDF, :func:`~dq_fk_ros.description.urdf.link_segments`; for a
+file the cylinders of its URDF, :func:`~dq_fk_ros.description.to_urdf.link_segments`; for a
 robot from a URDF one segment from each link's URDF parent to it), every published frame's
 x, y, z axes in red, green, blue with its name (the DH method's helper frames, ``dh0``...,
-only with ``helpers``: :func:`~dq_fk_ros.description.urdf.is_helper_frame`), a grid on the
+only with ``helpers``: :func:`~dq_fk_ros.description.to_urdf.is_helper_frame`), a grid on the
 fixed frame's xy plane, equal scale on all three axes, and a title with the robot and the
 joint values. A DH mistake (a wrong sign of alpha, a length in the wrong row) shows at a
 glance.
@@ -13,7 +13,7 @@ glance.
 
 import math
 
-from dq_fk_ros.description.urdf import is_helper_frame, link_segments
+from dq_fk_ros.description.to_urdf import is_helper_frame, link_segments
 import numpy as np
 
 AXIS_COLOURS = ('#d62728', '#2ca02c', '#1f77b4')  # x red, y green, z blue (as RViz)

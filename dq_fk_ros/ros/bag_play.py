@@ -1,5 +1,6 @@
 """``dq_fk_bag play``: publish a bag's JointState messages with their recorded timing."""
 
+from dataclasses import dataclass, replace
 import math
 import time
 
@@ -10,11 +11,34 @@ from dq_fk_ros.ros.executables import MATCH_SETTLE_S
 ACK_TIMEOUT_S = 5.0  # play: longest wait for reliable subscribers to acknowledge the end
 
 
-def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=None,
-             clock=False, output_topic=None, progress=True, node=None, wait_for=0,
-             wait_timeout_s=30.0):
+@dataclass(frozen=True)
+class PlayOptions:
+    """
+    How :func:`play_bag` plays (the ``dq_fk_bag play`` options).
+
+    ``rate``: speed factor; ``start_s``, ``duration_s``: the part played (seconds);
+    ``clock``: publish ``/clock``; ``output_topic``: another topic than the bag's;
+    ``wait_for``: subscriptions to wait for (at most ``wait_timeout_s``) before the first.
+    """
+
+    topic: str = None
+    rate: float = 1.0
+    loop: bool = False
+    start_s: float = 0.0
+    duration_s: float = None
+    clock: bool = False
+    output_topic: str = None
+    progress: bool = True
+    wait_for: int = 0
+    wait_timeout_s: float = 30.0
+
+
+def play_bag(path, options=None, node=None, **changes):
     """
     Publish the bag's JointState messages with their recorded timing; return a summary.
+
+    :param options: a :class:`PlayOptions` (default: its defaults); ``changes`` are fields of
+        it given by name. ``node``: publish from this rclpy node (default: one of its own).
 
     The summary dict: ``sent`` (messages published), ``note`` and ``error`` (lines about a
     bag read record by record, see :func:`open_reader`; ``error`` if it is damaged).
@@ -30,6 +54,10 @@ def play_bag(path, topic=None, rate=1.0, loop=False, start_s=0.0, duration_s=Non
     from rclpy.qos import QoSProfile
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
+    o = replace(options or PlayOptions(), **changes)
+    topic, rate, loop, start_s, duration_s = o.topic, o.rate, o.loop, o.start_s, o.duration_s
+    clock, output_topic, progress = o.clock, o.output_topic, o.progress
+    wait_for, wait_timeout_s = o.wait_for, o.wait_timeout_s
     if not rate > 0 or not math.isfinite(rate):
         raise BagError(f'--rate must be a positive number, got {rate}')
     if not 0 <= start_s < math.inf:

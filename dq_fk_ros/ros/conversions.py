@@ -11,7 +11,7 @@ byte).
 """
 
 from builtin_interfaces.msg import Time
-from dq_fk_ros.description.urdf import HelperFrames
+from dq_fk_ros.description.to_urdf import HelperFrames
 from dq_fk_ros.messages.cdr import (
     pose_stamped_template, tf_message_template, twist_stamped_template)
 from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
@@ -55,7 +55,7 @@ class FrameMessages:
     fixed frame, so that several robots hang in one TF tree under a shared world frame (a
     URDF's root link is prefixed too, as robot_state_publisher does:
     :meth:`RobotModel.tf_frame_id`). The
-    URDF's helper links (:class:`~dq_fk_ros.description.urdf.HelperFrames`) are published
+    URDF's helper links (:class:`~dq_fk_ros.description.to_urdf.HelperFrames`) are published
     as children of their DH frames: constant ones on /tf_static, moving ones on /tf.
     """
 

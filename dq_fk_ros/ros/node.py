@@ -24,7 +24,7 @@ from dq_fk_ros.description.loading import (
     FileAccess, load_robot, resolve_robot, robot_from_urdf_text)
 from dq_fk_ros.description.robot_model import FRAME_ID, MAX_NAME_CHARS, TF_FRAME_ID
 from dq_fk_ros.description.shipped import shipped_robots_dir
-from dq_fk_ros.description.urdf import description_urdf
+from dq_fk_ros.description.to_urdf import description_urdf
 from dq_fk_ros.description.urdf_reader import tf_name
 from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (

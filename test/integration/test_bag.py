@@ -8,7 +8,7 @@ from dq_fk_ros.bag.process import process_bag
 from dq_fk_ros.cli.dq_fk_bag import main as bag_main
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
-from dq_fk_ros.description.urdf import robot_to_urdf
+from dq_fk_ros.description.to_urdf import robot_to_urdf
 from dq_fk_ros.messages.cdr import parse_joint_state
 from dq_fk_ros.messages.joint_states import JointStateMerger, PUBLISH
 from dq_fk_ros.ros.executables import executable

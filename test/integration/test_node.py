@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
-from dq_fk_ros.description.urdf import robot_to_urdf
+from dq_fk_ros.description.to_urdf import robot_to_urdf
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import homogeneous_tf as htf
 import numpy as np

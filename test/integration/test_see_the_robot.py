@@ -11,7 +11,7 @@ import xml.etree.ElementTree as ET
 
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
-from dq_fk_ros.description.urdf import robot_to_urdf
+from dq_fk_ros.description.to_urdf import robot_to_urdf
 import homogeneous_tf as htf
 import numpy as np
 import pinocchio_oracle as oracle

@@ -16,7 +16,7 @@ import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
-from dq_fk_ros.description.urdf import robot_to_urdf
+from dq_fk_ros.description.to_urdf import robot_to_urdf
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 from dq_fk_ros.ros.executables import executable
 import homogeneous_tf as htf

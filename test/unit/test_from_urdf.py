@@ -22,7 +22,7 @@ from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.description.robot_model import MAX_FILE_BYTES
 from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
-from dq_fk_ros.description.urdf import robot_to_urdf
+from dq_fk_ros.description.to_urdf import robot_to_urdf
 from dq_fk_ros.description.urdf_reader import parse_urdf, read_urdf_text
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw

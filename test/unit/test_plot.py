@@ -110,7 +110,7 @@ def lines_of(ax, colour):
                                    'human_centrifuge', 'anthropomorphic_arm'])
 def test_the_grid_lies_on_the_fixed_frames_xy_plane_in_round_steps(robot):
     from dq_fk_ros.description.plot import _nice_step
-    from dq_fk_ros.description.urdf import link_segments
+    from dq_fk_ros.description.to_urdf import link_segments
     model = load_robot_description(shipped_robot_path(robot))
     q = np.full(model.dof, 0.3)
     fig = draw_robot(model, q)
@@ -155,7 +155,7 @@ def test_grid_steps_are_1_2_or_5_times_a_power_of_ten(raw, step):
 
 def test_links_and_axes_are_drawn_where_the_kinematics_put_them():
     from dq_fk_ros.description.plot import SEGMENT_COLOUR
-    from dq_fk_ros.description.urdf import link_segments
+    from dq_fk_ros.description.to_urdf import link_segments
     from dq_fk_ros.kinematics.dh import homogeneous_from_dq
     model = load_robot_description(shipped_robot_path('puma560'))
     q = np.array([0.3, -0.6, 0.4, 0.2, -0.5, 0.9])

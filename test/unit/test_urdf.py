@@ -6,7 +6,7 @@ import xml.etree.ElementTree as ET
 
 from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
-from dq_fk_ros.description.urdf import (
+from dq_fk_ros.description.to_urdf import (
     description_urdf, HelperFrames, link_poses, link_segments, NO_LIMIT_SPEED, robot_to_urdf)
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 import homogeneous as hm
@@ -208,7 +208,7 @@ def test_the_visual_cylinders_lie_along_each_offset():
 
 @pytest.mark.parametrize('pitch', [math.pi / 2, -math.pi / 2])
 def test_rpy_at_gimbal_lock_still_gives_the_rotation(pitch):
-    from dq_fk_ros.description.urdf import matrix_to_rpy
+    from dq_fk_ros.description.to_urdf import matrix_to_rpy
     m = hm.rot_z(0.7) @ hm.rot_y(pitch) @ hm.rot_x(0.3)
     roll, p, yaw = matrix_to_rpy(m[:3, :3])
     assert p == pytest.approx(pitch) and roll == 0.0
@@ -277,7 +277,7 @@ def test_a_mimic_link_with_an_offset_keeps_it_in_the_urdf():
 
 def test_link_poses_follow_mimic_rows_and_joints_are_frozen():
     import dataclasses
-    from dq_fk_ros.description.urdf import urdf_joints
+    from dq_fk_ros.description.to_urdf import urdf_joints
     model = parse_robot_description(
         'robot: r\nbase: {frame: b}\nchain:\n'
         '  - {frame: l1, joint: j1, theta: 0.2, d: 0.1, a: 0.3, alpha: 0.4}\n'
