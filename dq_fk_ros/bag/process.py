@@ -183,7 +183,7 @@ def process_bag(in_path, out_path, robot, options=None, **changes):
             else:
                 reader.close()
                 reader = retry
-                summary = _process_with(reader, *args, overwrite_own=True)
+                summary = _process_with(reader, *args)
     except _ReadingStopped as stop:
         summary = stop.partial
     finally:
@@ -211,7 +211,7 @@ def nothing_usable(in_path, summary, model, robot):
             f"{model.name}{source} needs {', '.join(model.joint_names)}")
 
 
-def _process_with(reader, model, in_path, out_path, o, overwrite_own=False):
+def _process_with(reader, model, in_path, out_path, o):
     """Process the bag with one reader (options ``o``); raises ``_ReadingStopped`` if it fails."""
     topic, storage, csv_path, csv_only = o.topic, o.storage, o.csv_path, o.csv_only
     copy_input, pose_namespace, frame_prefix = o.copy_input, o.pose_namespace, o.frame_prefix

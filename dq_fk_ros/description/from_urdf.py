@@ -283,8 +283,7 @@ def _publishable(tree, base):
             ok.add(j.name)
             stack.append(j.child)
     while True:  # mimics whose source is not published are not either (nor what is below)
-        bad = {name for name in ok if tree.by_name[name].mimic is not None
-               and _mimic_source(tree, tree.by_name[name], ok)[0] is None}
+        bad = {name for name, good in _mimic_sources_ok(tree, ok).items() if not good}
         if not bad:
             return _reachable(tree, base, ok)
         ok -= bad
@@ -300,6 +299,34 @@ def _reachable(tree, base, ok):
                 out.add(j.name)
                 stack.append(j.child)
     return out
+
+
+def _mimic_sources_ok(tree, published):
+    """
+    Say per mimic joint of ``published`` whether it leads to a published joint of its own.
+
+    Each joint is looked at once (a chain of mimics is walked once, not once per member):
+    linear in the URDF, however long its chains of mimics.
+    """
+    known = {}
+    for name in published:
+        path, at = [], tree.by_name[name]
+        while at.mimic is not None and at.name not in known:
+            if at.name in path:  # a loop of mimics
+                break
+            path.append(at.name)
+            source = tree.by_name.get(at.mimic[0])
+            if source is None or source.kind not in MOVING or source.name not in published:
+                at = None
+                break
+            at = source
+        if at is None or (at.mimic is not None and at.name not in known):
+            good = False
+        else:
+            good = known.get(at.name, True)
+        for member in path:
+            known[member] = good
+    return {name: good for name, good in known.items() if name in published}
 
 
 def _mimic_source(tree, joint, published):

@@ -19,6 +19,7 @@ from dq_fk_ros.description.xacro_sandbox import (
 import numpy as np
 
 MOVING = ('revolute', 'continuous', 'prismatic')
+MAX_URDF_BYTES = 8 * MAX_FILE_BYTES  # a URDF (or a xacro's expansion) is at most 8 MiB
 MAX_URDF_ELEMENTS = 4096    # links, and joints, in one URDF (talos: 100; the checks are linear)
 
 
@@ -74,8 +75,8 @@ def read_urdf_text(path, read_roots=None, time_limit_s=TIME_LIMIT_S, should_stop
     if not os.path.isfile(path):
         raise RobotDescriptionError(f'{path}: no such file' if not os.path.exists(path) else
                                     f'{path}: not a file')
-    if os.path.getsize(path) > 8 * MAX_FILE_BYTES:
-        raise RobotDescriptionError(f'{path}: larger than {8 * MAX_FILE_BYTES // 1024} KiB; a '
+    if os.path.getsize(path) > MAX_URDF_BYTES:
+        raise RobotDescriptionError(f'{path}: larger than {MAX_URDF_BYTES // 1024} KiB; a '
                                     f'URDF is at most that big')
     if path.endswith('.xacro'):
         try:
@@ -92,7 +93,7 @@ def read_urdf_text(path, read_roots=None, time_limit_s=TIME_LIMIT_S, should_stop
                                         f'{path}: xacro failed') from None
     try:
         with open(path, 'rb') as stream:
-            data = stream.read(8 * MAX_FILE_BYTES + 1)
+            data = stream.read(MAX_URDF_BYTES + 1)
         return data.decode('utf-8')
     except UnicodeDecodeError:
         raise RobotDescriptionError(f'{path}: not UTF-8 text') from None
@@ -102,8 +103,8 @@ def read_urdf_text(path, read_roots=None, time_limit_s=TIME_LIMIT_S, should_stop
 
 def parse_urdf(text, source='<string>'):
     """Parse URDF XML into a :class:`UrdfTree`; any problem is one RobotDescriptionError."""
-    if len(text) > 8 * MAX_FILE_BYTES:
-        raise RobotDescriptionError(f'{source}: larger than {8 * MAX_FILE_BYTES // 1024} KiB; '
+    if len(text) > MAX_URDF_BYTES:
+        raise RobotDescriptionError(f'{source}: larger than {MAX_URDF_BYTES // 1024} KiB; '
                                     f'a URDF is at most that big')
     if '<!ENTITY' in text:
         raise RobotDescriptionError(f'{source}: XML entity declarations are not accepted in a '
