@@ -18,6 +18,7 @@ import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.errors import printable_line
 from dq_fk_ros.description.packages import PackageNotFound
+from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
 
 MESH_EXTENSIONS = ('.stl', '.dae', '.obj')
 MAX_MESH_BYTES = 64 << 20     # a vendor's visual mesh is a few MiB at most
@@ -40,7 +41,14 @@ class MeshFile:
 
 
 def visual_mesh_uris(urdf_text):
-    """Return the distinct ``filename`` of every ``<visual>``'s ``<mesh>``, in URDF order."""
+    """
+    Return the distinct ``filename`` of every ``<visual>``'s ``<mesh>``, in URDF order.
+
+    A text the URDF reader would refuse (larger than a URDF may be, or declaring XML
+    entities) names none.
+    """
+    if len(urdf_text) > MAX_URDF_BYTES or '<!ENTITY' in urdf_text:
+        return []
     try:
         root = ElementTree.fromstring(urdf_text)
     except ElementTree.ParseError:

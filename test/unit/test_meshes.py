@@ -112,3 +112,12 @@ def test_the_server_serves_the_current_list_only(arm, tmp_path):
     assert state.mesh_path(0, 'base.stl') is None
     message = state.robot_message()
     assert '"meshes": {"package://arm/meshes/upper.dae": "/mesh/0/upper.dae"}' in message
+
+
+def test_a_description_the_urdf_reader_would_refuse_names_no_mesh():
+    text = robot('package://arm/meshes/base.stl')
+    assert visual_mesh_uris(text) == ['package://arm/meshes/base.stl']
+    bomb = text.replace('<robot name="r">', '<!DOCTYPE r [<!ENTITY a "x">]><robot name="r">')
+    assert visual_mesh_uris(bomb) == []
+    from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
+    assert visual_mesh_uris(text + ' ' * MAX_URDF_BYTES) == []
