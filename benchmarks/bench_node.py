@@ -34,7 +34,8 @@ import time
 
 from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
 from dq_fk_ros.ros.conversions import joint_state_fields
-from dq_fk_ros.ros.node import DqFkNode, INPUT_BATCH_MS_DEFAULT
+from dq_fk_ros.ros.node import DqFkNode
+from dq_fk_ros.ros.node_parameters import INPUT_BATCH_MS_DEFAULT
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 import rclpy

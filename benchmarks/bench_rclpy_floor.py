@@ -28,7 +28,7 @@ import sys
 import time
 
 from bench_e2e import pinned  # a sibling script: python puts benchmarks/ on sys.path
-from dq_fk_ros.ros.node import INPUT_BATCH_MS_DEFAULT
+from dq_fk_ros.ros.node_parameters import INPUT_BATCH_MS_DEFAULT
 from dq_fk_ros.ros.raw_input import RawSubscriptionThread
 from geometry_msgs.msg import TransformStamped
 import rclpy

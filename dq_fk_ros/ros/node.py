@@ -5,35 +5,30 @@ Thin glue: :mod:`dq_fk_ros.messages.joint_states` decides what a message means,
 :mod:`dq_fk_ros.kinematics.dh` computes the frames, :mod:`dq_fk_ros.ros.conversions` fills the
 messages. The README lists its topics and parameters; docs/node.md says how it acts.
 
-Why this file is long: the node's glue (parameters checked and applied, reload, the hot
-path, readers, diagnostics); its parameter table is in the same file so --help and the node
-agree. The next split: the checks into a parameters object.
+Its parameters and their checks are :class:`~dq_fk_ros.ros.node_parameters.NodeParameters`;
+its /diagnostics status is written by :mod:`dq_fk_ros.ros.node_diagnostics`.
 """
 
 import math
-import os
 import sys
 import threading
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from dq_fk_ros.description.errors import (
-    DqFkError, first_line, listing, ParameterError, printable_line, RobotDescriptionError)
+    DqFkError, first_line, listing, printable_line, RobotDescriptionError)
 from dq_fk_ros.description.from_urdf import NODE_OPTIONS
-from dq_fk_ros.description.loading import (
-    FileAccess, load_robot, resolve_robot, robot_from_urdf_text)
-from dq_fk_ros.description.robot_model import FRAME_ID, MAX_NAME_CHARS, TF_FRAME_ID
-from dq_fk_ros.description.shipped import shipped_robots_dir
+from dq_fk_ros.description.loading import load_robot, robot_from_urdf_text
 from dq_fk_ros.description.to_urdf import description_urdf
-from dq_fk_ros.description.urdf_reader import tf_name
 from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
-    INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH, REJECTED,
-    SequenceGaps)
+    INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, PUBLISH, REJECTED, SequenceGaps)
 from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S
 from dq_fk_ros.ros.executables import spin_until_shutdown
+from dq_fk_ros.ros.node_diagnostics import joint_state_status
+from dq_fk_ros.ros.node_parameters import NODE_PARAMETERS, NodeParameters, ROBOT_PARAMETERS
 from dq_fk_ros.ros.package_paths import declare_package_paths
-from dq_fk_ros.ros.parameters import declare, help_text, Param
+from dq_fk_ros.ros.parameters import declare, help_text
 from dq_fk_ros.ros.raw_input import raw_publisher, RawSubscriptionThread, take_queued
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
@@ -44,82 +39,12 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
-# the parameters that say which robot: changing any of them reloads it
-ROBOT_PARAMETERS = ('robot_description_file', 'robot_description', 'urdf_base_link',
-                    'urdf_tip_link')
 RELIABILITY = {'best_effort': ReliabilityPolicy.BEST_EFFORT,
                'reliable': ReliabilityPolicy.RELIABLE}
 WARN_EVERY_S = 5.0
 READERS_REFRESH_S = 0.5
 DRAIN_MAX = 64  # queued joint states worked through per executor wake-up
-QOS_DEPTH_MAX = 100_000  # joint states the subscription may queue (tens of MB for an arm)
-INPUT_BATCH_MS_DEFAULT = 2.0  # see docs/node.md, "How it keeps up"
-INPUT_BATCH_MS_MAX = 100.0
-MIN_RATE_HZ = 0.01  # publish_frequency, max_publish_rate_hz: 0 (off) or at least this
-MAX_RATE_HZ = 1e6
 RUN_TIME_XACRO_LIMIT_S = 5.0  # a xacro set at run time (allow_runtime_xacro) is stopped then
-
-
-# the node's parameters (declared from this table; `dq_fk_node --help` prints it)
-NODE_PARAMETERS = (
-    Param('robot_description_file', '',
-          'the robot: a DH YAML file, a URDF or xacro file (converted on load), or a shipped '
-          'robot name (rl15, ur5e...); empty: rl15. Setting it at run time reloads the robot if '
-          'it is valid.'),
-    Param('robot_description', '',
-          'URDF XML, as robot_state_publisher takes it; if set, used instead of '
-          'robot_description_file'),
-    Param('urdf_base_link', '',
-          'for a URDF: the link the robot starts at (the fixed frame; the tree below it is '
-          'published); empty: the root link'),
-    Param('urdf_tip_link', '',
-          'for a URDF: the link the first DH chain ends at (the end effector); empty: the child '
-          'of the last moving joint of the longest chain'),
-    Param('publish_frequency', 0.0,
-          'as robot_state_publisher: at most this many /tf updates per second of JointState '
-          'stamps; 0: every update (robot_state_publisher defaults to 20)'),
-    Param('ignore_timestamp', False,
-          'as robot_state_publisher: publish every update whatever publish_frequency says'),
-    Param('frame_prefix', '',
-          'prepended to every frame id except the fixed frame'),
-    Param('publish_tf', True,
-          'publish /tf and /tf_static'),
-    Param('publish_poses', True,
-          'publish ~/pose/<frame> (PoseStamped in the fixed frame)'),
-    Param('publish_robot_description', True,
-          'publish the URDF of the robot on robot_description (transient local), as '
-          'robot_state_publisher does; re-sent on reload'),
-    Param('publish_unread_topics', False,
-          'fill and publish ~/pose and ~/twist topics that nobody subscribes to (by default '
-          'they are skipped; /tf is always published)'),
-    Param('publish_twist', True,
-          'publish ~/twist/<frame> for the end effector (and tool) when every joint has a '
-          'velocity'),
-    Param('use_joint_state_stamp', True,
-          'stamp outputs with the JointState stamp (a zero stamp: the node clock); false: '
-          'always the node clock'),
-    Param('max_publish_rate_hz', 0.0,
-          'at most this many updates per second; 0: all'),
-    Param('out_of_limits', 'warn',
-          'joint values outside their limits: warn | clamp | reject'),
-    Param('robot_description_dirs', '',
-          'folders (separated by colons, as ROS_PACKAGE_PATH) that robot_description_file may '
-          "name at run time, symlinks resolved; empty: the start-up file's folder. The shipped "
-          'robots are always allowed', read_only=True),
-    Param('allow_runtime_xacro', False,
-          'expand a .xacro file set as robot_description_file at run time (a xacro file is a '
-          'program; any peer on the domain may set parameters)', read_only=True),
-    Param('qos_depth', 1000,
-          f'depth of the joint_states subscription (1 to {QOS_DEPTH_MAX})', read_only=True),
-    Param('input_thread', True,
-          'take joint states in a thread of their own (true) or in the executor', read_only=True),
-    Param('input_batch_ms', INPUT_BATCH_MS_DEFAULT,
-          'with input_thread: after an update the input thread looks for the next joint states '
-          'this much later (ms; 0: at once): one wake-up serves several messages above 1 / this '
-          'rate, adding at most this much latency', read_only=True),
-    Param('joint_states_reliability', 'best_effort',
-          'best_effort (matches reliable and best-effort publishers) | reliable', read_only=True),
-)
 
 
 class DqFkNode(Node):
@@ -131,31 +56,12 @@ class DqFkNode(Node):
         # the input thread's updates and the executor's callbacks (parameters, timers) take
         # turns on the node's state
         self._lock = threading.RLock()
-        self._declare_parameters()
-        get = self.get_parameter
-        self._publish_tf = get('publish_tf').value
-        self._publish_poses = get('publish_poses').value
-        self._publish_twist = get('publish_twist').value
-        self._use_joint_state_stamp = get('use_joint_state_stamp').value
-        self._max_rate_hz = get('max_publish_rate_hz').value
-        self._out_of_limits = get('out_of_limits').value
-        self._frame_prefix = get('frame_prefix').value
-        depth, batch_ms = get('qos_depth').value, get('input_batch_ms').value
-        self._check_values({'out_of_limits': self._out_of_limits,
-                            'max_publish_rate_hz': self._max_rate_hz,
-                            'frame_prefix': self._frame_prefix, 'qos_depth': depth,
-                            'input_batch_ms': batch_ms})
-        reliability = get('joint_states_reliability').value
-        self._check_choice('joint_states_reliability', reliability, tuple(RELIABILITY))
-        self._robot_inputs = {name: get(name).value for name in ROBOT_PARAMETERS}
-        self._check_values(self._robot_inputs)
-        dirs = [d for d in get('robot_description_dirs').value.split(os.pathsep) if d]
-        self._access = self._file_access(dirs, get('allow_runtime_xacro').value)
+        # every parameter, checked (ParameterError, one line): one object, replaced on change
+        self._params = p = NodeParameters.from_values(declare(self, NODE_PARAMETERS))
+        # where a robot file set at run time may be (a peer on the domain may set it)
+        self._access = p.file_access(RUN_TIME_XACRO_LIMIT_S, lambda: not self.context.ok())
         self._packages = declare_package_paths(self)
-        model = self._load_robot(self._robot_inputs)
-        self._publish_frequency = get('publish_frequency').value
-        self._ignore_timestamp = get('ignore_timestamp').value
-        self._check_values({'publish_frequency': self._publish_frequency})
+        model = self._load_robot(p.robot_inputs)
         self._last_stamp_ns = None
 
         self._tf_pub = self.create_publisher(
@@ -171,14 +77,12 @@ class DqFkNode(Node):
             String, 'robot_description',
             QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        self._publish_description = get('publish_robot_description').value
-        self._publish_unread = get('publish_unread_topics').value
         self._pose_pubs = []
         self._twist_pubs = []
         self._merger = None
         self._last_publish_ns = None
         self._last_update_ns = None
-        self._apply_model(model, self._build_outputs(model, self._frame_prefix))
+        self._apply_model(model, self._build_outputs(model, p.frame_prefix))
 
         self._names_cache = JointStateNames()
         self._gaps = SequenceGaps()  # joint states lost before the node took them
@@ -193,12 +97,12 @@ class DqFkNode(Node):
         self.add_post_set_parameters_callback(self._after_set_parameters)
         # serialized in, serialized out: the messages are read and written as bytes, by
         # default in a thread of their own (the executor's wake-up costs more than an update)
-        qos = QoSProfile(depth=depth, reliability=RELIABILITY[reliability])
+        qos = QoSProfile(depth=p.qos_depth, reliability=RELIABILITY[p.joint_states_reliability])
         self._input = None
-        if get('input_thread').value:
+        if p.input_thread:
             self._input = RawSubscriptionThread(self, JointState,
                                                 self.resolve_topic_name('joint_states'), qos,
-                                                self._on_joint_state, batch_ms / 1000.0,
+                                                self._on_joint_state, p.input_batch_ms / 1000.0,
                                                 self._on_input_error)
             self._joint_state_sub = self._input.subscription
         else:
@@ -209,65 +113,6 @@ class DqFkNode(Node):
             f'under {model.fixed_frame!r}, joints {", ".join(model.joint_names)}')
 
     # -- parameters ----------------------------------------------------------------------
-    def _declare_parameters(self):
-        declare(self, NODE_PARAMETERS)
-
-    def _check_choice(self, name, value, allowed):
-        if value not in allowed:
-            raise ParameterError(f'parameter {name} is {value!r}; allowed: '
-                                 f'{", ".join(allowed)}')
-
-    def _check_values(self, new):
-        """Raise ParameterError (one line) for a value the node cannot use."""
-        if 'out_of_limits' in new:
-            self._check_choice('out_of_limits', new['out_of_limits'], OUT_OF_LIMITS_POLICIES)
-        for name in ('max_publish_rate_hz', 'publish_frequency'):
-            rate = new.get(name, 0.0)
-            if not (rate == 0.0 or MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
-                raise ParameterError(f'parameter {name} must be 0 (publish every update) '
-                                     f'or from {MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}, got '
-                                     f'{rate:g}')
-        for name in ('urdf_base_link', 'urdf_tip_link'):
-            link = new.get(name, '')
-            if link and (len(link) > MAX_NAME_CHARS or not TF_FRAME_ID.fullmatch(tf_name(link))):
-                raise ParameterError(
-                    f'parameter {name} {printable_line(link, 70)!r} is not a link name tf2 '
-                    f'takes (printable ASCII without spaces; at most {MAX_NAME_CHARS})')
-        depth = new.get('qos_depth', 1)
-        if not 1 <= depth <= QOS_DEPTH_MAX:
-            raise ParameterError(f'parameter qos_depth must be an integer from 1 to '
-                                 f'{QOS_DEPTH_MAX}, got {depth}')
-        batch_ms = new.get('input_batch_ms', 0.0)
-        if not (math.isfinite(batch_ms) and 0.0 <= batch_ms <= INPUT_BATCH_MS_MAX):
-            raise ParameterError(f'parameter input_batch_ms must be a number from 0 to '
-                                 f'{INPUT_BATCH_MS_MAX:g} (0: take each joint state at '
-                                 f'once), got {batch_ms}')
-        prefix = new.get('frame_prefix', '')
-        if prefix and (len(prefix) > 64 or not FRAME_ID.fullmatch(prefix + 'x')):
-            raise ParameterError(
-                f'parameter frame_prefix {prefix[:70]!r} would not give valid frame ids: use '
-                f'letters, digits, underscores and inner slashes, e.g. robot1/ (at most 64)')
-
-    def _file_access(self, dirs, xacro):
-        """
-        Return what a robot file set at run time may be (a :class:`FileAccess`).
-
-        Under ``dirs`` (default: the start-up file's folder) or the shipped robots; a xacro
-        only if ``xacro``.
-        """
-        if not dirs:
-            dirs = []
-            start = self._robot_inputs['robot_description_file']
-            if start and not self._robot_inputs['robot_description'].strip():
-                dirs.append(os.path.dirname(os.path.realpath(resolve_robot(start))))
-        for folder in dirs:
-            if not os.path.isdir(folder):
-                raise ParameterError(f'parameter robot_description_dirs: {folder!r} is '
-                                     f'not a folder')
-        dirs = [os.path.realpath(d) for d in dirs] + [shipped_robots_dir()]
-        return FileAccess(tuple(dict.fromkeys(dirs)), xacro, RUN_TIME_XACRO_LIMIT_S,
-                          lambda: not self.context.ok())
-
     def _load_robot(self, inputs, access=None):
         """
         Load the robot the parameters name (RobotDescriptionError: one line).
@@ -306,11 +151,9 @@ class DqFkNode(Node):
         new = {p.name: p.value for p in params}
         model = None
         try:
-            self._check_values(new)
+            wanted = self._params.changed(new)
             if any(name in new for name in ROBOT_PARAMETERS):
-                inputs = dict(self._robot_inputs)
-                inputs.update({k: v for k, v in new.items() if k in ROBOT_PARAMETERS})
-                model = self._load_robot(inputs, self._access)
+                model = self._load_robot(wanted.robot_inputs, self._access)
         except Exception as exc:  # nothing a user sets may stop the node
             return self._refuse(exc)
         with self._lock:
@@ -344,31 +187,17 @@ class DqFkNode(Node):
         Any failure while building the new publishers refuses the whole change with the
         reason (one line); the node keeps the robot it has.
         """
+        old, p = self._params, self._params.changed(new)
         outputs = None
         try:
-            if model is not None or 'frame_prefix' in new:
-                outputs = self._build_outputs(model or self._model,
-                                              new.get('frame_prefix', self._frame_prefix))
+            if model is not None or p.frame_prefix != old.frame_prefix:
+                outputs = self._build_outputs(model or self._model, p.frame_prefix)
         except Exception as exc:  # nothing a user sets may stop the node (a name too long...)
             return self._refuse(exc, quote=True)
-        resend_static = new.get('publish_tf', self._publish_tf) and not self._publish_tf
-        resend_description = new.get('publish_robot_description', self._publish_description) \
-            and not self._publish_description
-        self._publish_description = new.get('publish_robot_description',
-                                            self._publish_description)
-        self._robot_inputs.update({k: v for k, v in new.items() if k in ROBOT_PARAMETERS})
-        self._publish_frequency = new.get('publish_frequency', self._publish_frequency)
-        self._ignore_timestamp = new.get('ignore_timestamp', self._ignore_timestamp)
-        self._publish_tf = new.get('publish_tf', self._publish_tf)
-        self._publish_poses = new.get('publish_poses', self._publish_poses)
-        self._publish_twist = new.get('publish_twist', self._publish_twist)
-        self._publish_unread = new.get('publish_unread_topics', self._publish_unread)
-        self._use_joint_state_stamp = new.get('use_joint_state_stamp',
-                                              self._use_joint_state_stamp)
-        self._max_rate_hz = new.get('max_publish_rate_hz', self._max_rate_hz)
+        resend_static = p.publish_tf and not old.publish_tf
+        resend_description = p.publish_robot_description and not old.publish_robot_description
         rebuild = model is not None or any(k in new for k in ('out_of_limits', 'frame_prefix'))
-        self._out_of_limits = new.get('out_of_limits', self._out_of_limits)
-        self._frame_prefix = new.get('frame_prefix', self._frame_prefix)
+        self._params = p
         if rebuild:
             self._apply_model(model or self._model, outputs)
             if model is not None:
@@ -409,7 +238,8 @@ class DqFkNode(Node):
         counts = self._merger.counts if self._merger is not None else None
         unknown = self._merger.unknown if self._merger is not None else set()
         self._model = model
-        self._merger = JointStateMerger(model.joint_names, model.limits, self._out_of_limits,
+        self._merger = JointStateMerger(model.joint_names, model.limits,
+                                        self._params.out_of_limits,
                                         required=len(model.required_joints))
         if counts is not None:
             self._merger.counts = counts
@@ -432,13 +262,13 @@ class DqFkNode(Node):
                 self.get_logger().info(
                     f'side-branch joints {listing(model.optional_joints, 10)}: their links '
                     f'are published once joint states name them')
-        if self._publish_tf:
+        if self._params.publish_tf:
             self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
         self._send_description()
 
     def _send_description(self):
         """Publish the URDF of the robot (without frame_prefix, as robot_state_publisher)."""
-        if not self._publish_description:
+        if not self._params.publish_robot_description:
             return
         try:
             text = description_urdf(self._model)
@@ -505,21 +335,22 @@ class DqFkNode(Node):
         # ROS time is the system time unless /clock drives it (use_sim_time): skip the Time
         # object then (2.5 us of an update)
         now_ns = self.get_clock().now().nanoseconds if self._sim_time else time.time_ns()
+        p = self._params
         self._last_update_ns = now_ns
-        if self._max_rate_hz > 0 and self._last_publish_ns is not None and \
-                now_ns - self._last_publish_ns < 1e9 / self._max_rate_hz:
+        if p.max_publish_rate_hz > 0 and self._last_publish_ns is not None and \
+                now_ns - self._last_publish_ns < 1e9 / p.max_publish_rate_hz:
             self._merger.counts['rate_limited'] += 1
             return
         stamp = stamp_ns or now_ns
-        if self._publish_frequency > 0 and not self._ignore_timestamp:
+        if p.publish_frequency > 0 and not p.ignore_timestamp:
             # robot_state_publisher's throttle: by the stamps, not the clock (bags replay
             # alike at any rate); a stamp back in time publishes and starts over
             last = self._last_stamp_ns
-            if last is not None and last <= stamp < last + 1e9 / self._publish_frequency:
+            if last is not None and last <= stamp < last + 1e9 / p.publish_frequency:
                 self._merger.counts['rate_limited'] += 1
                 return
         self._last_stamp_ns = stamp
-        self._publish(stamp_ns if (self._use_joint_state_stamp and stamp_ns) else now_ns,
+        self._publish(stamp_ns if (p.use_joint_state_stamp and stamp_ns) else now_ns,
                       result.q, result.qdot)
         self._last_publish_ns = now_ns
         self._merger.counts['published'] += 1
@@ -540,7 +371,7 @@ class DqFkNode(Node):
                      throttle_duration_sec=WARN_EVERY_S)
             return False
         if result.out_of_limits:
-            log.warn(f'joints outside their limits ({self._out_of_limits}): '
+            log.warn(f'joints outside their limits ({self._params.out_of_limits}): '
                      f'{", ".join(result.out_of_limits)}', throttle_duration_sec=WARN_EVERY_S)
         if result.status == INCOMPLETE:
             log.warn(f'waiting for joints never seen: {", ".join(result.missing)}',
@@ -552,7 +383,8 @@ class DqFkNode(Node):
         """Publish the links of the side-branch joints ``seen`` from now on (rare: rebuild)."""
         model = self._model
         new = [name for name in seen if name not in self._shown_optional]
-        self._messages = FrameMessages(model, self._frame_prefix, seen, self._messages.helpers)
+        self._messages = FrameMessages(model, self._params.frame_prefix, seen,
+                                       self._messages.helpers)
         self._bytes = FrameBytes(self._messages)
         self._shown_optional = seen
         hidden = self._messages.hidden
@@ -569,8 +401,8 @@ class DqFkNode(Node):
             seen = self._merger.seen_optional
             if seen != self._shown_optional:
                 self._show_branches(seen)
-        poses = self._publish_poses and bool(self._read_poses)
-        twists = self._publish_twist and qdot is not None and self._any_twist_read
+        poses = self._params.publish_poses and bool(self._read_poses)
+        twists = self._params.publish_twist and qdot is not None and self._any_twist_read
         if twists and model.branches:  # a tree: the first chain's velocities may be unknown
             twists = all(map(math.isfinite, qdot[:model.chain.dof]))
         if poses or twists:
@@ -579,7 +411,7 @@ class DqFkNode(Node):
             relative = model.transform_poses(q)
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self._bytes
-        if self._publish_tf and out.sends_tf:
+        if self._params.publish_tf and out.sends_tf:
             self._send_tf(out.tf(sec, nanosec, relative, q))
         if poses:
             for send, data in zip(self._send_read_poses,
@@ -604,7 +436,8 @@ class DqFkNode(Node):
         enough to stall the input thread: 5 kHz input lost messages that way), then set
         under it if the publishers are still the same ones.
         """
-        pose_pubs, twist_pubs, always = self._pose_pubs, self._twist_pubs, self._publish_unread
+        pose_pubs, twist_pubs = self._pose_pubs, self._twist_pubs
+        always = self._params.publish_unread_topics
         pose = [always or pub.get_subscription_count() > 0 for pub in pose_pubs]
         twist = [always or pub.get_subscription_count() > 0 for pub in twist_pubs]
         joint_states = getattr(self, '_joint_state_sub', None)
@@ -627,44 +460,12 @@ class DqFkNode(Node):
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self):
         """Return the node's counters as one DiagnosticStatus."""
-        counts = self._merger.counts
-        # a tree waits for no joint: its transforms wait for theirs, so every joint counts
-        never_seen = self._merger.never_seen_any if self._model.branches else \
-            self._merger.never_seen
-        age = ('never' if self._last_update_ns is None else
-               f'{(self.get_clock().now().nanoseconds - self._last_update_ns) / 1e9:.3f}')
-        values = {'robot': self._model.name,
-                  'updates_received': counts['received'],
-                  'updates_published': counts['published'],
-                  'updates_incomplete': counts['incomplete'],
-                  'updates_rate_limited': counts['rate_limited'],
-                  'updates_rejected': counts['rejected'],
-                  'time_jumps': counts['time_jumps'],
-                  'joints_never_seen': ', '.join(never_seen),
-                  'unknown_joints': ', '.join(sorted(self._merger.unknown)),
-                  'unknown_names_unlisted': counts['unknown_names_unlisted'],
-                  'velocities_non_finite': counts['velocities_non_finite'],
-                  'updates_lost': self._gaps.lost,
-                  'input_errors': self._input.errors if self._input is not None else 0,
-                  'last_update_age_s': age}
-        for key in sorted(counts):
-            if key.startswith('rejected_'):
-                values[key] = counts[key]
-        lost_now = self._gaps.lost - self._lost_reported
-        if lost_now:
-            level, message = DiagnosticStatus.WARN, \
-                f'{lost_now} joint states lost before the node took them (overload?)'
-        elif never_seen:
-            level, message = DiagnosticStatus.WARN, f'{len(never_seen)} joints never seen'
-        elif counts['rejected']:
-            level, message = DiagnosticStatus.WARN, f"{counts['rejected']} updates rejected"
-        else:
-            level, message = DiagnosticStatus.OK, 'ok'
-        level = level if isinstance(level, bytes) else bytes([level])
-        return DiagnosticStatus(
-            level=level, name=f'{self.get_name()}: joint states', message=message,
-            hardware_id=self._model.name,
-            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+        age_s = None if self._last_update_ns is None else \
+            (self.get_clock().now().nanoseconds - self._last_update_ns) / 1e9
+        return joint_state_status(
+            f'{self.get_name()}: joint states', self._model, self._merger, self._gaps.lost,
+            self._gaps.lost - self._lost_reported,
+            self._input.errors if self._input is not None else 0, age_s)
 
     def destroy_node(self):
         """Stop the input thread first, then destroy the node."""

@@ -177,7 +177,7 @@ def test_every_program_answers_help_with_its_options_and_starts_nothing(program,
     assert proc.returncode == 0, out
     assert out.startswith('usage: ') and program in out.splitlines()[0], out[:200]
     if program == 'dq_fk_node':  # its ROS parameters, from the table it declares
-        from dq_fk_ros.ros.node import NODE_PARAMETERS
+        from dq_fk_ros.ros.node_parameters import NODE_PARAMETERS
         assert all(f'  {p.name} (' in out for p in NODE_PARAMETERS)
         assert '  package_paths ([], read only)' in out
     if program == 'fake_joint_publisher':
