@@ -3,14 +3,16 @@ What ``dq_fk_bag process`` writes for a robot: the output bag's topics and their
 
 :class:`BagOutputs` adds the connections (``/tf``, ``/tf_static``, ``/robot_description``,
 the pose topics, copied inputs) and writes a chunk of computed frames as rows of serialized
-messages, as the node publishes them (the same frame ids, TF parents, helper frames, and a
-transform only where the message's state has named its joints).
+messages, as the node publishes them: both lay their messages out from one
+:class:`~dq_fk_ros.messages.output_plan.OutputPlan` (the same frame ids, TF parents, helper
+frames, order, and a transform only where the message's state has named its joints).
 """
 
 from dq_fk_ros.bag.reading import BagError
-from dq_fk_ros.description.to_urdf import description_urdf, HelperFrames
+from dq_fk_ros.description.to_urdf import description_urdf
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
 from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
+from dq_fk_ros.messages.output_plan import OutputPlan
 import numpy as np
 
 
@@ -31,11 +33,8 @@ class BagOutputs:
         self.model = model
         self.writer = writer
         self.typestore = typestore
-        self.prefix = frame_prefix
-        self.frame_ids = [frame_prefix + name for name in model.frame_names]
-        parents = [model.tf_frame_id(p, frame_prefix) for p in model.parent_frames]
-        self.moving_edges = model.moving_edges
-        self.static = model.static_transforms()
+        # frame ids, TF parents, static and moving transforms, helpers: as the node's
+        self.plan = plan = OutputPlan(model, frame_prefix)
         add = writer.add_connection
         self.tf = add('/tf', 'tf2_msgs/msg/TFMessage', typestore=typestore,
                       offered_qos_profiles=qos(100, volatile))
@@ -48,16 +47,14 @@ class BagOutputs:
         self.poses = [add(f'{pose_namespace}/pose/{model.topic_names[k]}',
                           'geometry_msgs/msg/PoseStamped', typestore=typestore,
                           offered_qos_profiles=qos(10, volatile)) for k in self.pose_frames]
-        # the URDF's helper links, as the node publishes them (children of their DH frames)
-        self.helpers = HelperFrames(model)
         # transforms and poses that depend on optional joints (side branches, every joint of
         # a tree) are written where the message's state has named those joints, as the node
         # does: each message's /tf holds the transforms whose joints are known
         edge_needs, frame_needs = model.edge_needs, model.frame_needs
         index = {name: i for i, name in enumerate(model.joint_names)}
-        self.gated_edges = [(k, r) for k, r in self.moving_edges if edge_needs[k]]
-        self._edge_columns = [[index[n] for n in edge_needs[k]] for k, _ in self.gated_edges]
-        self._parents = parents
+        self._gated = [i for i, (k, _) in enumerate(plan.moving_edges) if edge_needs[k]]
+        self._gate_columns = [[index[n] for n in edge_needs[plan.moving_edges[i][0]]]
+                              for i in self._gated]
         self._tf_templates = {}
         self.base_poses = [i for i, k in enumerate(self.pose_frames) if not frame_needs[k]]
         self.pose_groups = []   # (joint columns, [pose index, ...]) per set of needs
@@ -66,15 +63,8 @@ class BagOutputs:
             self.pose_groups.append(([index[n] for n in sorted(group)],
                                      [i for i, k in enumerate(self.pose_frames)
                                       if frame_needs[k] == group]))
-        self.moving_edges = [(k, r) for k, r in self.moving_edges if not edge_needs[k]]
-        self.tf_template = tf_message_template(
-            [(parents[k], self.frame_ids[k]) for k, _ in self.moving_edges]
-            + [(self.frame_ids[k], frame_prefix + name) for name, k in self.helpers.moving])
-        self.pose_template = pose_stamped_template(model.tf_frame_id(model.fixed_frame,
-                                                                     frame_prefix))
-        self.static_template = tf_message_template(
-            [(parents[k], self.frame_ids[k]) for k, _ in self.static]
-            + [(self.frame_ids[k], frame_prefix + name) for name, k, _ in self.helpers.static])
+        self.pose_template = pose_stamped_template(plan.fixed_frame_id)
+        self.static_template = tf_message_template(plan.static_edges)
         try:
             self.urdf = description_urdf(model)
         except ValueError:  # a robot URDF cannot express: no /robot_description
@@ -89,9 +79,7 @@ class BagOutputs:
 
     def write_static(self, time_ns):
         """Write /tf_static once: base, fixed rows, tool and links, stamped ``time_ns``."""
-        values = [np.array(pose) for _, pose in self.static]
-        values += [offset.to_pose_xyzw() for _, _, offset in self.helpers.static]
-        row = self.static_template.fill([time_ns], np.concatenate(values)[None, :])[0]
+        row = self.static_template.fill([time_ns], self.plan.static_poses()[None, :])[0]
         self.writer.write(self.tf_static, time_ns, memoryview(row))
         if self.description is not None:
             text = self.typestore.types['std_msgs/msg/String'](data=self.urdf)
@@ -108,24 +96,25 @@ class BagOutputs:
         """
         model = self.model
         absolute = dq_to_pose_xyzw(model.forward_all_batch(q))           # (N, frames, 7)
-        all_relative = model.relative_batch(q)   # (N, rows + links, 8): poses of those written
-        relative = dq_to_pose_xyzw(all_relative[:, [k for _, k in self.moving_edges]])
+        relative = model.relative_batch(q)   # (N, rows + links, 8): poses of those written
         n = len(q)
-        relative = relative.reshape(n, -1)
-        if self.helpers.moving:  # (a cylindrical row's first motion: rare, per message)
-            moving = np.array([np.concatenate(self.helpers.moving_poses(row)) for row in q])
-            relative = np.concatenate([relative, moving], axis=1)
+        helpers = self.plan.helpers
+        moving = None
+        if helpers.moving:  # (a cylindrical row's first motion: rare, per message)
+            moving = np.array([np.concatenate(helpers.moving_poses(row)) for row in q])
         stamps_ns, log_times_ns = np.asarray(stamps_ns), np.asarray(log_times_ns)
-        pose_rows = [self.pose_template.fill(stamps_ns, absolute[:, self.pose_frames[i]])
-                     for i in self.base_poses]
         channels = [self.poses[i] for i in self.base_poses]
-        if self.gated_edges:
-            self._write_gated_tf(all_relative, relative, stamps_ns, log_times_ns, seen)
-        elif relative.shape[1]:  # a robot with nothing moving has no /tf (as the node)
-            channels.insert(0, self.tf)
-            pose_rows.insert(0, self.tf_template.fill(stamps_ns, relative))
+        payloads = [self.pose_template.fill(stamps_ns, absolute[:, self.pose_frames[i]])
+                    for i in self.base_poses]
+        tf = list(self._tf_payloads(relative, moving, stamps_ns, seen))
+        if len(tf) == 1 and tf[0][0] is None:  # every message the same transforms
+            channels.insert(0, self.tf)  # interleaved: each message's /tf, then its poses
+            payloads.insert(0, tf[0][1])
+        else:
+            for rows, payload in tf:
+                self.writer.write_rows([self.tf], log_times_ns[rows], [payload])
         if channels:
-            self.writer.write_rows(channels, log_times_ns, pose_rows)
+            self.writer.write_rows(channels, log_times_ns, payloads)
         for columns, poses in self.pose_groups:
             rows = np.ones(n, bool) if seen is None else seen[:, columns].all(axis=1)
             if rows.any():
@@ -135,32 +124,40 @@ class BagOutputs:
                      for i in poses])
         return absolute[:, self.end]
 
-    def _write_gated_tf(self, all_relative, relative, stamps_ns, log_times_ns, seen):
-        """Write /tf where transforms need optional joints: one message per state, as the node."""
-        n = len(stamps_ns)
-        if seen is None:
-            shown = np.ones((n, len(self.gated_edges)), bool)
+    def _tf_payloads(self, relative, moving, stamps_ns, seen):
+        """
+        Yield ``(rows, serialized /tf rows)``: the moving transforms whose joints are known.
+
+        The node's rule and order (:meth:`OutputPlan.shown_edges`, :meth:`OutputPlan.tf_edges`):
+        messages whose states know the same joints share one template; ``rows`` is None
+        when that is every message of the chunk.
+        """
+        plan, n = self.plan, len(stamps_ns)
+        if not self._gated or seen is None:
+            patterns, inverse = [np.ones(len(self._gated), bool)], None
         else:
-            shown = np.stack([seen[:, cols].all(axis=1) for cols in self._edge_columns], axis=1)
-        patterns, inverse = np.unique(shown, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
+            shown = np.stack([seen[:, cols].all(axis=1) for cols in self._gate_columns], axis=1)
+            patterns, inverse = np.unique(shown, axis=0, return_inverse=True)
+            inverse = inverse.reshape(-1)
+            if len(patterns) == 1:
+                inverse = None
         for p, pattern in enumerate(patterns):
-            rows = inverse == p
-            chosen = [edge for edge, on in zip(self.gated_edges, pattern) if on]
-            if not relative.shape[1] and not chosen:
-                continue  # nothing known to move yet: no /tf (as the node)
+            rows = None if inverse is None else inverse == p
+            hidden = {i for i, on in zip(self._gated, pattern) if not on}
+            edges = [e for i, e in enumerate(plan.moving_edges) if i not in hidden]
+            if not edges and moving is None:
+                continue  # nothing known to move: no /tf (as the node)
             key = pattern.tobytes()
             template = self._tf_templates.get(key)
             if template is None:
-                template = self._tf_templates[key] = tf_message_template(
-                    [(self._parents[k], self.frame_ids[k]) for k, _ in self.moving_edges]
-                    + [(self.frame_ids[k], self.prefix + name) for name, k in self.helpers.moving]
-                    + [(self._parents[k], self.frame_ids[k]) for k, _ in chosen])
-            values = np.concatenate([relative[rows], dq_to_pose_xyzw(
-                all_relative[rows][:, [r for _, r in chosen]]).reshape(int(rows.sum()), -1)],
-                axis=1)
-            self.writer.write_rows([self.tf], log_times_ns[rows],
-                                   [template.fill(stamps_ns[rows], values)])
+                template = self._tf_templates[key] = tf_message_template(plan.tf_edges(edges))
+            picked = slice(None) if rows is None else rows
+            count = n if rows is None else int(rows.sum())
+            values = dq_to_pose_xyzw(
+                relative[picked][:, [r for _, r in edges]]).reshape(count, -1)
+            if moving is not None:
+                values = np.concatenate([values, moving[picked]], axis=1)
+            yield rows, template.fill(stamps_ns[picked], values)
 
     def copy(self, conn, time_ns, raw):
         """Copy an input message through unchanged."""

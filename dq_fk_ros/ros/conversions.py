@@ -11,9 +11,9 @@ byte).
 """
 
 from builtin_interfaces.msg import Time
-from dq_fk_ros.description.to_urdf import HelperFrames
 from dq_fk_ros.messages.cdr import (
     pose_stamped_template, tf_message_template, twist_stamped_template)
+from dq_fk_ros.messages.output_plan import OutputPlan
 from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
 from tf2_msgs.msg import TFMessage
 
@@ -51,50 +51,41 @@ class FrameMessages:
     """
     The messages of one robot model under one ``frame_prefix``, built once, refilled often.
 
-    ``frame_prefix`` is prepended to every frame id the model names, except a DH file's
-    fixed frame, so that several robots hang in one TF tree under a shared world frame (a
-    URDF's root link is prefixed too, as robot_state_publisher does:
-    :meth:`RobotModel.tf_frame_id`). The
-    URDF's helper links (:class:`~dq_fk_ros.description.to_urdf.HelperFrames`) are published
-    as children of their DH frames: constant ones on /tf_static, moving ones on /tf.
+    Laid out from the robot's :class:`~dq_fk_ros.messages.output_plan.OutputPlan` (frame
+    ids, TF parents, static and moving transforms, helper frames: the bag tool writes from
+    the same plan). The URDF's helper links are published as children of their DH frames:
+    constant ones on /tf_static, moving ones on /tf.
     """
 
-    def __init__(self, model, frame_prefix='', shown_optional=(), helpers=None):
+    def __init__(self, model, frame_prefix='', shown_optional=(), plan=None):
         """
         Build the message objects for ``model``.
 
         :param shown_optional: the optional joints (side branches, a tree's) named so far:
             transforms and poses that need others are left out (``hidden``).
-        :param helpers: the model's :class:`HelperFrames` if already made (they depend on
-            the model alone; making them for a big robot takes tens of ms).
+        :param plan: the :class:`OutputPlan` of ``model`` and ``frame_prefix`` if already made
+            (making its helper frames for a big robot takes tens of ms).
         """
         self.model = model
+        self.plan = plan = OutputPlan(model, frame_prefix) if plan is None else plan
         self.prefix = frame_prefix
-        self.fixed_frame_id = fixed = model.tf_frame_id(model.fixed_frame, frame_prefix)
-        self.frame_ids = [frame_prefix + name for name in model.frame_names]
-        self._parent_ids = [model.tf_frame_id(p, frame_prefix) for p in model.parent_frames]
-        self.hidden = hidden_frames(model, shown_optional)
+        self.fixed_frame_id = fixed = plan.fixed_frame_id
+        self.frame_ids = plan.frame_ids
+        self.helpers = plan.helpers
+        self.hidden = plan.hidden(shown_optional)
         # moving TF transforms: DH rows and links on other bodies than their TF parents,
         # those whose joints are known (robot_state_publisher's rule)
-        hidden_edges = hidden_frames(model, shown_optional, model.edge_needs)
-        self.moving_edges = tuple(e for e in model.moving_edges if e[0] not in hidden_edges)
-        self.helpers = HelperFrames(model) if helpers is None else helpers
+        self.moving_edges = plan.shown_edges(shown_optional)
         self.tf = TFMessage(transforms=[
-            _transform_stamped(self._parent_ids[k], self.frame_ids[k])
-            for k, _ in self.moving_edges] + [
-            _transform_stamped(self.frame_ids[anchor], frame_prefix + name)
-            for name, anchor in self.helpers.moving])
+            _transform_stamped(parent, child) for parent, child in
+            plan.tf_edges(self.moving_edges)])
         self._helper_transforms = self.tf.transforms[len(self.moving_edges):]
         self.poses = []
         for _ in self.frame_ids:
             msg = PoseStamped()
             msg.header.frame_id = fixed
             self.poses.append(msg)
-        # the chain's end and, if there is one, the tool; and the end effector if a link
-        n_chain = model.n_chain_frames
-        self.twist_frames = list(range(n_chain))[-1 - (model.chain.tool is not None):]
-        if model.end_effector_index >= n_chain:
-            self.twist_frames.append(model.end_effector_index)
+        self.twist_frames = plan.twist_frames
         self.twists = []
         for _ in self.twist_frames:
             msg = TwistStamped()
@@ -126,26 +117,10 @@ class FrameMessages:
 
     def static_tf(self, stamp):
         """Return one TFMessage with every static transform: base, fixed rows, tool, links."""
-        transforms = [_transform_stamped(self._parent_ids[k], self.frame_ids[k], stamp, pose)
-                      for k, pose in self.model.static_transforms()]
-        for name, anchor, offset in self.helpers.static:
-            transforms.append(_transform_stamped(self.frame_ids[anchor], self.prefix + name, stamp,
-                                                 offset.to_pose_xyzw()))
-        return TFMessage(transforms=transforms)
-
-
-def hidden_frames(model, shown_optional, needs=None):
-    """
-    Return the indices of the frames that need an optional joint not in ``shown_optional``.
-
-    :param needs: per frame, the joints it needs: ``model.frame_needs`` (default: its pose
-        in the fixed frame) or ``model.edge_needs`` (its TF transform).
-    """
-    if not model.optional_joints:
-        return frozenset()
-    shown = frozenset(shown_optional)
-    needs = model.frame_needs if needs is None else needs
-    return frozenset(k for k, need in enumerate(needs) if not need <= shown)
+        values = self.plan.static_poses().reshape(-1, 7)
+        return TFMessage(transforms=[
+            _transform_stamped(parent, child, stamp, pose)
+            for (parent, child), pose in zip(self.plan.static_edges, values)])
 
 
 def _transform_stamped(parent, child, stamp=None, pose=None):

@@ -384,7 +384,7 @@ class DqFkNode(Node):
         model = self._model
         new = [name for name in seen if name not in self._shown_optional]
         self._messages = FrameMessages(model, self._params.frame_prefix, seen,
-                                       self._messages.helpers)
+                                       self._messages.plan)
         self._bytes = FrameBytes(self._messages)
         self._shown_optional = seen
         hidden = self._messages.hidden

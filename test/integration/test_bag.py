@@ -521,3 +521,66 @@ def test_the_example_bag_holds_the_sweep_it_says(tmp_path, capsys):
         np.testing.assert_allclose(msg.position, positions, rtol=0, atol=1e-15)
         np.testing.assert_allclose(msg.velocity, velocities, rtol=0, atol=1e-15)
     assert main(['example', str(out)]) == 2  # never over an existing path
+
+
+def test_a_tree_bag_writes_what_the_node_publishes_message_for_message(tmp_path):
+    """
+    One output plan: each /tf of the bag is the node's own /tf bytes for that state.
+
+    The dual arm's branches appear one by one (torso, then left arm, then everything), under
+    a frame prefix; the node's serializer (FrameBytes of FrameMessages, shown the optional
+    joints the merger has seen, as DqFkNode does) gives each expected message, and the
+    node's /tf_static is the bag's, byte for byte.
+    """
+    from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, ns_to_stamp
+    model = load_robot_description(shipped_robot_path('dual_arm'))
+    groups = [['waist'], ['waist', 'left_shoulder_pitch', 'left_elbow', 'left_wrist_roll'],
+              list(model.joint_names)]
+    rng = np.random.default_rng(7)
+    messages = []
+    for k in range(30):
+        names = groups[min(k // 10, 2)]
+        stamp = T0 + k * 10_000_000
+        messages.append((stamp, names, rng.uniform(-0.5, 0.5, len(names)) * 0.05 + 0.01))
+    write_bag(tmp_path / 'in', [(s, js_bytes(n, v, s)) for s, n, v in messages])
+    process_bag(tmp_path / 'in', tmp_path / 'out', model, frame_prefix='r1/', progress=False)
+
+    merger = JointStateMerger(model.joint_names, model.limits, 'warn',
+                              required=len(model.required_joints))
+    expected = []
+    for stamp, names, values in messages:
+        result = merger.merge(names, values, [], stamp)
+        assert result.status == PUBLISH
+        out = FrameBytes(FrameMessages(model, 'r1/', merger.seen_optional))
+        if out.sends_tf:
+            sec, nanosec = divmod(stamp, 10**9)
+            expected.append(bytes(out.tf(sec, nanosec, model.transform_poses(result.q),
+                                         result.q)))
+    with Reader(tmp_path / 'out') as reader:
+        by_topic = {}
+        for conn, _, raw in reader.messages():
+            by_topic.setdefault(conn.topic, []).append(bytes(raw))
+    # the same messages, frames in the same order; values to rounding (the bag computes
+    # a chunk at once, the node one state at a time: test_chains.py holds those equal)
+    assert len(expected) == 30 and len(by_topic['/tf']) == 30
+    for got, want in zip(by_topic['/tf'], expected):
+        got, want = (TS.deserialize_cdr(m, 'tf2_msgs/msg/TFMessage').transforms
+                     for m in (got, want))
+        assert [(t.header.frame_id, t.child_frame_id, t.header.stamp.sec,
+                 t.header.stamp.nanosec) for t in got] == \
+            [(t.header.frame_id, t.child_frame_id, t.header.stamp.sec,
+              t.header.stamp.nanosec) for t in want]
+        assert np.allclose([htf.transform_matrix(t.transform) for t in got],
+                           [htf.transform_matrix(t.transform) for t in want], atol=1e-12)
+    assert [len(TS.deserialize_cdr(m, 'tf2_msgs/msg/TFMessage').transforms)
+            for m in by_topic['/tf'][::10]] == [1, 1 + 3, 1 + 3 + 3 + 2]  # moving joints
+    # /tf_static: the node's message objects, every field equal
+    written = TS.deserialize_cdr(by_topic['/tf_static'][0], 'tf2_msgs/msg/TFMessage')
+    static = FrameMessages(model, 'r1/').static_tf(ns_to_stamp(T0))
+
+    def fields(transforms):
+        return [(t.header.stamp.sec, t.header.stamp.nanosec, t.header.frame_id,
+                 t.child_frame_id, htf.transform_matrix(t.transform).tolist())
+                for t in transforms]
+    assert len(by_topic['/tf_static']) == 1
+    assert fields(written.transforms) == fields(static.transforms)
