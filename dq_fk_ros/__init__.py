@@ -16,8 +16,8 @@ first use, so ``import dq_fk_ros`` stays light (no ROS, no rosbags until asked):
 * :func:`load_robot` (a DH file, a URDF or xacro, a shipped name) -> ``LoadedRobot`` whose
   ``model`` is a :class:`RobotModel` (``forward_all(q)``, ``frame_poses(q)``, ...);
 * :class:`KinematicChain`, :class:`DHJoint`, :class:`DualQuaternion`: the numerical core;
-* :func:`process_bag` (with :class:`ProcessOptions`): joint states in a bag -> every
-  frame's pose and TF in another;
+* :func:`process_bag` (with :class:`ProcessOptions`, returning a :class:`ProcessSummary`):
+  joint states in a bag -> every frame's pose and TF in another;
 * the errors: :class:`DqFkError` and under it :class:`RobotDescriptionError`,
   :class:`ParameterError`, :class:`BagError`, :class:`CdrError`.
 """
@@ -30,6 +30,7 @@ _SURFACE = {
     'DualQuaternion': 'dq_fk_ros.kinematics.dual_quaternion',
     'process_bag': 'dq_fk_ros.bag.process',
     'ProcessOptions': 'dq_fk_ros.bag.process',
+    'ProcessSummary': 'dq_fk_ros.bag.process',
     'DqFkError': 'dq_fk_ros.description.errors',
     'RobotDescriptionError': 'dq_fk_ros.description.errors',
     'ParameterError': 'dq_fk_ros.description.errors',

@@ -8,7 +8,7 @@ written as /tf, /tf_static and the node's pose topics to a new bag (MCAP by defa
 """
 
 from contextlib import nullcontext
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 import os
 import shutil
 
@@ -123,6 +123,32 @@ class _ReadingStopped(Exception):
         self.partial = partial
 
 
+@dataclass
+class ProcessSummary:
+    """
+    What :func:`process_bag` did with one bag.
+
+    ``read``: JointState messages on the topic; ``written``: those computed and written (one
+    /tf each); ``incomplete``: skipped until every required joint was seen; ``rejected``:
+    ``{reason: count}`` as the node's /diagnostics; ``unknown_joints``: names the robot
+    does not have; ``error``: one line if part of the bag was damaged or nothing could be
+    used (else None); ``note``: one line about how the bag was read (else None);
+    ``output``: the bag written (None: nothing, or ``csv_only``); ``topic``: the topic read;
+    ``joint_names_seen``: the first 50 joint names the messages carried.
+    """
+
+    read: int = 0
+    written: int = 0
+    incomplete: int = 0
+    rejected: dict = field(default_factory=dict)
+    unknown_joints: list = field(default_factory=list)
+    error: str = None
+    note: str = None
+    output: object = None
+    topic: str = None
+    joint_names_seen: list = field(default_factory=list)
+
+
 @dataclass(frozen=True)
 class ProcessOptions:
     """
@@ -151,7 +177,7 @@ class ProcessOptions:
 
 def process_bag(in_path, out_path, robot, options=None, **changes):
     """
-    Compute every frame for every JointState of ``in_path``; return a summary dict.
+    Compute every frame for every JointState of ``in_path``; return a :class:`ProcessSummary`.
 
     :param options: a :class:`ProcessOptions` (default: its defaults); ``changes`` are
         fields of it given by name (``process_bag(a, b, 'rl15', csv_path='ee.csv')``).
@@ -188,26 +214,26 @@ def process_bag(in_path, out_path, robot, options=None, **changes):
         summary = stop.partial
     finally:
         reader.close()
-    summary['output'] = None if o.csv_only else out_path
-    summary['note'] = reader.note
-    summary['error'] = summary['error'] or reader.damage
-    if summary['written'] == 0:
+    summary.output = None if o.csv_only else out_path
+    summary.note = reader.note
+    summary.error = summary.error or reader.damage
+    if summary.written == 0:
         for path in ([] if o.csv_only else [out_path]) + ([o.csv_path] if o.csv_path else []):
             _remove(path)
-        summary['output'] = None
-        summary['error'] = '; '.join(filter(None, [
-            summary['error'], nothing_usable(in_path, summary, model, robot)]))
+        summary.output = None
+        summary.error = '; '.join(filter(None, [
+            summary.error, nothing_usable(in_path, summary, model, robot)]))
     return summary
 
 
 def nothing_usable(in_path, summary, model, robot):
     """One line: no message could be used, what the bag has and what the robot needs."""
-    names = [printable(n, 40) for n in summary['joint_names_seen']]
+    names = [printable(n, 40) for n in summary.joint_names_seen]
     has = ('names joints ' + ', '.join(names[:12]) + (' ...' if len(names) > 12 else '')
            if names else 'names no joints')
     source = f' ({robot})' if isinstance(robot, (str, os.PathLike)) else ''
     return (f'{in_path}: no JointState message could be used (nothing written): '
-            f"{printable(summary['topic'])} has {summary['read']} messages and {has}; robot "
+            f'{printable(summary.topic)} has {summary.read} messages and {has}; robot '
             f"{model.name}{source} needs {', '.join(model.joint_names)}")
 
 
@@ -235,14 +261,15 @@ def _process_with(reader, model, in_path, out_path, o):
         shutil.rmtree(out_path, ignore_errors=True)
         raise
     try:
-        summary = _process_messages(reader, conns, model, outputs, csv_path, copy_input,
-                                    out_of_limits, progress, chunk, in_path)
+        summary, stopped = _process_messages(reader, conns, model, outputs, csv_path,
+                                             copy_input, out_of_limits, progress, chunk,
+                                             in_path)
     finally:
         if writer is not None:
             writer.close()
-    summary['topic'] = conns[0].topic
-    if summary.pop('stopped'):
-        raise _ReadingStopped(summary, summary['error'])
+    summary.topic = conns[0].topic
+    if stopped:
+        raise _ReadingStopped(summary, summary.error)
     return summary
 
 
@@ -327,6 +354,6 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
         counts = merger.counts
         rejected = {k[len('rejected_'):]: v for k, v in counts.items()
                     if k.startswith('rejected_') and v}
-        return {'read': seen, 'written': written, 'incomplete': counts['incomplete'],
-                'rejected': rejected, 'unknown_joints': sorted(merger.unknown), 'error': error,
-                'stopped': stopped, 'joint_names_seen': names_seen[:50]}
+        return ProcessSummary(read=seen, written=written, incomplete=counts['incomplete'],
+                              rejected=rejected, unknown_joints=sorted(merger.unknown),
+                              error=error, joint_names_seen=names_seen[:50]), stopped

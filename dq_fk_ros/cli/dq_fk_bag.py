@@ -23,17 +23,17 @@ from dq_fk_ros.description.loading import load_robot
 
 
 def summary_line(path, s):
-    """One line saying what ``process`` read, wrote and skipped (with reasons)."""
-    parts = [f"{path}: {s['read']} JointState messages, {s['written']} written"
-             + (f" to {s['output']}" if s['output'] else '')]
-    if s['incomplete']:
-        parts.append(f"{s['incomplete']} incomplete (joints not all seen yet)")
-    if s['rejected']:
+    """One line saying what ``process`` read, wrote and skipped (a :class:`ProcessSummary`)."""
+    parts = [f'{path}: {s.read} JointState messages, {s.written} written'
+             + (f' to {s.output}' if s.output else '')]
+    if s.incomplete:
+        parts.append(f'{s.incomplete} incomplete (joints not all seen yet)')
+    if s.rejected:
         parts.append('rejected (' + ', '.join(f'{k}: {v}' for k, v in
-                                              sorted(s['rejected'].items())) + ')')
-    if s['unknown_joints']:
+                                              sorted(s.rejected.items())) + ')')
+    if s.unknown_joints:
         parts.append('unknown joints ignored: ' + ', '.join(printable(n, 40) for n in
-                                                            s['unknown_joints']))
+                                                            s.unknown_joints))
     return ', '.join(parts)
 
 
@@ -142,11 +142,11 @@ def main(argv=None):
                 topic=args.topic, rate=args.rate, loop=args.loop, start_s=args.start,
                 duration_s=args.duration, clock=args.clock, progress=not args.quiet,
                 wait_for=args.wait_for_subscribers))
-            print(f"{args.bag}: published {s['sent']} JointState messages")
-        for line in (s['note'], s['error']):
+            print(f'{args.bag}: published {s.sent} JointState messages')
+        for line in (s.note, s.error):
             if line:
                 print(f'dq_fk_bag: {line}', file=sys.stderr)
-        if s['error']:
+        if s.error:
             return 1
     except BagDamaged as exc:
         print(f'dq_fk_bag: {exc}', file=sys.stderr)

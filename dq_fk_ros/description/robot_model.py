@@ -30,8 +30,8 @@ from functools import cached_property
 import math
 import re
 
-from dq_fk_ros.kinematics.dh import (
-    joint_value_list, KinematicChain, run_chain_program, unrolled_frame_poses)
+from dq_fk_ros.kinematics.dh import joint_value_list, KinematicChain
+from dq_fk_ros.kinematics.dh_code import run_chain_program, unrolled_frame_poses
 from dq_fk_ros.kinematics.dual_quaternion import (
     dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, DualQuaternion,
     pose_xyzw_from_coeffs)

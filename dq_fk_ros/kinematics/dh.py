@@ -16,19 +16,19 @@ and an optional fixed ``tool`` transform follows frame ``n``.
 Dual quaternions are 8-vectors (w, x, y, z, w', x', y', z'); see
 :mod:`dq_fk_ros.kinematics.dual_quaternion`.
 
-Why this file is long: the DH chain core with its generated straight-line code beside the
-general reference path it must equal to the bit.
+The rows' factor program and the straight-line code generated from it are in
+:mod:`dq_fk_ros.kinematics.dh_code`.
 """
 
 from array import array
 from dataclasses import dataclass
 from functools import cached_property
 import math
-from typing import NamedTuple
 
+from dq_fk_ros.kinematics.dh_code import row_program, run_program, unrolled_frame_poses
 from dq_fk_ros.kinematics.dual_quaternion import (
-    canonical, dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, dq_translation_array,
-    DualQuaternion, pose_xyzw_from_coeffs, quat_conjugate, quat_to_matrix)
+    canonical, dq_multiply_array, dq_multiply_coeffs, dq_translation_array, DualQuaternion,
+    pose_xyzw_from_coeffs, quat_conjugate, quat_to_matrix)
 import numpy as np
 
 CONVENTIONS = ('standard', 'modified')
@@ -96,281 +96,12 @@ def _row_modified(ca, sa, a, theta, d):
             -hd * sa * ct - ha * ca * st, hd * ca * ct - ha * sa * st)
 
 
-# The sparse factorisation of a DH row ([Zivkovic2023] eqs. (13)-(15)): the z factor
-# Rz(theta) Tz(d) = (c + s k)(1 + eps d/2 k) and the x factor Tx(a) Rx(alpha) =
-# (1 + eps a/2 i)(c + s i) each touch a few coefficients only, so applying them costs a
-# fraction of a full product with the row's eq. (3) operator.
-_Z, _X = 0, 1
-
-
-class ZStep(NamedTuple):
-    """
-    A row's z factor ``Rz(theta) Tz(d)``: theta = theta + scale q[ti], d = d + scale q[di].
-
-    An index of -1 means constant; ``mark``: the row's frame is complete after this step.
-    """
-
-    kind: int          # _Z
-    theta: float
-    scale: float
-    ti: int
-    d: float
-    di: int
-    mark: bool
-
-
-class XStep(NamedTuple):
-    """A row's x factor ``Tx(a) Rx(alpha)``, constant; ``mark`` as for :class:`ZStep`."""
-
-    kind: int          # _X
-    half_a: float
-    cos_half_alpha: float
-    sin_half_alpha: float
-    has_rotation: bool
-    unused: int        # (the same length as ZStep: the loops unpack both alike)
-    mark: bool
-
-
-def _row_program(joint, ti, di, modified):
-    """
-    Compile one DH row into its z and x factors (:class:`ZStep`, :class:`XStep`).
-
-    Standard: ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``; modified: ``Rx(alpha) Tx(a) Rz(theta)
-    Tz(d)``; the last factor marks the row's frame.
-    """
-    ops = [[_Z, joint.theta, joint.scale, ti, joint.d, di, False]]
-    if joint.a or joint.alpha:
-        ops.append([_X, 0.5 * joint.a, math.cos(0.5 * joint.alpha),
-                    math.sin(0.5 * joint.alpha), bool(joint.alpha), 0, False])
-        if modified:
-            ops.reverse()
-    ops[-1][-1] = True
-    return [ZStep(*op) if op[0] == _Z else XStep(*op) for op in ops]
-
-
-def _run_program(program, base, q, cos, sin):
-    """
-    Multiply ``base`` by the compiled factors; return the frames marked along the way.
-
-    Works on floats (``q`` a list, ``cos``/``sin`` from math) and on numpy arrays (``q`` a
-    sequence of columns, one per joint variable, ``cos``/``sin`` from numpy) alike.
-    The real part is ``(aw, ax, ay, az)``, the dual part ``(bw, bx, by, bz)``.
-    """
-    aw, ax, ay, az, bw, bx, by, bz = base
-    frames = [base]
-    for op, p1, p2, p3, p4, p5, mark in program:
-        if op == _Z:  # h (c + s k) (1 + eps hd k)
-            half = 0.5 * p1 if p3 < 0 else 0.5 * (p1 + p2 * q[p3])
-            c, s = cos(half), sin(half)
-            aw, ax, ay, az, bw, bx, by, bz = (
-                aw * c - az * s, ax * c + ay * s, ay * c - ax * s, az * c + aw * s,
-                bw * c - bz * s, bx * c + by * s, by * c - bx * s, bz * c + bw * s)
-            if p5 >= 0 or p4:
-                hd = 0.5 * p4 if p5 < 0 else 0.5 * (p4 + p2 * q[p5])
-                bw, bx, by, bz = bw - hd * az, bx + hd * ay, by - hd * ax, bz + hd * aw
-        else:  # h (1 + eps ha i) (c + s i), constant
-            if p1:
-                bw, bx, by, bz = bw - p1 * ax, bx + p1 * aw, by + p1 * az, bz - p1 * ay
-            if p4:
-                aw, ax, ay, az, bw, bx, by, bz = (
-                    aw * p2 - ax * p3, ax * p2 + aw * p3, ay * p2 + az * p3, az * p2 - ay * p3,
-                    bw * p2 - bx * p3, bx * p2 + bw * p3, by * p2 + bz * p3, bz * p2 - by * p3)
-        if mark:
-            frames.append((aw, ax, ay, az, bw, bx, by, bz))
-    return frames
-
-
-_DQ = 'aw, ax, ay, az, bw, bx, by, bz'
-_Z_STEP = (f'{_DQ} = (aw * c - az * s, ax * c + ay * s, ay * c - ax * s, az * c + aw * s, '
-           f'bw * c - bz * s, bx * c + by * s, by * c - bx * s, bz * c + bw * s)')
-_X_STEP = (f'{_DQ} = (aw * c - ax * s, ax * c + aw * s, ay * c + az * s, az * c - ay * s, '
-           f'bw * c - bx * s, bx * c + bw * s, by * c + bz * s, bz * c - by * s)')
-_MARK = ('s = -1.0 if aw < 0.0 else 1.0',  # pose_xyzw_from_coeffs, inline
-         'absolute.append((2.0 * (bx * aw - bw * ax - by * az + bz * ay), '
-         '2.0 * (by * aw - bw * ay + bx * az - bz * ax), '
-         '2.0 * (bz * aw - bw * az - bx * ay + by * ax), s * ax, s * ay, s * az, s * aw))')
-
-
-_IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-_PARENT = 'u0, u1, u2, u3, u4, u5, u6, u7'
-# the terms of dq_multiply_coeffs ([Zivkovic2023] eq. (12)), in its order: (sign, a, b)
-_PRODUCT_TERMS = (
-    (('+', 0, 0), ('-', 1, 1), ('-', 2, 2), ('-', 3, 3)),
-    (('+', 0, 1), ('+', 1, 0), ('+', 2, 3), ('-', 3, 2)),
-    (('+', 0, 2), ('-', 1, 3), ('+', 2, 0), ('+', 3, 1)),
-    (('+', 0, 3), ('+', 1, 2), ('-', 2, 1), ('+', 3, 0)),
-    (('+', 0, 4), ('-', 1, 5), ('-', 2, 6), ('-', 3, 7),
-     ('+', 4, 0), ('-', 5, 1), ('-', 6, 2), ('-', 7, 3)),
-    (('+', 0, 5), ('+', 1, 4), ('+', 2, 7), ('-', 3, 6),
-     ('+', 4, 1), ('+', 5, 0), ('+', 6, 3), ('-', 7, 2)),
-    (('+', 0, 6), ('-', 1, 7), ('+', 2, 4), ('+', 3, 5),
-     ('+', 4, 2), ('-', 5, 3), ('+', 6, 0), ('+', 7, 1)),
-    (('+', 0, 7), ('+', 1, 6), ('-', 2, 5), ('+', 3, 4),
-     ('+', 4, 3), ('+', 5, 2), ('-', 6, 1), ('+', 7, 0)),
-)
-
-
 def joint_value_list(q, joint_names):
     """Return ``q`` as a list of floats, one per joint (ValueError naming the joints if not)."""
     if len(q) != len(joint_names):
         raise ValueError(f'expected {len(joint_names)} joint values {list(joint_names)}, '
                          f'got {len(q)}')
     return q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
-
-
-def _product_code(a, b):
-    """
-    Write the 8 components of ``dq_multiply_coeffs(a, b)`` as Python expressions.
-
-    ``a``: 8 variable names; ``b``: 8 constants (floats). Terms with a zero constant are
-    left out, a factor 1.0 is dropped; the other terms keep their order, so the values are
-    the product's (a sum of exact zeros may differ only in the sign of a zero).
-    """
-    out = []
-    for terms in _PRODUCT_TERMS:
-        code = ''
-        for sign, i, k in terms:
-            if b[k] == 0.0:
-                continue
-            term = a[i] if b[k] == 1.0 else f'{a[i]} * {b[k]!r}'
-            code += f' {sign} {term}' if code else (term if sign == '+' else f'-{term}')
-        out.append(code or '0.0')
-    return out
-
-
-def run_chain_program(chain, base, q, cos, sin):
-    """
-    Return the frames of ``chain`` (frame 0..n, then the tool) starting from ``base``.
-
-    ``base`` is frame 0 (8 coefficients: floats, or arrays for a batch); a branch of a tree
-    starts from its parent frame times its base transform. ``q``: the chain's variables.
-    """
-    frames = _run_program(chain._program, base, q, cos, sin)
-    if chain._tool_t is not None:
-        frames.append(dq_multiply_coeffs(frames[-1], chain._tool_t))
-    return frames
-
-
-def _chain_code(chain, q_index, first, keep, mark=_MARK):
-    """
-    Write the straight-line code of one chain, starting from the frame 0 in ``aw..bz``.
-
-    ``q_index``: where each chain variable is in ``q``; ``first``: the index of frame 0
-    among all frames (the names ``f<k>`` of kept frames); ``keep``: keep frames as ``f<k>``;
-    ``mark``: the lines that append a frame's pose to ``absolute`` (none: not wanted).
-    """
-    r = repr
-    lines = list(mark)
-    if keep:
-        lines.append(f'f{first} = ({_DQ})')
-    modified = chain.convention == 'modified'
-    for i, joint in enumerate(chain.joints):
-        ti, di = int(chain._theta_index[i]), int(chain._d_index[i])
-        ca, sa, a, theta, d, scale, _, _, s_alpha, c_alpha = chain._pose_rows[i]
-        if ti >= 0:
-            lines += [f'half = 0.5 * ({r(theta)} + {r(scale)} * q[{q_index[ti]}])',
-                      'ct, st = cos(half), sin(half)']
-        else:
-            lines.append(f'ct, st = {r(math.cos(0.5 * theta))}, {r(math.sin(0.5 * theta))}')
-        lines.append(f'd = {r(d)} + {r(scale)} * q[{q_index[di]}]' if di >= 0 else
-                     f'd = {r(d)}')
-        for op, p1, _, _, p4, p5, _ in _row_program(joint, ti, di, modified):
-            if op == _Z:
-                lines += ['c, s = ct, st', _Z_STEP]
-                if p5 >= 0 or p4:
-                    lines += ['hd = 0.5 * d',
-                              'bw, bx, by, bz = bw - hd * az, bx + hd * ay, by - hd * ax, '
-                              'bz + hd * aw']
-            else:
-                if p1:
-                    lines.append(f'bw, bx, by, bz = bw - {r(p1)} * ax, bx + {r(p1)} * aw, '
-                                 f'by + {r(p1)} * az, bz - {r(p1)} * ay')
-                if p4:
-                    lines += [f'c, s = {r(math.cos(0.5 * joint.alpha))}, '
-                              f'{r(math.sin(0.5 * joint.alpha))}', _X_STEP]
-        lines += list(mark)
-        if keep:
-            lines.append(f'f{first + i + 1} = ({_DQ})')
-        if modified:
-            lines += [f'qx, qy, qz, qw = {r(sa)} * ct, -{r(sa)} * st, {r(ca)} * st, {r(ca)} * ct',
-                      f'x, y, z = {r(a)}, -d * {r(s_alpha)}, d * {r(c_alpha)}']
-        else:
-            lines += [f'qx, qy, qz, qw = {r(sa)} * ct, {r(sa)} * st, {r(ca)} * st, {r(ca)} * ct',
-                      f'x, y, z = {r(a)} * (1.0 - 2.0 * st * st), 2.0 * {r(a)} * st * ct, d']
-        lines += ['if qw < 0.0:', '    qx, qy, qz, qw = -qx, -qy, -qz, -qw',
-                  'relative.append((x, y, z, qx, qy, qz, qw))']
-    if chain._tool_t is not None:
-        lines += [f'{_DQ} = multiply(({_DQ}), {chain._tool_t!r})'] + list(mark)
-        if keep:
-            lines.append(f'f{first + chain.n_frames - 1} = ({_DQ})')
-    return lines
-
-
-def unrolled_frame_poses(chain, links=(), motion=None, branches=(), absolute=True):
-    """
-    Write and compile ``frame_poses`` as straight-line code for a chain (its branches, links).
-
-    The loops of :func:`_run_program` and :meth:`KinematicChain.row_poses` unrolled, with
-    each row's constants in place and the half-angle cosine and sine shared by the row's
-    z factor and its pose: the same floating-point operations in the same order, so the
-    same results to the bit, in about half the time.
-
-    :param links: rigid frames attached to the chain's frames, as
-        :class:`~dq_fk_ros.description.robot_model.RobotModel` plans them: ``(attachment
-        index, TF-parent index, offset 8-tuple, motion)`` (index -1: the fixed frame); a
-        constant offset is multiplied in with its zero terms left out.
-    :param motion: ``motion(motion, q, cos, sin) -> 8-tuple`` for links that move.
-    :param branches: the other chains of a tree, ``(chain, index of the frame it hangs from
-        (-1: the fixed frame), index in q of each of its variables)``, in order; their
-        frames follow the chain's, their rows' transforms its rows'.
-    :param absolute: False: the TF transforms alone (``absolute`` is returned empty; the
-        frames' poses are not converted, about a third less work for a tree).
-    :returns: ``f(q_list) -> (absolute, relative)`` as ``frame_poses`` returns them; its
-        source is ``f.source``.
-    """
-    keep = bool(links or branches)  # keep the frames the links and branches hang from
-    mark = _MARK if absolute else ()
-    lines = ['def frame_poses(q):', 'absolute, relative = [], []', f'{_DQ} = {chain._base_t!r}']
-    lines += _chain_code(chain, range(chain.dof), 0, keep, mark)
-    n_frames = chain.n_frames
-    for branch, parent, q_index in branches:
-        if parent >= 0:
-            lines += [f'{_PARENT} = f{parent}',
-                      f'{_DQ} = (' + ', '.join(_product_code(_PARENT.split(', '),
-                                                             branch._base_t)) + ')']
-        else:
-            lines.append(f'{_DQ} = {branch._base_t!r}')
-        lines += _chain_code(branch, q_index, n_frames, keep, mark)
-        n_frames += branch.n_frames
-    for j, (attach, tf_parent, offset, moves) in enumerate(links):
-        k = n_frames + j
-        parent = f'f{attach}' if attach >= 0 else repr(_IDENTITY)
-        if moves is not None:  # offset times the joint's motion: as the general path
-            lines += [f'o = multiply({offset!r}, motion({moves!r}, q, cos, sin))',
-                      f'{_DQ} = multiply({parent}, o)']
-        elif attach >= 0:
-            lines += [f'{_PARENT} = {parent}',
-                      f'{_DQ} = (' + ', '.join(_product_code(_PARENT.split(', '), offset)) + ')']
-        else:
-            lines.append(f'{_DQ} = {dq_multiply_coeffs(_IDENTITY, offset)!r}')
-        lines += [f'f{k} = ({_DQ})'] + list(mark)
-        if tf_parent == attach:
-            lines.append('relative.append(pose(o))' if moves is not None else
-                         f'relative.append({pose_xyzw_from_coeffs(offset)!r})')
-        else:
-            above = f'f{tf_parent}' if tf_parent >= 0 else repr(_IDENTITY)
-            lines.append(f'relative.append(pose(multiply(inverse({above}), f{k})))')
-    lines.append('return absolute, relative')
-    source = '\n    '.join(lines) + '\n'
-    namespace = {'cos': math.cos, 'sin': math.sin, 'multiply': dq_multiply_coeffs,
-                 'inverse': dq_inverse_coeffs, 'pose': pose_xyzw_from_coeffs,
-                 'motion': motion}
-    rows = len(chain.joints) + sum(len(b.joints) for b, _, _ in branches)
-    exec(compile(source, f'<frame_poses of {1 + len(branches)} chain(s), {rows} rows, '
-                         f'{len(links)} links>', 'exec'), namespace)
-    function = namespace['frame_poses']
-    function.source = source
-    return function
 
 
 class KinematicChain:
@@ -455,8 +186,8 @@ class KinematicChain:
         self._scale = np.array([j.scale for j in self.joints])
         modified = self.convention == 'modified'
         self._program = tuple(op for i, j in enumerate(self.joints)
-                              for op in _row_program(j, int(self._theta_index[i]),
-                                                     int(self._d_index[i]), modified))
+                              for op in row_program(j, int(self._theta_index[i]),
+                                                    int(self._d_index[i]), modified))
         # the closed-form operators of [Radavelli2014] eq. (3), for relative_all
         self._rows = tuple(
             (math.cos(0.5 * j.alpha), math.sin(0.5 * j.alpha), j.a, j.theta, j.d, j.scale,
@@ -502,7 +233,7 @@ class KinematicChain:
     def _absolute_tuples(self, q):
         """Frames 0..n (and the tool) as 8-tuples of floats; the scalar fast path."""
         q = joint_value_list(q, self.joint_names)
-        frames = _run_program(self._program, self._base_t, q, math.cos, math.sin)
+        frames = run_program(self._program, self._base_t, q, math.cos, math.sin)
         if self._tool_t is not None:
             frames.append(dq_multiply_coeffs(frames[-1], self._tool_t))
         return frames
@@ -629,7 +360,7 @@ class KinematicChain:
         for start in range(0, q.shape[0], BATCH_CHUNK):
             part = slice(start, min(start + BATCH_CHUNK, q.shape[0]))
             cols = np.ascontiguousarray(q[part].T)
-            frames = _run_program(self._program, self._base_t, cols, np.cos, np.sin)
+            frames = run_program(self._program, self._base_t, cols, np.cos, np.sin)
             if self._tool_t is not None:
                 frames.append(dq_multiply_coeffs(frames[-1], self._tool_t))
             yield part, frames

@@ -33,15 +33,26 @@ class PlayOptions:
     wait_timeout_s: float = 30.0
 
 
+@dataclass
+class PlaySummary:
+    """
+    What :func:`play_bag` did: ``sent`` messages published; ``note``, ``error``: one line each.
+
+    ``note`` and ``error`` say how the bag was read (record by record, see
+    :func:`open_reader`); ``error`` if it is damaged; else None.
+    """
+
+    sent: int = 0
+    note: str = None
+    error: str = None
+
+
 def play_bag(path, options=None, node=None, **changes):
     """
-    Publish the bag's JointState messages with their recorded timing; return a summary.
+    Publish the bag's JointState messages with their recorded timing; a :class:`PlaySummary`.
 
     :param options: a :class:`PlayOptions` (default: its defaults); ``changes`` are fields of
         it given by name. ``node``: publish from this rclpy node (default: one of its own).
-
-    The summary dict: ``sent`` (messages published), ``note`` and ``error`` (lines about a
-    bag read record by record, see :func:`open_reader`; ``error`` if it is damaged).
 
     Serialized messages are published as they are (no conversion). ``clock`` publishes
     ``/clock`` with the bag time before each message, for nodes with ``use_sim_time``.
@@ -118,7 +129,7 @@ def play_bag(path, options=None, node=None, **changes):
                 rclpy.try_shutdown()
     finally:
         reader.close()
-    return {'sent': sent, 'note': reader.note, 'error': reader.damage}
+    return PlaySummary(sent, reader.note, reader.damage)
 
 
 class _tolerant:

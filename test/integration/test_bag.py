@@ -86,7 +86,7 @@ def test_offline_output_equals_core_fk(tmp_path, storage):
     q, stamps = valid_bag(tmp_path / 'in', storage=storage)
     summary = process_bag(tmp_path / 'in', tmp_path / 'out', RL15, storage=storage,
                           csv_path=tmp_path / 'ee.csv', progress=False, chunk=64)
-    assert summary['read'] == summary['written'] == len(q) and not summary['rejected']
+    assert summary.read == summary.written == len(q) and not summary.rejected
     for k, frame in enumerate(MODEL.frame_names):
         poses = read_topic(tmp_path / 'out', f'/dq_fk_node/pose/{frame}')
         assert len(poses) == len(q)
@@ -138,7 +138,7 @@ def test_split_publishers_merge_as_the_node_does(tmp_path):
         if result.status == PUBLISH:
             expected.append((stamp, result.q))
     # incomplete: the first message, and 200-202 after the reset (joints 4-6 unseen)
-    assert summary['written'] == len(expected) == 396 and summary['incomplete'] == 4
+    assert summary.written == len(expected) == 396 and summary.incomplete == 4
     out = read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')
     assert [stamp_ns(m.header) for _, m in out] == [s for s, _ in expected]
     for (_, msg), (_, joints) in zip(out, expected):
@@ -197,10 +197,10 @@ def test_bad_content_is_skipped_counted_and_nothing_valid_lost(tmp_path):
     write_bag(tmp_path / 'in', messages, extra_topic=True)
     summary = process_bag(tmp_path / 'in', tmp_path / 'out', RL15, copy_input=True,
                           progress=False)
-    assert summary['read'] == 100 and summary['written'] == len(valid_stamps) == 70
-    assert summary['rejected'] == {'length_mismatch': 10, 'non_finite': 10,
-                                   'malformed_cdr': 10}
-    assert summary['unknown_joints'] == ['gripper']
+    assert summary.read == 100 and summary.written == len(valid_stamps) == 70
+    assert summary.rejected == {'length_mismatch': 10, 'non_finite': 10,
+                                'malformed_cdr': 10}
+    assert summary.unknown_joints == ['gripper']
     out = read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')
     assert [stamp_ns(m.header) for _, m in out] == valid_stamps
     with Reader(tmp_path / 'out') as reader:  # copied through, broken ones included
@@ -484,7 +484,7 @@ def test_a_robot_with_no_moving_joint_gets_tf_static_and_poses_only(tmp_path):
     write_bag(tmp_path / 'in', [(T0 + k, js_bytes(['wheel'], [0.0], T0 + k)) for k in range(4)])
     summary = process_bag(tmp_path / 'in', tmp_path / 'out', str(rig), progress=False,
                           frame_prefix='r1/')
-    assert summary['written'] == 4 and summary['error'] is None
+    assert summary.written == 4 and summary.error is None
     static = read_topic(tmp_path / 'out', '/tf_static')
     edges = {(t.header.frame_id, t.child_frame_id): t.transform.translation
              for t in static[0][1].transforms}

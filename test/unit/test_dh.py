@@ -288,7 +288,7 @@ def test_forward_and_forward_all_agree_at_a_half_turn():
 
 def test_a_product_with_constants_written_out_is_the_product():
     """_product_code: zero terms left out, factors 1.0 dropped, the values unchanged."""
-    from dq_fk_ros.kinematics.dh import _product_code
+    from dq_fk_ros.kinematics.dh_code import _product_code
     from dq_fk_ros.kinematics.dual_quaternion import dq_multiply_coeffs
     rng = np.random.default_rng(8)
     names = [f'a{k}' for k in range(8)]
