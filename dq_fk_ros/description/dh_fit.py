@@ -6,6 +6,7 @@ on those lines by their common normals ([Radavelli2014] Sec. 2, Spong's or Craig
 and each row's ``(theta, d, a, alpha)`` read off two consecutive frames. numpy only.
 """
 
+from collections.abc import Sequence
 import math
 
 import numpy as np
@@ -18,7 +19,8 @@ def _unit(v):
     return v / np.linalg.norm(v)
 
 
-def common_normal(p1, u1, p2, u2, through, x_before):
+def common_normal(p1: np.ndarray, u1: np.ndarray, p2: np.ndarray, u2: np.ndarray,
+                  through: np.ndarray, x_before: np.ndarray) -> tuple:
     """
     Return ``(foot on line 1, foot on line 2, x, kind)`` of the common normal of two lines.
 
@@ -50,7 +52,7 @@ def common_normal(p1, u1, p2, u2, through, x_before):
     return foot1, foot2, (-x if np.dot(x, gap) < 0.0 else x), 'skew'
 
 
-def frames_on_axes(lines, convention):
+def frames_on_axes(lines: Sequence[tuple], convention: str) -> tuple[list, list]:
     """
     Return the DH frames 0..n as 4x4 matrices (base link coordinates) and each axis' case.
 
@@ -103,7 +105,7 @@ def _angle(a, b, about):
     return math.atan2(float(np.dot(np.cross(a, b), about)), float(np.dot(a, b)))
 
 
-def dh_row(before, after, convention):
+def dh_row(before: np.ndarray, after: np.ndarray, convention: str) -> tuple[float, ...]:
     """Return ``(theta, d, a, alpha)`` taking DH frame ``before`` to ``after`` (4x4 each)."""
     x0, z0, o0 = before[:3, 0], before[:3, 2], before[:3, 3]
     x1, z1, o1 = after[:3, 0], after[:3, 2], after[:3, 3]
@@ -116,7 +118,8 @@ def dh_row(before, after, convention):
             _angle(z0, z1, x0))
 
 
-def normal_feet(p1, u1, p2, u2):
+def normal_feet(p1: np.ndarray, u1: np.ndarray, p2: np.ndarray,
+                u2: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """
     Return ``(s, t)``: the common normal of two lines meets them at ``p1 + s u1``, ``p2 + t u2``.
 

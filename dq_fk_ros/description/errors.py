@@ -8,6 +8,8 @@ The package's errors, one base whose message is one line, and the helpers for th
 names or a value fit one line.
 """
 
+from collections.abc import Iterable
+
 
 class DqFkError(Exception):
     """Something a user gave that the package cannot use; the message is one line."""
@@ -22,7 +24,7 @@ class RobotDescriptionError(DqFkError, ValueError):
     the file did not parse as a robot description (it may be any file, a secret one).
     """
 
-    def __init__(self, message, public=None):
+    def __init__(self, message: str, public: str | None = None):
         """Take the message for the user, and the one without file text if it differs."""
         super().__init__(message)
         self.public = message if public is None else public
@@ -37,7 +39,7 @@ class ParameterError(RobotDescriptionError):
     """
 
 
-def describe(value):
+def describe(value: object) -> str:
     """Describe a YAML value briefly for an error message (one line, at most ~80 chars)."""
     if value is None:
         return 'nothing'
@@ -54,26 +56,26 @@ def describe(value):
     return f'{short(value)} ({type(value).__name__})'
 
 
-def listing(names, at_most=20):
+def listing(names: Iterable[str], at_most: int = 20) -> str:
     """Join names for an error message: at most ``at_most`` of them, then how many more."""
     names = list(names)
     text = ', '.join(names[:at_most])
     return text + (f' ... ({len(names) - at_most} more)' if len(names) > at_most else '')
 
 
-def printable_line(text, at_most=None):
+def printable_line(text: object, at_most: int | None = None) -> str:
     """Return ``text`` for one line of a message or log: every unprintable character as ``?``."""
     text = ''.join(c if c.isprintable() else '?' for c in str(text))
     return text if at_most is None else text[:at_most]
 
 
-def short(value):
+def short(value: object) -> str:
     """``repr(value)``, shortened to about 60 characters."""
     text = repr(value)
     return text if len(text) <= 60 else text[:40] + '...' + text[-12:]
 
 
-def first_line(exc, limit=None):
+def first_line(exc: BaseException, limit: int | None = None) -> str:
     """Return the first line of an exception's message (its type's name if it has none)."""
     lines = str(exc).strip().splitlines()
     text = lines[0] if lines else type(exc).__name__

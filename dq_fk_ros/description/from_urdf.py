@@ -33,6 +33,7 @@ Why this file is long: cutting a URDF tree into chains is one algorithm (choice 
 mimic sources, the precision split, links on DH frames); reading and writing are elsewhere.
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 import os
 
@@ -42,7 +43,7 @@ from dq_fk_ros.description.robot_model import JOINT_NAME, MAX_NAME_CHARS, MAX_RO
 from dq_fk_ros.description.schema import parse_robot_description
 from dq_fk_ros.description.to_yaml import ChainText, comment, description_yaml
 from dq_fk_ros.description.urdf_reader import (
-    MOVING, parse_urdf, read_urdf_text, tf_name)
+    MOVING, parse_urdf, read_urdf_text, tf_name, UrdfTree)
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
 import numpy as np
 
@@ -53,7 +54,8 @@ NODE_OPTIONS = ('urdf_base_link', 'urdf_tip_link')
 
 
 # -- the chain ---------------------------------------------------------------------------
-def chain_joints(tree, base=None, tip=None, options=OPTIONS):
+def chain_joints(tree: UrdfTree, base: str | None = None, tip: str | None = None,
+                 options: tuple[str, str] = OPTIONS) -> tuple[str, str, list]:
     """
     Return ``(base, tip, joints)``: the joints from ``base`` down to ``tip``.
 
@@ -95,7 +97,7 @@ def chain_joints(tree, base=None, tip=None, options=OPTIONS):
     return base, tip, joints
 
 
-def longest_chain_tips(tree, base):
+def longest_chain_tips(tree: UrdfTree, base: str) -> list[str]:
     """
     Return the links that end the longest chains of moving joints below ``base``.
 
@@ -146,8 +148,9 @@ class Conversion:
     warnings: tuple = ()    # what a user should know (one line each): names changed
 
 
-def urdf_to_description(text, source='<string>', base=None, tip=None, convention='standard',
-                        options=OPTIONS):
+def urdf_to_description(text: str, source: str = '<string>', base: str | None = None,
+                        tip: str | None = None, convention: str = 'standard',
+                        options: tuple[str, str] = OPTIONS) -> 'Conversion':
     """
     Convert URDF XML into the YAML text of a DH robot description (see the module doc).
 
@@ -527,8 +530,10 @@ def _check_joint(name, source):
                                     f'letter or underscore, then letters, digits, _ . / -)')
 
 
-def load_urdf_description(path, base=None, tip=None, convention='standard', packages=None,
-                          options=OPTIONS):
+def load_urdf_description(path: str | os.PathLike, base: str | None = None,
+                          tip: str | None = None, convention: str = 'standard',
+                          packages: Mapping[str, str] | None = None,
+                          options: tuple[str, str] = OPTIONS) -> tuple['Conversion', str]:
     """
     Read a ``.urdf``/``.xacro`` file and convert it: ``(Conversion, urdf text)``.
 

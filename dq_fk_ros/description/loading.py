@@ -6,6 +6,7 @@ and ``robot_from_urdf_text(xml)`` all give a :class:`LoadedRobot`; a URDF is con
 :mod:`dq_fk_ros.description.from_urdf` on the way (its own link names kept).
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 import os
 
@@ -33,16 +34,16 @@ class LoadedRobot:
     conversion: object = None
 
     @property
-    def warnings(self):
+    def warnings(self) -> tuple[str, ...]:
         """Return what the conversion changed that a user should know (lines; none: ())."""
         return self.conversion.warnings if self.conversion is not None else ()
 
     @property
-    def urdf(self):
+    def urdf(self) -> str | None:
         """Return the URDF XML the robot was converted from (``model.urdf``), or None."""
         return self.model.urdf
 
-    def summary(self):
+    def summary(self) -> str:
         """Describe in one line how a URDF became this robot (empty for a DH file)."""
         if self.conversion is None:
             return ''
@@ -67,7 +68,7 @@ class LoadedRobot:
                 f'{len(model.links)} URDF links{optional}{skipped}')
 
 
-def resolve_robot(spec):
+def resolve_robot(spec: str | os.PathLike) -> str:
     """
     Return ``spec`` if it is a path, else the file of the shipped robot of that name.
 
@@ -83,7 +84,7 @@ def resolve_robot(spec):
                                     f'(shipped: {", ".join(shipped_robots())})') from None
 
 
-def is_urdf(path):
+def is_urdf(path: str | os.PathLike) -> bool:
     """Say whether ``path`` names a URDF (``.urdf``, ``.xacro``, ``.urdf.xacro``)."""
     return os.fspath(path).lower().endswith(URDF_SUFFIXES)
 
@@ -104,7 +105,7 @@ class FileAccess:
     time_limit_s: float = TIME_LIMIT_S
     should_stop: object = None
 
-    def check(self, path):
+    def check(self, path: str | os.PathLike) -> str:
         """Return the real path of ``path`` if it lies in one of :attr:`dirs`; else raise."""
         real, shown = os.path.realpath(path), printable_line(path, 200)
         for folder in self.dirs:
@@ -122,8 +123,10 @@ class FileAccess:
         return real
 
 
-def load_robot(spec, base=None, tip=None, convention='standard', access=None, packages=None,
-               options=OPTIONS):
+def load_robot(spec: str | os.PathLike, base: str | None = None, tip: str | None = None,
+               convention: str = 'standard', access: 'FileAccess | None' = None,
+               packages: Mapping[str, str] | None = None,
+               options: tuple[str, str] = OPTIONS) -> LoadedRobot:
     """
     Load a robot from a DH YAML file, a URDF/xacro file or a shipped robot's name.
 
@@ -157,8 +160,9 @@ def load_robot(spec, base=None, tip=None, convention='standard', access=None, pa
                        conversion)
 
 
-def robot_from_urdf_text(text, source='robot_description', base=None, tip=None,
-                         convention='standard', options=OPTIONS):
+def robot_from_urdf_text(text: str, source: str = 'robot_description', base: str | None = None,
+                         tip: str | None = None, convention: str = 'standard',
+                         options: tuple[str, str] = OPTIONS) -> LoadedRobot:
     """Convert URDF XML given as text (robot_state_publisher's ``robot_description``)."""
     if not isinstance(text, str) or not text.strip():
         raise RobotDescriptionError(f'{source}: empty; give URDF XML')

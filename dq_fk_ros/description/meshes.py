@@ -10,6 +10,7 @@ allowed at start (``--mesh-dir``); every file must be a regular file ending in `
 ``.dae`` or ``.obj`` and at most :data:`MAX_MESH_BYTES`. Plain Python, no ROS.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 import os
 import stat
@@ -17,7 +18,7 @@ from urllib.parse import quote, unquote
 import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.errors import printable_line
-from dq_fk_ros.description.packages import PackageNotFound
+from dq_fk_ros.description.packages import PackageNotFound, PackageResolver
 from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
 
 MESH_EXTENSIONS = ('.stl', '.dae', '.obj')
@@ -40,7 +41,7 @@ class MeshFile:
     problem: str = ''
 
 
-def visual_mesh_uris(urdf_text):
+def visual_mesh_uris(urdf_text: str) -> list[str]:
     """
     Return the distinct ``filename`` of every ``<visual>``'s ``<mesh>``, in URDF order.
 
@@ -61,7 +62,8 @@ def visual_mesh_uris(urdf_text):
     return uris[:MAX_MESHES]
 
 
-def mesh_allow_list(urdf_text, resolver, mesh_dirs=()):
+def mesh_allow_list(urdf_text: str, resolver: PackageResolver,
+                    mesh_dirs: Sequence[str] = ()) -> tuple:
     """
     Return a :class:`MeshFile` per mesh of the URDF's visuals: the files that may be served.
 
@@ -107,7 +109,7 @@ def _mesh_path(uri, resolver, allowed):
     return real
 
 
-def check_mesh_file(path):
+def check_mesh_file(path: str) -> None:
     """Raise ValueError unless ``path`` is a regular mesh file of at most MAX_MESH_BYTES."""
     try:
         info = os.stat(path)

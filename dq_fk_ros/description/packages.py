@@ -20,6 +20,7 @@ A package that is not found is :class:`PackageNotFound`, one line naming it and 
 searched. Plain Python, no ROS.
 """
 
+from collections.abc import Mapping, Sequence
 import os
 import re
 import xml.etree.ElementTree as ElementTree
@@ -35,7 +36,7 @@ class PackageNotFound(LookupError):
     """A package no rule finds; the message is one line."""
 
 
-def parse_package_option(text, what='--package'):
+def parse_package_option(text: str, what: str = '--package') -> tuple[str, str]:
     """Return ``(name, folder)`` of a ``NAME=DIR`` option (ValueError: one line)."""
     name, eq, folder = str(text).partition('=')
     if not eq or not PACKAGE_NAME.fullmatch(name) or not folder:
@@ -46,7 +47,7 @@ def parse_package_option(text, what='--package'):
     return name, os.path.abspath(folder)
 
 
-def package_xml_name(folder):
+def package_xml_name(folder: str) -> str | None:
     """Return the ``<name>`` of ``folder/package.xml``, or None if it has none readable."""
     path = os.path.join(folder, 'package.xml')
     try:
@@ -74,7 +75,9 @@ class PackageResolver:
         this process's environment).
     """
 
-    def __init__(self, packages=None, near=None, within=None, environ=None):
+    def __init__(self, packages: Mapping[str, str] | None = None, near: str | None = None,
+                 within: Sequence[str] | None = None,
+                 environ: Mapping[str, str] | None = None):
         """Note where to look; nothing is read until :meth:`find` is asked."""
         environ = os.environ if environ is None else environ
         self.packages = {name: os.path.abspath(folder)
@@ -87,7 +90,7 @@ class PackageResolver:
         self._found = {}
         self._scanned = None
 
-    def find(self, name):
+    def find(self, name: str) -> str:
         """Return the folder of package ``name`` (raise :class:`PackageNotFound`)."""
         if name in self._found:
             return self._found[name]
@@ -100,7 +103,7 @@ class PackageResolver:
         self._found[name] = folder
         return folder
 
-    def searched(self):
+    def searched(self) -> str:
         """Say in a few words where :meth:`find` looks."""
         places = []
         if self.packages:
@@ -113,7 +116,7 @@ class PackageResolver:
             places.append(f'the folders above {self.near}')
         return '; '.join(places)
 
-    def resolve(self, uri):
+    def resolve(self, uri: str) -> str:
         """
         Return the file a ``package://`` or ``file://`` URI (or a plain path) names.
 

@@ -11,17 +11,22 @@ joint values. A DH mistake (a wrong sign of alpha, a length in the wrong row) sh
 glance.
 """
 
+from collections.abc import Mapping
 import math
+import os
 
+from dq_fk_ros.description.robot_model import RobotModel
 from dq_fk_ros.description.to_urdf import is_helper_frame, link_segments
 import numpy as np
+from numpy.typing import ArrayLike
 
 AXIS_COLOURS = ('#d62728', '#2ca02c', '#1f77b4')  # x red, y green, z blue (as RViz)
 SEGMENT_COLOUR = '#7f7f86'
 DEFAULT_VIEW = (-60.0, 25.0)   # azimuth, elevation in degrees
 
 
-def draw_robot(model, q, view=DEFAULT_VIEW, size_in=(8.0, 7.0), dpi=100, helpers=False):
+def draw_robot(model: RobotModel, q: ArrayLike, view: tuple = DEFAULT_VIEW,
+               size_in: tuple = (8.0, 7.0), dpi: int = 100, helpers: bool = False) -> object:
     """
     Return a matplotlib ``Figure`` of ``model`` at joint values ``q`` (chain order).
 
@@ -84,7 +89,7 @@ def draw_robot(model, q, view=DEFAULT_VIEW, size_in=(8.0, 7.0), dpi=100, helpers
     return fig
 
 
-def urdf_link_segments(model, origins):
+def urdf_link_segments(model: RobotModel, origins: Mapping[str, np.ndarray]) -> list:
     """
     Return ``[(start, end), ...]``: from each URDF link's URDF parent to it (fixed frame).
 
@@ -101,7 +106,8 @@ def urdf_link_segments(model, origins):
     return segments
 
 
-def save_robot_plot(model, q, path, view=DEFAULT_VIEW, helpers=False):
+def save_robot_plot(model: RobotModel, q: ArrayLike, path: str | os.PathLike,
+                    view: tuple = DEFAULT_VIEW, helpers: bool = False) -> None:
     """Draw ``model`` at ``q`` and save it as PNG or SVG (by the file's extension)."""
     fig = draw_robot(model, q, view, helpers=helpers)
     fig.savefig(path)

@@ -25,6 +25,7 @@ Why this file is long: the model's evaluation paths (straight-line code, the gen
 reference, batches) for a tree of chains stay together: they must agree to the bit.
 """
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 import math
@@ -33,9 +34,10 @@ import re
 from dq_fk_ros.kinematics.dh import joint_value_list, KinematicChain
 from dq_fk_ros.kinematics.dh_code import run_chain_program, unrolled_frame_poses
 from dq_fk_ros.kinematics.dual_quaternion import (
-    dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, DualQuaternion,
+    dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, DualQuaternion, Pose,
     pose_xyzw_from_coeffs)
 import numpy as np
+from numpy.typing import ArrayLike
 
 # A frame id as tf2 takes it: printable ASCII without spaces, not starting with a slash (tf2
 # strips a leading one). The Allegro hand's link_11.0 and names with '-' are frame ids; the
@@ -127,7 +129,7 @@ class RobotModel:
     branches: tuple = ()
 
     @cached_property
-    def joint_names(self):
+    def joint_names(self) -> tuple[str, ...]:
         """
         Joint names in the order ``q`` is given: each chain's own, then the links' own joints.
 
@@ -139,17 +141,17 @@ class RobotModel:
         return global_joint_names(self.chain, self.branches, self.links)
 
     @property
-    def required_joints(self):
+    def required_joints(self) -> tuple[str, ...]:
         """Name the joints every update needs: the chain's for one chain, none for a tree."""
         return () if self.branches else self.chain.joint_names
 
     @cached_property
-    def optional_joints(self):
+    def optional_joints(self) -> tuple[str, ...]:
         """Name the joints after :attr:`required_joints` in ``joint_names``."""
         return self.joint_names[len(self.required_joints):]
 
     @cached_property
-    def chains(self):
+    def chains(self) -> tuple[tuple[str, KinematicChain, int], ...]:
         """``((parent frame, KinematicChain, index of its frame 0), ...)``: the first first."""
         out, start = [], 0
         for parent, chain in [(self.fixed_frame, self.chain)] + [
@@ -159,7 +161,7 @@ class RobotModel:
         return tuple(out)
 
     @property
-    def n_dh_frames(self):
+    def n_dh_frames(self) -> int:
         """Count the frames of all chains: the first ones of ``frame_names`` (links follow)."""
         return sum(chain.n_frames for _, chain, _ in self.chains)
 
@@ -170,12 +172,12 @@ class RobotModel:
         return tuple(tuple(index[n] for n in chain.joint_names) for _, chain, _ in self.chains)
 
     @property
-    def dof(self):
+    def dof(self) -> int:
         """Count the joint values of ``q``: chain joints, then optional ones."""
         return len(self.joint_names)
 
     @cached_property
-    def limits(self):
+    def limits(self) -> np.ndarray:
         """Joint limits ``(dof, 2)``, lower and upper, in rad or m (+-inf: none given)."""
         own = {}
         for branch, (_, chain, _) in zip((None,) + self.branches, self.chains):
@@ -186,7 +188,7 @@ class RobotModel:
         return np.array([own[n] for n in self.joint_names], dtype=float).reshape(-1, 2)
 
     @property
-    def angular(self):
+    def angular(self) -> np.ndarray:
         """Per joint (``joint_names`` order): True where the value is an angle (rad), else m."""
         index = {name: k for k, name in enumerate(self.joint_names)}
         mask = np.zeros(len(index), dtype=bool)
@@ -237,13 +239,13 @@ class RobotModel:
         return frozenset().union(*(reads[e] for e in elements)) & optional
 
     @cached_property
-    def frame_needs(self):
+    def frame_needs(self) -> tuple[frozenset, ...]:
         """Per frame: the optional joints its pose in the fixed frame depends on (frozensets)."""
         paths, _ = self._paths
         return tuple(self._needs(paths[name]) for name in self.frame_names)
 
     @cached_property
-    def edge_needs(self):
+    def edge_needs(self) -> tuple[frozenset, ...]:
         """
         Per frame: the optional joints its TF transform (from its TF parent) depends on.
 
@@ -255,7 +257,7 @@ class RobotModel:
         return tuple(self._needs(paths[name] ^ paths[parent])
                      for name, parent in zip(self.frame_names, self.parent_frames))
 
-    def tf_frame_id(self, name, prefix=''):
+    def tf_frame_id(self, name: str, prefix: str = '') -> str:
         """
         Return the TF frame id of frame ``name`` (or the fixed frame) under ``frame_prefix``.
 
@@ -268,17 +270,17 @@ class RobotModel:
         return prefix + name
 
     @cached_property
-    def topic_names(self):
+    def topic_names(self) -> list[str]:
         """Per frame of ``frame_names``: its ``~/pose/...`` topic (:func:`pose_topic_name`)."""
         return tuple(pose_topic_name(frame) for frame in self.frame_names)
 
     @property
-    def n_chain_frames(self):
+    def n_chain_frames(self) -> int:
         """Count the chain's frames (base, rows, tool): the first ones of ``frame_names``."""
         return self.chain.n_frames
 
     @property
-    def end_effector_index(self):
+    def end_effector_index(self) -> int:
         """Index of ``end_effector`` in ``frame_names``."""
         return self.frame_names.index(self.end_effector or self.frame_names[
             self.n_chain_frames - 1])
@@ -318,7 +320,7 @@ class RobotModel:
         return tuple(out)
 
     @cached_property
-    def moving_edges(self):
+    def moving_edges(self) -> tuple[tuple[int, int], ...]:
         """``(frame index, index in frame_poses' relative)`` of every moving TF transform."""
         return tuple((k, r) for k, r in enumerate(self._relative_index) if self.moving[k])
 
@@ -330,7 +332,7 @@ class RobotModel:
         return tuple((chain, index[parent], q_map) for (parent, chain, _), q_map in
                      zip(self.chains[1:], self._q_maps[1:]))
 
-    def frame_poses(self, q):
+    def frame_poses(self, q: ArrayLike) -> tuple[list[Pose], list[Pose]]:
         """
         Poses for publishing, tuples ``(x, y, z, qx, qy, qz, qw)`` (``qw >= 0``), at ``q``.
 
@@ -344,7 +346,7 @@ class RobotModel:
             return self.chain.frame_poses(q)
         return self._unrolled(joint_value_list(q, self.joint_names))
 
-    def frame_poses_code(self):
+    def frame_poses_code(self) -> Callable:
         """Return the Python source of :meth:`frame_poses`' straight-line code (generated)."""
         if not self.links and not self.branches:
             return self.chain._unrolled.source
@@ -355,7 +357,7 @@ class RobotModel:
         """:meth:`frame_poses` as straight-line code (``unrolled_frame_poses``)."""
         return unrolled_frame_poses(self.chain, self._link_plan, _motion, self._branch_plan)
 
-    def frame_poses_general(self, q):
+    def frame_poses_general(self, q: ArrayLike) -> tuple[list[Pose], list[Pose]]:
         """
         :meth:`frame_poses` by the general (looping) path: the reference.
 
@@ -391,7 +393,7 @@ class RobotModel:
                     dq_multiply_coeffs(dq_inverse_coeffs(above), pose)))
         return absolute, relative
 
-    def transform_poses(self, q):
+    def transform_poses(self, q: ArrayLike) -> list[Pose]:
         """
         Return the TF transforms of :meth:`frame_poses` alone (``relative``), at ``q``.
 
@@ -409,25 +411,25 @@ class RobotModel:
         return unrolled_frame_poses(self.chain, self._link_plan, _motion, self._branch_plan,
                                     absolute=False)
 
-    def forward_all(self, q):
+    def forward_all(self, q: ArrayLike) -> np.ndarray:
         """Every frame of ``frame_names`` in the fixed frame: ``(n, 8)``, ``w >= 0``."""
         if self.links or self.branches:
             return self.forward_all_batch(np.asarray(q, dtype=float)[None, :])[0]
         return self.chain.forward_all(q)
 
-    def forward_all_batch(self, q):
+    def forward_all_batch(self, q: ArrayLike) -> np.ndarray:
         """Every frame of ``frame_names`` for N configurations: ``(N, n, 8)``, ``w >= 0``."""
         absolute, _ = self._batch(q, relative=False)
         return absolute
 
-    def end_effector_batch(self, q):
+    def end_effector_batch(self, q: ArrayLike) -> np.ndarray:
         """Return the end effector's pose for N configurations: ``(N, 8)``, ``w >= 0``."""
         k = self.end_effector_index
         if k == self.n_chain_frames - 1:
             return self.chain.forward_batch(np.asarray(q, dtype=float)[:, :self.chain.dof])
         return self.forward_all_batch(q)[:, k]
 
-    def relative_batch(self, q):
+    def relative_batch(self, q: ArrayLike) -> np.ndarray:
         """``frame_poses``' relative transforms for N configurations: ``(N, rows + links, 8)``."""
         _, relative = self._batch(q, relative=True)
         return relative
@@ -478,7 +480,7 @@ class RobotModel:
             rel = np.concatenate(rels, axis=1)
         return absolute, rel
 
-    def static_transforms(self):
+    def static_transforms(self) -> list[tuple[int, Pose]]:
         """``[(frame index, (x, y, z, qx, qy, qz, qw)), ...]``: every static TF transform."""
         _, relative = self.frame_poses([0.0] * self.dof)
         special = {}
@@ -497,7 +499,8 @@ class RobotModel:
 _IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-def global_joint_names(chain, branches=(), links=()):
+def global_joint_names(chain: KinematicChain, branches: Sequence = (),
+                       links: Sequence = ()) -> tuple[str, ...]:
     """Name the joints of ``q``: ``chain``'s, each branch's own, then the links' own."""
     names = list(chain.joint_names)
     for branch in branches:
@@ -520,7 +523,7 @@ def _motion(motion, q, cos, sin):
 _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 
-def pose_topic_name(frame):
+def pose_topic_name(frame: str) -> str:
     """
     Return the topic name token(s) of a frame's ``~/pose/...`` topic.
 
@@ -538,7 +541,7 @@ def pose_topic_name(frame):
     return '/'.join(parts)
 
 
-def rpy_matrix(roll, pitch, yaw):
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """Rotation matrix of URDF's fixed-axis roll, pitch, yaw: ``Rz(yaw) Ry(pitch) Rx(roll)``."""
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)

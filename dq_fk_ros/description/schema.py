@@ -65,7 +65,7 @@ _UniqueKeyLoader.add_implicit_resolver(
     list('-+0123456789.'))
 
 
-def yaml_number(value):
+def yaml_number(value: object) -> float:
     """
     Write a finite float so that YAML 1.1 and 1.2 both read it back as the same float.
 
@@ -79,7 +79,7 @@ def yaml_number(value):
     return text
 
 
-def load_robot_description(path):
+def load_robot_description(path: str | os.PathLike) -> RobotModel:
     """Read and validate a robot description file; raise :class:`RobotDescriptionError`."""
     path = os.fspath(path)
     if os.path.exists(path) and not os.path.isdir(path) and not os.path.isfile(path):
@@ -105,7 +105,7 @@ def load_robot_description(path):
     return parse_robot_description(text, path)
 
 
-def parse_robot_description(text, source='<string>'):
+def parse_robot_description(text: str, source: str = '<string>') -> RobotModel:
     """
     Validate the YAML text of a robot description; ``source`` names it in errors.
 

@@ -9,7 +9,7 @@ dq_fk_view's page.
 import os
 
 
-def share_folders(name):
+def share_folders(name: str) -> list[str]:
     """Return the candidate folders ``name`` (``config``, ``web``) may be in, in order."""
     candidates = []
     try:
@@ -22,7 +22,7 @@ def share_folders(name):
     return candidates
 
 
-def shipped_robot_path(name):
+def shipped_robot_path(name: str) -> str:
     """
     Find a robot file shipped with the package by name, e.g. ``'rl15'``.
 
@@ -38,12 +38,12 @@ def shipped_robot_path(name):
     raise FileNotFoundError(f'no shipped robot {filename!r} in {" or ".join(candidates)}')
 
 
-def shipped_robots_dir():
+def shipped_robots_dir() -> str:
     """Return the folder of the robots shipped with the package."""
     return os.path.dirname(shipped_robot_path('rl15'))
 
 
-def shipped_robots():
+def shipped_robots() -> list[str]:
     """List the names of the robot files shipped in ``config/``."""
     folder = shipped_robots_dir()
     return sorted(f[:-5] for f in os.listdir(folder) if f.endswith('.yaml'))

@@ -9,13 +9,16 @@ post`` becomes a URDF joint with origin ``pre * Rz(theta0) Tz(d0)`` and axis z, 
 Every constant joint offset is drawn as a thin cylinder in its parent link.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 import math
 import re
 from xml.sax.saxutils import quoteattr
 
+from dq_fk_ros.description.robot_model import RobotModel
 from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
 import numpy as np
+from numpy.typing import ArrayLike
 
 LINK_RADIUS_M = 0.02
 # Frames that exist for the DH method only: the DH frames `dq_fk from-urdf` names (dh0...,
@@ -26,7 +29,7 @@ HELPER_FRAME = re.compile(r'^(dh|dh_|dq_fk_dh)\d+$|_dh_z\d*$|_dh_x$|_(dh|dh_|dq_
                           r'|^dq_fk_chain\d+_dh\d+$')
 
 
-def is_helper_frame(name):
+def is_helper_frame(name: str) -> bool:
     """Say whether frame ``name`` exists for the DH method only (:data:`HELPER_FRAME`)."""
     return HELPER_FRAME.search(name) is not None
 
@@ -47,7 +50,7 @@ def _tz(d):
     return DualQuaternion.from_translation([0.0, 0.0, d])
 
 
-def matrix_to_rpy(m):
+def matrix_to_rpy(m: np.ndarray) -> tuple[float, float, float]:
     """URDF roll, pitch, yaw of a rotation matrix (``R = Rz(yaw) Ry(pitch) Rx(roll)``)."""
     pitch = math.atan2(-m[2, 0], math.hypot(m[0, 0], m[1, 0]))
     if math.hypot(m[0, 0], m[1, 0]) < 1e-12:  # gimbal lock: put everything in yaw
@@ -101,7 +104,7 @@ class UrdfJoint:
     note: str = ''
 
 
-def urdf_joints(model):
+def urdf_joints(model: RobotModel) -> list['UrdfJoint']:
     """
     Return the URDF joints of ``model`` in tree order (parents before children).
 
@@ -199,7 +202,8 @@ def _chain_joints(model, chain, start, parent_frame, external, velocity, limits)
     return joints
 
 
-def link_poses(model, q, joints=None):
+def link_poses(model: RobotModel, q: ArrayLike,
+               joints: Sequence['UrdfJoint'] | None = None) -> dict[str, DualQuaternion]:
     """
     Return ``{link: DualQuaternion}``: every URDF link's pose in the fixed frame at ``q``.
 
@@ -233,7 +237,7 @@ class HelperFrames:
     (``eeCarry_seg6`` under ``wrist_seg5``) and gives every URDF link a transform.
     """
 
-    def __init__(self, model):
+    def __init__(self, model: RobotModel):
         """Find the helper links of ``model``'s URDF and their offsets."""
         self.model = model
         self.static, self.moving = [], []
@@ -252,7 +256,7 @@ class HelperFrames:
             else:
                 self.moving.append((name, anchor))
 
-    def moving_poses(self, q):
+    def moving_poses(self, q: ArrayLike) -> list[np.ndarray]:
         """Return the offsets ``(x, y, z, qx, qy, qz, qw)`` of the moving helpers at ``q``."""
         if not self.moving:
             return []
@@ -262,7 +266,7 @@ class HelperFrames:
                 for name, anchor in self.moving]
 
 
-def robot_to_urdf(model):
+def robot_to_urdf(model: RobotModel) -> str:
     """Return URDF XML text for ``model``; joint names are the model's joint names."""
     links = {model.fixed_frame: []}
     lines = []
@@ -302,7 +306,7 @@ def robot_to_urdf(model):
     return '\n'.join(out + lines + ['</robot>']) + '\n'
 
 
-def description_urdf(model):
+def description_urdf(model: RobotModel) -> str:
     """
     Return the URDF to publish as ``robot_description`` for ``model``.
 
@@ -312,7 +316,8 @@ def description_urdf(model):
     return model.urdf if model.urdf is not None else robot_to_urdf(model)
 
 
-def link_segments(model, q, joints=None):
+def link_segments(model: RobotModel, q: ArrayLike,
+                  joints: Sequence['UrdfJoint'] | None = None) -> list[tuple]:
     """
     Return ``[(start, end), ...]``: the segments the URDF draws, in the fixed frame at ``q``.
 

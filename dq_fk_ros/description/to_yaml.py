@@ -6,17 +6,19 @@ row and link saying where it came from; numbers as YAML 1.1 and 1.2 both read th
 (:func:`~dq_fk_ros.description.schema.yaml_number`).
 """
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import json
 
 from dq_fk_ros.description.errors import printable_line
 from dq_fk_ros.description.schema import yaml_number
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
+import numpy as np
 
 NOISE = 1e-15               # numbers written as 0 (m or rad; far below the tests' 1e-12)
 
 
-def flow(mapping):
+def flow(mapping: Mapping) -> str:
     """Write a YAML flow mapping of numbers, names and small lists (JSON is valid YAML)."""
     parts = []
     for key, value in mapping.items():
@@ -24,7 +26,7 @@ def flow(mapping):
     return '{' + ', '.join(parts) + '}'
 
 
-def value_text(value):
+def value_text(value: object) -> str:
     """Write one value: a mapping, a list, a quoted name or a number (noise written as 0)."""
     if isinstance(value, dict):
         return flow(value)
@@ -37,12 +39,12 @@ def value_text(value):
     return yaml_number(value)
 
 
-def comment(text):
+def comment(text: str) -> str:
     """Make user text fit one YAML comment line: no line breaks, printable only."""
     return printable_line(text, 300)
 
 
-def transform(frame, m):
+def transform(frame: str, m: np.ndarray) -> str:
     """Write ``{frame, xyz, quaternion}`` of a 4x4 pose (the quaternion as x, y, z, w)."""
     w, x, y, z = quat_from_matrix(m[:3, :3])
     return flow({'frame': frame, 'xyz': m[:3, 3].tolist(), 'quaternion': [x, y, z, w]})
@@ -59,7 +61,9 @@ class ChainText:
     comment: str = ''
 
 
-def description_yaml(comments, robot, convention, fixed_frame, chains, links, end_effector):
+def description_yaml(comments: Sequence[str], robot: str, convention: str, fixed_frame: str,
+                     chains: Sequence['ChainText'], links: Sequence[Mapping],
+                     end_effector: str) -> str:
     """
     Return the YAML text of a robot description (``docs/robot_description.md``).
 

@@ -6,6 +6,7 @@ size of the URDF (at most :data:`MAX_URDF_ELEMENTS` links and joints); every pro
 :class:`~dq_fk_ros.description.errors.RobotDescriptionError` line.
 """
 
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 import math
@@ -51,18 +52,20 @@ class UrdfTree:
     slashed: tuple = ()   # link names the URDF wrote with a leading slash (tf2 strips it)
 
     @property
-    def roots(self):
+    def roots(self) -> list[str]:
         """Links that are no joint's child."""
         return [link for link in self.links if link not in self.joints]
 
     @cached_property
-    def by_name(self):
+    def by_name(self) -> dict[str, 'UrdfJointSpec']:
         """Return the joints by name."""
         return {joint.name: joint for joint in self.joints.values()}
 
 
-def read_urdf_text(path, read_roots=None, time_limit_s=TIME_LIMIT_S, should_stop=None,
-                   packages=None, within=None):
+def read_urdf_text(path: str | os.PathLike, read_roots: Sequence[str] | None = None,
+                   time_limit_s: float = TIME_LIMIT_S, should_stop: Callable | None = None,
+                   packages: Mapping[str, str] | None = None,
+                   within: Sequence[str] | None = None) -> str:
     """
     Return the URDF XML of a ``.urdf`` file, or of a ``.xacro`` file expanded by xacro.
 
@@ -101,7 +104,7 @@ def read_urdf_text(path, read_roots=None, time_limit_s=TIME_LIMIT_S, should_stop
         raise RobotDescriptionError(f'{path}: cannot be read ({exc.strerror})') from None
 
 
-def parse_urdf(text, source='<string>'):
+def parse_urdf(text: str, source: str = '<string>') -> UrdfTree:
     """Parse URDF XML into a :class:`UrdfTree`; any problem is one RobotDescriptionError."""
     if len(text) > MAX_URDF_BYTES:
         raise RobotDescriptionError(f'{source}: larger than {MAX_URDF_BYTES // 1024} KiB; '
@@ -169,7 +172,7 @@ def parse_urdf(text, source='<string>'):
     return tree
 
 
-def tf_name(link):
+def tf_name(link: str) -> str:
     """Return a link name as tf2 takes it: without one leading slash (``/base`` -> ``base``)."""
     return link[1:] if link.startswith('/') else link
 
@@ -246,7 +249,7 @@ def _numbers(text, size, where):
     return values
 
 
-def tree_joint(tree, name):
+def tree_joint(tree: UrdfTree, name: str) -> UrdfJointSpec:
     """Return the joint called ``name`` (a :class:`UrdfJointSpec`)."""
     joint = tree.by_name.get(name)
     if joint is None:

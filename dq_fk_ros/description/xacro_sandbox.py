@@ -23,6 +23,7 @@ one line on its stderr.
 """
 
 import ast
+from collections.abc import Callable, Mapping, Sequence
 import json
 import os
 import re
@@ -46,7 +47,7 @@ class XacroRefused(Exception):
     """What the child says when it refuses or fails (one line)."""
 
 
-def check_expression(text):
+def check_expression(text: str) -> ast.AST:
     """
     Raise :class:`XacroRefused` if a xacro expression could reach Python's internals.
 
@@ -79,7 +80,7 @@ def check_expression(text):
 
 
 # -- the parent's side -------------------------------------------------------------------
-def package_root(path):
+def package_root(path: str | os.PathLike) -> str:
     """Return the folder of the nearest ``package.xml`` above ``path``, else its folder."""
     folder = os.path.dirname(os.path.realpath(path))
     at = folder
@@ -92,7 +93,7 @@ def package_root(path):
         at = up
 
 
-def ros_package_roots(environ=None):
+def ros_package_roots(environ: Mapping[str, str] | None = None) -> list[str]:
     """Return the folders where ``$(find)`` looks: every ament prefix's share, ROS_PACKAGE_PATH."""
     environ = os.environ if environ is None else environ
     roots = [os.path.join(p, 'share') for p in
@@ -101,14 +102,17 @@ def ros_package_roots(environ=None):
     return roots
 
 
-def default_read_roots(path, extra=()):
+def default_read_roots(path: str | os.PathLike, extra: Sequence = ()) -> list[str]:
     """Return where a xacro file the user chose may read: its package, ROS packages, ``extra``."""
     return [package_root(path)] + ros_package_roots() + [os.fspath(e) for e in extra]
 
 
-def expand_xacro(path, read_roots, time_limit_s=TIME_LIMIT_S,
-                 memory_limit_bytes=MEMORY_LIMIT_BYTES, should_stop=None, packages=None,
-                 within=None):
+def expand_xacro(path: str | os.PathLike, read_roots: Sequence[str],
+                 time_limit_s: float = TIME_LIMIT_S,
+                 memory_limit_bytes: int = MEMORY_LIMIT_BYTES,
+                 should_stop: Callable | None = None,
+                 packages: Mapping[str, str] | None = None,
+                 within: Sequence[str] | None = None) -> str:
     """
     Return the URDF XML of the ``.xacro`` file ``path``, expanded in a confined child process.
 

@@ -21,15 +21,17 @@ The rows' factor program and the straight-line code generated from it are in
 """
 
 from array import array
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 import math
 
 from dq_fk_ros.kinematics.dh_code import row_program, run_program, unrolled_frame_poses
 from dq_fk_ros.kinematics.dual_quaternion import (
-    canonical, dq_multiply_array, dq_multiply_coeffs, dq_translation_array, DualQuaternion,
-    pose_xyzw_from_coeffs, quat_conjugate, quat_to_matrix)
+    canonical, Coeffs, dq_multiply_array, dq_multiply_coeffs, dq_translation_array, DualQuaternion,
+    Pose, pose_xyzw_from_coeffs, quat_conjugate, quat_to_matrix)
 import numpy as np
+from numpy.typing import ArrayLike
 
 CONVENTIONS = ('standard', 'modified')
 JOINT_TYPES = ('revolute', 'prismatic', 'cylindrical', 'fixed')
@@ -96,7 +98,7 @@ def _row_modified(ca, sa, a, theta, d):
             -hd * sa * ct - ha * ca * st, hd * ca * ct - ha * sa * st)
 
 
-def joint_value_list(q, joint_names):
+def joint_value_list(q: ArrayLike, joint_names: Sequence[str]) -> list[float]:
     """Return ``q`` as a list of floats, one per joint (ValueError naming the joints if not)."""
     if len(q) != len(joint_names):
         raise ValueError(f'expected {len(joint_names)} joint values {list(joint_names)}, '
@@ -113,7 +115,8 @@ class KinematicChain:
     fixed frame in one pass of cumulative products ([Zivkovic2023] eq. (16)).
     """
 
-    def __init__(self, joints, convention='standard', base=None, tool=None):
+    def __init__(self, joints: Sequence[DHJoint], convention: str = 'standard',
+                 base: DualQuaternion | None = None, tool: DualQuaternion | None = None):
         """
         Build a chain.
 
@@ -197,16 +200,16 @@ class KinematicChain:
                                 for row, j in zip(self._rows, self.joints))
 
     @property
-    def dof(self):
+    def dof(self) -> int:
         """Count the joint variables (the length of ``q``)."""
         return len(self.joint_names)
 
     @property
-    def n_frames(self):
+    def n_frames(self) -> int:
         """Count the frames ``forward_all`` returns: frame 0..n, plus the tool if any."""
         return len(self.joints) + 1 + (self.tool is not None)
 
-    def row_parameters(self, q):
+    def row_parameters(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Return the DH table at ``q``: arrays ``(theta, d)`` of every row, radians and metres."""
         theta, d = self._row_params_batch(self._check_q(q)[None, :])
         return theta[0], d[0]
@@ -238,11 +241,11 @@ class KinematicChain:
             frames.append(dq_multiply_coeffs(frames[-1], self._tool_t))
         return frames
 
-    def frame_coeffs(self, q):
+    def frame_coeffs(self, q: ArrayLike) -> list[Coeffs]:
         """Frames 0..n (and the tool) as 8-tuples of plain floats, not made ``w >= 0``."""
         return self._absolute_tuples(q)
 
-    def row_poses(self, q):
+    def row_poses(self, q: ArrayLike) -> list[Pose]:
         """
         Every row's transform frame i-1 -> frame i as ``(x, y, z, qx, qy, qz, qw)``, ``qw >= 0``.
 
@@ -275,7 +278,7 @@ class KinematicChain:
             append((x, y, z, qx, qy, qz, qw))
         return out
 
-    def frame_poses(self, q):
+    def frame_poses(self, q: ArrayLike) -> tuple[list[Pose], list[Pose]]:
         """
         Poses for publishing, as plain tuples ``(x, y, z, qx, qy, qz, qw)`` (``qw >= 0``).
 
@@ -291,7 +294,7 @@ class KinematicChain:
         """:meth:`frame_poses` as straight-line code, made on first use."""
         return unrolled_frame_poses(self)
 
-    def frame_poses_general(self, q):
+    def frame_poses_general(self, q: ArrayLike) -> tuple[list[Pose], list[Pose]]:
         """
         :meth:`frame_poses` by the general (looping) path: the reference.
 
@@ -301,11 +304,11 @@ class KinematicChain:
         absolute = [pose_xyzw_from_coeffs(h) for h in self._absolute_tuples(q)]
         return absolute, self.row_poses(q)
 
-    def relative_all(self, q):
+    def relative_all(self, q: ArrayLike) -> np.ndarray:
         """Relative transform of every row, frame i-1 -> frame i, as an ``(n, 8)`` array."""
         return np.array(self._relative_tuples(self._check_q(q).tolist()))
 
-    def forward_all(self, q):
+    def forward_all(self, q: ArrayLike) -> np.ndarray:
         """
         Absolute pose of every frame in the fixed frame, ``(n_frames, 8)``, ``w >= 0``.
 
@@ -316,7 +319,7 @@ class KinematicChain:
             flat += f if f[0] >= 0.0 else [-v for v in f]
         return np.frombuffer(array('d', flat)).reshape(-1, 8)
 
-    def forward(self, q):
+    def forward(self, q: ArrayLike) -> DualQuaternion:
         """Return the end-effector pose (tool if any, else frame n), a :class:`DualQuaternion`."""
         end = self._absolute_tuples(q)[-1]
         return DualQuaternion.from_array(np.frombuffer(
@@ -334,7 +337,7 @@ class KinematicChain:
         d = self._d0 + np.where(self._d_index >= 0, self._scale * qe[:, self._d_index], 0.0)
         return theta, d
 
-    def relative_all_batch(self, q):
+    def relative_all_batch(self, q: ArrayLike) -> np.ndarray:
         """Relative transforms of every row for N configurations: ``(N, n, 8)``."""
         theta, d = self._row_params_batch(q)
         half_t = 0.5 * theta
@@ -365,7 +368,7 @@ class KinematicChain:
                 frames.append(dq_multiply_coeffs(frames[-1], self._tool_t))
             yield part, frames
 
-    def forward_all_batch(self, q):
+    def forward_all_batch(self, q: ArrayLike) -> np.ndarray:
         """Absolute poses of every frame for N configurations: ``(N, n_frames, 8)``."""
         out = np.empty((len(q), self.n_frames, 8))
         for part, frames in self._batches(q):
@@ -374,7 +377,7 @@ class KinematicChain:
                     out[part, i, k] = frame[k]
         return _canonical_inplace(out)
 
-    def forward_batch(self, q):
+    def forward_batch(self, q: ArrayLike) -> np.ndarray:
         """End-effector poses (tool if any) for N configurations: ``(N, 8)``, ``w >= 0``."""
         out = np.empty((len(q), 8))
         for part, frames in self._batches(q):
@@ -402,7 +405,7 @@ class KinematicChain:
                 axes.append((int(self._d_index[i]), 'trans', self._scale[i], frame))
         return axes, end
 
-    def jacobian_dq(self, q):
+    def jacobian_dq(self, q: ArrayLike) -> np.ndarray:
         """
         Return the 8 x dof dual-quaternion Jacobian ``d vec(h_end) / d q`` (Adorno; [DQFKcpp2023]).
 
@@ -423,7 +426,7 @@ class KinematicChain:
             jac[:, var] += 0.5 * scale * dq_multiply_array(xi, end)
         return jac
 
-    def jacobian_geometric(self, q):
+    def jacobian_geometric(self, q: ArrayLike) -> np.ndarray:
         """
         Return the 6 x dof geometric Jacobian of the end effector in the fixed frame.
 
@@ -443,7 +446,7 @@ class KinematicChain:
                 jac[:3, var] += scale * z
         return jac
 
-    def twist(self, q, qdot):
+    def twist(self, q: ArrayLike, qdot: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """End-effector twist ``(v, omega)`` in the fixed frame from joint velocities."""
         qdot = np.asarray(qdot, dtype=float)
         if qdot.shape != (self.dof,):
@@ -451,7 +454,7 @@ class KinematicChain:
         v = self.jacobian_geometric(q) @ qdot
         return v[:3], v[3:]
 
-    def pose_rate(self, q, qdot):
+    def pose_rate(self, q: ArrayLike, qdot: ArrayLike) -> np.ndarray:
         """Time derivative of the end pose's 8 coefficients, ``J_dq qdot`` ([DQFKcpp2023])."""
         return self.jacobian_dq(q) @ np.asarray(qdot, dtype=float)
 
@@ -463,7 +466,7 @@ def _canonical_inplace(h):
     return h
 
 
-def homogeneous_from_dq(h):
+def homogeneous_from_dq(h: ArrayLike) -> np.ndarray:
     """4x4 matrices ``(..., 4, 4)`` of unit dual quaternions ``(..., 8)``."""
     h = np.asarray(h, dtype=float)
     m = np.zeros(h.shape[:-1] + (4, 4))

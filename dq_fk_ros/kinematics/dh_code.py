@@ -17,11 +17,15 @@ Dual quaternions are 8 coefficients ``(w, x, y, z, w', x', y', z')``; in the gen
 the real part is ``aw, ax, ay, az``, the dual part ``bw, bx, by, bz``.
 """
 
+from collections.abc import Callable, Sequence
 import math
-from typing import NamedTuple
+from typing import NamedTuple, TYPE_CHECKING
 
 from dq_fk_ros.kinematics.dual_quaternion import (
     dq_inverse_coeffs, dq_multiply_coeffs, pose_xyzw_from_coeffs)
+
+if TYPE_CHECKING:  # for the annotations only: dh imports this module
+    from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
 
 # The sparse factorisation of a DH row ([Zivkovic2023] eqs. (13)-(15)): the z factor
 # Rz(theta) Tz(d) = (c + s k)(1 + eps d/2 k) and the x factor Tx(a) Rx(alpha) =
@@ -58,7 +62,7 @@ class XStep(NamedTuple):
     mark: bool
 
 
-def row_program(joint, ti, di, modified):
+def row_program(joint: 'DHJoint', ti: int, di: int, modified: bool) -> list[ZStep | XStep]:
     """
     Compile one DH row into its z and x factors (:class:`ZStep`, :class:`XStep`).
 
@@ -75,7 +79,8 @@ def row_program(joint, ti, di, modified):
     return [ZStep(*op) if op[0] == _Z else XStep(*op) for op in ops]
 
 
-def run_program(program, base, q, cos, sin):
+def run_program(program: Sequence[ZStep | XStep], base: Sequence, q: Sequence,
+                cos: Callable, sin: Callable) -> list[tuple]:
     """
     Multiply ``base`` by the compiled factors; return the frames marked along the way.
 
@@ -157,7 +162,8 @@ def _product_code(a, b):
     return out
 
 
-def run_chain_program(chain, base, q, cos, sin):
+def run_chain_program(chain: 'KinematicChain', base: Sequence, q: Sequence, cos: Callable,
+                      sin: Callable) -> list[tuple]:
     """
     Return the frames of ``chain`` (frame 0..n, then the tool) starting from ``base``.
 
@@ -225,7 +231,9 @@ def _chain_code(chain, q_index, first, keep, mark=_MARK):
     return lines
 
 
-def unrolled_frame_poses(chain, links=(), motion=None, branches=(), absolute=True):
+def unrolled_frame_poses(chain: 'KinematicChain', links: Sequence[tuple] = (),
+                         motion: Callable | None = None, branches: Sequence[tuple] = (),
+                         absolute: bool = True) -> Callable[[list[float]], tuple[list, list]]:
     """
     Write and compile ``frame_poses`` as straight-line code for a chain (its branches, links).
 

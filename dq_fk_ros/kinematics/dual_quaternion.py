@@ -21,10 +21,17 @@ The ``*_array`` functions broadcast over leading axes (``(..., 4)`` and ``(..., 
 serve the batch paths; :class:`DualQuaternion` is the convenient single-pose object.
 """
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
+
+# a dual quaternion as 8 floats (w, x, y, z, w', x', y', z'); a pose (x, y, z, qx, qy, qz, qw)
+Coeffs = tuple[float, float, float, float, float, float, float, float]
+Pose = tuple[float, float, float, float, float, float, float]
 
 
-def quat_multiply(a, b):
+def quat_multiply(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """Hamilton product of quaternions ``(..., 4)``, (w, x, y, z) ([Zivkovic2023] Table 1)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
@@ -38,13 +45,13 @@ def quat_multiply(a, b):
     ], axis=-1)
 
 
-def quat_conjugate(q):
+def quat_conjugate(q: ArrayLike) -> np.ndarray:
     """Quaternion conjugate ``(w, -x, -y, -z)`` of ``(..., 4)`` arrays."""
     q = np.asarray(q, dtype=float)
     return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
-def quat_from_axis_angle(axis, angle_rad):
+def quat_from_axis_angle(axis: ArrayLike, angle_rad: float) -> np.ndarray:
     """Return the unit quaternion (w, x, y, z) rotating ``angle_rad`` about ``axis``, eq. (3)."""
     axis = np.asarray(axis, dtype=float)
     norm = np.linalg.norm(axis)
@@ -54,7 +61,7 @@ def quat_from_axis_angle(axis, angle_rad):
     return np.concatenate([[np.cos(half)], np.sin(half) * axis / norm])
 
 
-def quat_to_matrix(q):
+def quat_to_matrix(q: ArrayLike) -> np.ndarray:
     """3x3 rotation matrix (or ``(..., 3, 3)``) of unit quaternions (w, x, y, z)."""
     q = np.asarray(q, dtype=float)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
@@ -71,7 +78,7 @@ def quat_to_matrix(q):
     return m
 
 
-def quat_from_matrix(m):
+def quat_from_matrix(m: ArrayLike) -> np.ndarray:
     """Return the unit quaternion (w, x, y, z), ``w >= 0``, of a 3x3 rotation (Shepperd)."""
     m = np.asarray(m, dtype=float)
     if m.shape != (3, 3):
@@ -100,17 +107,17 @@ def quat_from_matrix(m):
     return -q if q[0] < 0 else q
 
 
-def quat_wxyz_to_xyzw(q):
+def quat_wxyz_to_xyzw(q: ArrayLike) -> np.ndarray:
     """Reorder quaternions ``(..., 4)`` from (w, x, y, z) to ROS's (x, y, z, w)."""
     return np.asarray(q)[..., [1, 2, 3, 0]]
 
 
-def quat_xyzw_to_wxyz(q):
+def quat_xyzw_to_wxyz(q: ArrayLike) -> np.ndarray:
     """Reorder quaternions ``(..., 4)`` from ROS's (x, y, z, w) to (w, x, y, z)."""
     return np.asarray(q)[..., [3, 0, 1, 2]]
 
 
-def dq_multiply_array(a, b):
+def dq_multiply_array(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """Dual-quaternion product of ``(..., 8)`` arrays, [Zivkovic2023] eq. (12)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
@@ -119,7 +126,7 @@ def dq_multiply_array(a, b):
     return np.concatenate([real, dual], axis=-1)
 
 
-def dq_from_pose_array(rotation_wxyz, translation):
+def dq_from_pose_array(rotation_wxyz: ArrayLike, translation: ArrayLike) -> np.ndarray:
     """Return dual quaternions ``(..., 8)`` of poses: ``r + eps t r / 2``, [Zivkovic2023] (7)."""
     r = np.asarray(rotation_wxyz, dtype=float)
     t = np.asarray(translation, dtype=float)
@@ -127,25 +134,25 @@ def dq_from_pose_array(rotation_wxyz, translation):
     return np.concatenate([r, 0.5 * quat_multiply(t_quat, r)], axis=-1)
 
 
-def dq_translation_array(h):
+def dq_translation_array(h: np.ndarray) -> np.ndarray:
     """Return translations ``(..., 3)`` of unit poses: ``2 d r*``, [Zivkovic2023] eq. (17)."""
     h = np.asarray(h, dtype=float)
     return 2.0 * quat_multiply(h[..., 4:], quat_conjugate(h[..., :4]))[..., 1:]
 
 
-def canonical(h):
+def canonical(h: np.ndarray) -> np.ndarray:
     """Flip dual quaternions ``(..., 8)`` whose real part has ``w < 0``: the same pose."""
     h = np.asarray(h, dtype=float)
     return np.where(h[..., :1] < 0.0, -h, h)
 
 
-def dq_to_pose_xyzw(h):
+def dq_to_pose_xyzw(h: np.ndarray) -> np.ndarray:
     """Poses ``(..., 7)``: position x y z then quaternion x y z w (the ROS order), ``w >= 0``."""
     h = canonical(h)
     return np.concatenate([dq_translation_array(h), quat_wxyz_to_xyzw(h[..., :4])], axis=-1)
 
 
-def pose_xyzw_from_coeffs(h):
+def pose_xyzw_from_coeffs(h: Sequence[float]) -> Pose:
     """
     Pose ``(x, y, z, qx, qy, qz, qw)`` of 8 plain floats, ``qw >= 0``; no numpy.
 
@@ -162,7 +169,7 @@ def pose_xyzw_from_coeffs(h):
             x, y, z, w)
 
 
-def dq_multiply_coeffs(a, b):
+def dq_multiply_coeffs(a: Sequence[float], b: Sequence[float]) -> Coeffs:
     """[Zivkovic2023] eq. (12) on two 8-tuples (floats, or equal-length arrays each)."""
     aw, ax, ay, az, bw_, bx_, by_, bz_ = a
     cw, cx, cy, cz, dw, dx, dy, dz = b
@@ -178,13 +185,13 @@ def dq_multiply_coeffs(a, b):
     )
 
 
-def dq_inverse_coeffs(h):
+def dq_inverse_coeffs(h: Sequence[float]) -> Coeffs:
     """Inverse of a unit dual quaternion given as 8 plain floats: both parts conjugated."""
     w, x, y, z, dw, dx, dy, dz = h
     return (w, -x, -y, -z, dw, -dx, -dy, -dz)
 
 
-def dq_normalize_array(h):
+def dq_normalize_array(h: ArrayLike) -> np.ndarray:
     """
     Project ``(..., 8)`` arrays onto unit dual quaternions.
 
@@ -211,7 +218,7 @@ class DualQuaternion:
 
     __slots__ = ('coeffs',)
 
-    def __init__(self, coeffs):
+    def __init__(self, coeffs: ArrayLike):
         coeffs = np.array(coeffs, dtype=float).reshape(-1)
         if coeffs.shape != (8,):
             raise ValueError(f'a dual quaternion has 8 coefficients, got {coeffs.size}')
@@ -219,19 +226,20 @@ class DualQuaternion:
 
     # -- construction ------------------------------------------------------------------
     @classmethod
-    def from_array(cls, coeffs):
+    def from_array(cls, coeffs: ArrayLike) -> 'DualQuaternion':
         """Wrap a float64 array of shape (8,) without copying or checking it."""
         h = cls.__new__(cls)
         h.coeffs = coeffs
         return h
 
     @classmethod
-    def identity(cls):
+    def identity(cls) -> 'DualQuaternion':
         """Return the identity transform."""
         return cls([1.0, 0, 0, 0, 0, 0, 0, 0])
 
     @classmethod
-    def from_pose(cls, rotation_wxyz=(1.0, 0.0, 0.0, 0.0), translation=(0.0, 0.0, 0.0)):
+    def from_pose(cls, rotation_wxyz: ArrayLike = (1.0, 0.0, 0.0, 0.0),
+                  translation: ArrayLike = (0.0, 0.0, 0.0)) -> 'DualQuaternion':
         """Pose from a unit quaternion (w, x, y, z) and a translation in the parent frame."""
         r = np.asarray(rotation_wxyz, dtype=float)
         norm = np.linalg.norm(r)
@@ -240,17 +248,17 @@ class DualQuaternion:
         return cls(dq_from_pose_array(r / norm, translation))
 
     @classmethod
-    def from_rotation(cls, axis, angle_rad):
+    def from_rotation(cls, axis: ArrayLike, angle_rad: float) -> 'DualQuaternion':
         """Pure rotation by ``angle_rad`` about ``axis`` through the origin."""
         return cls.from_pose(quat_from_axis_angle(axis, angle_rad))
 
     @classmethod
-    def from_translation(cls, translation):
+    def from_translation(cls, translation: ArrayLike) -> 'DualQuaternion':
         """Pure translation (metres)."""
         return cls.from_pose(translation=translation)
 
     @classmethod
-    def from_matrix(cls, matrix):
+    def from_matrix(cls, matrix: ArrayLike) -> 'DualQuaternion':
         """Pose from a 4x4 homogeneous transformation matrix."""
         matrix = np.asarray(matrix, dtype=float)
         if matrix.shape != (4, 4):
@@ -259,33 +267,33 @@ class DualQuaternion:
 
     # -- parts -------------------------------------------------------------------------
     @property
-    def real(self):
+    def real(self) -> np.ndarray:
         """Real (primary) part, a quaternion (w, x, y, z); the rotation of a unit pose."""
         return self.coeffs[:4]
 
     @property
-    def dual(self):
+    def dual(self) -> np.ndarray:
         """Dual part, a quaternion (w, x, y, z)."""
         return self.coeffs[4:]
 
     @property
-    def rotation_wxyz(self):
+    def rotation_wxyz(self) -> np.ndarray:
         """Rotation quaternion (w, x, y, z), [Zivkovic2023] eq. (18) (sign as stored)."""
         return self.coeffs[:4].copy()
 
     @property
-    def translation(self):
+    def translation(self) -> np.ndarray:
         """Return the position (x, y, z) of a unit pose, [Zivkovic2023] eq. (17)."""
         return dq_translation_array(self.coeffs)
 
-    def to_matrix(self):
+    def to_matrix(self) -> np.ndarray:
         """4x4 homogeneous transformation matrix of a unit dual quaternion."""
         m = np.eye(4)
         m[:3, :3] = quat_to_matrix(self.coeffs[:4])
         m[:3, 3] = self.translation
         return m
 
-    def to_pose_xyzw(self):
+    def to_pose_xyzw(self) -> np.ndarray:
         """Position (x, y, z) and quaternion (x, y, z, w) with ``w >= 0``, as 7 floats."""
         return dq_to_pose_xyzw(self.coeffs)
 
@@ -320,41 +328,41 @@ class DualQuaternion:
         """Show the 8 coefficients in (w, x, y, z, w', x', y', z') order."""
         return 'DualQuaternion(' + ', '.join(f'{c:.9g}' for c in self.coeffs) + ')'
 
-    def conjugate(self):
+    def conjugate(self) -> 'DualQuaternion':
         """Quaternion conjugate of both parts, ``r* + eps d*``: the inverse of a unit pose."""
         return DualQuaternion(np.concatenate([quat_conjugate(self.real),
                                               quat_conjugate(self.dual)]))
 
-    def dual_number_conjugate(self):
+    def dual_number_conjugate(self) -> 'DualQuaternion':
         """Dual-number conjugate ``r - eps d``."""
         return DualQuaternion(np.concatenate([self.real, -self.dual]))
 
-    def combined_conjugate(self):
+    def combined_conjugate(self) -> 'DualQuaternion':
         """Both conjugates at once, ``r* - eps d*`` (used to transform points)."""
         return DualQuaternion(np.concatenate([quat_conjugate(self.real),
                                               -quat_conjugate(self.dual)]))
 
-    def norm(self):
+    def norm(self) -> tuple[float, float]:
         """Dual-number norm ``(|r|, r . d / |r|)`` (real part, dual part)."""
         n = float(np.linalg.norm(self.real))
         if n == 0.0:
             return 0.0, 0.0
         return n, float(np.dot(self.real, self.dual)) / n
 
-    def is_unit(self, tol=1e-9):
+    def is_unit(self, tol: float = 1e-9) -> bool:
         """Whether ``|r| = 1`` and ``r . d = 0`` within ``tol``."""
         n_real, n_dual = self.norm()
         return abs(n_real - 1.0) <= tol and abs(n_dual) <= tol
 
-    def normalized(self):
+    def normalized(self) -> 'DualQuaternion':
         """Return the nearest unit dual quaternion (see :func:`dq_normalize_array`)."""
         return DualQuaternion(dq_normalize_array(self.coeffs))
 
-    def canonical(self):
+    def canonical(self) -> 'DualQuaternion':
         """Return the same pose with ``w >= 0`` in the real part."""
         return DualQuaternion(canonical(self.coeffs))
 
-    def inverse(self):
+    def inverse(self) -> 'DualQuaternion':
         """Multiplicative inverse ``r^-1 - eps r^-1 d r^-1`` (any non-zero real part)."""
         r = self.real
         n2 = float(np.dot(r, r))
@@ -364,20 +372,20 @@ class DualQuaternion:
         d_inv = -quat_multiply(quat_multiply(r_inv, self.dual), r_inv)
         return DualQuaternion(np.concatenate([r_inv, d_inv]))
 
-    def transform_point(self, point):
+    def transform_point(self, point: ArrayLike) -> np.ndarray:
         """Map a point (x, y, z) from the child frame to the parent frame."""
         point = np.asarray(point, dtype=float)
         p = np.concatenate([[0.0], point])
         rotated = quat_multiply(quat_multiply(self.real, p), quat_conjugate(self.real))
         return rotated[1:] + self.translation
 
-    def isclose(self, other, atol=1e-9):
+    def isclose(self, other: 'DualQuaternion', atol: float = 1e-9) -> bool:
         """Whether both represent the same pose (``h`` or ``-h``) within ``atol``."""
         a, b = self.coeffs, other.coeffs
         return bool(np.allclose(a, b, atol=atol, rtol=0) or np.allclose(a, -b, atol=atol, rtol=0))
 
     # -- screw motion ------------------------------------------------------------------
-    def screw_parameters(self):
+    def screw_parameters(self) -> tuple[float, float, np.ndarray, np.ndarray]:
         """
         Screw of a unit pose: ``(theta, d, axis, moment)``.
 
@@ -401,7 +409,8 @@ class DualQuaternion:
         return theta, dist, axis, moment
 
     @classmethod
-    def from_screw_parameters(cls, theta, dist, axis, moment):
+    def from_screw_parameters(cls, theta: float, dist: float, axis: ArrayLike,
+                              moment: ArrayLike) -> 'DualQuaternion':
         """Return the unit pose of a screw motion (inverse of :meth:`screw_parameters`)."""
         axis = np.asarray(axis, dtype=float)
         moment = np.asarray(moment, dtype=float)
@@ -410,11 +419,11 @@ class DualQuaternion:
         dual = np.concatenate([[-0.5 * dist * s], s * moment + 0.5 * dist * c * axis])
         return cls(np.concatenate([real, dual]))
 
-    def power(self, tau):
+    def power(self, tau: float) -> 'DualQuaternion':
         """``h ** tau`` of a unit pose: the same screw axis, ``tau`` times the motion."""
         theta, dist, axis, moment = self.screw_parameters()
         return DualQuaternion.from_screw_parameters(tau * theta, tau * dist, axis, moment)
 
-    def sclerp(self, other, tau):
+    def sclerp(self, other: 'DualQuaternion', tau: float) -> 'DualQuaternion':
         """Screw-linear interpolation ``self (self^-1 other)^tau``, ``tau`` in [0, 1]."""
         return self * (self.conjugate() * other).power(tau)

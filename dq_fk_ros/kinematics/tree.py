@@ -5,12 +5,14 @@ Plain Python floats with the dual-quaternion product of [Zivkovic2023] eq. (12);
 cross this boundary as ``(x, y, z, qx, qy, qz, qw)`` (metres, the ROS quaternion order).
 """
 
+from collections.abc import Mapping, Sequence
 import math
 
-from dq_fk_ros.kinematics.dual_quaternion import dq_multiply_coeffs, pose_xyzw_from_coeffs
+from dq_fk_ros.kinematics.dual_quaternion import (
+    Coeffs, dq_multiply_coeffs, Pose, pose_xyzw_from_coeffs)
 
 
-def coeffs_from_pose(pose):
+def coeffs_from_pose(pose: Sequence[float]) -> Coeffs | None:
     """
     Return the 8 coefficients ``(w, x, y, z | w', x', y', z')`` of ``(x, y, z, qx..qw)``.
 
@@ -30,12 +32,12 @@ def coeffs_from_pose(pose):
             0.5 * (x * qy - y * qx + z * w))
 
 
-def roots(edges):
+def roots(edges: Mapping[str, tuple]) -> list[str]:
     """Return the frames that are some frame's parent and no frame's child, sorted."""
     return sorted({parent for parent, _ in edges.values()} - set(edges))
 
 
-def compose_tree(edges, root):
+def compose_tree(edges: Mapping[str, tuple], root: str) -> dict[str, Pose]:
     """
     Return ``{frame: (x, y, z, qx, qy, qz, qw)}``: every frame below ``root``, posed in it.
 
@@ -59,7 +61,7 @@ def compose_tree(edges, root):
     return out
 
 
-def depths(edges, root):
+def depths(edges: Mapping[str, tuple], root: str) -> dict[str, int]:
     """Return ``{frame: number of transforms from root}`` of every frame below ``root``."""
     children = _children(edges)
     out, stack = {}, [(root, 0)]

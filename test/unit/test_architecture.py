@@ -40,11 +40,23 @@ def modules():
                 yield (parts[0] if len(parts) > 1 else None), rel
 
 
-def imported(path):
-    """Every module name an ``import`` or ``from ... import`` in the file names."""
+def imported(path, at_run_time_only=False):
+    """
+    Every module name an ``import`` or ``from ... import`` in the file names.
+
+    :param at_run_time_only: leave out those under ``if TYPE_CHECKING:`` (for annotations
+        only: they never run, so they make no import cycle).
+    """
     with open(os.path.join(PACKAGE, path), encoding='utf-8') as stream:
         tree = ast.parse(stream.read())
+    skipped = set()
+    if at_run_time_only:
+        for node in ast.walk(tree):
+            if isinstance(node, ast.If) and getattr(node.test, 'id', None) == 'TYPE_CHECKING':
+                skipped.update(id(n) for n in ast.walk(node))
     for node in ast.walk(tree):
+        if id(node) in skipped:
+            continue
         if isinstance(node, ast.Import):
             yield from (alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -103,7 +115,8 @@ def import_graph():
     for _, rel in modules():
         name = 'dq_fk_ros.' + rel[:-3].replace(os.sep, '.')
         name = name[:-len('.__init__')] if name.endswith('.__init__') else name
-        graph[name] = {m for m in imported(rel) if m and m.startswith('dq_fk_ros.')}
+        graph[name] = {m for m in imported(rel, at_run_time_only=True)
+                       if m and m.startswith('dq_fk_ros.')}
     return graph
 
 
@@ -152,3 +165,40 @@ def test_a_long_module_says_why_in_its_docstring():
             if 'Why this file is long:' not in doc:
                 unexplained.append(f'{rel} ({text.count(chr(10))} lines)')
     assert unexplained == []
+
+
+def unannotated(rel):
+    """Yield ``name (what is missing)`` of each public function or method without hints."""
+    with open(os.path.join(PACKAGE, rel), encoding='utf-8') as stream:
+        tree = ast.parse(stream.read())
+
+    def check(function, owner=''):
+        if function.name.startswith('_') and function.name != '__init__':
+            return
+        args = function.args.posonlyargs + function.args.args + function.args.kwonlyargs
+        missing = [a.arg for a in args if a.arg not in ('self', 'cls') and a.annotation is None]
+        if function.returns is None and function.name != '__init__':
+            missing.append('return')
+        if missing:
+            yield f'{rel}:{function.lineno} {owner}{function.name} ({", ".join(missing)})'
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef):
+            yield from check(node)
+        elif isinstance(node, ast.ClassDef) and not node.name.startswith('_'):
+            for item in node.body:
+                if isinstance(item, ast.FunctionDef):
+                    yield from check(item, node.name + '.')
+
+
+def test_the_public_functions_of_kinematics_and_description_have_type_hints():
+    missing = [line for layer, rel in modules() if layer in ('kinematics', 'description')
+               for line in unannotated(rel)]
+    assert missing == []
+
+
+def test_a_missing_hint_would_be_found(tmp_path, monkeypatch):
+    (tmp_path / 'kinematics').mkdir()
+    (tmp_path / 'kinematics' / 'bare.py').write_text(
+        'def forward(q):\n    return q\n\n\ndef _private(q):\n    return q\n')
+    monkeypatch.setattr(sys.modules[__name__], 'PACKAGE', str(tmp_path))
+    assert list(unannotated('kinematics/bare.py')) == ['kinematics/bare.py:1 forward (q, return)']
