@@ -18,6 +18,8 @@ setup(
                                             'web/package-lock.json']),
     ],
     install_requires=['setuptools', 'numpy', 'PyYAML'],
+    # dq_fk_bag process --scheduler: a Dask cluster (pip install 'dq_fk_ros[cluster]')
+    extras_require={'cluster': ['dask[distributed]']},
     zip_safe=True,
     maintainer='dq_fk_ros developers',
     maintainer_email='dq_fk_ros@example.com',

@@ -7,6 +7,7 @@ written as /tf, /tf_static and the node's pose topics to a new bag (MCAP by defa
 ``csv_path`` gets the end-effector pose per message.
 """
 
+from collections import Counter
 from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 import os
@@ -23,6 +24,19 @@ from dq_fk_ros.messages.joint_states import JointStateMerger
 import numpy as np
 
 CHUNK = 4096
+# the fleet's progress: a shared counter of JointStates read (set in its workers), or None
+_progress_counter = None
+
+
+def set_progress_counter(counter):
+    """
+    Count the JointStates every processing in this process reads into ``counter``.
+
+    ``counter``: a ``multiprocessing.Value`` (or None: no counting); a fleet's pool sets it
+    in each worker, so the parent shows one progress bar for all of them.
+    """
+    global _progress_counter
+    _progress_counter = counter
 
 
 def check_output_paths(in_path, out_path, csv_path, overwrite, csv_only):
@@ -134,7 +148,8 @@ class ProcessSummary:
     does not have; ``error``: one line if part of the bag was damaged or nothing could be
     used (else None); ``note``: one line about how the bag was read (else None);
     ``output``: the bag written (None: nothing, or ``csv_only``); ``topic``: the topic read;
-    ``joint_names_seen``: the first 50 joint names the messages carried.
+    ``joint_names_seen``: the first 50 joint names the messages carried; ``time_jumps``: the
+    times the stamps jumped back and the joint state was reset.
     """
 
     read: int = 0
@@ -147,6 +162,7 @@ class ProcessSummary:
     output: object = None
     topic: str = None
     joint_names_seen: list = field(default_factory=list)
+    time_jumps: int = 0
 
 
 @dataclass(frozen=True)
@@ -226,6 +242,28 @@ def process_bag(in_path, out_path, robot, options=None, **changes):
     return summary
 
 
+def process_window(in_path, out_path, model, options, window):
+    """
+    Process one window of a bag (see :mod:`dq_fk_ros.bag.windows`) into its own bag.
+
+    As :func:`process_bag` on the messages of the window, after merging those of the
+    window's look-back (not written) so it starts from the joint values the bag held there;
+    /tf_static and /robot_description only in the first window. No CSV, no fallback for a
+    damaged chunk (the fleet then processes the whole bag with :func:`process_bag`).
+    Returns a :class:`ProcessSummary` of the window's messages alone.
+    """
+    o = replace(options, csv_path=None, csv_only=False)
+    reader = open_reader(in_path)
+    try:
+        summary = _process_with(reader, model, in_path, out_path, o, window)
+    except _ReadingStopped as stop:
+        summary = stop.partial
+    finally:
+        reader.close()
+    summary.output = out_path
+    return summary
+
+
 def nothing_usable(in_path, summary, model, robot):
     """One line: no message could be used, what the bag has and what the robot needs."""
     names = [printable(n, 40) for n in summary.joint_names_seen]
@@ -237,8 +275,12 @@ def nothing_usable(in_path, summary, model, robot):
             f"{model.name}{source} needs {', '.join(model.joint_names)}")
 
 
-def _process_with(reader, model, in_path, out_path, o):
-    """Process the bag with one reader (options ``o``); raises ``_ReadingStopped`` if it fails."""
+def _process_with(reader, model, in_path, out_path, o, window=None):
+    """
+    Process the bag with one reader (options ``o``); raises ``_ReadingStopped`` if it fails.
+
+    :param window: a :class:`~dq_fk_ros.bag.windows.Window`: only its messages (None: all).
+    """
     topic, storage, csv_path, csv_only = o.topic, o.storage, o.csv_path, o.csv_only
     copy_input, pose_namespace, frame_prefix = o.copy_input, o.pose_namespace, o.frame_prefix
     out_of_limits, progress, chunk, poses = o.out_of_limits, o.progress, o.chunk, o.poses
@@ -261,9 +303,11 @@ def _process_with(reader, model, in_path, out_path, o):
         shutil.rmtree(out_path, ignore_errors=True)
         raise
     try:
+        if outputs is not None and window is not None and window.index:
+            outputs.static_written = True  # the first window writes /tf_static
         summary, stopped = _process_messages(reader, conns, model, outputs, csv_path,
                                              copy_input, out_of_limits, progress, chunk,
-                                             in_path)
+                                             in_path, window)
     finally:
         if writer is not None:
             writer.close()
@@ -273,11 +317,53 @@ def _process_with(reader, model, in_path, out_path, o):
     return summary
 
 
+def _merge_raws(merger, cache, raws):
+    """Parse and merge serialized JointStates (the node's rules); return the runs and merge."""
+    items = parse_joint_states(raws, cache)
+    runs = [item for item in items if isinstance(item, JointStateRun)]
+    malformed = len(items) - len(runs)
+    merger.counts['received'] += malformed
+    merger.count_rejected('malformed_cdr', malformed)
+    return runs, merger.merge_many(
+        [(r.names, r.positions, r.velocities, r.stamps_ns) for r in runs])
+
+
+def _look_back(reader, conns, model, out_of_limits, chunk, window):
+    """
+    Return a merger holding the joint values the bag held at the window's start.
+
+    Merges the messages of the look-back spans (one chunk before the window, then two,
+    four... back to the bag's start) until every joint has been named; its counts are then
+    cleared (those messages belong to earlier windows), the time jumps seen kept.
+    """
+    for start in window.lookback_ns:
+        merger = JointStateMerger(model.joint_names, model.limits, out_of_limits,
+                                  required=len(model.required_joints))
+        cache, raws = JointStateNames(), []
+        for _, _, raw in reader.messages(connections=conns, start=start,
+                                         stop=window.start_ns):
+            raws.append(raw)
+            if len(raws) == chunk:
+                _merge_raws(merger, cache, raws)
+                raws = []
+        if raws:
+            _merge_raws(merger, cache, raws)
+        if not merger.never_seen_any:
+            break
+    jumps = merger.counts['time_jumps']
+    merger.counts, merger.unknown = Counter(), set()
+    return merger, jumps
+
+
 def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_of_limits,
-                      progress, chunk, in_path):
-    """Read, merge, compute and write chunk by chunk; return the summary dict."""
-    merger = JointStateMerger(model.joint_names, model.limits, out_of_limits,
-                              required=len(model.required_joints))
+                      progress, chunk, in_path, window=None):
+    """Read, merge, compute and write chunk by chunk; return the summary and if it stopped."""
+    jumps_before = 0
+    if window is not None and window.start_ns is not None:
+        merger, jumps_before = _look_back(reader, conns, model, out_of_limits, chunk, window)
+    else:
+        merger = JointStateMerger(model.joint_names, model.limits, out_of_limits,
+                                  required=len(model.required_joints))
     cache = JointStateNames()
     ids = {c.id for c in conns}
     meter = Progress(sum(c.msgcount for c in conns), 'dq_fk_bag process', enabled=progress)
@@ -296,16 +382,11 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
             nonlocal written
             if not raws:
                 return
-            items = parse_joint_states(raws, cache)
-            runs = [item for item in items if isinstance(item, JointStateRun)]
+            counted = len(raws)
+            runs, (published, q, _) = _merge_raws(merger, cache, raws)
             for run in runs:
                 if len(names_seen) < 50:
                     names_seen.extend(n for n in run.names if n not in names_seen)
-            malformed = len(items) - len(runs)
-            merger.counts['received'] += malformed
-            merger.count_rejected('malformed_cdr', malformed)
-            published, q, _ = merger.merge_many(
-                [(r.names, r.positions, r.velocities, r.stamps_ns) for r in runs])
             # message index in this batch of every run message, in merge order
             where = np.concatenate([r.first + np.arange(len(r.stamps_ns)) for r in runs] or [[]])
             where = where.astype(np.int64)[published]
@@ -315,6 +396,9 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
             stamps = np.where(stamps != 0, stamps, out_times)  # output stamps are input stamps
             raws.clear()
             log_times.clear()
+            if _progress_counter is not None:
+                with _progress_counter.get_lock():
+                    _progress_counter.value += counted
             if not len(q):
                 return
             if outputs is not None:
@@ -328,8 +412,9 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
                 csv.writelines(line % (s, *p) for s, p in zip(stamps.tolist(), ee.tolist()))
             written += len(q)
 
+        span = {} if window is None else {'start': window.start_ns, 'stop': window.stop_ns}
         messages = iter(reader.messages(
-            connections=list(reader.connections) if copy_input else conns))
+            connections=list(reader.connections) if copy_input else conns, **span))
         while True:
             try:
                 conn, log_time, raw = next(messages)
@@ -356,4 +441,5 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
                     if k.startswith('rejected_') and v}
         return ProcessSummary(read=seen, written=written, incomplete=counts['incomplete'],
                               rejected=rejected, unknown_joints=sorted(merger.unknown),
-                              error=error, joint_names_seen=names_seen[:50]), stopped
+                              error=error, joint_names_seen=names_seen[:50],
+                              time_jumps=jumps_before + counts['time_jumps']), stopped

@@ -5,6 +5,9 @@
   same input rules as the node, then the batched FK in chunks, written as /tf, /tf_static and
   the pose topics of the node to a new bag (:mod:`dq_fk_ros.bag.process`); ``--csv`` writes
   the end-effector pose per message.
+* ``dq_fk_bag process IN [IN ...] --output-dir OUT --robot FILE``: every bag under the IN
+  paths, on every core (``--jobs``) or a Dask cluster (``--scheduler``), resumable
+  (:mod:`dq_fk_ros.bag.fleet`); exit 1 if any bag failed.
 * ``dq_fk_bag play BAG``: publishes the bag's JointState messages with their recorded timing
   (``--rate``, ``--loop``, ``--start``, ``--duration``, ``--clock``) into a running node
   (:mod:`dq_fk_ros.ros.bag_play`).
@@ -12,6 +15,7 @@
 
 import argparse
 import math
+import os
 import sys
 
 from dq_fk_ros.bag.process import process_bag, ProcessOptions
@@ -41,9 +45,13 @@ def build_parser():
     parser = argparse.ArgumentParser(
         prog='dq_fk_bag', description='Joint-state bags: offline FK into a new bag, or replay.')
     sub = parser.add_subparsers(dest='command', required=True)
-    p = sub.add_parser('process', help='compute every frame for every JointState of a bag')
-    p.add_argument('in_bag', metavar='IN_BAG')
-    p.add_argument('out_bag', metavar='OUT_BAG')
+    p = sub.add_parser(
+        'process', help='compute every frame for every JointState of a bag (or of many)',
+        usage='dq_fk_bag process IN_BAG OUT_BAG --robot R [options]\n'
+              '       dq_fk_bag process IN [IN ...] --output-dir OUT --robot R '
+              '[--jobs N | --scheduler ADDRESS] [options]')
+    p.add_argument('paths', nargs='+', metavar='IN',
+                   help='IN_BAG OUT_BAG; with --output-dir: bags, bag files or folders of bags')
     p.add_argument('--robot', required=True,
                    help='DH robot file, URDF/xacro file or shipped robot name (e.g. rl15, '
                    'ur5e); required: a bag does not say which robot recorded it')
@@ -62,6 +70,18 @@ def build_parser():
                    help='pose topics written: every frame (default), the end effector, none')
     p.add_argument('--out-of-limits', choices=('warn', 'clamp', 'reject'), default='warn')
     p.add_argument('--quiet', action='store_true', help='no progress output')
+    g = p.add_argument_group('a fleet of bags (docs/bags.md, "A fleet of bags")')
+    g.add_argument('--output-dir', metavar='OUT',
+                   help='process every bag under the IN paths into OUT (same layout)')
+    g.add_argument('--jobs', type=int, metavar='N',
+                   help='worker processes (default: the CPUs this process may use)')
+    g.add_argument('--scheduler', metavar='ADDRESS',
+                   help="a Dask scheduler (tcp://HOST:8786) or 'local' (a LocalCluster of "
+                   "--jobs processes); needs pip install 'dq_fk_ros[cluster]'")
+    g.add_argument('--force', action='store_true', help='redo bags whose output is complete')
+    g.add_argument('--report', metavar='FILE', help='also write the closing table as JSON')
+    g.add_argument('--window-messages', type=int, metavar='N',
+                   help='JointStates per window of a large MCAP bag (default: automatic)')
     p = sub.add_parser('example', help='write a bag of joint states (a sine sweep) to try '
                        'the other commands on')
     p.add_argument('out_bag', metavar='OUT_BAG')
@@ -85,9 +105,52 @@ def build_parser():
     return parser
 
 
+def check_one_bag_arguments(args):
+    """Refuse fleet options without --output-dir, and anything but IN_BAG OUT_BAG."""
+    if len(args.paths) != 2:
+        raise BagError(f'process takes IN_BAG OUT_BAG ({len(args.paths)} paths given); '
+                       f'for many bags: process IN [IN ...] --output-dir OUT')
+    fleet = [name for name, value in (('--jobs', args.jobs), ('--scheduler', args.scheduler),
+                                      ('--force', args.force), ('--report', args.report),
+                                      ('--window-messages', args.window_messages))
+             if value not in (None, False)]
+    if fleet:
+        raise BagError(f'{fleet[0]} is for a fleet of bags: give --output-dir OUT')
+
+
+def process_many(args):
+    """Run ``process IN [IN ...] --output-dir OUT``: the fleet; print the closing table."""
+    import json
+    from dq_fk_ros.bag.fleet import process_fleet, report_table
+    for name, value in (('--csv', args.csv), ('--csv-only', args.csv_only),
+                        ('--overwrite', args.overwrite)):
+        if value:
+            raise BagError(f'{name} is for one bag; with --output-dir, outputs not recorded '
+                           f'complete are replaced and --force redoes the others')
+    for name, value in (('--jobs', args.jobs), ('--window-messages', args.window_messages)):
+        if value is not None and value < 1:
+            raise BagError(f'{name} must be at least 1, got {value}')
+    if args.report and os.path.isdir(args.report):
+        raise BagError(f'--report {args.report} is a folder; give a file name')
+    options = ProcessOptions(
+        topic=args.topic, storage=args.storage, copy_input=args.copy_input,
+        pose_namespace=args.pose_namespace, frame_prefix=args.frame_prefix,
+        out_of_limits=args.out_of_limits, progress=False, poses=args.poses)
+    summary = process_fleet(args.paths, args.output_dir, args.robot, options, jobs=args.jobs,
+                            scheduler=args.scheduler, force=args.force,
+                            progress=not args.quiet, window_messages=args.window_messages,
+                            base=args.urdf_base, tip=args.urdf_tip,
+                            packages=dict(args.package))
+    print(report_table(summary))
+    if args.report:
+        with open(args.report, 'w', encoding='utf-8') as stream:
+            json.dump(summary.as_dict(), stream, indent=1)
+            stream.write('\n')
+    return 1 if summary.failed else 0
+
+
 def write_example(args):
     """Write ``dq_fk_bag example``'s bag: the robot's joints sweeping as fake_joint_publisher."""
-    import os
     from dq_fk_ros.bag.example import write_example_bag
     from dq_fk_ros.ros.fake_joint_publisher import JointMotion
     if not (0 < args.seconds <= 3600 and 0 < args.rate <= 10000):
@@ -124,7 +187,10 @@ def main(argv=None):
     """
     args = build_parser().parse_args(argv)
     try:
+        if args.command == 'process' and args.output_dir is not None:
+            return process_many(args)
         if args.command == 'process':
+            check_one_bag_arguments(args)
             robot = load_robot(args.robot, args.urdf_base, args.urdf_tip,
                                packages=dict(args.package)).model
             options = ProcessOptions(
@@ -132,8 +198,8 @@ def main(argv=None):
                 csv_path=args.csv, csv_only=args.csv_only, copy_input=args.copy_input,
                 pose_namespace=args.pose_namespace, frame_prefix=args.frame_prefix,
                 out_of_limits=args.out_of_limits, progress=not args.quiet, poses=args.poses)
-            s = process_bag(args.in_bag, args.out_bag, robot, options)
-            print(summary_line(args.in_bag, s))
+            s = process_bag(args.paths[0], args.paths[1], robot, options)
+            print(summary_line(args.paths[0], s))
         elif args.command == 'example':
             return write_example(args)
         else:

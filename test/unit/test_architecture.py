@@ -22,7 +22,8 @@ THIRD_PARTY = {
     'messages': {'numpy'},
     # zstd (the stdlib's compression.zstd from 3.14, its backport before) and lz4: rosbags' own
     # decompressors, called directly to bound a chunk's size
-    'bag': {'numpy', 'rosbags', 'mcap', 'compression', 'backports', 'lz4'},
+    'bag': {'numpy', 'rosbags', 'mcap', 'compression', 'backports', 'lz4', 'yaml',
+            'distributed'},
     'ros': {'numpy', 'rclpy', 'aiohttp', 'ament_index_python', 'builtin_interfaces',
             'diagnostic_msgs', 'geometry_msgs',
             'rcl_interfaces', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'tf2_msgs'},

@@ -1,0 +1,97 @@
+"""
+Finding the bags of a fleet: every bag under the paths a user names, and where its output goes.
+
+A path is a bag (a rosbag2 folder: ``metadata.yaml`` or ``.mcap``/``.db3`` files in it; a
+``.mcap``, ``.db3`` or ROS 1 ``.bag`` file) or a folder holding bags at any depth. Each bag
+keeps its place under the named folder in the output folder: ``IN/site_a/run_3`` ->
+``OUT/site_a/run_3``; a bag named directly lands at ``OUT/<its name>`` (a file bag without its
+extension: the output is a rosbag2 folder). Symbolic links to folders are not followed (a
+link loop or a link out of the archive cannot make the walk endless or leave it).
+"""
+
+from dataclasses import dataclass
+import os
+
+from dq_fk_ros.bag.reading import BagError
+
+BAG_FILES = ('.mcap', '.db3', '.bag')
+MAX_BAGS = 1_000_000  # a walk that finds more is refused (a wrong folder, say)
+
+
+@dataclass(frozen=True)
+class FoundBag:
+    """One input bag: ``path`` to read, ``name`` its place under the output folder."""
+
+    path: str
+    name: str
+
+
+def is_bag_folder(folder):
+    """Say whether ``folder`` is a rosbag2 bag (metadata.yaml, or storage files in it)."""
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return False
+    return 'metadata.yaml' in names or any(
+        n.endswith(('.mcap', '.db3')) and os.path.isfile(os.path.join(folder, n))
+        for n in names)
+
+
+def find_bags(paths):
+    """
+    Return every bag under ``paths`` as :class:`FoundBag`, in a stable (sorted) order.
+
+    :raises BagError: a path that does not exist, two bags that would share an output name,
+        or a walk finding more than :data:`MAX_BAGS`.
+    """
+    found = []
+    for path in paths:
+        path = os.fspath(path)
+        if not os.path.lexists(path):
+            raise BagError(f'{path}: no such bag or folder')
+        top = os.path.basename(os.path.normpath(path))
+        if os.path.isfile(path):
+            found.append(FoundBag(path, _strip_extension(top)))
+        elif is_bag_folder(path):
+            found.append(FoundBag(path, top))
+        else:
+            found += _walk(path)
+        if len(found) > MAX_BAGS:
+            raise BagError(f'{path}: more than {MAX_BAGS} bags; name fewer folders')
+    names = {}
+    for bag in found:
+        other = names.setdefault(bag.name, bag.path)
+        if other != bag.path:
+            raise BagError(f'{other} and {bag.path} would both be written to {bag.name}; '
+                           f'name their parent folder instead')
+    return sorted(found, key=lambda b: b.name)
+
+
+def _walk(root):
+    """Yield the bags under folder ``root`` (not following folder links)."""
+    out = []
+    for folder, dirs, files in os.walk(root, followlinks=False):
+        dirs.sort()
+        rel = os.path.relpath(folder, root)
+        if folder != root and is_bag_folder(folder):
+            out.append(FoundBag(folder, rel))
+            dirs[:] = []  # a bag's own files are not bags of their own
+            continue
+        for name in sorted(files):
+            if name.endswith('.bag'):  # a ROS 1 bag: one file (.mcap/.db3 make a bag folder)
+                path = os.path.join(folder, name)
+                out.append(FoundBag(path, os.path.normpath(
+                    os.path.join(rel, _strip_extension(name)))))
+        if len(out) > MAX_BAGS:
+            break
+    return out
+
+
+def _strip_extension(name):
+    for ext in BAG_FILES:
+        if name.endswith(ext):
+            return name[:-len(ext)]
+    return name
+
+
+__all__ = ['find_bags', 'FoundBag', 'is_bag_folder']

@@ -1,0 +1,481 @@
+"""
+A fleet of bags in one command: every bag under the inputs, on every core or a Dask cluster.
+
+:func:`process_fleet` (``dq_fk_bag process IN [IN ...] --output-dir OUT``) finds the bags
+(:mod:`dq_fk_ros.bag.discover`), skips those whose output is complete (the manifest,
+:mod:`dq_fk_ros.bag.manifest`), cuts large MCAP bags into windows
+(:mod:`dq_fk_ros.bag.windows`), runs every unit of work (:func:`run_unit`: a whole bag, as
+:func:`~dq_fk_ros.bag.process.process_bag` does, or one window) on a pool of worker
+processes or on a Dask ``distributed`` cluster, joins the windows of a bag in order
+(:mod:`dq_fk_ros.bag.join`) and moves each finished output into place. Tasks carry paths and
+options, never message data. The output of every bag is the one-bag command's, message for
+message (test_fleet.py holds them equal).
+
+A bag that fails (damaged, empty, another robot's, unreadable) does not stop the others: it
+is reported, its partial output removed, and :attr:`FleetSummary.failed` counts it. A run
+killed at any point leaves nothing the next run would take as complete: outputs are written
+in ``OUT/.dq_fk_fleet/work`` and renamed into place, then recorded in the manifest.
+"""
+
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import asdict, dataclass, field, replace
+import math
+import multiprocessing
+import os
+import shutil
+import time
+
+from dq_fk_ros.bag.discover import find_bags
+from dq_fk_ros.bag.join import join_bags, topic_counts
+from dq_fk_ros.bag.manifest import FleetState
+from dq_fk_ros.bag.process import (
+    process_bag, process_window, ProcessOptions, ProcessSummary, set_progress_counter)
+from dq_fk_ros.bag.progress import Progress
+from dq_fk_ros.bag.reading import BagError, joint_state_connections, open_reader, Ros1Bag
+from dq_fk_ros.bag.text import one_line
+from dq_fk_ros.bag.windows import joint_state_times, plan_windows
+from dq_fk_ros.description.errors import DqFkError
+from dq_fk_ros.description.loading import load_robot
+
+MIN_WINDOW_MESSAGES = 100_000  # a bag is cut into windows of at least this many JointStates
+MAX_TRIES = 2                  # a unit whose worker died is run once more, then reported
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """The robot as a worker loads it: a file or shipped name, URDF options, packages."""
+
+    robot: str
+    base: str = None
+    tip: str = None
+    packages: tuple = ()
+
+    def load(self):
+        """Return the :class:`RobotModel` (cached per process)."""
+        key = (self.robot, self.base, self.tip, self.packages)
+        model = _ROBOTS.get(key)
+        if model is None:
+            model = _ROBOTS[key] = load_robot(self.robot, self.base, self.tip,
+                                              packages=dict(self.packages)).model
+        return model
+
+
+_ROBOTS = {}
+
+
+@dataclass(frozen=True)
+class Unit:
+    """
+    One unit of work: a whole bag (``window`` None) or one window of it.
+
+    ``output``: the bag folder the worker writes (in the work folder, renamed into place
+    by the parent once the bag is complete).
+    """
+
+    bag: str
+    path: str
+    output: str
+    robot: RobotSpec
+    options: ProcessOptions
+    window: object = None
+    messages: int = 0
+
+
+@dataclass
+class UnitResult:
+    """What a worker did with a :class:`Unit`: its summary or the problem, and its time."""
+
+    unit: Unit
+    summary: ProcessSummary = None
+    problem: str = None
+    seconds: float = 0.0
+
+
+def run_unit(unit):
+    """
+    Process one unit of work in this process; never raises (a problem is reported).
+
+    The function a pool worker or a Dask worker runs: its argument is paths and options.
+    """
+    start = time.perf_counter()
+    summary, problem = None, None
+    try:
+        model = unit.robot.load()
+        options = replace(unit.options, progress=False, overwrite=True)
+        if unit.window is None:
+            summary = process_bag(unit.path, unit.output, model, options)
+        else:
+            summary = process_window(unit.path, unit.output, model, options, unit.window)
+        problem = summary.error
+    except DqFkError as exc:
+        problem = one_line(exc)
+    except Exception as exc:  # one bag may not stop the fleet, whatever it holds
+        problem = f'{type(exc).__name__}: {one_line(exc)}'
+    return UnitResult(unit, summary, problem, time.perf_counter() - start)
+
+
+@dataclass
+class BagReport:
+    """
+    One bag of the fleet: ``status`` is ``done``, ``skipped`` (complete before) or ``failed``.
+
+    ``messages_in``: JointStates read; ``tf_out``: /tf messages written; ``problems``: one
+    line each; ``units``: windows it was cut into (1: whole).
+    """
+
+    bag: str
+    input: str  # noqa: A003 (the report's field name)
+    output: str = None
+    status: str = 'failed'
+    messages_in: int = 0
+    tf_out: int = 0
+    problems: list = field(default_factory=list)
+    seconds: float = 0.0
+    units: int = 1
+
+
+@dataclass
+class FleetSummary:
+    """What :func:`process_fleet` did: a :class:`BagReport` per bag, and the totals."""
+
+    bags: list
+    seconds: float = 0.0
+    workers: int = 1
+
+    @property
+    def failed(self):
+        """Count the bags that failed."""
+        return sum(b.status == 'failed' for b in self.bags)
+
+    @property
+    def messages_in(self):
+        """Count the JointStates read this run (skipped bags not counted)."""
+        return sum(b.messages_in for b in self.bags if b.status == 'done')
+
+    def as_dict(self):
+        """Return the summary as plain data (the ``--report`` JSON)."""
+        return {'bags': [asdict(b) for b in self.bags], 'seconds': self.seconds,
+                'workers': self.workers, 'failed': self.failed,
+                'done': sum(b.status == 'done' for b in self.bags),
+                'skipped': sum(b.status == 'skipped' for b in self.bags),
+                'messages_in': self.messages_in}
+
+
+def process_fleet(inputs, output_dir, robot, options=None, jobs=None, scheduler=None,
+                  force=False, progress=True, window_messages=None, base=None, tip=None,
+                  packages=None):
+    """
+    Process every bag under ``inputs`` into ``output_dir``; return a :class:`FleetSummary`.
+
+    :param inputs: bag folders, bag files, or folders holding bags (found recursively).
+    :param robot: a robot file or shipped name (``base``, ``tip``, ``packages`` as for
+        :func:`~dq_fk_ros.description.loading.load_robot`): each worker loads it.
+    :param options: a :class:`ProcessOptions` for every bag (``csv_path``, ``csv_only`` and
+        ``overwrite`` do not apply).
+    :param jobs: worker processes (default: the CPUs this process may use); 1: in this
+        process. With ``scheduler``: ignored (the cluster's workers count).
+    :param scheduler: ``'local'`` (a Dask ``LocalCluster`` of ``jobs`` processes) or a Dask
+        scheduler address (``tcp://host:8786``); None: a local process pool.
+    :param force: redo bags whose output is complete.
+    :param window_messages: JointStates per window of a large MCAP bag (default: the fleet's
+        messages over four units per worker, at least :data:`MIN_WINDOW_MESSAGES`).
+    :raises BagError: for a command that cannot run (paths, options); a bag's own problems
+        are reported in its :class:`BagReport` instead.
+    """
+    start = time.perf_counter()
+    options = options or ProcessOptions()
+    if options.csv_path or options.csv_only:
+        raise BagError('--csv and --csv-only write one file per bag: not with --output-dir')
+    spec = RobotSpec(os.fspath(robot), base, tip, tuple(sorted((packages or {}).items())))
+    spec.load()  # a robot file that cannot be used stops the command before any work
+    found = find_bags(inputs)
+    _check_output_dir(output_dir, [os.fspath(p) for p in inputs] + [b.path for b in found])
+    os.makedirs(output_dir, exist_ok=True)
+    with FleetState(output_dir, spec, options) as state:
+        reports, units = {}, []
+        for bag in found:
+            report = reports[bag.name] = BagReport(bag.name, bag.path,
+                                                   os.path.join(output_dir, bag.name))
+            if not force and state.complete(bag.name, bag.path, report.output):
+                report.status = 'skipped'
+                report.tf_out = topic_counts(report.output).get('/tf', 0)
+                continue
+            units += _plan(bag, state.work_folder(bag.name), spec, options, report)
+        runner = _Runner(units, reports, state, jobs, scheduler, window_messages, progress)
+        runner.run()
+        return FleetSummary([reports[b.name] for b in found],
+                            time.perf_counter() - start, runner.workers)
+
+
+def _check_output_dir(output_dir, inputs):
+    out = os.path.realpath(output_dir)
+    for path in inputs:
+        real = os.path.realpath(path)
+        if out == real or out.startswith(real + os.sep):
+            raise BagError(f'--output-dir {output_dir} is inside the input {path}; choose '
+                           f'another folder (its outputs would be read as inputs next time)')
+        if real.startswith(out + os.sep):
+            raise BagError(f'the input {path} is inside --output-dir {output_dir}; choose '
+                           f'another folder')
+    if os.path.lexists(output_dir) and not os.path.isdir(output_dir):
+        raise BagError(f'--output-dir {output_dir} is not a folder')
+
+
+def _plan(bag, work, spec, options, report):
+    """Return the units of one bag: the whole bag, or windows of a large MCAP (see Unit)."""
+    whole = Unit(bag.name, bag.path, os.path.join(work, os.path.basename(bag.name)), spec,
+                 options)
+    try:
+        reader = open_reader(bag.path)
+    except BagError:
+        return [whole]  # the worker reports why, as the one-bag command does
+    try:
+        if isinstance(reader, Ros1Bag) or reader.note is not None or options.copy_input:
+            return [whole]
+        conns = joint_state_connections(reader, bag.path, options.topic)
+        messages = sum(c.msgcount for c in conns)
+        return [replace(whole, messages=messages, window=_WholeBag(conns[0].topic))]
+    except BagError:
+        return [whole]
+    finally:
+        reader.close()
+
+
+@dataclass(frozen=True)
+class _WholeBag:
+    """A bag that may still be cut into windows, once the fleet's size is known."""
+
+    topic: str
+
+
+class _Runner:
+    """Runs the units on a pool or a cluster, and finishes each bag as its units complete."""
+
+    def __init__(self, units, reports, state, jobs, scheduler, window_messages, progress):
+        self.reports, self.state, self.scheduler = reports, state, scheduler
+        self.jobs = jobs or len(os.sched_getaffinity(0))
+        self.client = None
+        if scheduler is not None:
+            self.client = _dask_client(scheduler, self.jobs)
+            self.workers = max(1, len(self.client.scheduler_info()['workers']))
+        else:
+            self.workers = self.jobs
+        total = sum(u.messages for u in units)
+        size = window_messages or max(MIN_WINDOW_MESSAGES,
+                                      math.ceil(total / (4 * self.workers)))
+        self.units = []
+        for unit in units:
+            self.units += self._cut(unit, size)
+        self.pending = {}  # bag -> units not finished
+        for unit in self.units:
+            self.pending.setdefault(unit.bag, []).append(unit)
+        self.results = {}  # bag -> results so far
+        self.meter = Progress(total, 'dq_fk_bag fleet', enabled=progress)
+        self.done_messages = 0
+        self.progress = progress
+
+    def _cut(self, unit, size):
+        """Cut a unit that may be cut (``_WholeBag``) into windows if it is large enough."""
+        if not isinstance(unit.window, _WholeBag):
+            return [unit]
+        whole = replace(unit, window=None)
+        count = unit.messages // size
+        if self.workers < 2 or count < 2:
+            return [whole]
+        found = joint_state_times(unit.path, unit.window.topic)
+        if found is None:
+            return [whole]
+        windows = plan_windows(found[0], found[1], count)
+        if len(windows) < 2:
+            return [whole]
+        work = os.path.dirname(unit.output)
+        self.reports[unit.bag].units = len(windows)
+        return [replace(unit, window=w, output=os.path.join(work, f'part_{w.index}'),
+                        messages=_count(found[0], w)) for w in windows]
+
+    def run(self):
+        """Run every unit; finish each bag when its last unit completes."""
+        try:
+            if self.client is not None:
+                self._run_dask()
+            elif self.jobs == 1 or len(self.units) <= 1:
+                counter = _LocalCounter()
+                set_progress_counter(counter)
+                try:
+                    for unit in self.units:
+                        self._finish(run_unit(unit), counter.value)
+                finally:
+                    set_progress_counter(None)
+            else:
+                self._run_pool()
+        finally:
+            if self.client is not None:
+                self.client.close()
+                if getattr(self.client, '_dq_fk_cluster', None) is not None:
+                    self.client._dq_fk_cluster.close()
+        self.meter.update(self.done_messages, force=True)
+
+    def _run_pool(self):
+        ctx = multiprocessing.get_context('spawn')
+        counter = ctx.Value('q', 0)
+        todo = list(self.units)
+        tries = {}
+        while todo:
+            with ProcessPoolExecutor(max_workers=min(self.jobs, len(todo)), mp_context=ctx,
+                                     initializer=set_progress_counter,
+                                     initargs=(counter,)) as pool:
+                futures = {pool.submit(run_unit, u): u for u in todo}
+                todo = []
+                while futures:
+                    finished, _ = wait(futures, timeout=0.5, return_when=FIRST_COMPLETED)
+                    for future in finished:
+                        unit = futures.pop(future)
+                        try:
+                            result = future.result()
+                        except BrokenProcessPool:  # a worker died (killed, out of memory)
+                            tries[unit] = tries.get(unit, 0) + 1
+                            if tries[unit] < MAX_TRIES:
+                                todo.append(unit)
+                                continue
+                            result = UnitResult(unit, problem='the worker processing it '
+                                                'died (killed or out of memory)')
+                        self._finish(result, counter.value)
+                    self._show(counter.value)
+
+    def _run_dask(self):
+        from distributed import as_completed
+        futures = self.client.map(run_unit, self.units, pure=False)
+        for future in as_completed(futures):
+            try:
+                result = future.result()
+            except Exception as exc:  # the cluster gave up on it (workers kept dying)
+                unit = self.units[futures.index(future)]
+                result = UnitResult(unit, problem=f'the cluster could not run it: '
+                                    f'{one_line(exc)}')
+            self._finish(result, None)
+
+    def _show(self, counted):
+        if counted is not None:
+            self.done_messages = max(self.done_messages, counted)
+        done = len(self.reports) - sum(map(bool, self.pending.values()))
+        self.meter.label = f'dq_fk_bag fleet: {done}/{len(self.reports)} bags'
+        self.meter.update(self.done_messages)
+
+    def _finish(self, result, counted):
+        """Note a unit's result; when it is a bag's last, move the bag's output into place."""
+        unit = result.unit
+        self.results.setdefault(unit.bag, []).append(result)
+        self.pending[unit.bag].remove(unit)
+        if counted is None:
+            self.done_messages += unit.messages or (result.summary.read if result.summary
+                                                    else 0)
+        if not self.pending[unit.bag]:
+            self._finish_bag(unit.bag)
+        self._show(counted)
+
+    def _finish_bag(self, name):
+        report = self.reports[name]
+        results = sorted(self.results.pop(name),
+                         key=lambda r: getattr(r.unit.window, 'index', 0))
+        report.seconds = sum(r.seconds for r in results)
+        work = os.path.dirname(results[0].unit.output)
+        problems = [r.problem for r in results if r.problem]
+        summaries = [r.summary for r in results if r.summary is not None]
+        report.messages_in = sum(s.read for s in summaries)
+        windowed = results[0].unit.window is not None
+        if windowed and not problems and _needs_whole_run(summaries):
+            # a time jump or the first output past the first window: the serial run decides
+            unit = replace(results[0].unit, window=None,
+                           output=os.path.join(work, os.path.basename(name)))
+            self.pending[name] = [unit]
+            report.units = 1
+            self._finish(run_unit(unit), None)
+            return
+        if problems:
+            report.problems = list(dict.fromkeys(problems))
+            shutil.rmtree(work, ignore_errors=True)
+            self.state.forget(name)
+            return
+        try:
+            if windowed:
+                joined = os.path.join(work, os.path.basename(name))
+                join_bags([r.unit.output for r in results], joined)
+            else:
+                joined = results[0].unit.output
+            self.state.place(name, report.input, joined, report.output)
+        except (OSError, BagError) as exc:
+            report.problems = [f'{report.output}: cannot be put in place ({one_line(exc)})']
+            shutil.rmtree(work, ignore_errors=True)
+            return
+        report.status = 'done'
+        report.tf_out = topic_counts(report.output).get('/tf', 0)
+
+
+def _needs_whole_run(summaries):
+    """Whether windows may differ from the serial run: time jumps, or first output late."""
+    if any(s.time_jumps for s in summaries):
+        return True
+    return summaries[0].written == 0 and any(s.written for s in summaries)
+
+
+def _count(times, window):
+    import numpy as np
+    lo = 0 if window.start_ns is None else int(np.searchsorted(times, window.start_ns))
+    hi = len(times) if window.stop_ns is None else int(np.searchsorted(times, window.stop_ns))
+    return hi - lo
+
+
+class _LocalCounter:
+    """The progress counter of a run in this process (a ``multiprocessing.Value`` look-alike)."""
+
+    def __init__(self):
+        self.value = 0
+
+    def get_lock(self):
+        """Return a lock that does nothing (one process)."""
+        from contextlib import nullcontext
+        return nullcontext()
+
+
+def _dask_client(scheduler, jobs):
+    """Connect to a Dask scheduler, or start a LocalCluster of ``jobs`` processes."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise BagError("--scheduler needs Dask's distributed: pip install 'dq_fk_ros[cluster]' "
+                       "(or pip install 'dask[distributed]')") from None
+    if scheduler == 'local':
+        cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
+                               dashboard_address=None, host='127.0.0.1')
+        client = Client(cluster)
+        client._dq_fk_cluster = cluster
+        return client
+    try:
+        return Client(scheduler, timeout=30)
+    except OSError as exc:
+        raise BagError(f'--scheduler {scheduler}: cannot reach the scheduler ({one_line(exc)})'
+                       ) from None
+
+
+def report_table(summary):
+    """Return the closing table: bag, messages in, /tf out, problems, seconds."""
+    rows = [('bag', 'messages in', '/tf out', 'problems', 'seconds')]
+    for b in summary.bags:
+        problems = '; '.join(b.problems) if b.problems else (
+            'skipped: output complete' if b.status == 'skipped' else '')
+        rows.append((b.bag, f'{b.messages_in:,}', f'{b.tf_out:,}', problems or '-',
+                     f'{b.seconds:.1f}'))
+    widths = [max(len(r[k]) for r in rows) for k in range(4)]
+    lines = ['  '.join(r[k].ljust(widths[k]) if k in (0, 3) else r[k].rjust(widths[k])
+                       for k in range(4)) + '  ' + r[4] for r in rows]
+    rate = summary.messages_in / summary.seconds if summary.seconds else 0.0
+    done = sum(b.status == 'done' for b in summary.bags)
+    skipped = sum(b.status == 'skipped' for b in summary.bags)
+    lines.append(f'{len(summary.bags)} bags: {done} done, {skipped} skipped, '
+                 f'{summary.failed} failed; {summary.messages_in:,} JointStates in '
+                 f'{summary.seconds:.1f} s ({rate:,.0f}/s, {summary.workers} workers)')
+    return '\n'.join(lines)
+
+
+__all__ = ['BagReport', 'FleetSummary', 'process_fleet', 'report_table', 'run_unit']

@@ -1,0 +1,164 @@
+"""
+What a fleet run has finished, kept in the output folder so the next run can skip it.
+
+``OUT/.dq_fk_fleet/manifest.json`` records, per bag, the input's files (names, sizes,
+modification times), a hash of its summary (an MCAP file's summary section, a sqlite3 or
+ROS 1 file's first and last 64 KiB), the run's robot and options, and the output's message
+count per topic. A bag is complete when all of these still match and its output says so. An
+output is written in ``OUT/.dq_fk_fleet/work``, renamed into place, and only then recorded:
+a run killed at any point leaves nothing that would be taken as complete. One run at a time
+may write an output folder (a lock).
+"""
+
+from dataclasses import asdict
+import fcntl
+import hashlib
+import json
+import os
+import shutil
+import struct
+
+from dq_fk_ros.bag.join import topic_counts
+from dq_fk_ros.bag.reading import BagError
+
+STATE = '.dq_fk_fleet'
+VERSION = 1
+EDGE_BYTES = 64 * 1024
+MAX_SUMMARY_BYTES = 64 * 1024 * 1024
+FOOTER_BYTES = 37  # MCAP: footer record (1 + 8 + 20) and the closing magic (8)
+
+
+def input_fingerprint(path):
+    """Return the files (name, size, mtime in ns) of a bag and a hash of their summaries."""
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        names = sorted(n for n in os.listdir(path) if os.path.isfile(os.path.join(path, n)))
+        files = [os.path.join(path, n) for n in names]
+    else:
+        files = [path]
+    digest = hashlib.sha256()
+    entries = []
+    for name in files:
+        st = os.stat(name)
+        entries.append([os.path.basename(name), st.st_size, st.st_mtime_ns])
+        digest.update(_summary_bytes(name, st.st_size))
+    return {'files': entries, 'summary_sha256': digest.hexdigest()}
+
+
+def _summary_bytes(name, size):
+    """Return an MCAP file's summary section, or another file's first and last 64 KiB."""
+    with open(name, 'rb') as stream:
+        if name.endswith('.mcap') and size > FOOTER_BYTES:
+            stream.seek(size - FOOTER_BYTES)
+            footer = stream.read(FOOTER_BYTES)
+            start = struct.unpack_from('<Q', footer, 9)[0]
+            if 0 < start < size and size - start <= MAX_SUMMARY_BYTES:
+                stream.seek(start)
+                return stream.read(size - start)
+        head = stream.read(EDGE_BYTES)
+        stream.seek(max(size - EDGE_BYTES, 0))
+        return head + stream.read(EDGE_BYTES)
+
+
+def options_fingerprint(spec, options):
+    """Return a hash of the robot (its file's bytes too) and the options of a run."""
+    from dq_fk_ros.description.loading import resolve_robot
+    digest = hashlib.sha256(json.dumps(
+        [asdict(spec), {k: v for k, v in asdict(options).items() if k != 'progress'}],
+        sort_keys=True, default=str).encode())
+    try:
+        with open(resolve_robot(spec.robot), 'rb') as stream:
+            digest.update(stream.read())
+    except (OSError, ValueError):
+        pass
+    return digest.hexdigest()
+
+
+class FleetState:
+    """The state folder of an output folder: lock, manifest, work folders (a context)."""
+
+    def __init__(self, output_dir, spec, options):
+        """Note the output folder and the run's robot and options."""
+        self.output_dir = os.fspath(output_dir)
+        self.folder = os.path.join(self.output_dir, STATE)
+        self.work = os.path.join(self.folder, 'work')
+        self.options = options_fingerprint(spec, options)
+        self.bags = {}
+        self._lock = None
+
+    def __enter__(self):
+        """Take the lock, read the manifest, clear a killed run's work folders."""
+        os.makedirs(self.folder, exist_ok=True)
+        self._lock = open(os.path.join(self.folder, 'lock'), 'w')
+        try:
+            fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            self._lock.close()
+            raise BagError(f'{self.output_dir}: another dq_fk_bag run is writing this output '
+                           f'folder') from None
+        shutil.rmtree(self.work, ignore_errors=True)
+        os.makedirs(self.work)
+        try:
+            with open(os.path.join(self.folder, 'manifest.json'), encoding='utf-8') as f:
+                data = json.load(f)
+            if data.get('version') == VERSION and isinstance(data.get('bags'), dict):
+                self.bags = data['bags']
+        except (OSError, ValueError):
+            self.bags = {}
+        return self
+
+    def __exit__(self, *exc):
+        """Remove the work folders and release the lock."""
+        shutil.rmtree(self.work, ignore_errors=True)
+        self._lock.close()
+
+    def complete(self, name, input_path, output):
+        """Say whether ``name``'s output is complete for this input, robot and options."""
+        entry = self.bags.get(name)
+        if not entry or entry.get('options') != self.options:
+            return False
+        try:
+            return (entry.get('input') == input_fingerprint(input_path)
+                    and os.path.isdir(output) and not os.path.islink(output)
+                    and topic_counts(output) == entry.get('output'))
+        except (OSError, ValueError, KeyError, TypeError):
+            return False
+
+    def work_folder(self, name):
+        """Return a new empty work folder for bag ``name``."""
+        folder = os.path.join(self.work, hashlib.sha256(name.encode()).hexdigest()[:16])
+        os.makedirs(folder)
+        return folder
+
+    def place(self, name, input_path, built, final):
+        """Move the finished output ``built`` to ``final`` (replacing it); record it."""
+        out = os.path.realpath(self.output_dir)
+        parent = os.path.dirname(os.path.abspath(final))
+        os.makedirs(parent, exist_ok=True)
+        real = os.path.realpath(parent)
+        if not (real == out or real.startswith(out + os.sep)) or os.path.islink(final):
+            raise BagError(f'{final}: a symbolic link on the way; not writing through it')
+        self.forget(name)
+        if os.path.lexists(final):
+            shutil.rmtree(final) if os.path.isdir(final) else os.remove(final)
+        os.rename(built, final)
+        self.bags[name] = {'input': input_fingerprint(input_path), 'options': self.options,
+                           'output': topic_counts(final)}
+        self._save()
+
+    def forget(self, name):
+        """Drop ``name`` from the manifest (its output is no longer known complete)."""
+        if self.bags.pop(name, None) is not None:
+            self._save()
+
+    def _save(self):
+        path = os.path.join(self.folder, 'manifest.json')
+        with open(path + '.new', 'w', encoding='utf-8') as stream:
+            json.dump({'version': VERSION, 'bags': self.bags}, stream, indent=1,
+                      sort_keys=True)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(path + '.new', path)
+
+
+__all__ = ['FleetState', 'input_fingerprint', 'options_fingerprint']

@@ -1,0 +1,298 @@
+"""
+dq_fk_bag on a fleet of bags: every output is the one-bag command's, message for message.
+
+On a pool of processes, in windows of one large MCAP, and on a Dask LocalCluster; complete
+outputs are skipped, a killed run is completed by the next, a bad bag stops none.
+"""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+from dq_fk_ros.bag.fleet import process_fleet
+from dq_fk_ros.bag.process import process_bag, ProcessOptions
+from dq_fk_ros.cli.dq_fk_bag import main as bag_main
+from dq_fk_ros.description.schema import load_robot_description
+from dq_fk_ros.description.shipped import shipped_robot_path
+from dq_fk_ros.ros.executables import executable
+import numpy as np
+import pytest
+from rosbags.rosbag2 import Reader
+from test_bag import js_bytes, NAMES, T0, trajectory, write_bag
+from test_bag_hostile import write_ros1_bag
+
+QUIET = ProcessOptions(progress=False)
+DUAL_ARM = load_robot_description(shipped_robot_path('dual_arm'))
+
+
+def messages(path):
+    """Every message of a bag as read: (topic, log time, bytes), in order."""
+    with Reader(path) as reader:
+        return [(c.topic, t, bytes(raw)) for c, t, raw in reader.messages()]
+
+
+def file_order(folder):
+    """Every message of a bag's MCAP files in the order the files hold them (not by time)."""
+    from mcap.reader import make_reader
+    out = []
+    for name in sorted(n for n in os.listdir(folder) if n.endswith('.mcap')):
+        with open(os.path.join(folder, name), 'rb') as stream:
+            out += [(channel.topic, message.log_time, message.data) for _, channel, message
+                    in make_reader(stream).iter_messages(log_time_order=False)]
+    return out
+
+
+def rl15_bag(path, n, storage='mcap', offset=0.0):
+    q = trajectory(n) + offset
+    stamps = [T0 + k * 10_000_000 for k in range(n)]
+    write_bag(path, [(s, js_bytes(NAMES, row, s)) for s, row in zip(stamps, q)], storage)
+
+
+def serial(in_path, out_path, robot='rl15', **options):
+    """Return the one-bag command's output, the reference of every fleet test."""
+    os.makedirs(os.path.dirname(out_path), exist_ok=True)
+    summary = process_bag(in_path, out_path, robot, progress=False, **options)
+    assert summary.error is None
+    return messages(out_path)
+
+
+@pytest.fixture(scope='module')
+def small_fleet(tmp_path_factory):
+    """Five RL15 bags in nested folders, MCAP and sqlite3, and a ROS 1 bag file."""
+    root = tmp_path_factory.mktemp('fleet') / 'in'
+    for k, (rel, storage) in enumerate([('site_a/run_1', 'mcap'), ('site_a/run_2', 'sqlite3'),
+                                        ('site_b/day_1/run_1', 'mcap'), ('site_b/run_9', 'mcap'),
+                                        ('lone', 'sqlite3')]):
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        rl15_bag(root / rel, 200 + 50 * k, storage, offset=0.01 * k)
+    write_ros1_bag(root / 'site_b' / 'old.bag', 120)
+    return root
+
+
+def test_many_bags_on_two_workers_equal_the_one_bag_command(small_fleet, tmp_path):
+    summary = process_fleet([small_fleet], tmp_path / 'out', 'rl15', QUIET, jobs=2,
+                            progress=False)
+    names = [b.bag for b in summary.bags]
+    assert names == ['lone', 'site_a/run_1', 'site_a/run_2', 'site_b/day_1/run_1',
+                     'site_b/old', 'site_b/run_9']
+    assert summary.failed == 0 and summary.workers == 2
+    for bag in summary.bags:
+        source = small_fleet / (bag.bag + '.bag' if bag.bag == 'site_b/old' else bag.bag)
+        expected = serial(source, tmp_path / 'serial' / bag.bag)
+        assert messages(tmp_path / 'out' / bag.bag) == expected, bag.bag
+        assert bag.messages_in == sum(t == '/tf' for t, _, _ in expected) == bag.tf_out
+
+
+def tree_bag(path, n=30_000):
+    """
+    Write a dual-arm MCAP of several publishers, large enough for several chunks.
+
+    Torso and left arm every message; the right arm every third; the gripper once, near the
+    start: every window after the first starts from a joint value only the look-back sees.
+    """
+    rng = np.random.default_rng(3)
+    left = ['waist', 'left_shoulder_pitch', 'left_elbow', 'left_wrist_roll']
+    right = ['right_shoulder_pitch', 'right_elbow', 'right_wrist_roll']
+    out = []
+    for k in range(n):
+        stamp = T0 + k * 1_000_000
+        out.append((stamp, js_bytes(left, 0.3 * np.sin(k * 1e-3 + np.arange(4)), stamp)))
+        if k % 3 == 0:
+            out.append((stamp + 1, js_bytes(right, rng.uniform(-0.5, 0.5, 3), stamp + 1)))
+        if k == 5:
+            out.append((stamp + 2, js_bytes(['left_gripper'], [0.02], stamp + 2)))
+    write_bag(path, out)
+    return out
+
+
+def test_one_large_mcap_in_windows_equals_the_serial_run(tmp_path):
+    """Windows: the tree's gated /tf, a joint only seen before a window, the boundaries."""
+    tree_bag(tmp_path / 'in' / 'big')
+    expected = serial(tmp_path / 'in' / 'big', tmp_path / 'serial', str(
+        shipped_robot_path('dual_arm')), frame_prefix='r1/')
+    options = ProcessOptions(progress=False, frame_prefix='r1/')
+    summary = process_fleet([tmp_path / 'in' / 'big'], tmp_path / 'out',
+                            str(shipped_robot_path('dual_arm')), options, jobs=2,
+                            progress=False, window_messages=5_000)
+    bag = summary.bags[0]
+    assert summary.failed == 0 and bag.units >= 4, bag
+    out = tmp_path / 'out' / 'big'
+    files = sorted(n for n in os.listdir(out) if n.endswith('.mcap'))
+    assert len(files) == bag.units
+    got = messages(out)
+    assert len(got) == len(expected) and got == expected
+    # the same, read with Foxglove's mcap library (an independent reader) file by file
+    serial_order = file_order(tmp_path / 'serial')
+    assert sorted(file_order(out), key=lambda m: m[1]) == sorted(serial_order,
+                                                                 key=lambda m: m[1])
+    # every window after the first starts exactly at the first message of a file, and the
+    # gripper finger's transform is in the first /tf of every window
+    starts = []
+    for name in files:
+        with Reader(out / name) as reader:  # one file of the split bag, alone
+            first = next(iter(reader.messages()))
+            starts.append(first[1])
+    assert starts == sorted(starts) and len(set(starts)) == len(starts)
+    tf_times = [t for topic, t, _ in expected if topic == '/tf']
+    assert all(s in tf_times for s in starts)
+    from rosbags.typesys import get_typestore, Stores
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    for s in starts[1:]:
+        raw = next(r for topic, t, r in got if topic == '/tf' and t == s)
+        children = [t.child_frame_id for t in ts.deserialize_cdr(
+            raw, 'tf2_msgs/msg/TFMessage').transforms]
+        assert 'r1/left_finger_b' in children and 'r1/right_forearm' in children
+
+
+def test_a_dask_local_cluster_gives_what_the_pool_gives(small_fleet, tmp_path):
+    pytest.importorskip('distributed', reason="the 'cluster' extra (requirements/dev.txt)")
+    pool = process_fleet([small_fleet], tmp_path / 'pool', 'rl15', QUIET, jobs=2,
+                         progress=False)
+    dask = process_fleet([small_fleet], tmp_path / 'dask', 'rl15', QUIET, jobs=2,
+                         scheduler='local', progress=False)
+    assert dask.failed == pool.failed == 0 and dask.workers == 2
+    for bag in pool.bags:
+        assert messages(tmp_path / 'dask' / bag.bag) == messages(tmp_path / 'pool' / bag.bag)
+
+
+def test_complete_outputs_are_skipped_and_changed_or_missing_ones_redone(tmp_path):
+    for k in range(3):
+        rl15_bag(tmp_path / 'in' / f'b{k}', 100 + k)
+    out = tmp_path / 'out'
+    first = process_fleet([tmp_path / 'in'], out, 'rl15', QUIET, jobs=1, progress=False)
+    assert [b.status for b in first.bags] == ['done'] * 3
+    again = process_fleet([tmp_path / 'in'], out, 'rl15', QUIET, jobs=1, progress=False)
+    assert [b.status for b in again.bags] == ['skipped'] * 3
+    shutil.rmtree(out / 'b1')
+    time.sleep(0.01)
+    shutil.rmtree(tmp_path / 'in' / 'b2')
+    rl15_bag(tmp_path / 'in' / 'b2', 140, offset=0.2)  # a changed input
+    third = process_fleet([tmp_path / 'in'], out, 'rl15', QUIET, jobs=1, progress=False)
+    assert [b.status for b in third.bags] == ['skipped', 'done', 'done']
+    assert third.bags[2].messages_in == 140
+    assert messages(out / 'b2') == serial(tmp_path / 'in' / 'b2', tmp_path / 's2')
+    forced = process_fleet([tmp_path / 'in'], out, 'rl15', QUIET, jobs=1, progress=False,
+                           force=True)
+    assert [b.status for b in forced.bags] == ['done'] * 3
+    other = process_fleet([tmp_path / 'in'], out, 'rl15', ProcessOptions(
+        progress=False, poses='end'), jobs=1, progress=False)  # other options: redone
+    assert [b.status for b in other.bags] == ['done'] * 3
+
+
+def test_a_run_killed_mid_bag_is_completed_by_the_next(tmp_path):
+    for k in range(2):
+        rl15_bag(tmp_path / 'in' / f'b{k}', 40_000, offset=0.1 * k)
+    out = tmp_path / 'out'
+    argv = executable('dq_fk_bag') + ['process', str(tmp_path / 'in'), '--output-dir',
+                                      str(out), '--robot', 'rl15', '--jobs', '2', '--quiet']
+    child = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL)
+    work = out / '.dq_fk_fleet' / 'work'
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not any(
+            name.endswith('.mcap') for _, _, names in os.walk(work) for name in names):
+        time.sleep(0.02)
+    os.killpg(child.pid, signal.SIGKILL)  # the command and its workers, mid-bag
+    child.wait()
+    assert not (out / 'b0').exists() or not (out / 'b1').exists()
+    summary = process_fleet([tmp_path / 'in'], out, 'rl15', QUIET, jobs=2, progress=False)
+    assert summary.failed == 0
+    for k in range(2):
+        assert messages(out / f'b{k}') == serial(tmp_path / 'in' / f'b{k}', tmp_path / f's{k}')
+
+
+def test_a_worker_killed_mid_bag_is_run_again(tmp_path, monkeypatch):
+    """The pool loses a worker (the OOM killer, say): its unit runs once more."""
+    from dq_fk_ros.bag import fleet
+    for k in range(2):
+        rl15_bag(tmp_path / 'in' / f'b{k}', 300)
+    monkeypatch.setattr(fleet, 'run_unit', _die_once)
+    monkeypatch.setenv('DQ_FK_TEST_DIE_ONCE', str(tmp_path / 'died'))
+    summary = process_fleet([tmp_path / 'in'], tmp_path / 'out', 'rl15', QUIET, jobs=2,
+                            progress=False)
+    assert (tmp_path / 'died').exists() and summary.failed == 0
+    for k in range(2):
+        assert messages(tmp_path / 'out' / f'b{k}') == serial(tmp_path / 'in' / f'b{k}',
+                                                              tmp_path / f's{k}')
+
+
+def _die_once(unit):
+    """Kill this worker process the first time any unit is run (a file marks it)."""
+    from dq_fk_ros.bag.fleet import run_unit
+    marker = os.environ['DQ_FK_TEST_DIE_ONCE']
+    if not os.path.exists(marker):
+        open(marker, 'w').close()
+        os.kill(os.getpid(), signal.SIGKILL)
+    return run_unit(unit)
+
+
+def test_bad_bags_stop_none_of_the_others(tmp_path, capsys):
+    """Damaged, empty, another robot's: each reported; the rest done; exit 1."""
+    fleet = tmp_path / 'in'
+    rl15_bag(fleet / 'good', 150)
+    write_ros1_bag(fleet / 'old.bag', 80)
+    rl15_bag(fleet / 'damaged', 3000)
+    mcap = fleet / 'damaged' / 'damaged.mcap'
+    data = bytearray(mcap.read_bytes())
+    data[len(data) // 3:len(data) // 3 + 4000] = b'\xff' * 4000
+    mcap.write_bytes(bytes(data))
+    write_bag(fleet / 'empty', [])
+    write_bag(fleet / 'other_robot', [(T0 + k, js_bytes(['wheel_left', 'wheel_right'],
+                                                        [0.1, 0.2], T0 + k)) for k in range(20)])
+    report = tmp_path / 'report.json'
+    rc = bag_main(['process', str(fleet), '--output-dir', str(tmp_path / 'out'), '--robot',
+                   'rl15', '--jobs', '2', '--report', str(report), '--quiet'])
+    out = capsys.readouterr().out
+    assert rc == 1
+    data = json.loads(report.read_text())
+    bags = {b['bag']: b for b in data['bags']}
+    assert {k: b['status'] for k, b in bags.items()} == {
+        'damaged': 'failed', 'empty': 'failed', 'good': 'done', 'old': 'done',
+        'other_robot': 'failed'}
+    assert 'is damaged' in bags['damaged']['problems'][0]
+    assert 'has 0 messages' in bags['empty']['problems'][0]
+    assert 'wheel_left' in bags['other_robot']['problems'][0]
+    for name in ('damaged', 'empty', 'other_robot'):
+        assert not (tmp_path / 'out' / name).exists()  # partial output removed
+    assert messages(tmp_path / 'out' / 'good') == serial(fleet / 'good', tmp_path / 's')
+    for line in out.splitlines()[1:6]:
+        name = line.split()[0]
+        assert name in bags
+    assert '5 bags: 2 done, 0 skipped, 3 failed' in out
+
+
+def test_fleet_usage_errors_are_one_line_and_exit_2(tmp_path, capsys):
+    rl15_bag(tmp_path / 'in' / 'a', 20)
+    cases = [
+        (['process', str(tmp_path / 'in'), '--output-dir', str(tmp_path / 'in' / 'o'),
+          '--robot', 'rl15'], 'inside the input'),
+        (['process', str(tmp_path / 'in'), '--output-dir', str(tmp_path / 'o'), '--robot',
+          'rl15', '--csv', 'x.csv'], '--csv is for one bag'),
+        (['process', str(tmp_path / 'in'), '--output-dir', str(tmp_path / 'o'), '--robot',
+          'rl15', '--jobs', '0'], '--jobs must be at least 1'),
+        (['process', str(tmp_path / 'in'), str(tmp_path / 'x'), str(tmp_path / 'y'),
+          '--robot', 'rl15'], 'process takes IN_BAG OUT_BAG'),
+        (['process', str(tmp_path / 'in' / 'a'), str(tmp_path / 'x'), '--robot', 'rl15',
+          '--jobs', '2'], '--jobs is for a fleet of bags'),
+        (['process', str(tmp_path / 'nowhere'), '--output-dir', str(tmp_path / 'o'),
+          '--robot', 'rl15'], 'no such bag or folder'),
+        (['process', str(tmp_path / 'in'), '--output-dir', str(tmp_path / 'o'), '--robot',
+          'no_such_robot'], 'no_such_robot'),
+    ]
+    for argv, says in cases:
+        rc = bag_main(argv)
+        err = capsys.readouterr().err
+        assert rc == 2 and says in err and err.count('\n') == 1, (argv, err)
+
+
+def test_without_dask_the_message_says_how_to_get_it(tmp_path, monkeypatch, capsys):
+    rl15_bag(tmp_path / 'in' / 'a', 20)
+    monkeypatch.setitem(sys.modules, 'distributed', None)  # as if not installed
+    rc = bag_main(['process', str(tmp_path / 'in'), '--output-dir', str(tmp_path / 'o'),
+                   '--robot', 'rl15', '--scheduler', 'local'])
+    err = capsys.readouterr().err
+    assert rc == 2 and "pip install 'dq_fk_ros[cluster]'" in err
