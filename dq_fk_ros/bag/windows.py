@@ -48,39 +48,66 @@ def mcap_files(path):
     return _mcap_files(path)
 
 
-def joint_state_times(path, topic):
+@dataclass(frozen=True)
+class ChunkCounts:
     """
-    Return ``(sorted log times of topic's messages, sorted chunk start times)`` or None.
+    Where a bag may be cut: its chunk start times and the topic's messages before each.
 
-    Read from the MCAP summaries and message indexes only (no message is decoded); None
-    when a file has no summary, no chunk index or no message index for the topic.
+    ``starts``: sorted chunk start times (ns); ``before[i]``: messages of the topic with a
+    log time before ``starts[i]``; ``total``: all of them.
+    """
+
+    starts: np.ndarray
+    before: np.ndarray
+    total: int
+
+    def count_before(self, time_ns):
+        """Return the messages before ``time_ns`` (a chunk start, or None: the bag's end)."""
+        if time_ns is None:
+            return self.total
+        return int(self.before[np.searchsorted(self.starts, time_ns)])
+
+
+def chunk_counts(path, topic):
+    """
+    Return the :class:`ChunkCounts` of ``topic`` in an MCAP bag, or None if it cannot be cut.
+
+    Read from the MCAP summaries and message indexes only (no message is decoded, one
+    chunk's index in memory at a time); None when a file has no summary, no chunk index or
+    no message index for the topic.
     """
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
     files = mcap_files(path)
     if not files:
         return None
-    times, starts = [], []
-    for name in files:
-        try:
+    chunks = []  # (start time, the topic's message index offsets) of every chunk
+    try:
+        for name in files:
             with open(name, 'rb') as stream:
                 summary = make_reader(stream).get_summary()
-                if summary is None or not summary.chunk_indexes:
-                    return None
-                ids = {i for i, c in summary.channels.items() if c.topic == topic}
-                for chunk in summary.chunk_indexes:
-                    offsets = [chunk.message_index_offsets[i] for i in ids
-                               if i in chunk.message_index_offsets]
-                    if ids and not chunk.message_index_offsets:
-                        return None  # written without message indexes
-                    found = [_index_times(stream, at) for at in offsets]
-                    if found and sum(map(len, found)):
-                        starts.append(chunk.message_start_time)
-                    times += found
-        except (OSError, McapError, struct.error, ValueError):
-            return None
-    all_times = np.sort(np.concatenate(times)) if times else np.zeros(0, np.int64)
-    return all_times, np.unique(np.array(starts, dtype=np.int64))
+            if summary is None or not summary.chunk_indexes:
+                return None
+            ids = {i for i, c in summary.channels.items() if c.topic == topic}
+            for chunk in summary.chunk_indexes:
+                if ids and not chunk.message_index_offsets:
+                    return None  # written without message indexes
+                offsets = [chunk.message_index_offsets[i] for i in ids
+                           if i in chunk.message_index_offsets]
+                if offsets:
+                    chunks.append((name, chunk.message_start_time, offsets))
+        starts = np.unique(np.array([c[1] for c in chunks], dtype=np.int64))
+        before = np.zeros(len(starts), np.int64)
+        total = 0
+        for name, _, offsets in chunks:
+            with open(name, 'rb') as stream:
+                for at in offsets:
+                    times = np.sort(_index_times(stream, at))
+                    before += np.searchsorted(times, starts, side='left')
+                    total += len(times)
+    except (OSError, McapError, struct.error, ValueError):
+        return None
+    return ChunkCounts(starts, before, total)
 
 
 def _index_times(stream, offset):
@@ -90,41 +117,37 @@ def _index_times(stream, offset):
     opcode, length, _, size = struct.unpack('<BQHI', head)
     if opcode != OP_MESSAGE_INDEX or size % 16 or size + 6 > length:
         raise ValueError('not a message index')
-    records = np.frombuffer(stream.read(size), dtype='<u8').reshape(-1, 2)
-    return records[:, 0].astype(np.int64)
+    return np.frombuffer(stream.read(size), dtype='<u8')[0::2].astype(np.int64)
 
 
-def plan_windows(times, chunk_starts, count):
+def plan_windows(counts, windows):
     """
-    Cut a bag into at most ``count`` windows of about equal JointState counts.
+    Cut a bag into at most ``windows`` windows of about equal message counts.
 
-    :param times: the sorted log times of the topic's messages; ``chunk_starts``: the
-        sorted chunk start times (the only places a window may start).
+    :param counts: the bag's :class:`ChunkCounts` (windows start at chunk starts only).
     :returns: the :class:`Window` list (one window: the whole bag).
     """
-    n = len(times)
+    n, before, starts = counts.total, counts.before, counts.starts
     cuts = []
-    for k in range(1, count):
-        target = k * n / count
-        before = np.searchsorted(times, chunk_starts, side='left')  # messages before each
-        best = int(np.argmin(np.abs(before - target)))
-        cut = int(chunk_starts[best])
+    for k in range(1, windows):
+        best = int(np.argmin(np.abs(before - k * n / windows)))
+        cut = int(starts[best])
         if 0 < before[best] < n and (not cuts or cut > cuts[-1]):
             cuts.append(cut)
     bounds = [None] + cuts + [None]
-    windows = []
+    out = []
     for k in range(len(bounds) - 1):
         start = bounds[k]
-        first = 0 if start is None else int(np.searchsorted(times, start, side='left'))
-        earlier = [int(c) for c in chunk_starts if start is not None and c < start]
+        earlier = [] if start is None else [int(c) for c in starts[starts < start]]
         lookback = []
         step = 1
         while step <= len(earlier):  # one chunk back, then two, four...
             lookback.append(earlier[-step])
             step *= 2
-        windows.append(Window(k, len(bounds) - 1, start, bounds[k + 1], first,
-                              tuple(lookback) + (None,)))
-    return windows
+        out.append(Window(k, len(bounds) - 1, start, bounds[k + 1],
+                          0 if start is None else counts.count_before(start),
+                          tuple(lookback) + (None,)))
+    return out
 
 
-__all__ = ['joint_state_times', 'mcap_files', 'plan_windows', 'Window']
+__all__ = ['chunk_counts', 'ChunkCounts', 'mcap_files', 'plan_windows', 'Window']
