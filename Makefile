@@ -127,6 +127,7 @@ bench: setup $(BENCH_VENV)/.stamp
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_flood_memory.py
 	@echo
 	@$(PY) benchmarks/bench_bag.py
+	@$(PY) benchmarks/bench_fleet.py
 
 mutate: setup
 	@$(PY) scripts/mutate.py

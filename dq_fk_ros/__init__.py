@@ -17,7 +17,8 @@ first use, so ``import dq_fk_ros`` stays light (no ROS, no rosbags until asked):
   ``model`` is a :class:`RobotModel` (``forward_all(q)``, ``frame_poses(q)``, ...);
 * :class:`KinematicChain`, :class:`DHJoint`, :class:`DualQuaternion`: the numerical core;
 * :func:`process_bag` (with :class:`ProcessOptions`, returning a :class:`ProcessSummary`):
-  joint states in a bag -> every frame's pose and TF in another;
+  joint states in a bag -> every frame's pose and TF in another; :func:`process_fleet`
+  (a :class:`FleetSummary`): every bag under some folders, on every core or a Dask cluster;
 * the errors: :class:`DqFkError` and under it :class:`RobotDescriptionError`,
   :class:`ParameterError`, :class:`BagError`, :class:`CdrError`.
 """
@@ -31,6 +32,8 @@ _SURFACE = {
     'process_bag': 'dq_fk_ros.bag.process',
     'ProcessOptions': 'dq_fk_ros.bag.process',
     'ProcessSummary': 'dq_fk_ros.bag.process',
+    'process_fleet': 'dq_fk_ros.bag.fleet',
+    'FleetSummary': 'dq_fk_ros.bag.fleet',
     'DqFkError': 'dq_fk_ros.description.errors',
     'RobotDescriptionError': 'dq_fk_ros.description.errors',
     'ParameterError': 'dq_fk_ros.description.errors',

@@ -4,8 +4,8 @@ A fleet of bags in one command: every bag under the inputs, on every core or a D
 :func:`process_fleet` (``dq_fk_bag process IN [IN ...] --output-dir OUT``) finds the bags
 (:mod:`dq_fk_ros.bag.discover`), skips those whose output is complete (the manifest,
 :mod:`dq_fk_ros.bag.manifest`), cuts large MCAP bags into windows
-(:mod:`dq_fk_ros.bag.windows`), runs every unit of work (:func:`run_unit`: a whole bag, as
-:func:`~dq_fk_ros.bag.process.process_bag` does, or one window) on a pool of worker
+(:mod:`dq_fk_ros.bag.windows`), runs every unit of work
+(:func:`~dq_fk_ros.bag.fleet_units.run_unit`: a whole bag, or one window) on a pool of worker
 processes or on a Dask ``distributed`` cluster, joins the windows of a bag in order
 (:mod:`dq_fk_ros.bag.join`) and moves each finished output into place. Tasks carry paths and
 options, never message data. The output of every bag is the one-bag command's, message for
@@ -27,120 +27,18 @@ import shutil
 import time
 
 from dq_fk_ros.bag.discover import find_bags
+from dq_fk_ros.bag.fleet_units import RobotSpec, run_unit, Unit, UnitResult
 from dq_fk_ros.bag.join import join_bags, topic_counts
 from dq_fk_ros.bag.manifest import FleetState
-from dq_fk_ros.bag.process import (
-    process_bag, process_window, ProcessOptions, ProcessSummary, set_progress_counter)
+from dq_fk_ros.bag.process import ProcessOptions, set_progress_counter
 from dq_fk_ros.bag.progress import Progress
 from dq_fk_ros.bag.reading import BagError, joint_state_connections, open_reader, Ros1Bag
 from dq_fk_ros.bag.text import one_line
 from dq_fk_ros.bag.windows import chunk_counts, plan_windows
-from dq_fk_ros.description.errors import DqFkError
-from dq_fk_ros.description.loading import load_robot
 
 MIN_WINDOW_MESSAGES = 100_000  # a bag is cut into windows of at least this many JointStates
 MAX_TRIES = 2                  # a unit whose worker died is run once more, then reported
-
-
-@dataclass(frozen=True)
-class RobotSpec:
-    """The robot as a worker loads it: a file or shipped name, URDF options, packages."""
-
-    robot: str
-    base: str = None
-    tip: str = None
-    packages: tuple = ()
-
-    def load(self):
-        """Return the :class:`RobotModel` (cached per process)."""
-        key = (self.robot, self.base, self.tip, self.packages)
-        model = _ROBOTS.get(key)
-        if model is None:
-            model = _ROBOTS[key] = load_robot(self.robot, self.base, self.tip,
-                                              packages=dict(self.packages)).model
-        return model
-
-
-_ROBOTS = {}
-
-
-@dataclass(frozen=True)
-class Unit:
-    """
-    One unit of work: a whole bag (``window`` None) or one window of it.
-
-    ``output``: the bag folder the worker writes (in the work folder, renamed into place
-    by the parent once the bag is complete).
-    """
-
-    bag: str
-    path: str
-    output: str
-    robot: RobotSpec
-    options: ProcessOptions
-    window: object = None
-    messages: int = 0
-
-
-@dataclass
-class UnitResult:
-    """What a worker did with a :class:`Unit`: its summary or the problem, and its time."""
-
-    unit: Unit
-    summary: ProcessSummary = None
-    problem: str = None
-    seconds: float = 0.0
-
-
-def run_unit(unit):
-    """
-    Process one unit of work in this process; never raises (a problem is reported).
-
-    The function a pool worker or a Dask worker runs: its argument is paths and options.
-    """
-    _keep_freed_memory()
-    start = time.perf_counter()
-    summary, problem = None, None
-    try:
-        model = unit.robot.load()
-        options = replace(unit.options, progress=False, overwrite=True)
-        if unit.window is None:
-            summary = process_bag(unit.path, unit.output, model, options)
-        else:
-            summary = process_window(unit.path, unit.output, model, options, unit.window)
-        problem = summary.error
-    except DqFkError as exc:
-        problem = one_line(exc)
-    except Exception as exc:  # one bag may not stop the fleet, whatever it holds
-        problem = f'{type(exc).__name__}: {one_line(exc)}'
-    return UnitResult(unit, summary, problem, time.perf_counter() - start)
-
-
-_TUNED = []
-MALLOC_THRESHOLD_BYTES = 32 << 20  # glibc's largest M_MMAP_THRESHOLD on 64-bit
-
-
-def _keep_freed_memory():
-    """
-    Let glibc reuse freed blocks of up to 32 MiB instead of unmapping them (once).
-
-    A worker allocates and frees arrays of a few MiB per chunk; in a Dask worker's task
-    thread glibc mapped and unmapped each one, and the page faults doubled the time of a
-    bag (measured: 2.5 s -> 1.3 s per 100 000 JointStates). A fixed threshold keeps them.
-    Other C libraries: nothing is changed.
-    """
-    if _TUNED:
-        return
-    _TUNED.append(True)
-    try:
-        import ctypes
-        libc = ctypes.CDLL(None)
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):
-        return
-    m_trim_threshold, m_mmap_threshold = -1, -3
-    mallopt(m_mmap_threshold, MALLOC_THRESHOLD_BYTES)
-    mallopt(m_trim_threshold, 2 * MALLOC_THRESHOLD_BYTES)
+FLEET_LOG_INTERVAL_S = 5.0     # the progress line's period when stderr is not a terminal
 
 
 @dataclass
@@ -300,6 +198,8 @@ class _Runner:
             self.pending.setdefault(unit.bag, []).append(unit)
         self.results = {}  # bag -> results so far
         self.meter = Progress(total, 'dq_fk_bag fleet', enabled=progress)
+        if not self.meter.terminal:
+            self.meter.interval = FLEET_LOG_INTERVAL_S  # a line every few seconds in a log
         self.done_messages = 0
         self.progress = progress
 
