@@ -231,7 +231,7 @@ def _die_once(unit):
 
 
 def test_bad_bags_stop_none_of_the_others(tmp_path, capsys):
-    """Damaged, empty, another robot's: each reported; the rest done; exit 1."""
+    """Damaged, empty, misnamed, another robot's: each reported; the rest done; exit 1."""
     fleet = tmp_path / 'in'
     rl15_bag(fleet / 'good', 150)
     write_ros1_bag(fleet / 'old.bag', 80)
@@ -241,6 +241,8 @@ def test_bad_bags_stop_none_of_the_others(tmp_path, capsys):
     data[len(data) // 3:len(data) // 3 + 4000] = b'\xff' * 4000
     mcap.write_bytes(bytes(data))
     write_bag(fleet / 'empty', [])
+    (fleet / 'misnamed').mkdir()
+    (fleet / 'misnamed' / 'misnamed.mcap').write_text('a text file, not an MCAP')
     write_bag(fleet / 'other_robot', [(T0 + k, js_bytes(['wheel_left', 'wheel_right'],
                                                         [0.1, 0.2], T0 + k)) for k in range(20)])
     report = tmp_path / 'report.json'
@@ -251,18 +253,19 @@ def test_bad_bags_stop_none_of_the_others(tmp_path, capsys):
     data = json.loads(report.read_text())
     bags = {b['bag']: b for b in data['bags']}
     assert {k: b['status'] for k, b in bags.items()} == {
-        'damaged': 'failed', 'empty': 'failed', 'good': 'done', 'old': 'done',
-        'other_robot': 'failed'}
+        'damaged': 'failed', 'empty': 'failed', 'good': 'done', 'misnamed': 'failed',
+        'old': 'done', 'other_robot': 'failed'}
     assert 'is damaged' in bags['damaged']['problems'][0]
     assert 'has 0 messages' in bags['empty']['problems'][0]
     assert 'wheel_left' in bags['other_robot']['problems'][0]
-    for name in ('damaged', 'empty', 'other_robot'):
+    assert 'misnamed' in bags['misnamed']['problems'][0]
+    for name in ('damaged', 'empty', 'misnamed', 'other_robot'):
         assert not (tmp_path / 'out' / name).exists()  # partial output removed
     assert messages(tmp_path / 'out' / 'good') == serial(fleet / 'good', tmp_path / 's')
-    for line in out.splitlines()[1:6]:
+    for line in out.splitlines()[1:7]:
         name = line.split()[0]
         assert name in bags
-    assert '5 bags: 2 done, 0 skipped, 3 failed' in out
+    assert '6 bags: 2 done, 0 skipped, 4 failed' in out
 
 
 def test_fleet_usage_errors_are_one_line_and_exit_2(tmp_path, capsys):
