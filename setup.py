@@ -2,7 +2,7 @@
 
 from glob import glob
 
-from setuptools import find_packages, setup
+from setuptools import Extension, find_packages, setup
 
 package_name = 'dq_fk_ros'
 
@@ -17,6 +17,11 @@ setup(
         ('share/' + package_name + '/web', ['web/index.html', 'web/app.js', 'web/package.json',
                                             'web/package-lock.json']),
     ],
+    # the compiled FK kernel: optional (without a C compiler the numpy path runs); no
+    # contraction into fused multiply-adds, so it computes what the reference computes
+    ext_modules=[Extension('dq_fk_ros.kinematics._kernel', ['dq_fk_ros/kinematics/_kernel.c'],
+                           extra_compile_args=['-O2', '-ffp-contract=off', '-fno-fast-math'],
+                           optional=True)],
     install_requires=['setuptools', 'numpy', 'PyYAML'],
     # dq_fk_bag process --scheduler: a Dask cluster (pip install 'dq_fk_ros[cluster]')
     extras_require={'cluster': ['dask[distributed]']},

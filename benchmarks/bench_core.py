@@ -22,6 +22,7 @@ import sys
 import time
 
 from dq_fk_ros.kinematics.dh import DHJoint, homogeneous_from_dq, KinematicChain
+from dq_fk_ros.kinematics.kernel import kernel_info
 import numpy as np
 
 DEG = math.pi / 180.0
@@ -64,12 +65,27 @@ def per_call_seconds(fn, repeat, min_time=0.2):
 def make_dq_fk_ros(rows):
     chain = KinematicChain([DHJoint(a=a, alpha=al, d=d, theta=off) for a, al, d, off in rows])
     return {
-        'name': 'dq_fk_ros (this package)',
+        'name': f"dq_fk_ros ({kernel_info()['active']} path)",
         'end': chain.forward,
         'all': chain.forward_all,
         'batch_end': chain.forward_batch,
         'batch_all': chain.forward_all_batch,
         'end_matrix': lambda q: chain.forward(q).to_matrix(),
+    }
+
+
+def make_dq_fk_ros_reference(rows):
+    """Return the numpy reference path of the same chain (what runs without the kernel)."""
+    if kernel_info()['active'] != 'c':
+        raise ImportError('the kernel is not active: the row above is the numpy path')
+    chain = KinematicChain([DHJoint(a=a, alpha=al, d=d, theta=off) for a, al, d, off in rows])
+    return {
+        'name': 'dq_fk_ros (numpy reference path)',
+        'end': lambda q: chain._forward_all_reference(q)[-1],
+        'all': chain._forward_all_reference,
+        'batch_end': chain._forward_batch_reference,
+        'batch_all': chain._forward_all_batch_reference,
+        'end_matrix': lambda q: homogeneous_from_dq(chain._forward_all_reference(q)[-1]),
     }
 
 
@@ -192,7 +208,8 @@ def make_pinocchio(rows):
     }
 
 
-PEERS = [('numpy', make_numpy_4x4), ('roboticstoolbox', make_rtb),
+PEERS = [('dq_fk_ros numpy path', make_dq_fk_ros_reference),
+         ('numpy', make_numpy_4x4), ('roboticstoolbox', make_rtb),
          ('dqrobotics', make_dqrobotics), ('pinocchio', make_pinocchio)]
 
 
@@ -271,6 +288,30 @@ def run_robot(label, rows, n_batch, repeat, rng):
         print(f"\nnot installed (make bench installs them): {', '.join(missing)}")
     print('end-effector agreement with dq_fk_ros (max abs 4x4 difference): '
           + ', '.join(f'{k}: {v:.1e}' for k, v in worst.items()))
+    print_targets(label, results, n_batch)
+
+
+def print_targets(label, results, n_batch):
+    """Print the compiled kernel's targets (issue "A compiled kernel") with met / NOT met."""
+    ours = results[0]
+    print(f'\ntargets ({label}):')
+    for peer in ('pinocchio (C++)', 'dqrobotics DQ_SerialManipulatorDH'):
+        theirs = next((r for r in results if r['name'] == peer), None)
+        for key, what in (('end', 'end effector'), ('all', 'all frames')):
+            if theirs is None or not theirs[key]:
+                print(f'- single call, {what}, faster than {peer}: not measured (not installed)')
+                continue
+            ratio = theirs[key] / ours[key]
+            print(f'- single call, {what}, faster than {peer}: {ratio:.2f}x '
+                  f"({'met' if ratio > 1 else 'NOT met'})")
+    all_us = ours['all'] * 1e6
+    print(f'- single call, all frames <= 0.5 us (aim): {all_us:.2f} us '
+          f"({'met' if all_us <= 0.5 else 'NOT met'})")
+    goals = (('batch_end', 'end effector', 20e6), ('batch_all', 'all frames', 5e6))
+    for key, what, goal in goals:
+        rate = n_batch / ours[key]
+        print(f'- batch, {what}: {rate / 1e6:.1f} M cfg/s (target >= {goal / 1e6:.0f} M: '
+              f"{'met' if rate >= goal else 'NOT met'})")
 
 
 def main(argv=None):

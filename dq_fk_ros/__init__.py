@@ -16,6 +16,7 @@ first use, so ``import dq_fk_ros`` stays light (no ROS, no rosbags until asked):
 * :func:`load_robot` (a DH file, a URDF or xacro, a shipped name) -> ``LoadedRobot`` whose
   ``model`` is a :class:`RobotModel` (``forward_all(q)``, ``frame_poses(q)``, ...);
 * :class:`KinematicChain`, :class:`DHJoint`, :class:`DualQuaternion`: the numerical core;
+  :func:`kernel_info`: whether it runs on the compiled kernel or on numpy;
 * :func:`process_bag` (with :class:`ProcessOptions`, returning a :class:`ProcessSummary`):
   joint states in a bag -> every frame's pose and TF in another; :func:`process_fleet`
   (a :class:`FleetSummary`): every bag under some folders, on every core or a Dask cluster;
@@ -34,6 +35,7 @@ _SURFACE = {
     'ProcessSummary': 'dq_fk_ros.bag.process',
     'process_fleet': 'dq_fk_ros.bag.fleet',
     'FleetSummary': 'dq_fk_ros.bag.fleet',
+    'kernel_info': 'dq_fk_ros.kinematics.kernel',
     'DqFkError': 'dq_fk_ros.description.errors',
     'RobotDescriptionError': 'dq_fk_ros.description.errors',
     'ParameterError': 'dq_fk_ros.description.errors',

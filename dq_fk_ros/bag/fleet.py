@@ -342,10 +342,13 @@ class _Runner:
 
 
 def _needs_whole_run(summaries):
-    """Whether windows may differ from the serial run: time jumps, or first output late."""
-    if any(s.time_jumps for s in summaries):
-        return True
-    return summaries[0].written == 0 and any(s.written for s in summaries)
+    """
+    Whether the serial run must decide: stamps that jumped back, or no output in window 0.
+
+    The first output past the first window needs /tf_static there; none at all, the
+    one-bag command's line saying why nothing could be used.
+    """
+    return any(s.time_jumps for s in summaries) or summaries[0].written == 0
 
 
 class _LocalCounter:
@@ -375,7 +378,7 @@ def _dask_client(scheduler, jobs):
         return client
     try:
         return Client(scheduler, timeout=30)
-    except OSError as exc:
+    except (OSError, ValueError, TypeError) as exc:  # unreachable, or not an address
         raise BagError(f'--scheduler {scheduler}: cannot reach the scheduler ({one_line(exc)})'
                        ) from None
 

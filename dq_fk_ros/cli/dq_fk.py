@@ -256,6 +256,9 @@ def cmd_list(args):
     for name in shipped_robots():
         model = load_robot_description(shipped_robot_path(name))
         print(f'{name:20s} {model.dof} joints  {shipped_robot_path(name)}')
+    if args.verbose:
+        from dq_fk_ros.kinematics.kernel import kernel_info
+        print(f"FK kernel: {kernel_info()['why']}")
     return 0
 
 
@@ -316,6 +319,8 @@ def build_parser():
     add_package_option(p)
     p.set_defaults(func=cmd_from_urdf)
     p = sub.add_parser('list', help='list the shipped robots')
+    p.add_argument('--verbose', '-v', action='store_true',
+                   help='also say which FK path is active (the C kernel or numpy)')
     p.set_defaults(func=cmd_list)
     return parser
 

@@ -17,7 +17,11 @@ Dual quaternions are 8-vectors (w, x, y, z, w', x', y', z'); see
 :mod:`dq_fk_ros.kinematics.dual_quaternion`.
 
 The rows' factor program and the straight-line code generated from it are in
-:mod:`dq_fk_ros.kinematics.dh_code`.
+:mod:`dq_fk_ros.kinematics.dh_code`; the compiled kernel in :mod:`dq_fk_ros.kinematics.kernel`.
+
+Why this file is long: each of the chain's fast paths (the C kernel) stands beside its
+numpy reference (``_forward_all_reference``...), so that a change to one is seen next to the
+other; test_kernel.py holds them equal.
 """
 
 from array import array
@@ -30,6 +34,7 @@ from dq_fk_ros.kinematics.dh_code import row_program, run_program, unrolled_fram
 from dq_fk_ros.kinematics.dual_quaternion import (
     canonical, Coeffs, dq_multiply_array, dq_multiply_coeffs, dq_translation_array, DualQuaternion,
     Pose, pose_xyzw_from_coeffs, quat_conjugate, quat_to_matrix)
+from dq_fk_ros.kinematics.kernel import KERNEL
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -100,6 +105,9 @@ def _row_modified(ca, sa, a, theta, d):
 
 def joint_value_list(q: ArrayLike, joint_names: Sequence[str]) -> list[float]:
     """Return ``q`` as a list of floats, one per joint (ValueError naming the joints if not)."""
+    if isinstance(q, np.ndarray) and q.ndim != 1:
+        raise ValueError(f'expected {len(joint_names)} joint values {list(joint_names)}, '
+                         f'got an array of shape {q.shape}')
     if len(q) != len(joint_names):
         raise ValueError(f'expected {len(joint_names)} joint values {list(joint_names)}, '
                          f'got {len(q)}')
@@ -137,6 +145,11 @@ class KinematicChain:
         self._base_t = tuple(self.base.coeffs.tolist())
         self._tool_t = tuple(self.tool.coeffs.tolist()) if tool is not None else None
         self._build_variable_map()
+        # the compiled kernel's inputs: the factor program as an (n_ops, 7) array
+        self._dof = len(self.joint_names)
+        self._kernel_args = (
+            np.array([[float(v) for v in op] for op in self._program]).reshape(-1, 7),
+            np.array(self._base_t), None if tool is None else np.array(self._tool_t))
 
     # -- structure ---------------------------------------------------------------------
     def _build_variable_map(self):
@@ -308,19 +321,68 @@ class KinematicChain:
         """Relative transform of every row, frame i-1 -> frame i, as an ``(n, 8)`` array."""
         return np.array(self._relative_tuples(self._check_q(q).tolist()))
 
-    def forward_all(self, q: ArrayLike) -> np.ndarray:
+    def _q_vector(self, q):
+        """Return ``q`` as a contiguous float64 vector (the numpy path's errors if not)."""
+        q = np.ascontiguousarray(q, dtype=float)
+        if q.ndim != 1 or len(q) != self.dof:
+            joint_value_list(q, self.joint_names)  # raises the numpy path's ValueError
+        return q
+
+    def _q_batch(self, q):
+        """Return ``q`` as a contiguous ``(N, dof)`` float64 array (the numpy path's errors)."""
+        q = np.ascontiguousarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.dof:
+            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
+                             f'got shape {q.shape}')
+        return q
+
+    def forward_all(self, q: ArrayLike, out: np.ndarray | None = None) -> np.ndarray:
         """
         Absolute pose of every frame in the fixed frame, ``(n_frames, 8)``, ``w >= 0``.
 
-        Rows: frame 0 (the base transform), frames 1..n, then the tool if any.
+        Rows: frame 0 (the base transform), frames 1..n, then the tool if any. Fast path: the
+        C kernel (:mod:`dq_fk_ros.kinematics.kernel`); reference: :meth:`_forward_all_reference`
+        (test_kernel.py holds them equal to 1e-12).
+
+        :param out: a C-contiguous float64 ``(n_frames, 8)`` array to fill and return (no
+            allocation; the C kernel only), else a new one.
         """
+        if KERNEL is None:
+            result = self._forward_all_reference(q)
+            if out is None:
+                return result
+            out[...] = result
+            return out
+        if out is None:
+            out = np.empty((self.n_frames, 8))
+        program, base, tool = self._kernel_args
+        try:  # a float64 vector of the right length goes straight in
+            KERNEL.frames(program, base, tool, q, out, True, self._dof)
+        except (ValueError, TypeError):  # a list, another dtype... or a wrong q: its error
+            KERNEL.frames(program, base, tool, self._q_vector(q), out, True, self._dof)
+        return out
+
+    def _forward_all_reference(self, q):
+        """:meth:`forward_all` in Python floats: the reference of the kernel."""
         flat = []
         for f in self._absolute_tuples(q):
             flat += f if f[0] >= 0.0 else [-v for v in f]
         return np.frombuffer(array('d', flat)).reshape(-1, 8)
 
     def forward(self, q: ArrayLike) -> DualQuaternion:
-        """Return the end-effector pose (tool if any, else frame n), a :class:`DualQuaternion`."""
+        """
+        Return the end-effector pose (tool if any, else frame n), a :class:`DualQuaternion`.
+
+        Fast path: the C kernel; reference: the last row of :meth:`_forward_all_reference`.
+        """
+        if KERNEL is not None:
+            out = np.empty(8)
+            program, base, tool = self._kernel_args
+            try:
+                KERNEL.end(program, base, tool, q, out, True, self._dof)
+            except (ValueError, TypeError):
+                KERNEL.end(program, base, tool, self._q_vector(q), out, True, self._dof)
+            return DualQuaternion.from_array(out)
         end = self._absolute_tuples(q)[-1]
         return DualQuaternion.from_array(np.frombuffer(
             array('d', end if end[0] >= 0.0 else [-v for v in end])))
@@ -369,7 +431,21 @@ class KinematicChain:
             yield part, frames
 
     def forward_all_batch(self, q: ArrayLike) -> np.ndarray:
-        """Absolute poses of every frame for N configurations: ``(N, n_frames, 8)``."""
+        """
+        Absolute poses of every frame for N configurations: ``(N, n_frames, 8)``.
+
+        Fast path: the C kernel; reference: :meth:`_forward_all_batch_reference`
+        (test_kernel.py).
+        """
+        if KERNEL is None:
+            return self._forward_all_batch_reference(q)
+        q = self._q_batch(q)
+        out = np.empty((len(q), self.n_frames, 8))
+        KERNEL.frames_batch(*self._kernel_args, q, out, True)
+        return out
+
+    def _forward_all_batch_reference(self, q):
+        """:meth:`forward_all_batch` with numpy, chunk by chunk: the reference."""
         out = np.empty((len(q), self.n_frames, 8))
         for part, frames in self._batches(q):
             for i, frame in enumerate(frames):
@@ -378,7 +454,20 @@ class KinematicChain:
         return _canonical_inplace(out)
 
     def forward_batch(self, q: ArrayLike) -> np.ndarray:
-        """End-effector poses (tool if any) for N configurations: ``(N, 8)``, ``w >= 0``."""
+        """
+        End-effector poses (tool if any) for N configurations: ``(N, 8)``, ``w >= 0``.
+
+        Fast path: the C kernel; reference: :meth:`_forward_batch_reference` (test_kernel.py).
+        """
+        if KERNEL is None:
+            return self._forward_batch_reference(q)
+        q = self._q_batch(q)
+        out = np.empty((len(q), 8))
+        KERNEL.end_batch(*self._kernel_args, q, out, True)
+        return out
+
+    def _forward_batch_reference(self, q):
+        """:meth:`forward_batch` with numpy, chunk by chunk: the reference."""
         out = np.empty((len(q), 8))
         for part, frames in self._batches(q):
             for k in range(8):

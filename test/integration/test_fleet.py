@@ -285,6 +285,8 @@ def test_fleet_usage_errors_are_one_line_and_exit_2(tmp_path, capsys):
           '--robot', 'rl15'], 'no such bag or folder'),
         (['process', str(tmp_path / 'in'), '--output-dir', str(tmp_path / 'o'), '--robot',
           'no_such_robot'], 'no_such_robot'),
+        (['process', str(tmp_path / 'in'), '--output-dir', str(tmp_path / 'o'), '--robot',
+          'rl15', '--scheduler', 'not-an-address'], 'cannot reach the scheduler'),
     ]
     for argv, says in cases:
         rc = bag_main(argv)

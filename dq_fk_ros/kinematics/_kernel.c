@@ -1,0 +1,300 @@
+/*
+ * dq_fk_ros.kinematics._kernel: the DH chain's every-frame poses in C.
+ *
+ * The compiled form of dq_fk_ros.kinematics.dh_code.run_program, the reference: the same
+ * factors (the sparse z and x steps of [Zivkovic2023] eqs. (13)-(15)) applied in the same
+ * order, on doubles, into buffers the caller owns (no allocation per call). A program is
+ * an (n_ops, 7) float64 array of the ZStep/XStep fields (kind, p1..p5, mark); base and
+ * tool are 8 coefficients (w, x, y, z, w', x', y', z'). test_kernel.py holds this equal to
+ * the numpy path on random tables, joint values and batches.
+ *
+ * Only the CPython C API and the buffer protocol: no numpy headers.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <string.h>
+
+#define OP_FIELDS 7
+
+typedef struct {
+    Py_buffer program, base, tool, q, out;
+    int have_tool;
+} Args;
+
+static void release(Args *a)
+{
+    if (a->program.obj) PyBuffer_Release(&a->program);
+    if (a->base.obj) PyBuffer_Release(&a->base);
+    if (a->tool.obj) PyBuffer_Release(&a->tool);
+    if (a->q.obj) PyBuffer_Release(&a->q);
+    if (a->out.obj) PyBuffer_Release(&a->out);
+}
+
+/* A C-contiguous float64 buffer (writable if asked); else a Python error. */
+static int take(PyObject *obj, Py_buffer *view, int writable, const char *what)
+{
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj, view, flags) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_ValueError, "%s must be a C-contiguous%s float64 array", what,
+                     writable ? " writable" : "");
+        view->obj = NULL;
+        return -1;
+    }
+    if (view->itemsize != 8 || view->format == NULL || strcmp(view->format, "d") != 0) {
+        PyBuffer_Release(view);
+        view->obj = NULL;
+        PyErr_Format(PyExc_ValueError, "%s must be a float64 array", what);
+        return -1;
+    }
+    return 0;
+}
+
+static Py_ssize_t count(Py_buffer *v) { return v->len / 8; }
+
+/* Check the program against the number of joint values: every index in range. */
+static int check_program(const double *p, Py_ssize_t n_ops, Py_ssize_t dof)
+{
+    for (Py_ssize_t i = 0; i < n_ops; i++) {
+        const double *op = p + i * OP_FIELDS;
+        if (op[0] == 0.0) {
+            double ti = op[3], di = op[5];
+            if (ti >= (double)dof || di >= (double)dof || ti != floor(ti) || di != floor(di)) {
+                PyErr_SetString(PyExc_ValueError, "program indexes a joint value q lacks");
+                return -1;
+            }
+        } else if (op[0] != 1.0) {
+            PyErr_SetString(PyExc_ValueError, "program step kind must be 0 (z) or 1 (x)");
+            return -1;
+        }
+    }
+    return 0;
+}
+
+static Py_ssize_t marks(const double *p, Py_ssize_t n_ops)
+{
+    Py_ssize_t m = 0;
+    for (Py_ssize_t i = 0; i < n_ops; i++)
+        m += p[i * OP_FIELDS + 6] != 0.0;
+    return m;
+}
+
+/* a * b, [Zivkovic2023] eq. (12), in dq_multiply_coeffs' order of terms */
+static void multiply(const double *a, const double *b, double *o)
+{
+    double r0 = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
+    double r1 = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
+    double r2 = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
+    double r3 = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
+    double d0 = a[0] * b[4] - a[1] * b[5] - a[2] * b[6] - a[3] * b[7]
+              + a[4] * b[0] - a[5] * b[1] - a[6] * b[2] - a[7] * b[3];
+    double d1 = a[0] * b[5] + a[1] * b[4] + a[2] * b[7] - a[3] * b[6]
+              + a[4] * b[1] + a[5] * b[0] + a[6] * b[3] - a[7] * b[2];
+    double d2 = a[0] * b[6] - a[1] * b[7] + a[2] * b[4] + a[3] * b[5]
+              + a[4] * b[2] - a[5] * b[3] + a[6] * b[0] + a[7] * b[1];
+    double d3 = a[0] * b[7] + a[1] * b[6] - a[2] * b[5] + a[3] * b[4]
+              + a[4] * b[3] + a[5] * b[2] - a[6] * b[1] + a[7] * b[0];
+    o[0] = r0; o[1] = r1; o[2] = r2; o[3] = r3; o[4] = d0; o[5] = d1; o[6] = d2; o[7] = d3;
+}
+
+static void canonical(double *h)
+{
+    if (h[0] < 0.0)
+        for (int k = 0; k < 8; k++) h[k] = -h[k];
+}
+
+/*
+ * Run the program from base at q; write frame 0, every marked frame, then base*tool, into
+ * out (8 doubles each); only the last one if end_only. As run_program, step by step.
+ */
+static void run(const double *prog, Py_ssize_t n_ops, const double *base, const double *tool,
+                const double *q, double *out, int end_only, int canon)
+{
+    double aw = base[0], ax = base[1], ay = base[2], az = base[3];
+    double bw = base[4], bx = base[5], by = base[6], bz = base[7];
+    double *f = out;
+    if (!end_only) {
+        memcpy(f, base, 8 * sizeof(double));
+        if (canon) canonical(f);
+        f += 8;
+    }
+    for (Py_ssize_t i = 0; i < n_ops; i++) {
+        const double *op = prog + i * OP_FIELDS;
+        double p1 = op[1], p2 = op[2], p3 = op[3], p4 = op[4], p5 = op[5];
+        if (op[0] == 0.0) {  /* h (c + s k) (1 + eps hd k) */
+            double half = p3 < 0 ? 0.5 * p1 : 0.5 * (p1 + p2 * q[(Py_ssize_t)p3]);
+            double c = cos(half), s = sin(half);
+            double nw = aw * c - az * s, nx = ax * c + ay * s, ny = ay * c - ax * s,
+                   nz = az * c + aw * s;
+            double mw = bw * c - bz * s, mx = bx * c + by * s, my = by * c - bx * s,
+                   mz = bz * c + bw * s;
+            aw = nw; ax = nx; ay = ny; az = nz; bw = mw; bx = mx; by = my; bz = mz;
+            if (p5 >= 0 || p4 != 0.0) {
+                double hd = p5 < 0 ? 0.5 * p4 : 0.5 * (p4 + p2 * q[(Py_ssize_t)p5]);
+                double w = bw - hd * az, x = bx + hd * ay, y = by - hd * ax, z = bz + hd * aw;
+                bw = w; bx = x; by = y; bz = z;
+            }
+        } else {  /* h (1 + eps ha i) (c + s i), constant */
+            if (p1 != 0.0) {
+                double w = bw - p1 * ax, x = bx + p1 * aw, y = by + p1 * az, z = bz - p1 * ay;
+                bw = w; bx = x; by = y; bz = z;
+            }
+            if (p4 != 0.0) {
+                double nw = aw * p2 - ax * p3, nx = ax * p2 + aw * p3, ny = ay * p2 + az * p3,
+                       nz = az * p2 - ay * p3;
+                double mw = bw * p2 - bx * p3, mx = bx * p2 + bw * p3, my = by * p2 + bz * p3,
+                       mz = bz * p2 - by * p3;
+                aw = nw; ax = nx; ay = ny; az = nz; bw = mw; bx = mx; by = my; bz = mz;
+            }
+        }
+        if (op[6] != 0.0 && !end_only) {
+            f[0] = aw; f[1] = ax; f[2] = ay; f[3] = az;
+            f[4] = bw; f[5] = bx; f[6] = by; f[7] = bz;
+            if (canon) canonical(f);
+            f += 8;
+        }
+    }
+    double last[8] = {aw, ax, ay, az, bw, bx, by, bz};
+    if (tool) {
+        multiply(last, tool, f);
+    } else if (end_only) {
+        memcpy(f, last, sizeof last);
+    } else {
+        return;
+    }
+    if (canon) canonical(f);
+}
+
+/* Parse (program, base, tool or None, q, out, canonical[, dof]); check sizes; 0 or -1. */
+static int parse(PyObject *const *args, Py_ssize_t nargs, Py_ssize_t expected, Args *a,
+                 const char *name)
+{
+    memset(a, 0, sizeof *a);
+    if (nargs != expected) {
+        PyErr_Format(PyExc_TypeError, "%s(program, base, tool, q, out, canonical%s)", name,
+                     expected == 7 ? ", dof" : "");
+        return -1;
+    }
+    if (take(args[0], &a->program, 0, "program") < 0 || take(args[1], &a->base, 0, "base") < 0
+        || take(args[3], &a->q, 0, "q") < 0 || take(args[4], &a->out, 1, "out") < 0)
+        return -1;
+    a->have_tool = args[2] != Py_None;
+    if (a->have_tool && take(args[2], &a->tool, 0, "tool") < 0)
+        return -1;
+    if (count(&a->program) % OP_FIELDS || count(&a->base) != 8
+        || (a->have_tool && count(&a->tool) != 8)) {
+        PyErr_SetString(PyExc_ValueError, "program must be (n, 7), base and tool 8 values");
+        return -1;
+    }
+    return 0;
+}
+
+static PyObject *kernel_frames(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                               int end_only)
+{
+    Args a;
+    if (parse(args, nargs, 7, &a, end_only ? "end" : "frames") < 0) {
+        release(&a);
+        return NULL;
+    }
+    int canon = PyObject_IsTrue(args[5]);
+    Py_ssize_t dof = PyLong_AsSsize_t(args[6]);
+    const double *prog = a.program.buf;
+    Py_ssize_t n_ops = count(&a.program) / OP_FIELDS;
+    Py_ssize_t per = end_only ? 8 : 8 * (1 + marks(prog, n_ops) + a.have_tool);
+    if (canon < 0 || (dof < 0 && PyErr_Occurred())) {
+        release(&a);
+        return NULL;
+    }
+    if (a.q.ndim != 1 || count(&a.q) != dof) {
+        PyErr_Format(PyExc_ValueError, "q must be %zd joint values", dof);
+        release(&a);
+        return NULL;
+    }
+    if (check_program(prog, n_ops, dof) < 0) {
+        release(&a);
+        return NULL;
+    }
+    if (count(&a.out) != per) {
+        PyErr_Format(PyExc_ValueError, "out must hold %zd values, not %zd", per,
+                     count(&a.out));
+        release(&a);
+        return NULL;
+    }
+    run(prog, n_ops, a.base.buf, a.have_tool ? a.tool.buf : NULL, a.q.buf, a.out.buf,
+        end_only, canon);
+    release(&a);
+    Py_RETURN_NONE;
+}
+
+static PyObject *kernel_batch(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                              int end_only)
+{
+    Args a;
+    if (parse(args, nargs, 6, &a, end_only ? "end_batch" : "frames_batch") < 0) {
+        release(&a);
+        return NULL;
+    }
+    int canon = PyObject_IsTrue(args[5]);
+    const double *prog = a.program.buf;
+    Py_ssize_t n_ops = count(&a.program) / OP_FIELDS;
+    Py_ssize_t per = end_only ? 8 : 8 * (1 + marks(prog, n_ops) + a.have_tool);
+    if (canon < 0) {
+        release(&a);
+        return NULL;
+    }
+    if (a.q.ndim != 2) {
+        PyErr_SetString(PyExc_ValueError, "q must be (N, dof)");
+        release(&a);
+        return NULL;
+    }
+    Py_ssize_t n = a.q.shape[0], dof = a.q.shape[1];
+    if (check_program(prog, n_ops, dof) < 0) {
+        release(&a);
+        return NULL;
+    }
+    if (count(&a.out) != n * per) {
+        PyErr_Format(PyExc_ValueError, "out must hold %zd values, not %zd", n * per,
+                     count(&a.out));
+        release(&a);
+        return NULL;
+    }
+    const double *q = a.q.buf, *tool = a.have_tool ? a.tool.buf : NULL;
+    double *out = a.out.buf;
+    Py_BEGIN_ALLOW_THREADS
+    for (Py_ssize_t i = 0; i < n; i++)
+        run(prog, n_ops, a.base.buf, tool, q + i * dof, out + i * per, end_only, canon);
+    Py_END_ALLOW_THREADS
+    release(&a);
+    Py_RETURN_NONE;
+}
+
+static PyObject *frames(PyObject *s, PyObject *const *a, Py_ssize_t n)
+{ return kernel_frames(s, a, n, 0); }
+static PyObject *end(PyObject *s, PyObject *const *a, Py_ssize_t n)
+{ return kernel_frames(s, a, n, 1); }
+static PyObject *frames_batch(PyObject *s, PyObject *const *a, Py_ssize_t n)
+{ return kernel_batch(s, a, n, 0); }
+static PyObject *end_batch(PyObject *s, PyObject *const *a, Py_ssize_t n)
+{ return kernel_batch(s, a, n, 1); }
+
+static PyMethodDef methods[] = {
+    {"frames", (PyCFunction)(void (*)(void))frames, METH_FASTCALL,
+     "frames(program, base, tool, q, out, canonical, dof): every frame of the chain into out"},
+    {"end", (PyCFunction)(void (*)(void))end, METH_FASTCALL,
+     "end(program, base, tool, q, out, canonical, dof): the last frame (tool if any) into out"},
+    {"frames_batch", (PyCFunction)(void (*)(void))frames_batch, METH_FASTCALL,
+     "frames_batch(program, base, tool, q (N, dof), out, canonical): N x every frame"},
+    {"end_batch", (PyCFunction)(void (*)(void))end_batch, METH_FASTCALL,
+     "end_batch(program, base, tool, q (N, dof), out, canonical): N x the last frame"},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_kernel",
+    "The DH chain's poses in C (the reference: dq_fk_ros.kinematics.dh_code.run_program).",
+    -1, methods,
+};
+
+PyMODINIT_FUNC PyInit__kernel(void) { return PyModule_Create(&module); }

@@ -1,0 +1,138 @@
+"""
+The compiled kernel equals the numpy reference on any DH chain, and refuses what it refuses.
+
+The reference is KinematicChain's numpy path (``_forward_all_reference``...); hypothesis
+draws chains (standard and modified, every row type, mimic rows, base and tool, degenerate
+ones: prismatic only, fixed only, a base turned half a turn so that w = 0), joint values and
+batches. The whole kinematics suite also runs with ``DQ_FK_PURE_PYTHON=1``
+(scripts/run_tests), so both paths pass the same tests.
+"""
+
+import math
+import os
+import subprocess
+import sys
+
+from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
+from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
+from dq_fk_ros.kinematics.kernel import kernel_info
+from hypothesis import given, HealthCheck, settings, strategies as st
+import numpy as np
+import pytest
+
+needs_kernel = pytest.mark.skipif(kernel_info()['active'] != 'c',
+                                  reason='the numpy path is active: nothing to compare')
+finite = st.floats(-3.0, 3.0, allow_nan=False)
+
+
+@st.composite
+def chains(draw):
+    n = draw(st.integers(1, 7))
+    kinds = draw(st.lists(st.sampled_from(['revolute', 'prismatic', 'cylindrical', 'fixed']),
+                          min_size=n, max_size=n))
+    rows = []
+    for i, kind in enumerate(kinds):
+        follows = ''
+        earlier = [r.name for r in rows if r.joint_type in ('revolute', 'prismatic')
+                   and not r.follows]
+        if kind in ('revolute', 'prismatic') and earlier and draw(st.booleans()):
+            follows = draw(st.sampled_from(earlier))
+        rows.append(DHJoint(a=draw(finite), alpha=draw(finite), d=draw(finite),
+                            theta=draw(finite), joint_type=kind, name=f'j{i}',
+                            scale=draw(st.sampled_from([1.0, -1.0, 0.5])),
+                            follows=follows))
+    half_turn = draw(st.booleans())  # a base whose real part has w = 0
+    base = DualQuaternion.from_rotation([0.0, 0.0, 1.0], math.pi) if half_turn else \
+        DualQuaternion.from_pose(translation=[draw(finite), draw(finite), draw(finite)])
+    tool = DualQuaternion.from_rotation([1.0, 0.0, 0.0], draw(finite)) \
+        if draw(st.booleans()) else None
+    return KinematicChain(rows, draw(st.sampled_from(['standard', 'modified'])), base, tool)
+
+
+@needs_kernel
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(chains(), st.data())
+def test_the_kernel_equals_the_numpy_reference_on_any_chain(chain, data):
+    q = np.array(data.draw(st.lists(finite, min_size=chain.dof, max_size=chain.dof)))
+    np.testing.assert_allclose(chain.forward_all(q), chain._forward_all_reference(q),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(chain.forward(q).coeffs,
+                               chain._forward_all_reference(q)[-1], rtol=0, atol=1e-12)
+    rows = data.draw(st.lists(st.lists(finite, min_size=chain.dof, max_size=chain.dof),
+                              max_size=9))
+    batch = np.array(rows, dtype=float).reshape(len(rows), chain.dof)
+    np.testing.assert_allclose(chain.forward_all_batch(batch),
+                               chain._forward_all_batch_reference(batch), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(chain.forward_batch(batch),
+                               chain._forward_batch_reference(batch), rtol=0, atol=1e-12)
+
+
+@needs_kernel
+def test_fixed_only_and_prismatic_only_chains():
+    fixed = KinematicChain([DHJoint(a=0.3, alpha=1.0, joint_type='fixed')] * 3)
+    assert fixed.dof == 0
+    np.testing.assert_array_equal(fixed.forward_all([]), fixed._forward_all_reference([]))
+    assert fixed.forward_all_batch(np.zeros((4, 0))).shape == (4, 4, 8)
+    slide = KinematicChain([DHJoint(d=0.1, joint_type='prismatic', name=f'p{i}')
+                            for i in range(3)], 'modified')
+    q = [0.1, -0.2, 0.3]
+    np.testing.assert_array_equal(slide.forward_all(q), slide._forward_all_reference(q))
+
+
+@needs_kernel
+def test_bad_input_is_refused_as_the_numpy_path_refuses_it():
+    chain = KinematicChain([DHJoint(a=0.2, name='a'), DHJoint(d=0.1, name='b')])
+    for bad in ([0.1], [0.1, 0.2, 0.3], np.zeros((2, 1))):
+        for path in (chain.forward_all, chain._forward_all_reference):
+            with pytest.raises(ValueError, match='expected 2 joint values'):
+                path(bad)
+    with pytest.raises(ValueError):
+        chain.forward_all(['x', 'y'])
+    with pytest.raises(ValueError):
+        chain._forward_all_reference(['x', 'y'])
+    for bad in (np.zeros(2), np.zeros((3, 3))):
+        for path in (chain.forward_all_batch, chain._forward_all_batch_reference):
+            with pytest.raises(ValueError, match=r'expected an \(N, 2\) array'):
+                path(bad)
+    # NaN in, NaN out on both paths; non-contiguous and read-only inputs are taken
+    assert np.isnan(chain.forward_all([math.nan, 0.0])).any()
+    q = np.zeros((4, 4))[::2, ::2]
+    q.setflags(write=False)
+    np.testing.assert_array_equal(chain.forward_all_batch(q),
+                                  chain._forward_all_batch_reference(q))
+    np.testing.assert_array_equal(chain.forward_all(q[0]), chain._forward_all_reference(q[0]))
+
+
+@needs_kernel
+def test_the_kernel_itself_refuses_buffers_it_cannot_use():
+    from dq_fk_ros.kinematics import _kernel
+    chain = KinematicChain([DHJoint(a=0.2, name='a')])
+    program, base, tool = chain._kernel_args
+    good_out = np.empty((2, 8))
+    cases = [
+        (program, base, tool, np.zeros(1, np.float32), good_out),      # wrong dtype
+        (program, base, tool, np.zeros(1), np.empty((3, 8))),          # wrong size
+        (program, base, tool, np.zeros(1), np.empty((2, 8))[:, ::2]),  # not contiguous
+        (program, base, tool, np.zeros(0), good_out),                  # index past q
+        (program[:, :5].copy(), base, tool, np.zeros(1), good_out),    # not (n, 7)
+        (program, base[:4].copy(), tool, np.zeros(1), good_out),       # base not 8
+        (np.full_like(program, np.nan), base, tool, np.zeros(1), good_out),
+    ]
+    for args in cases:
+        with pytest.raises(ValueError):
+            _kernel.frames(*args, True, len(args[3]))
+    with pytest.raises(ValueError, match='q must be 1 joint values'):
+        _kernel.frames(program, base, tool, np.zeros(2), good_out, True, 1)
+    read_only = np.empty((2, 8))
+    read_only.setflags(write=False)
+    with pytest.raises(ValueError, match='writable'):
+        _kernel.frames(program, base, tool, np.zeros(1), read_only, True, 1)
+    with pytest.raises(TypeError):
+        _kernel.frames(program, base)
+
+
+def test_dq_fk_pure_python_forces_the_numpy_path():
+    code = ('import dq_fk_ros; i = dq_fk_ros.kernel_info(); print(i["active"], i["why"])')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         check=True, env=dict(os.environ, DQ_FK_PURE_PYTHON='1')).stdout
+    assert out.split()[0] == 'numpy' and 'DQ_FK_PURE_PYTHON=1' in out, out
