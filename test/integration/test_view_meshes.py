@@ -86,18 +86,32 @@ def show(processes, urdf_path, *view_args, positions=None):
 
 
 def read_lines(proc, seconds):
-    """Return the lines a process prints within ``seconds`` (its merged stdout and stderr)."""
-    import select
+    """
+    Return the lines a process prints within ``seconds`` (its merged stdout and stderr).
+
+    One thread per process reads its lines (select on the pipe would miss a line that an
+    earlier readline already took into the file object's buffer).
+    """
+    import queue
+    import threading
     import time
+    lines_queue = getattr(proc, 'lines_read', None)
+    if lines_queue is None:
+        lines_queue = proc.lines_read = queue.Queue()
+
+        def pump():
+            for line in iter(proc.stdout.readline, ''):
+                lines_queue.put(line)
+        threading.Thread(target=pump, daemon=True).start()
     lines, deadline = [], time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        ready, _, _ = select.select([proc.stdout], [], [], 0.1)
-        if ready:
-            line = proc.stdout.readline()
-            if not line:
-                break
-            lines.append(line)
-    return lines
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return lines
+        try:
+            lines.append(lines_queue.get(timeout=left))
+        except queue.Empty:
+            return lines
 
 
 def robot_pixels(browser, tmp_path, name):
