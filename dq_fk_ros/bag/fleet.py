@@ -33,7 +33,7 @@ from dq_fk_ros.bag.manifest import FleetState
 from dq_fk_ros.bag.process import ProcessOptions, set_progress_counter
 from dq_fk_ros.bag.progress import Progress
 from dq_fk_ros.bag.reading import BagError, joint_state_connections, open_reader, Ros1Bag
-from dq_fk_ros.bag.text import one_line
+from dq_fk_ros.bag.text import one_line, printable
 from dq_fk_ros.bag.windows import chunk_counts, plan_windows
 
 MIN_WINDOW_MESSAGES = 100_000  # a bag is cut into windows of at least this many JointStates
@@ -389,8 +389,8 @@ def report_table(summary):
     for b in summary.bags:
         problems = '; '.join(b.problems) if b.problems else (
             'skipped: output complete' if b.status == 'skipped' else '')
-        rows.append((b.bag, f'{b.messages_in:,}', f'{b.tf_out:,}', problems or '-',
-                     f'{b.seconds:.1f}'))
+        rows.append((printable(b.bag, 80), f'{b.messages_in:,}', f'{b.tf_out:,}',
+                     problems or '-', f'{b.seconds:.1f}'))
     widths = [max(len(r[k]) for r in rows) for k in range(4)]
     lines = ['  '.join(r[k].ljust(widths[k]) if k in (0, 3) else r[k].rjust(widths[k])
                        for k in range(4)) + '  ' + r[4] for r in rows]

@@ -248,9 +248,10 @@ def process_window(in_path, out_path, model, options, window):
 
     As :func:`process_bag` on the messages of the window, after merging those of the
     window's look-back (not written) so it starts from the joint values the bag held there;
-    /tf_static and /robot_description only in the first window. No CSV, no fallback for a
-    damaged chunk (the fleet then processes the whole bag with :func:`process_bag`).
-    Returns a :class:`ProcessSummary` of the window's messages alone.
+    /tf_static and /robot_description only in the first window. No CSV, and no record-by-
+    record fallback for a damaged chunk: its ``error`` says where reading stopped, and the
+    fleet reports the bag (as it reports a damaged bag the one-bag way). Returns a
+    :class:`ProcessSummary` of the window's messages alone.
     """
     o = replace(options, csv_path=None, csv_only=False)
     reader = open_reader(in_path)
