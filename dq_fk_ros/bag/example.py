@@ -17,12 +17,12 @@ def write_example_bag(path, joint_names, sample, seconds=10.0, rate_hz=100.0):
 
     :param sample: ``sample(t_s) -> (positions, velocities)`` in ``joint_names`` order.
     """
-    from rosbags.rosbag2 import Writer
+    from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
     store = get_typestore(Stores.ROS2_JAZZY)
     types = store.types
     count = int(round(seconds * rate_hz))
-    with Writer(path, version=9) as writer:
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conn = writer.add_connection('/joint_states', JOINT_STATE, typestore=store)
         for k in range(count):
             t_s = k / rate_hz

@@ -2,6 +2,7 @@
 
 import io
 import math
+import os
 
 from diagnostic_msgs.msg import DiagnosticArray
 from dq_fk_ros.bag.process import process_bag
@@ -504,6 +505,7 @@ def test_the_example_bag_holds_the_sweep_it_says(tmp_path, capsys):
     out = tmp_path / 'example'
     assert main(['example', str(out), '--robot', 'panda', '--seconds', '1', '--rate', '50']) == 0
     assert capsys.readouterr().out == f'{out}: 50 JointState messages of panda on /joint_states\n'
+    assert sorted(os.listdir(out)) == ['example.mcap', 'metadata.yaml']  # MCAP, as Jazzy's
     model = load_robot('panda').model
     motion = JointMotion('sine', model.limits)
     store = get_typestore(Stores.ROS2_JAZZY)
