@@ -434,6 +434,113 @@ static PyObject *kernel_batch(PyObject *self, PyObject *const *args, Py_ssize_t 
     Py_RETURN_NONE;
 }
 
+/*
+ * jacobian(program, base, tool, rows, modified, q, out (6, dof), dof): the geometric
+ * Jacobian of the end effector in the fixed frame, as KinematicChain.jacobian_geometric
+ * (the reference): every frame from run(), then per row its joint axis (z of frame i-1,
+ * standard; of frame i, modified) and, for a revolute variable, z x (p_end - p). rows is
+ * (n, 3): the theta variable's index, the d variable's index (-1: none) and the scale.
+ */
+#define MAX_STACK_FRAMES 128
+
+static void translation(const double *h, double *t)
+{
+    /* 2 d r*, the vector part ([Zivkovic2023] eq. (17)) */
+    double w = h[0], x = -h[1], y = -h[2], z = -h[3];
+    double dw = h[4], dx = h[5], dy = h[6], dz = h[7];
+    t[0] = 2.0 * (dw * x + dx * w + dy * z - dz * y);
+    t[1] = 2.0 * (dw * y - dx * z + dy * w + dz * x);
+    t[2] = 2.0 * (dw * z + dx * y - dy * x + dz * w);
+}
+
+static PyObject *jacobian(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Args a;
+    Py_buffer rows = {0};
+    double stack[8 * MAX_STACK_FRAMES], *frames = stack;
+    if (nargs != 8) {
+        PyErr_SetString(PyExc_TypeError,
+                        "jacobian(program, base, tool, rows, modified, q, out, dof)");
+        return NULL;
+    }
+    PyObject *forward[7] = {args[0], args[1], args[2], args[5], args[6], Py_True, args[7]};
+    if (parse(forward, 7, 7, &a, "jacobian") < 0) {
+        release(&a);
+        return NULL;
+    }
+    PyObject *result = NULL;
+    int modified = PyObject_IsTrue(args[4]);
+    Py_ssize_t dof = PyLong_AsSsize_t(args[7]);
+    const double *prog = a.program.buf;
+    Py_ssize_t n_ops = count(&a.program) / OP_FIELDS;
+    Py_ssize_t n_frames = 1 + marks(prog, n_ops) + a.have_tool;
+    if (modified < 0 || (dof < 0 && PyErr_Occurred()))
+        goto done;
+    if (take(args[3], &rows, 0, "rows") < 0)
+        goto done;
+    Py_ssize_t n = count(&rows) / 3;
+    if (count(&rows) % 3 || n != marks(prog, n_ops)) {
+        PyErr_SetString(PyExc_ValueError, "rows must be (n, 3), one per row of the program");
+        goto done;
+    }
+    if (a.q.ndim != 1 || count(&a.q) != dof || count(&a.out) != 6 * dof) {
+        PyErr_Format(PyExc_ValueError, "q must be %zd joint values and out (6, %zd)", dof, dof);
+        goto done;
+    }
+    if (check_program(prog, n_ops, dof) < 0)
+        goto done;
+    const double *r = rows.buf;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        for (int k = 0; k < 2; k++) {
+            double index = r[3 * i + k];
+            if (index >= (double)dof || index != floor(index)) {
+                PyErr_SetString(PyExc_ValueError, "rows index a joint value q lacks");
+                goto done;
+            }
+        }
+    }
+    if (n_frames > MAX_STACK_FRAMES) {
+        frames = PyMem_Malloc(8 * n_frames * sizeof(double));
+        if (frames == NULL) {
+            PyErr_NoMemory();
+            goto done;
+        }
+    }
+    run(prog, n_ops, a.base.buf, a.have_tool ? a.tool.buf : NULL, a.q.buf, frames, 0, 0);
+    double *jac = a.out.buf, p_end[3];
+    memset(jac, 0, 6 * dof * sizeof(double));
+    translation(frames + 8 * (n_frames - 1), p_end);
+    for (Py_ssize_t i = 0; i < n; i++) {
+        const double *h = frames + 8 * (modified ? i + 1 : i);
+        double w = h[0], x = h[1], y = h[2], zq = h[3];
+        double z[3] = {2.0 * (x * zq + w * y), 2.0 * (y * zq - w * x),
+                       1.0 - 2.0 * (x * x + y * y)};
+        double scale = r[3 * i + 2], p[3];
+        Py_ssize_t ti = (Py_ssize_t)r[3 * i], di = (Py_ssize_t)r[3 * i + 1];
+        if (ti >= 0) {
+            translation(h, p);
+            double e0 = p_end[0] - p[0], e1 = p_end[1] - p[1], e2 = p_end[2] - p[2];
+            jac[0 * dof + ti] += scale * (z[1] * e2 - z[2] * e1);
+            jac[1 * dof + ti] += scale * (z[2] * e0 - z[0] * e2);
+            jac[2 * dof + ti] += scale * (z[0] * e1 - z[1] * e0);
+            for (int k = 0; k < 3; k++)
+                jac[(3 + k) * dof + ti] += scale * z[k];
+        }
+        if (di >= 0)
+            for (int k = 0; k < 3; k++)
+                jac[k * dof + di] += scale * z[k];
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    if (frames != stack)
+        PyMem_Free(frames);
+    if (rows.obj)
+        PyBuffer_Release(&rows);
+    release(&a);
+    return result;
+}
+
 static PyObject *frames(PyObject *s, PyObject *const *a, Py_ssize_t n)
 { return kernel_frames(s, a, n, 0); }
 static PyObject *end(PyObject *s, PyObject *const *a, Py_ssize_t n)
@@ -450,6 +557,8 @@ static PyMethodDef methods[] = {
      "end(program, base, tool, q, out, canonical, dof): the last frame (tool if any) into out"},
     {"frames_batch", (PyCFunction)(void (*)(void))frames_batch, METH_FASTCALL,
      "frames_batch(program, base, tool, q (N, dof), out, canonical): N x every frame"},
+    {"jacobian", (PyCFunction)(void (*)(void))jacobian, METH_FASTCALL,
+     "jacobian(program, base, tool, rows, modified, q, out (6, dof), dof): geometric"},
     {"end_batch", (PyCFunction)(void (*)(void))end_batch, METH_FASTCALL,
      "end_batch(program, base, tool, q (N, dof), out, canonical): N x the last frame"},
     {NULL, NULL, 0, NULL},

@@ -147,6 +147,10 @@ class KinematicChain:
         self._build_variable_map()
         # the compiled kernel's inputs: the factor program as an (n_ops, 7) array
         self._dof = len(self.joint_names)
+        # per row: its theta variable, its d variable (-1: none) and scale, for the Jacobian
+        self._jacobian_rows = np.array(
+            [[float(self._theta_index[i]), float(self._d_index[i]), self._scale[i]]
+             for i in range(len(self.joints))]).reshape(-1, 3)
         self._kernel_args = (
             np.array([[float(v) for v in op] for op in self._program]).reshape(-1, 7),
             np.array(self._base_t), None if tool is None else np.array(self._tool_t))
@@ -520,7 +524,24 @@ class KinematicChain:
         Return the 6 x dof geometric Jacobian of the end effector in the fixed frame.
 
         Rows 0-2: linear velocity of the end-effector origin; rows 3-5: angular velocity.
+        Fast path: the C kernel; reference: :meth:`_jacobian_geometric_reference`
+        (test_kernel.py holds them equal to 1e-12).
         """
+        if KERNEL is None:
+            return self._jacobian_geometric_reference(q)
+        out = np.empty((6, self._dof))
+        program, base, tool = self._kernel_args
+        modified = self.convention == 'modified'
+        try:
+            KERNEL.jacobian(program, base, tool, self._jacobian_rows, modified, q, out,
+                            self._dof)
+        except (ValueError, TypeError):
+            KERNEL.jacobian(program, base, tool, self._jacobian_rows, modified,
+                            self._q_vector(q), out, self._dof)
+        return out
+
+    def _jacobian_geometric_reference(self, q):
+        """:meth:`jacobian_geometric` with numpy, axis by axis: the reference."""
         axes, end = self._joint_axes(self._check_q(q).tolist())
         p_end = dq_translation_array(np.array(end))
         jac = np.zeros((6, self.dof))

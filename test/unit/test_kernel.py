@@ -58,6 +58,8 @@ def test_the_kernel_equals_the_numpy_reference_on_any_chain(chain, data):
                                rtol=0, atol=1e-12)
     np.testing.assert_allclose(chain.forward(q).coeffs,
                                chain._forward_all_reference(q)[-1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(chain.jacobian_geometric(q),
+                               chain._jacobian_geometric_reference(q), rtol=0, atol=1e-12)
     rows = data.draw(st.lists(st.lists(finite, min_size=chain.dof, max_size=chain.dof),
                               max_size=9))
     batch = np.array(rows, dtype=float).reshape(len(rows), chain.dof)
@@ -83,7 +85,8 @@ def test_fixed_only_and_prismatic_only_chains():
 def test_bad_input_is_refused_as_the_numpy_path_refuses_it():
     chain = KinematicChain([DHJoint(a=0.2, name='a'), DHJoint(d=0.1, name='b')])
     for bad in ([0.1], [0.1, 0.2, 0.3], np.zeros((2, 1))):
-        for path in (chain.forward_all, chain._forward_all_reference):
+        for path in (chain.forward_all, chain._forward_all_reference, chain.forward,
+                     chain.jacobian_geometric, chain._jacobian_geometric_reference):
             with pytest.raises(ValueError, match='expected 2 joint values'):
                 path(bad)
     with pytest.raises(ValueError):
@@ -129,6 +132,13 @@ def test_the_kernel_itself_refuses_buffers_it_cannot_use():
         _kernel.frames(program, base, tool, np.zeros(1), read_only, True, 1)
     with pytest.raises(TypeError):
         _kernel.frames(program, base)
+    rows = chain._jacobian_rows
+    for bad_rows in (rows[:, :2].copy(), np.array([[5.0, -1.0, 1.0]]), np.zeros((2, 3))):
+        with pytest.raises(ValueError):
+            _kernel.jacobian(program, base, tool, bad_rows, False, np.zeros(1),
+                             np.empty((6, 1)), 1)
+    with pytest.raises(ValueError):
+        _kernel.jacobian(program, base, tool, rows, False, np.zeros(1), np.empty((5, 1)), 1)
 
 
 def test_dq_fk_pure_python_forces_the_numpy_path():
