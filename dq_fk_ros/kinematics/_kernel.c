@@ -550,6 +550,128 @@ static PyObject *frames_batch(PyObject *s, PyObject *const *a, Py_ssize_t n)
 static PyObject *end_batch(PyObject *s, PyObject *const *a, Py_ssize_t n)
 { return kernel_batch(s, a, n, 1); }
 
+/*
+ * Chain(program, base, tool, dof): a chain checked once and copied into C memory, whose
+ * frames(q, out) and end(q, out) take two buffers per call (the single-call fast path;
+ * the module functions above take all five each time).
+ */
+typedef struct {
+    PyObject_HEAD
+    double *prog;
+    Py_ssize_t n_ops, dof, per;
+    double base[8], tool[8];
+    int have_tool;
+} ChainObject;
+
+static void chain_dealloc(ChainObject *self)
+{
+    PyMem_Free(self->prog);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int chain_init(ChainObject *self, PyObject *args, PyObject *kwargs)
+{
+    PyObject *program, *base, *tool;
+    Py_ssize_t dof;
+    static char *names[] = {"program", "base", "tool", "dof", NULL};
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOn", names, &program, &base, &tool,
+                                     &dof))
+        return -1;
+    Args a;
+    memset(&a, 0, sizeof a);
+    int ok = -1;
+    if (take(program, &a.program, 0, "program") < 0 || take(base, &a.base, 0, "base") < 0)
+        goto done;
+    a.have_tool = tool != Py_None;
+    if (a.have_tool && take(tool, &a.tool, 0, "tool") < 0)
+        goto done;
+    if (count(&a.program) % OP_FIELDS || count(&a.base) != 8
+        || (a.have_tool && count(&a.tool) != 8) || dof < 0) {
+        PyErr_SetString(PyExc_ValueError, "program must be (n, 7), base and tool 8 values");
+        goto done;
+    }
+    Py_ssize_t n_ops = count(&a.program) / OP_FIELDS;
+    if (check_program(a.program.buf, n_ops, dof) < 0)
+        goto done;
+    double *prog = PyMem_Malloc((n_ops ? n_ops : 1) * OP_FIELDS * sizeof(double));
+    if (prog == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    memcpy(prog, a.program.buf, n_ops * OP_FIELDS * sizeof(double));
+    PyMem_Free(self->prog);
+    self->prog = prog;
+    self->n_ops = n_ops;
+    self->dof = dof;
+    self->per = 8 * (1 + marks(prog, n_ops) + a.have_tool);
+    memcpy(self->base, a.base.buf, sizeof self->base);
+    self->have_tool = a.have_tool;
+    if (a.have_tool)
+        memcpy(self->tool, a.tool.buf, sizeof self->tool);
+    ok = 0;
+done:
+    release(&a);
+    return ok;
+}
+
+static PyObject *chain_call(ChainObject *self, PyObject *const *args, Py_ssize_t nargs,
+                            int end_only)
+{
+    Py_buffer q = {0}, out = {0};
+    if (self->prog == NULL) {
+        PyErr_SetString(PyExc_ValueError, "the chain was not initialised");
+        return NULL;
+    }
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, end_only ? "end(q, out)" : "frames(q, out)");
+        return NULL;
+    }
+    if (take(args[0], &q, 0, "q") < 0)
+        return NULL;
+    if (take(args[1], &out, 1, "out") < 0) {
+        PyBuffer_Release(&q);
+        return NULL;
+    }
+    Py_ssize_t per = end_only ? 8 : self->per;
+    if (q.ndim != 1 || count(&q) != self->dof || count(&out) != per) {
+        PyErr_Format(PyExc_ValueError, "q must be %zd joint values and out %zd values",
+                     self->dof, per);
+        PyBuffer_Release(&q);
+        PyBuffer_Release(&out);
+        return NULL;
+    }
+    run(self->prog, self->n_ops, self->base, self->have_tool ? self->tool : NULL, q.buf,
+        out.buf, end_only, 1);
+    PyBuffer_Release(&q);
+    PyBuffer_Release(&out);
+    Py_RETURN_NONE;
+}
+
+static PyObject *chain_frames(ChainObject *s, PyObject *const *a, Py_ssize_t n)
+{ return chain_call(s, a, n, 0); }
+static PyObject *chain_end(ChainObject *s, PyObject *const *a, Py_ssize_t n)
+{ return chain_call(s, a, n, 1); }
+
+static PyMethodDef chain_methods[] = {
+    {"frames", (PyCFunction)(void (*)(void))chain_frames, METH_FASTCALL,
+     "frames(q, out): every frame (w >= 0) into out, (n_frames, 8)"},
+    {"end", (PyCFunction)(void (*)(void))chain_end, METH_FASTCALL,
+     "end(q, out): the last frame (tool if any, w >= 0) into out, (8,)"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject ChainType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "dq_fk_ros.kinematics._kernel.Chain",
+    .tp_doc = "Chain(program, base, tool, dof): a chain's program, checked and copied once",
+    .tp_basicsize = sizeof(ChainObject),
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_new = PyType_GenericNew,
+    .tp_init = (initproc)chain_init,
+    .tp_dealloc = (destructor)chain_dealloc,
+    .tp_methods = chain_methods,
+};
+
 static PyMethodDef methods[] = {
     {"frames", (PyCFunction)(void (*)(void))frames, METH_FASTCALL,
      "frames(program, base, tool, q, out, canonical, dof): every frame of the chain into out"},
@@ -570,4 +692,18 @@ static struct PyModuleDef module = {
     -1, methods,
 };
 
-PyMODINIT_FUNC PyInit__kernel(void) { return PyModule_Create(&module); }
+PyMODINIT_FUNC PyInit__kernel(void)
+{
+    if (PyType_Ready(&ChainType) < 0)
+        return NULL;
+    PyObject *m = PyModule_Create(&module);
+    if (m == NULL)
+        return NULL;
+    Py_INCREF(&ChainType);
+    if (PyModule_AddObject(m, "Chain", (PyObject *)&ChainType) < 0) {
+        Py_DECREF(&ChainType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}

@@ -154,6 +154,23 @@ class KinematicChain:
         self._kernel_args = (
             np.array([[float(v) for v in op] for op in self._program]).reshape(-1, 7),
             np.array(self._base_t), None if tool is None else np.array(self._tool_t))
+        self._make_kernel_chain()
+
+    def _make_kernel_chain(self):
+        """Check and copy the program into the kernel once (its single calls take 2 buffers)."""
+        self._kernel_chain = None if KERNEL is None else KERNEL.Chain(*self._kernel_args,
+                                                                      self._dof)
+
+    def __getstate__(self):
+        """Pickle without the kernel's copy (made again on unpickling)."""
+        state = dict(self.__dict__)
+        state.pop('_kernel_chain', None)
+        return state
+
+    def __setstate__(self, state):
+        """Unpickle, and copy the program into the kernel again."""
+        self.__dict__.update(state)
+        self._make_kernel_chain()
 
     # -- structure ---------------------------------------------------------------------
     def _build_variable_map(self):
@@ -359,11 +376,10 @@ class KinematicChain:
             return out
         if out is None:
             out = np.empty((self.n_frames, 8))
-        program, base, tool = self._kernel_args
         try:  # a float64 vector of the right length goes straight in
-            KERNEL.frames(program, base, tool, q, out, True, self._dof)
+            self._kernel_chain.frames(q, out)
         except (ValueError, TypeError):  # a list, another dtype... or a wrong q: its error
-            KERNEL.frames(program, base, tool, self._q_vector(q), out, True, self._dof)
+            self._kernel_chain.frames(self._q_vector(q), out)
         return out
 
     def _forward_all_reference(self, q):
@@ -381,11 +397,10 @@ class KinematicChain:
         """
         if KERNEL is not None:
             out = np.empty(8)
-            program, base, tool = self._kernel_args
             try:
-                KERNEL.end(program, base, tool, q, out, True, self._dof)
+                self._kernel_chain.end(q, out)
             except (ValueError, TypeError):
-                KERNEL.end(program, base, tool, self._q_vector(q), out, True, self._dof)
+                self._kernel_chain.end(self._q_vector(q), out)
             return DualQuaternion.from_array(out)
         end = self._absolute_tuples(q)[-1]
         return DualQuaternion.from_array(np.frombuffer(

@@ -141,6 +141,34 @@ def test_the_kernel_itself_refuses_buffers_it_cannot_use():
         _kernel.jacobian(program, base, tool, rows, False, np.zeros(1), np.empty((5, 1)), 1)
 
 
+def test_a_chain_pickles_and_computes_the_same_after():
+    import pickle
+    chain = KinematicChain([DHJoint(a=0.2, alpha=0.5, name='a'), DHJoint(d=0.1, name='b',
+                                                                         joint_type='prismatic')])
+    again = pickle.loads(pickle.dumps(chain))
+    np.testing.assert_array_equal(again.forward_all([0.3, 0.2]), chain.forward_all([0.3, 0.2]))
+
+
+@needs_kernel
+def test_the_kernel_chain_refuses_what_it_cannot_use():
+    from dq_fk_ros.kinematics import _kernel
+    chain = KinematicChain([DHJoint(a=0.2, name='a')])
+    program, base, tool = chain._kernel_args
+    with pytest.raises(ValueError):
+        _kernel.Chain(program, base, tool, 0)        # the program reads q[0]
+    with pytest.raises(ValueError):
+        _kernel.Chain(program[:, :3].copy(), base, tool, 1)
+    kernel_chain = _kernel.Chain(program, base, tool, 1)
+    for q, out in ((np.zeros(2), np.empty((2, 8))), (np.zeros(1), np.empty((3, 8))),
+                   (np.zeros(1, np.float32), np.empty((2, 8)))):
+        with pytest.raises(ValueError):
+            kernel_chain.frames(q, out)
+    with pytest.raises(ValueError):
+        _kernel.Chain.__new__(_kernel.Chain).frames(np.zeros(1), np.empty((2, 8)))
+    with pytest.raises(TypeError):
+        kernel_chain.end(np.zeros(1))
+
+
 def test_dq_fk_pure_python_forces_the_numpy_path():
     code = ('import dq_fk_ros; i = dq_fk_ros.kernel_info(); print(i["active"], i["why"])')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
