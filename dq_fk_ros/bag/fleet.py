@@ -28,7 +28,7 @@ import time
 
 from dq_fk_ros.bag.discover import find_bags
 from dq_fk_ros.bag.fleet_units import RobotSpec, run_unit, Unit, UnitResult
-from dq_fk_ros.bag.join import join_bags, topic_counts
+from dq_fk_ros.bag.join import join_bags
 from dq_fk_ros.bag.manifest import FleetState
 from dq_fk_ros.bag.process import ProcessOptions, set_progress_counter
 from dq_fk_ros.bag.progress import Progress
@@ -125,9 +125,9 @@ def process_fleet(inputs, output_dir, robot, options=None, jobs=None, scheduler=
                                                    os.path.join(output_dir, bag.name))
             if not force and state.complete(bag.name, bag.path, report.output):
                 report.status = 'skipped'
-                report.tf_out = topic_counts(report.output).get('/tf', 0)
+                report.tf_out = state.bags[bag.name]['output'].get('/tf', 0)
                 continue
-            units += _plan(bag, state.work_folder(bag.name), spec, options, report)
+            units += _plan(bag, state.work_folder(bag.name), spec, options)
         runner = _Runner(units, reports, state, jobs, scheduler, window_messages, progress)
         runner.run()
         return FleetSummary([reports[b.name] for b in found],
@@ -148,7 +148,7 @@ def _check_output_dir(output_dir, inputs):
         raise BagError(f'--output-dir {output_dir} is not a folder')
 
 
-def _plan(bag, work, spec, options, report):
+def _plan(bag, work, spec, options):
     """Return the units of one bag: the whole bag, or windows of a large MCAP (see Unit)."""
     whole = Unit(bag.name, bag.path, os.path.join(work, os.path.basename(bag.name)), spec,
                  options)
@@ -179,7 +179,7 @@ class _Runner:
     """Runs the units on a pool or a cluster, and finishes each bag as its units complete."""
 
     def __init__(self, units, reports, state, jobs, scheduler, window_messages, progress):
-        self.reports, self.state, self.scheduler = reports, state, scheduler
+        self.reports, self.state = reports, state
         self.jobs = jobs or len(os.sched_getaffinity(0))
         self.client = None
         if scheduler is not None:
@@ -201,7 +201,6 @@ class _Runner:
         if not self.meter.terminal:
             self.meter.interval = FLEET_LOG_INTERVAL_S  # a line every few seconds in a log
         self.done_messages = 0
-        self.progress = progress
 
     def _cut(self, unit, size):
         """Cut a unit that may be cut (``_WholeBag``) into windows if it is large enough."""
@@ -229,7 +228,7 @@ class _Runner:
             if self.client is not None:
                 self._run_dask()
             elif self.jobs == 1 or len(self.units) <= 1:
-                counter = _LocalCounter()
+                counter = multiprocessing.Value('q', 0)  # as the pool's workers count
                 set_progress_counter(counter)
                 try:
                     for unit in self.units:
@@ -332,13 +331,13 @@ class _Runner:
                 join_bags([r.unit.output for r in results], joined)
             else:
                 joined = results[0].unit.output
-            self.state.place(name, report.input, joined, report.output)
+            counts = self.state.place(name, report.input, joined, report.output)
         except (OSError, BagError) as exc:
             report.problems = [f'{report.output}: cannot be put in place ({one_line(exc)})']
             shutil.rmtree(work, ignore_errors=True)
             return
         report.status = 'done'
-        report.tf_out = topic_counts(report.output).get('/tf', 0)
+        report.tf_out = counts.get('/tf', 0)
 
 
 def _needs_whole_run(summaries):
@@ -349,18 +348,6 @@ def _needs_whole_run(summaries):
     one-bag command's line saying why nothing could be used.
     """
     return any(s.time_jumps for s in summaries) or summaries[0].written == 0
-
-
-class _LocalCounter:
-    """The progress counter of a run in this process (a ``multiprocessing.Value`` look-alike)."""
-
-    def __init__(self):
-        self.value = 0
-
-    def get_lock(self):
-        """Return a lock that does nothing (one process)."""
-        from contextlib import nullcontext
-        return nullcontext()
 
 
 def _dask_client(scheduler, jobs):

@@ -131,7 +131,11 @@ class FleetState:
         return folder
 
     def place(self, name, input_path, built, final):
-        """Move the finished output ``built`` to ``final`` (replacing it); record it."""
+        """
+        Move the finished output ``built`` to ``final`` (replacing it); record it.
+
+        Returns the output's message count per topic (what the manifest records).
+        """
         out = os.path.realpath(self.output_dir)
         parent = os.path.dirname(os.path.abspath(final))
         os.makedirs(parent, exist_ok=True)
@@ -142,9 +146,11 @@ class FleetState:
         if os.path.lexists(final):
             shutil.rmtree(final) if os.path.isdir(final) else os.remove(final)
         os.rename(built, final)
+        counts = topic_counts(final)
         self.bags[name] = {'input': input_fingerprint(input_path), 'options': self.options,
-                           'output': topic_counts(final)}
+                           'output': counts}
         self._save()
+        return counts
 
     def forget(self, name):
         """Drop ``name`` from the manifest (its output is no longer known complete)."""

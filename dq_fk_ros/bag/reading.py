@@ -51,7 +51,7 @@ def open_reader(path):
         reader = Reader(path)
         reader.open()
     except Exception as exc:  # rosbags cannot open it (ReaderError, or damage it trips on)
-        mcaps = _mcap_files(path)
+        mcaps = mcap_folder_files(path)
         if not mcaps:
             hint = ' (a ROS 1 bag is a single .bag file)' if os.path.isdir(path) else ''
             raise BagError(f'{path}: not a readable rosbag2{hint} ({one_line(exc)})') \
@@ -59,7 +59,7 @@ def open_reader(path):
         if not os.path.exists(os.path.join(path, 'metadata.yaml')):
             exc = 'no metadata.yaml'
         return _stream_bag(mcaps, path, one_line(exc))
-    mcaps = _mcap_files(path)
+    mcaps = mcap_folder_files(path)
     damaged = [f for f in mcaps if not _summary_intact(f)]
     if damaged:
         reader.close()
@@ -85,7 +85,7 @@ def _is_ros1_bag(path):
         return f.read(13) == b'#ROSBAG V2.0\n'
 
 
-def _mcap_files(folder):
+def mcap_folder_files(folder):
     """List the MCAP files of a bag folder, splits in order (``x_2`` before ``x_10``)."""
     if not os.path.isdir(folder):
         return []

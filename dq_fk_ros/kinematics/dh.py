@@ -408,10 +408,7 @@ class KinematicChain:
 
     # -- batches -----------------------------------------------------------------------
     def _row_params_batch(self, q):
-        q = np.asarray(q, dtype=float)
-        if q.ndim != 2 or q.shape[1] != self.dof:
-            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
-                             f'got shape {q.shape}')
+        q = self._q_batch(q)
         qe = np.concatenate([q, np.zeros((q.shape[0], 1))], axis=1)
         theta = self._theta0 + np.where(self._theta_index >= 0,
                                         self._scale * qe[:, self._theta_index], 0.0)
@@ -437,10 +434,7 @@ class KinematicChain:
 
     def _batches(self, q):
         """Yield ``(slice, frames)`` per chunk; frames are 8-tuples of arrays (or floats)."""
-        q = np.asarray(q, dtype=float)
-        if q.ndim != 2 or q.shape[1] != self.dof:
-            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
-                             f'got shape {q.shape}')
+        q = self._q_batch(q)
         for start in range(0, q.shape[0], BATCH_CHUNK):
             part = slice(start, min(start + BATCH_CHUNK, q.shape[0]))
             cols = np.ascontiguousarray(q[part].T)

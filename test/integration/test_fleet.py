@@ -149,7 +149,6 @@ def test_one_large_mcap_in_windows_equals_the_serial_run(tmp_path):
 
 
 def test_a_dask_local_cluster_gives_what_the_pool_gives(small_fleet, tmp_path):
-    pytest.importorskip('distributed', reason="the 'cluster' extra (requirements/dev.txt)")
     pool = process_fleet([small_fleet], tmp_path / 'pool', 'rl15', QUIET, jobs=2,
                          progress=False)
     dask = process_fleet([small_fleet], tmp_path / 'dask', 'rl15', QUIET, jobs=2,
