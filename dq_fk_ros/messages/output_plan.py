@@ -22,19 +22,14 @@ class OutputPlan:
     frame (:meth:`RobotModel.tf_frame_id`). Poses are ``(x, y, z, qx, qy, qz, qw)``.
     """
 
-    def __init__(self, model, frame_prefix='', helpers=None):
-        """
-        Plan the outputs of ``model``.
-
-        :param helpers: the model's :class:`HelperFrames` if already made (they depend on
-            the model alone; making them for a big robot takes tens of ms).
-        """
+    def __init__(self, model, frame_prefix=''):
+        """Plan the outputs of ``model`` (its helper frames take tens of ms for a big robot)."""
         self.model = model
         self.prefix = frame_prefix
         self.fixed_frame_id = model.tf_frame_id(model.fixed_frame, frame_prefix)
         self.frame_ids = [frame_prefix + name for name in model.frame_names]
         self.parent_ids = [model.tf_frame_id(p, frame_prefix) for p in model.parent_frames]
-        self.helpers = HelperFrames(model) if helpers is None else helpers
+        self.helpers = HelperFrames(model)
         # /tf: ``(frame index, index in frame_poses' relative)`` of each moving transform
         self.moving_edges = model.moving_edges
         # /tf_static: base, fixed rows, tool, fixed links, then the constant helpers

@@ -68,7 +68,6 @@ class FrameMessages:
         """
         self.model = model
         self.plan = plan = OutputPlan(model, frame_prefix) if plan is None else plan
-        self.prefix = frame_prefix
         self.fixed_frame_id = fixed = plan.fixed_frame_id
         self.frame_ids = plan.frame_ids
         self.helpers = plan.helpers
