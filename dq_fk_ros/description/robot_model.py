@@ -36,6 +36,7 @@ from dq_fk_ros.kinematics.dh_code import run_chain_program, unrolled_frame_poses
 from dq_fk_ros.kinematics.dual_quaternion import (
     dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, DualQuaternion, Pose,
     pose_xyzw_from_coeffs)
+from dq_fk_ros.kinematics.kernel import KERNEL
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -393,6 +394,94 @@ class RobotModel:
                     dq_multiply_coeffs(dq_inverse_coeffs(above), pose)))
         return absolute, relative
 
+    def frame_pose_arrays(self, q: ArrayLike, absolute: np.ndarray | None = None,
+                          relative: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """
+        :meth:`frame_poses` as float64 arrays ``(n_frames, 7)`` and ``(n_transforms, 7)``.
+
+        Fast path: the C kernel's ``Model`` writes into ``absolute`` and ``relative``
+        (C-contiguous float64 arrays the caller owns: no allocation; made when None);
+        reference: :meth:`frame_poses_general`, held equal by test_kernel.py's
+        ``test_the_model_kernel_equals_the_general_path``. Without the kernel, the
+        straight-line code of :meth:`frame_poses` fills them.
+        """
+        if absolute is None:
+            absolute = np.empty((len(self.frame_names), 7))
+        if relative is None:
+            relative = np.empty((self.n_transforms, 7))
+        kernel = self._kernel_model
+        if kernel is None:
+            poses, transforms = self.frame_poses(q)
+            absolute[...] = poses
+            relative[...] = np.array(transforms).reshape(-1, 7)
+            return absolute, relative
+        try:  # a float64 vector of the right length goes straight in
+            kernel.poses(q, absolute, relative)
+        except (ValueError, TypeError):  # a list, another dtype... or a wrong q: its error
+            kernel.poses(self._q_vector(q), absolute, relative)
+        return absolute, relative
+
+    def transform_pose_array(self, q: ArrayLike,
+                             relative: np.ndarray | None = None) -> np.ndarray:
+        """
+        :meth:`transform_poses` as one float64 array ``(n_transforms, 7)``.
+
+        Fast path and reference as :meth:`frame_pose_arrays` (the kernel skips the absolute
+        poses' conversion).
+        """
+        if relative is None:
+            relative = np.empty((self.n_transforms, 7))
+        kernel = self._kernel_model
+        if kernel is None:
+            relative[...] = np.array(self.transform_poses(q)).reshape(-1, 7)
+            return relative
+        try:
+            kernel.poses(q, None, relative)
+        except (ValueError, TypeError):
+            kernel.poses(self._q_vector(q), None, relative)
+        return relative
+
+    @property
+    def n_transforms(self) -> int:
+        """Count the TF transforms of :meth:`frame_poses`' relative: DH rows, then links."""
+        return sum(len(chain.joints) for _, chain, _ in self.chains) + len(self.links)
+
+    def _q_vector(self, q):
+        """Return ``q`` as a contiguous float64 vector (the numpy path's errors if not)."""
+        q = np.ascontiguousarray(q, dtype=float)
+        if q.ndim != 1 or len(q) != self.dof:
+            joint_value_list(q, self.joint_names)  # raises the numpy path's ValueError
+        return q
+
+    @cached_property
+    def _kernel_model(self):
+        """Copy the tree and its links into the C kernel once (None: the numpy path)."""
+        if KERNEL is None:
+            return None
+        index = {name: k for k, name in enumerate(self.frame_names)}
+        index[self.fixed_frame] = -1
+        chains = [(chain._kernel_chain, index[parent], np.array(q_map, dtype=float),
+                   np.array(chain._pose_rows, dtype=float).reshape(-1, 10),
+                   chain.convention == 'standard')
+                  for (parent, chain, _), q_map in zip(self.chains, self._q_maps)]
+        links = []
+        for attach, tf_parent, offset, motion in self._link_plan:
+            row = [float(attach), float(tf_parent), *offset]
+            if motion is None:
+                row += [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+            else:
+                prismatic, axis, k, multiplier, value = motion
+                row += [float(prismatic), *axis, float(k), multiplier, value]
+            links.append(row)
+        return KERNEL.Model(chains, np.array(links, dtype=float).reshape(-1, 17), self.dof)
+
+    def __getstate__(self):
+        """Pickle without the kernel's copy and the generated code (made again on use)."""
+        state = dict(self.__dict__)
+        for made in ('_kernel_model', '_unrolled', '_unrolled_transforms'):
+            state.pop(made, None)
+        return state
+
     def transform_poses(self, q: ArrayLike) -> list[Pose]:
         """
         Return the TF transforms of :meth:`frame_poses` alone (``relative``), at ``q``.
@@ -412,9 +501,19 @@ class RobotModel:
                                     absolute=False)
 
     def forward_all(self, q: ArrayLike) -> np.ndarray:
-        """Every frame of ``frame_names`` in the fixed frame: ``(n, 8)``, ``w >= 0``."""
+        """
+        Every frame of ``frame_names`` in the fixed frame: ``(n, 8)``, ``w >= 0``.
+
+        Fast path: the C kernel (a chain's, or the tree's ``Model``); reference: the numpy
+        batch of one configuration (:meth:`forward_all_batch`), test_kernel.py.
+        """
         if self.links or self.branches:
-            return self.forward_all_batch(np.asarray(q, dtype=float)[None, :])[0]
+            kernel = self._kernel_model
+            if kernel is None:
+                return self.forward_all_batch(np.asarray(q, dtype=float)[None, :])[0]
+            out = np.empty((len(self.frame_names), 8))
+            kernel.frames(self._q_vector(q), out)
+            return out
         return self.chain.forward_all(q)
 
     def forward_all_batch(self, q: ArrayLike) -> np.ndarray:

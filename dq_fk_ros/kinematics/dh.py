@@ -162,9 +162,10 @@ class KinematicChain:
                                                                       self._dof)
 
     def __getstate__(self):
-        """Pickle without the kernel's copy (made again on unpickling)."""
+        """Pickle without the kernel's copy (made again on unpickling) and generated code."""
         state = dict(self.__dict__)
         state.pop('_kernel_chain', None)
+        state.pop('_unrolled', None)
         return state
 
     def __setstate__(self, state):
