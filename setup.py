@@ -20,9 +20,12 @@ setup(
     # the compiled FK kernel: optional (without a C compiler the numpy path runs); -O3
     # vectorises its batch loops; no contraction into fused multiply-adds, so it computes
     # what the reference computes
+    # the CDR writer of the node's messages: optional too (the struct packer runs without)
     ext_modules=[Extension('dq_fk_ros.kinematics._kernel', ['dq_fk_ros/kinematics/_kernel.c'],
                            extra_compile_args=['-O3', '-ffp-contract=off', '-fno-fast-math'],
-                           optional=True)],
+                           optional=True),
+                 Extension('dq_fk_ros.messages._cdr', ['dq_fk_ros/messages/_cdr.c'],
+                           extra_compile_args=['-O2'], optional=True)],
     install_requires=['setuptools', 'numpy', 'PyYAML'],
     # dq_fk_bag process --scheduler: a Dask cluster (pip install 'dq_fk_ros[cluster]')
     extras_require={'cluster': ['dask[distributed]']},

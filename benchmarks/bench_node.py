@@ -128,7 +128,9 @@ def main(argv=None):
         out = node._bytes
         cache = JointStateNames()
         qs = [np.array(m.position) for m in msgs]
-        poses = [model.frame_poses(q) for q in qs]
+        absolute_out = np.empty((n_frames, 7))
+        relative_out = np.empty((model.n_transforms, 7))
+        poses = [tuple(a.copy() for a in model.frame_pose_arrays(q)) for q in qs]
 
         def timed(label, fn, items, before=None):
             for item in items[:300]:  # warm up
@@ -177,10 +179,10 @@ def main(argv=None):
             timed('default', update, raws)
             node.set_parameters([Parameter('publish_unread_topics', value=True)])
             timed('all', update, raws)
-            timed('read', lambda raw: merger.merge(*_fields(parse_joint_state(
-                raw, cache, as_tuples=True))), raws)
-            timed('fk', model.frame_poses, qs)
-            timed('fk_tf', model.transform_poses, qs)
+            timed('read', lambda raw: merger.merge_raw(raw) or merger.merge(*_fields(
+                parse_joint_state(raw, cache, as_tuples=True))), raws)
+            timed('fk', lambda q: model.frame_pose_arrays(q, absolute_out, relative_out), qs)
+            timed('fk_tf', lambda q: model.transform_pose_array(q, relative_out), qs)
             timed('serialize', serialize, poses)
             timed('publish', publish_all, msgs)
             node.set_parameters([Parameter('publish_unread_topics', value=False)])
@@ -215,8 +217,8 @@ def main(argv=None):
     rows = [('default', 'update, nobody subscribed (default: /tf only)'),
             ('all', 'update, every output, no subscriber'),
             ('read', '  read + merge JointState'),
-            ('fk', '  FK, every frame (frame_poses)'),
-            ('fk_tf', '  FK, TF transforms only (transform_poses)'),
+            ('fk', '  FK, every frame (frame_pose_arrays)'),
+            ('fk_tf', '  FK, TF transforms only (transform_pose_array)'),
             ('serialize', f'  serialize /tf + {n_frames} poses (bytes)'),
             ('publish', f'  publish /tf + {n_frames} poses (bytes)'),
             ('subscribed', 'update, a subscriber on every topic (same process)'),

@@ -5,30 +5,40 @@ The C extension :mod:`dq_fk_ros.kinematics._kernel` (built by setup.py when a C 
 there; optional) runs a chain's factor program (:func:`~dq_fk_ros.kinematics.dh_code.
 run_program`, the reference) step for step into buffers the caller owns. Without it, or with
 ``DQ_FK_PURE_PYTHON=1`` in the environment when the package is imported, the numpy path
-runs; :func:`kernel_info` says which is active and why.
+runs; :func:`kernel_info` says which is active and why. :func:`load_compiled` is how every
+optional extension of the package is loaded (the CDR writer of
+:mod:`dq_fk_ros.messages.cdr` too), under the same switch.
 """
 
+import importlib
 import os
 
 PURE_PYTHON_VARIABLE = 'DQ_FK_PURE_PYTHON'
 
 
-def _load():
+def load_compiled(module: str) -> tuple[object, str]:
+    """
+    Import the optional C extension ``module``: ``(module or None, one line saying why)``.
+
+    None when ``DQ_FK_PURE_PYTHON`` is set (not empty, not 0) or the extension was not
+    built (no C compiler at install time): the caller's Python path runs then.
+    """
     if os.environ.get(PURE_PYTHON_VARIABLE, '') not in ('', '0'):
-        return None, f'numpy: {PURE_PYTHON_VARIABLE}={os.environ[PURE_PYTHON_VARIABLE]}'
+        return None, f'python: {PURE_PYTHON_VARIABLE}={os.environ[PURE_PYTHON_VARIABLE]}'
     try:
-        from dq_fk_ros.kinematics import _kernel
+        compiled = importlib.import_module(module)
     except ImportError as exc:
-        return None, f'numpy: the C kernel is not built ({exc})'
-    return _kernel, 'c: the compiled kernel (dq_fk_ros.kinematics._kernel)'
+        return None, f'python: {module} is not built ({exc})'
+    return compiled, f'c: compiled ({module})'
 
 
-KERNEL, _WHY = _load()
+KERNEL, _WHY = load_compiled('dq_fk_ros.kinematics._kernel')
 
 
 def kernel_info() -> dict:
     """Return ``{'active': 'c' or 'numpy', 'why': one line}``: the path FK runs on."""
-    return {'active': 'c' if KERNEL is not None else 'numpy', 'why': _WHY}
+    return {'active': 'c' if KERNEL is not None else 'numpy',
+            'why': _WHY.replace('python: ', 'numpy: ', 1)}
 
 
-__all__ = ['KERNEL', 'kernel_info', 'PURE_PYTHON_VARIABLE']
+__all__ = ['KERNEL', 'kernel_info', 'load_compiled', 'PURE_PYTHON_VARIABLE']

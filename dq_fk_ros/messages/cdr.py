@@ -22,7 +22,11 @@ import struct
 from typing import NamedTuple
 
 from dq_fk_ros.description.errors import DqFkError
+from dq_fk_ros.kinematics.kernel import load_compiled
 import numpy as np
+
+# the C writer of fixed-layout messages (None: the struct packer, the reference, alone)
+COMPILED, COMPILED_WHY = load_compiled('dq_fk_ros.messages._cdr')
 
 CDR_LE_HEADER = b'\x00\x01\x00\x00'
 _U32 = struct.Struct('<I')
@@ -165,7 +169,8 @@ class _JointStateLayout:
     array lengths (read in one ``struct`` call): the values are at the same offsets.
     """
 
-    __slots__ = ('size', 'fixed_end', 'fixed', 'counts', 'counts_at', 'expected_counts',
+    __slots__ = ('size', 'fixed_end', 'fixed', 'counts', 'counts_at', 'count_offsets',
+                 'expected_counts',
                  'names', 'positions', 'velocities', 'position_values', 'velocity_values',
                  'strings')
 
@@ -180,10 +185,29 @@ class _JointStateLayout:
         (first, _), (second, _), (third, _) = counts
         self.counts = struct.Struct(f'<I{second - first - 4}xI{third - second - 4}xI')
         self.counts_at = first
+        self.count_offsets = (first, second, third)
         self.expected_counts = tuple(n for _, n in counts)
         self.position_values = struct.Struct(f'<{self.positions[1]}d')
         self.velocity_values = struct.Struct(f'<{self.velocities[1]}d')
         self.strings = None  # (offset, bytes) of the strings, built on the first miss
+
+    def compiled_reader(self, order, lower, upper, jump_back_ns):
+        """
+        Return the C short path of this layout, a ``_cdr.JointStateReader`` (None: not built).
+
+        Used by :meth:`JointStateMerger.learn_layout`; ``order``, ``lower``, ``upper`` per
+        name: its index in the merger's joint vector and its limits.
+        """
+        if COMPILED is None:
+            return None
+        if self.strings is None:
+            self.strings = _string_spans(self.fixed, 12)
+        mask = bytearray(len(self.fixed))  # compare the strings, not CDR's padding
+        for at, text in self.strings:
+            mask[at - 12:at - 12 + len(text)] = b'\xff' * len(text)
+        return COMPILED.JointStateReader(
+            self.size, self.fixed, bytes(mask), self.count_offsets, self.expected_counts,
+            self.positions[0], self.velocities[0], order, lower, upper, jump_back_ns)
 
     def same_strings(self, raw):
         """
@@ -423,6 +447,22 @@ class CdrTemplate:
     def packer(self):
         """Return a :class:`CdrPacker`: one message of this layout at a time, as ``bytes``."""
         return CdrPacker(self)
+
+    def compiled(self, width):
+        """
+        Return this layout's C writer, a ``_cdr.Template`` (or None: see below).
+
+        None when the extension is not built, or a float run is not ``width`` long.
+
+        Its ``one(sec, nanosec, values, rows)`` fills float run i with the row
+        ``values[rows[i]]`` of an ``(n, width)`` float64 array, ``each(...)`` one message per
+        row; the same bytes as :meth:`packer` (test_frame_bytes.py's
+        ``test_the_c_writer_equals_the_packer_byte_for_byte``).
+        """
+        if COMPILED is None or any(count != width for _, count in self.floats):
+            return None
+        return COMPILED.Template(bytes(self.buf), self.stamps,
+                                 [at for at, _ in self.floats], width)
 
 
 class CdrPacker:

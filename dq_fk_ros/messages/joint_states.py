@@ -128,6 +128,52 @@ class JointStateMerger:
         self._qdot = [math.nan] * n
         self._seen = [False] * n
         self._last_stamp_ns = None
+        self.raw_reader = None  # learnt again from the next complete message
+        self._q_out, self._qdot_out = np.empty(n), np.empty(n)
+
+    def learn_layout(self, layout):
+        """
+        Take messages of ``layout`` by the compiled short path from now on (:meth:`merge_raw`).
+
+        :param layout: the parse cache's layout of the message just merged
+            (``JointStateNames.layout``); nothing happens unless it names the complete set
+            of joints :meth:`merge` takes its own short path for.
+        """
+        complete = self._complete_names
+        if layout is None or complete is None or layout.names != complete:
+            return
+        order = self._complete_order
+        lower, upper = self._complete_bounds
+        if lower is None:
+            lower, upper = [-math.inf] * len(order), [math.inf] * len(order)
+        self.raw_reader = layout.compiled_reader(order, lower, upper, TIME_JUMP_BACK_NS)
+        self._raw_velocities = layout.velocities[1] > 0
+
+    def merge_raw(self, raw):
+        """
+        Merge a serialized JointState of the learnt layout: ``(stamp_ns, q, qdot)`` or None.
+
+        The compiled short path of :meth:`merge` (the reference; test_joint_states.py's
+        ``test_the_compiled_path_merges_as_merge_does``): it takes a message only when
+        :meth:`merge` would publish it with nothing to report (the same frame id, names and
+        array lengths as the learnt layout; every position finite and within its limits,
+        every velocity finite; no jump back in time). None: nothing was done, call
+        :meth:`merge`. ``q`` and ``qdot`` (None without velocities) are the merger's
+        buffers, valid until the next merge.
+        """
+        reader = self.raw_reader
+        if reader is None:
+            return None
+        last = self._last_stamp_ns
+        stamp_ns = reader.read(raw, last, self._q, self._qdot, self._q_out, self._qdot_out)
+        if stamp_ns is None:
+            return None
+        if stamp_ns:
+            self._last_stamp_ns = stamp_ns if last is None else max(stamp_ns, last)
+        counts = self.counts
+        counts['received'] += 1
+        counts[PUBLISH] += 1
+        return stamp_ns, self._q_out, self._qdot_out if self._raw_velocities else None
 
     @property
     def never_seen(self):
@@ -460,6 +506,7 @@ class JointStateMerger:
         if len(ours) == n_msg and sum(i < required for i in order) == required:
             # every required joint once, nothing unknown: the short path from now on
             self._complete_names = tuple(names)
+            self.raw_reader = None  # the compiled short path: learnt for this layout
             self._complete_order = order
             self._complete_bounds = ([self._limit_list[i][0] for i in order],
                                      [self._limit_list[i][1] for i in order])

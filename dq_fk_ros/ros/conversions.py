@@ -15,6 +15,7 @@ from dq_fk_ros.messages.cdr import (
     pose_stamped_template, tf_message_template, twist_stamped_template)
 from dq_fk_ros.messages.output_plan import OutputPlan
 from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
+import numpy as np
 from tf2_msgs.msg import TFMessage
 
 NS_PER_S = 1_000_000_000
@@ -141,17 +142,19 @@ class FrameBytes:
     equal byte for byte by test_frame_bytes.py's
     ``test_serialized_output_equals_the_message_objects``.
 
-    Each message's fixed bytes (frame ids, padding) are laid out once; an update packs them
-    with its stamp and float64 fields in one ``struct`` call
-    (:class:`~dq_fk_ros.messages.cdr.CdrPacker`) and hands ``bytes`` to
-    ``Publisher.publish``. The same messages as :class:`FrameMessages`, byte for byte.
+    Each message's fixed bytes (frame ids, padding) are laid out once; an update fills them
+    with its stamp and float64 fields and hands ``bytes`` to ``Publisher.publish``. Poses
+    given as the arrays of :meth:`RobotModel.frame_pose_arrays` go to the C writer
+    (:meth:`CdrTemplate.compiled`: one call per message); lists of poses, or no C writer,
+    to :class:`~dq_fk_ros.messages.cdr.CdrPacker` (one ``struct`` call per message), its
+    reference (``test_the_c_writer_equals_the_packer_byte_for_byte``).
     """
 
     def __init__(self, messages):
         """Lay out the messages of a :class:`FrameMessages` (same robot, same prefix)."""
         self.helpers = messages.helpers
         self.moving_edges = messages.moving_edges
-        self._moving = [k for _, k in self.moving_edges]
+        self._moving = tuple(k for _, k in self.moving_edges)
         self.sends_tf = bool(messages.tf.transforms)  # a robot with nothing moving: no /tf
         edges = [(t.header.frame_id, t.child_frame_id) for t in messages.tf.transforms]
         tf = tf_message_template(edges)
@@ -161,9 +164,26 @@ class FrameBytes:
         self._tf = tf.packer()
         self._pose = pose.packer()
         self._twist = twist.packer()
+        self._tf_c = tf.compiled(7)
+        self._pose_c = pose.compiled(7)
 
     def tf(self, sec, nanosec, relative, q=None):
-        """Return the serialized /tf message: every moving row's (and helper's) transform."""
+        """
+        Return the serialized /tf message: every moving row's (and helper's) transform.
+
+        :param relative: the TF transforms of :meth:`RobotModel.frame_pose_arrays` (an
+            ``(n, 7)`` float64 array) or of :meth:`RobotModel.frame_poses` (a list).
+        :param q: the joint values (for helper frames that move).
+        """
+        if self._tf_c is not None and isinstance(relative, np.ndarray):
+            if not self.helpers.moving:
+                return self._tf_c.one(sec, nanosec, relative, self._moving)
+            helpers = np.array(self.helpers.moving_poses(q), dtype=float).reshape(-1, 7)
+            n = len(relative)
+            return self._tf_c.one(sec, nanosec, np.concatenate([relative, helpers]),
+                                  self._moving + tuple(range(n, n + len(helpers))))
+        if isinstance(relative, np.ndarray):
+            relative = relative.tolist()
         poses = [relative[k] for k in self._moving]
         if self.helpers.moving:
             poses += self.helpers.moving_poses(q)
@@ -174,7 +194,15 @@ class FrameBytes:
         return self._pose.pack(sec, nanosec, (pose,))
 
     def poses(self, sec, nanosec, absolute, frames):
-        """Return serialized PoseStampeds of the poses ``absolute[k]`` for k in ``frames``."""
+        """
+        Return serialized PoseStampeds of the poses ``absolute[k]`` for k in ``frames``.
+
+        :param absolute: an ``(n, 7)`` float64 array (the C writer) or a list of poses.
+        """
+        if self._pose_c is not None and isinstance(absolute, np.ndarray):
+            return self._pose_c.each(sec, nanosec, absolute, frames)
+        if isinstance(absolute, np.ndarray):
+            absolute = absolute.tolist()
         pack = self._pose.pack
         return [pack(sec, nanosec, (absolute[k],)) for k in frames]
 

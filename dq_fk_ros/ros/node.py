@@ -2,8 +2,9 @@
 The dq_fk_node executable: ``sensor_msgs/JointState`` in, every link frame out.
 
 Thin glue: :mod:`dq_fk_ros.messages.joint_states` decides what a message means,
-:mod:`dq_fk_ros.kinematics.dh` computes the frames, :mod:`dq_fk_ros.ros.conversions` fills the
-messages. The README lists its topics and parameters; docs/node.md says how it acts.
+:meth:`RobotModel.frame_pose_arrays` computes the frames (the compiled kernel, into the
+node's buffers), :mod:`dq_fk_ros.ros.conversions` fills the messages. The README lists its
+topics and parameters; docs/node.md says how it acts.
 
 Its parameters and their checks are :class:`~dq_fk_ros.ros.node_parameters.NodeParameters`;
 its /diagnostics status is written by :mod:`dq_fk_ros.ros.node_diagnostics`.
@@ -22,10 +23,11 @@ from dq_fk_ros.description.loading import load_robot, robot_from_urdf_text
 from dq_fk_ros.description.to_urdf import description_urdf
 from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
-    INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, PUBLISH, REJECTED, SequenceGaps)
+    JointStateMerger, PUBLISH, SequenceGaps)
 from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S
 from dq_fk_ros.ros.executables import spin_until_shutdown
-from dq_fk_ros.ros.node_diagnostics import joint_state_status
+from dq_fk_ros.ros.node_diagnostics import (
+    joint_state_status, log_merge_result, WARN_EVERY_S)
 from dq_fk_ros.ros.node_parameters import NODE_PARAMETERS, NodeParameters, ROBOT_PARAMETERS
 from dq_fk_ros.ros.package_paths import declare_package_paths
 from dq_fk_ros.ros.parameters import declare, help_text
@@ -41,7 +43,6 @@ from tf2_msgs.msg import TFMessage
 
 RELIABILITY = {'best_effort': ReliabilityPolicy.BEST_EFFORT,
                'reliable': ReliabilityPolicy.RELIABLE}
-WARN_EVERY_S = 5.0
 READERS_REFRESH_S = 0.5
 DRAIN_MAX = 64  # queued joint states worked through per executor wake-up
 RUN_TIME_XACRO_LIMIT_S = 5.0  # a xacro set at run time (allow_runtime_xacro) is stopped then
@@ -132,11 +133,10 @@ class DqFkNode(Node):
             self.get_logger().info(robot.summary())
         for line in robot.warnings:
             self.get_logger().warn(line)
-        # compile the straight-line FK code now, outside the lock, not at the first update
-        # (a robot of 250 frames takes tens of ms: the first joint states would wait)
-        zero = [0.0] * robot.model.dof
-        robot.model.frame_poses(zero)
-        robot.model.transform_poses(zero)
+        # the kernel's copy of the robot (or the straight-line code) made now, outside the
+        # lock, not at the first update (250 frames: tens of ms the first joint states wait)
+        robot.model.frame_pose_arrays(np.zeros(robot.model.dof))
+        robot.model.transform_pose_array(np.zeros(robot.model.dof))
         return robot.model
 
     def _on_set_parameters(self, params):
@@ -238,6 +238,9 @@ class DqFkNode(Node):
         counts = self._merger.counts if self._merger is not None else None
         unknown = self._merger.unknown if self._merger is not None else set()
         self._model = model
+        # the poses of an update, written in place by the kernel (frame_pose_arrays)
+        self._absolute = np.empty((len(model.frame_names), 7))
+        self._relative = np.empty((model.n_transforms, 7))
         self._merger = JointStateMerger(model.joint_names, model.limits,
                                         self._params.out_of_limits,
                                         required=len(model.required_joints))
@@ -309,6 +312,10 @@ class DqFkNode(Node):
 
     def _on_raw(self, raw):
         try:
+            fast = self._merger.merge_raw(raw)  # the compiled short path, or None
+            if fast is not None:
+                self._publish_merged(*fast)
+                return
             try:
                 stamp_ns, names, positions, velocities = parse_joint_state(
                     raw, self._names_cache, as_tuples=True)
@@ -327,11 +334,19 @@ class DqFkNode(Node):
                                     throttle_duration_sec=WARN_EVERY_S)
 
     def _handle_fields(self, names, positions, velocities, stamp_ns):
-        result = self._merger.merge(names, positions, velocities, stamp_ns)
+        merger = self._merger
+        result = merger.merge(names, positions, velocities, stamp_ns)
         if result.status != PUBLISH or result.new_unknown or result.time_jump or \
                 result.out_of_limits or result.unknown_overflow:
-            if not self._report(result):
+            if not log_merge_result(self.get_logger(), result, self._model.name,
+                                    self._params.out_of_limits):
                 return
+        elif merger.raw_reader is None:  # a clean complete message: the short path learns
+            merger.learn_layout(self._names_cache.layout)
+        self._publish_merged(stamp_ns, result.q, result.qdot)
+
+    def _publish_merged(self, stamp_ns, q, qdot):
+        """Publish a merged joint vector unless a rate limit says not yet."""
         # ROS time is the system time unless /clock drives it (use_sim_time): skip the Time
         # object then (2.5 us of an update)
         now_ns = self.get_clock().now().nanoseconds if self._sim_time else time.time_ns()
@@ -350,34 +365,9 @@ class DqFkNode(Node):
                 self._merger.counts['rate_limited'] += 1
                 return
         self._last_stamp_ns = stamp
-        self._publish(stamp_ns if (p.use_joint_state_stamp and stamp_ns) else now_ns,
-                      result.q, result.qdot)
+        self._publish(stamp_ns if (p.use_joint_state_stamp and stamp_ns) else now_ns, q, qdot)
         self._last_publish_ns = now_ns
         self._merger.counts['published'] += 1
-
-    def _report(self, result):
-        """Log what a merge result says; return whether the update is to be published."""
-        log = self.get_logger()
-        if result.new_unknown:
-            log.warn(f'ignoring joints that {self._model.name} does not have: '
-                     f'{", ".join(result.new_unknown)} (reported once)')
-        if result.unknown_overflow:
-            log.warn(f'more than {MAX_UNKNOWN_LISTED} unknown joint names; further ones are '
-                     f'only counted (unknown_names_unlisted in /diagnostics)')
-        if result.time_jump:
-            log.info('joint state stamps jumped back in time; state reset')
-        if result.status == REJECTED:
-            log.warn(f'joint state rejected ({result.reason}): {result.detail}',
-                     throttle_duration_sec=WARN_EVERY_S)
-            return False
-        if result.out_of_limits:
-            log.warn(f'joints outside their limits ({self._params.out_of_limits}): '
-                     f'{", ".join(result.out_of_limits)}', throttle_duration_sec=WARN_EVERY_S)
-        if result.status == INCOMPLETE:
-            log.warn(f'waiting for joints never seen: {", ".join(result.missing)}',
-                     throttle_duration_sec=WARN_EVERY_S)
-            return False
-        return True
 
     def _show_branches(self, seen):
         """Publish the links of the side-branch joints ``seen`` from now on (rare: rebuild)."""
@@ -406,9 +396,9 @@ class DqFkNode(Node):
         if twists and model.branches:  # a tree: the first chain's velocities may be unknown
             twists = all(map(math.isfinite, qdot[:model.chain.dof]))
         if poses or twists:
-            absolute, relative = model.frame_poses(q)
-        else:  # /tf alone needs the transforms only (half the work for a DH chain)
-            relative = model.transform_poses(q)
+            absolute, relative = model.frame_pose_arrays(q, self._absolute, self._relative)
+        else:  # /tf alone needs the transforms only
+            relative = model.transform_pose_array(q, self._relative)
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self._bytes
         if self._params.publish_tf and out.sends_tf:
@@ -420,12 +410,12 @@ class DqFkNode(Node):
         if twists:
             dof = model.chain.dof
             v, w = model.chain.twist(q[:dof], qdot[:dof])
-            p_end = np.array(absolute[model.n_chain_frames - 1][:3])
+            p_end = absolute[model.n_chain_frames - 1, :3]
             for send, read, k in zip(self._send_twist, self._twist_read,
                                      self._messages.twist_frames):
                 if read:
                     # the same rigid-body motion seen at another origin: v + w x (p_k - p)
-                    v_k = v + np.cross(w, np.array(absolute[k][:3]) - p_end)
+                    v_k = v + np.cross(w, absolute[k, :3] - p_end)
                     send(out.twist(sec, nanosec, v_k.tolist(), w.tolist()))
 
     def _refresh_readers(self):

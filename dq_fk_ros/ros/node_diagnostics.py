@@ -1,11 +1,14 @@
 """
-What dq_fk_node reports on /diagnostics: its counters as one ``DiagnosticStatus``.
+What dq_fk_node reports: its counters on /diagnostics, what a joint state led to in its log.
 
 The keys are listed in docs/node.md ("Diagnostics"); the level is WARN when joint states
 were lost since the last report, a joint was never seen or an update was rejected.
 """
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from dq_fk_ros.messages.joint_states import INCOMPLETE, MAX_UNKNOWN_LISTED, REJECTED
+
+WARN_EVERY_S = 5.0  # a warning repeated per message is logged at most this often
 
 
 def joint_state_status(name, model, merger, lost, lost_now, input_errors, age_s):
@@ -55,3 +58,32 @@ def joint_state_status(name, model, merger, lost, lost_now, input_errors, age_s)
 
 
 __all__ = ['joint_state_status']
+
+
+def log_merge_result(log, result, robot, out_of_limits):
+    """
+    Log what a merge result says; return whether the update is to be published.
+
+    :param log: the node's logger; ``robot``: the robot's name; ``out_of_limits``: the
+        node's policy (named in the warning).
+    """
+    if result.new_unknown:
+        log.warn(f'ignoring joints that {robot} does not have: '
+                 f'{", ".join(result.new_unknown)} (reported once)')
+    if result.unknown_overflow:
+        log.warn(f'more than {MAX_UNKNOWN_LISTED} unknown joint names; further ones are '
+                 f'only counted (unknown_names_unlisted in /diagnostics)')
+    if result.time_jump:
+        log.info('joint state stamps jumped back in time; state reset')
+    if result.status == REJECTED:
+        log.warn(f'joint state rejected ({result.reason}): {result.detail}',
+                 throttle_duration_sec=WARN_EVERY_S)
+        return False
+    if result.out_of_limits:
+        log.warn(f'joints outside their limits ({out_of_limits}): '
+                 f'{", ".join(result.out_of_limits)}', throttle_duration_sec=WARN_EVERY_S)
+    if result.status == INCOMPLETE:
+        log.warn(f'waiting for joints never seen: {", ".join(result.missing)}',
+                 throttle_duration_sec=WARN_EVERY_S)
+        return False
+    return True

@@ -1,13 +1,21 @@
 """JointStateMerger: the node's input logic, fed message fields directly (no DDS)."""
 
 import math
+import struct
 
+from dq_fk_ros.messages.cdr import (
+    _joint_state_spans, COMPILED, JointStateNames, parse_joint_state)
 from dq_fk_ros.messages.joint_states import (
     INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, PUBLISH, REJECTED, SequenceGaps,
     TIME_JUMP_BACK_NS)
-from hypothesis import given, strategies as st
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
+from rclpy.serialization import serialize_message
+from sensor_msgs.msg import JointState
+
+needs_compiled = pytest.mark.skipif(COMPILED is None, reason='the Python path is active: '
+                                    'nothing to compare')
 
 NAMES = ('a', 'b', 'c')
 LIMITS = [[-1.0, 1.0], [-math.inf, math.inf], [0.0, 2.0]]
@@ -406,3 +414,151 @@ def test_a_robot_without_joints_takes_any_message_in_both_paths():
     published, q, _ = JointStateMerger((), np.zeros((0, 2)), required=0).merge_many(
         [(('a', 'b'), np.zeros((3, 2)), np.zeros((3, 0)), np.array([1, 2, 3]))])
     assert published.tolist() == [0, 1, 2] and q.shape == (3, 0)
+
+
+def node_like_merge(merger, raw, cache):
+    """Merge ``raw`` as the node does: the compiled short path, else parse and merge."""
+    fast = merger.merge_raw(raw)
+    if fast is not None:
+        return fast
+    stamp_ns, names, positions, velocities = parse_joint_state(raw, cache, as_tuples=True)
+    result = merger.merge(names, positions, velocities, stamp_ns)
+    if result.status == PUBLISH and not (result.new_unknown or result.time_jump or
+                                         result.out_of_limits or result.unknown_overflow):
+        if merger.raw_reader is None:
+            merger.learn_layout(cache.layout)
+    return result
+
+
+def serialized_joint_state(names, positions, velocities, stamp_ns, frame_id, padding):
+    msg = JointState(name=list(names), position=list(positions), velocity=list(velocities))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+    msg.header.frame_id = frame_id
+    raw = bytearray(serialize_message(msg))
+    spans = _joint_state_spans(bytes(raw))
+    # CDR leaves the alignment padding undefined: any byte after a string's end and before
+    # the next 4-aligned field may differ between two messages of the same names
+    at = 12
+    for _ in range(len(names) + 1):
+        (length,) = struct.unpack_from('<I', raw, at)
+        end = at + 4 + length
+        pad = (-(end - 4)) % 4
+        raw[end:end + pad] = bytes([padding]) * pad
+        at = end + pad
+        if at == spans[0][0] - 4:  # the name count after the frame id
+            at += 4
+    return bytes(raw)
+
+
+@needs_compiled
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([('a', 'b', 'c'), ('c', 'a', 'b'), ('a', 'b'),
+                                           ('a', 'b', 'c', 'x')]),
+                          st.lists(st.one_of(st.floats(-3, 3), st.sampled_from(
+                              [math.nan, math.inf, 2.5, -1.5, 1e308])),
+                                   min_size=4, max_size=4),
+                          st.sampled_from([0, 4]),
+                          st.one_of(st.just(math.nan), st.floats(-3, 3)),
+                          st.sampled_from([0, 1, 2, 5, -3]),
+                          st.sampled_from(['', 'base']), st.sampled_from([0, 0xAB])),
+                max_size=30),
+       st.sampled_from(['warn', 'clamp', 'reject']), st.sampled_from([3, 2]),
+       st.sampled_from([LIMITS, [[-math.inf, math.inf]] * 3]))
+def test_the_compiled_path_merges_as_merge_does(messages, policy, required, limits):
+    fast = JointStateMerger(NAMES, limits, policy, required=required)
+    slow = NoShortPath(NAMES, limits, policy, required=required)
+    fast_cache, slow_cache = JointStateNames(), JointStateNames()
+    stamp = 10 * TIME_JUMP_BACK_NS
+    taken = 0
+    for names, values, n_vel, velocity, step, frame_id, padding in messages:
+        stamp += step * TIME_JUMP_BACK_NS // 2
+        positions = values[:len(names)]
+        velocities = [velocity] + [0.5] * (len(names) - 1) if n_vel else []
+        raw = serialized_joint_state(names, positions, velocities, stamp, frame_id, padding)
+        a = node_like_merge(fast, raw, fast_cache)
+        b = slow.merge(*_fields(parse_joint_state(raw, slow_cache, as_tuples=True)))
+        if isinstance(a, tuple):  # the compiled path took it: what merge publishes
+            taken += 1
+            stamp_ns, q, qdot = a
+            assert b.status == PUBLISH and not (b.out_of_limits or b.time_jump or
+                                                b.new_unknown)
+            assert stamp_ns == b.stamp_ns
+            assert str(q) == str(b.q) and str(qdot) == str(b.qdot)
+        else:
+            assert (a.status, a.reason, a.detail, a.out_of_limits, a.time_jump, a.missing) == \
+                (b.status, b.reason, b.detail, b.out_of_limits, b.time_jump, b.missing)
+            assert str(a.q) == str(b.q) and str(a.qdot) == str(b.qdot)
+        assert fast.seen_optional == slow.seen_optional
+        assert fast._q == slow._q and str(fast._qdot) == str(slow._qdot)
+    assert fast.counts == slow.counts
+
+
+@needs_compiled
+def test_a_repeated_complete_layout_takes_the_compiled_path():
+    merger, cache = JointStateMerger(NAMES, LIMITS), JointStateNames()
+    raws = [serialized_joint_state(('c', 'a', 'b'), [0.5, 0.1 * k, 1.0], [1.0, 2.0, 3.0],
+                                   (5 + k) * 1_000_000_000, 'base', k % 2 * 0xAB)
+            for k in range(4)]
+    assert not isinstance(node_like_merge(merger, raws[0], cache), tuple)
+    assert merger.raw_reader is not None
+    for k, raw in enumerate(raws[1:], 1):  # padding bytes differ: still the same layout
+        stamp_ns, q, qdot = node_like_merge(merger, raw, cache)
+        assert stamp_ns == (5 + k) * 1_000_000_000
+        assert q.tolist() == [0.1 * k, 1.0, 0.5] and qdot.tolist() == [2.0, 3.0, 1.0]
+    # a longer frame id, a truncated message, garbage: not taken (merge decides)
+    other = serialized_joint_state(('c', 'a', 'b'), [0.5, 0.1, 1.0], [], 9, 'base_link', 0)
+    for raw in (other, raws[1][:-8], b'', b'\x00\x01\x00\x00' + bytes(100)):
+        assert merger.merge_raw(raw) is None
+    merger.reset()  # forgets the layout with everything else
+    assert merger.raw_reader is None and merger.merge_raw(raws[1]) is None
+
+
+@needs_compiled
+def test_the_compiled_reader_refuses_what_it_cannot_use():
+    from dq_fk_ros.messages import _cdr
+    merger, cache = JointStateMerger(NAMES, LIMITS), JointStateNames()
+    raw = serialized_joint_state(NAMES, [0.1, 0.2, 0.3], [], 10, '', 0)
+    node_like_merge(merger, raw, cache)
+    reader = merger.raw_reader
+    out = np.empty(3)
+    for args in ((raw, None, [0.0] * 3, [0.0] * 2, out, out),           # lists differ
+                 (raw, None, [0.0, 1, 0.0], [0.0] * 3, out, out),       # not floats
+                 (raw, None, (0.0,) * 3, [0.0] * 3, out, out),          # not lists
+                 (raw, 'x', [0.0] * 3, [0.0] * 3, out, out),            # a stamp not an int
+                 (raw, None, [0.0] * 3, [0.0] * 3, np.empty(2), out),   # q_out too short
+                 (raw, None, [0.0] * 3, [0.0] * 3, out, np.empty(3, np.float32)),
+                 (raw, None, [0.0] * 2, [0.0] * 2, np.empty(2), np.empty(2)),  # order past q
+                 (raw,)):
+        with pytest.raises((TypeError, ValueError)):
+            reader.read(*args)
+    layout = cache.layout
+    good = {'size': layout.size, 'fixed': layout.fixed, 'mask': bytes(len(layout.fixed)),
+            'counts_at': layout.count_offsets, 'counts': layout.expected_counts,
+            'positions_at': layout.positions[0], 'velocities_at': layout.velocities[0],
+            'order': [0, 1, 2], 'lower': [0.0] * 3, 'upper': [1.0] * 3, 'jump_back_ns': 1}
+    _cdr.JointStateReader(**good)
+    for field, value in (('mask', b'\xff'), ('size', 8), ('counts_at', (0, 1, 2)),
+                         ('counts', (3, 2, 0)), ('positions_at', 10 ** 6),
+                         ('order', [0, -1, 2]), ('order', [0, 1]), ('lower', [0.0]),
+                         ('upper', ['x'] * 3)):
+        with pytest.raises((TypeError, ValueError)):
+            _cdr.JointStateReader(**{**good, field: value})
+    unready = _cdr.JointStateReader.__new__(_cdr.JointStateReader)
+    with pytest.raises(ValueError, match='not initialised'):
+        unready.read(raw, None, [0.0] * 3, [0.0] * 3, out, out)
+
+
+def _fields(parsed):
+    stamp_ns, names, positions, velocities = parsed
+    return names, positions, velocities, stamp_ns
+
+
+@needs_compiled
+def test_the_compiled_path_takes_over_after_a_clamped_value():
+    merger, cache = JointStateMerger(NAMES, LIMITS, 'clamp'), JointStateNames()
+    first = serialized_joint_state(NAMES, [2.5, 0.0, 0.5], [], 10, '', 0)
+    assert node_like_merge(merger, first, cache).out_of_limits == ('a',)  # clamped to 1.0
+    merger.learn_layout(cache.layout)  # (the node learns from clean messages only)
+    again = serialized_joint_state(NAMES, [0.5, 0.25, 0.5], [], 11, '', 0)
+    stamp_ns, q, qdot = node_like_merge(merger, again, cache)
+    assert (stamp_ns, q.tolist(), qdot) == (11, [0.5, 0.25, 0.5], None)
