@@ -10,7 +10,6 @@ frames, order, and a transform only where the message's state has named its join
 
 from dq_fk_ros.bag.reading import BagError
 from dq_fk_ros.description.to_urdf import description_urdf
-from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
 from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
 from dq_fk_ros.messages.output_plan import OutputPlan
 import numpy as np
@@ -95,8 +94,8 @@ class BagOutputs:
         ``last_seen``); side-branch links are written where their joints were seen.
         """
         model = self.model
-        absolute = dq_to_pose_xyzw(model.forward_all_batch(q))           # (N, frames, 7)
-        relative = model.relative_batch(q)   # (N, rows + links, 8): poses of those written
+        # (N, frames, 7) and (N, transforms, 7): the compiled kernel, as the node's
+        absolute, relative = model.frame_pose_arrays_batch(q)
         n = len(q)
         helpers = self.plan.helpers
         moving = None
@@ -153,8 +152,7 @@ class BagOutputs:
                 template = self._tf_templates[key] = tf_message_template(plan.tf_edges(edges))
             picked = slice(None) if rows is None else rows
             count = n if rows is None else int(rows.sum())
-            values = dq_to_pose_xyzw(
-                relative[picked][:, [r for _, r in edges]]).reshape(count, -1)
+            values = relative[picked][:, [r for _, r in edges]].reshape(count, -1)
             if moving is not None:
                 values = np.concatenate([values, moving[picked]], axis=1)
             yield rows, template.fill(stamps_ns[picked], values)

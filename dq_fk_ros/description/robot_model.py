@@ -34,8 +34,8 @@ import re
 from dq_fk_ros.kinematics.dh import joint_value_list, KinematicChain
 from dq_fk_ros.kinematics.dh_code import run_chain_program, unrolled_frame_poses
 from dq_fk_ros.kinematics.dual_quaternion import (
-    dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, DualQuaternion, Pose,
-    pose_xyzw_from_coeffs)
+    dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, dq_to_pose_xyzw, DualQuaternion,
+    Pose, pose_xyzw_from_coeffs)
 from dq_fk_ros.kinematics.kernel import KERNEL
 import numpy as np
 from numpy.typing import ArrayLike
@@ -440,6 +440,31 @@ class RobotModel:
         except (ValueError, TypeError):
             kernel.poses(self._q_vector(q), None, relative)
         return relative
+
+    def frame_pose_arrays_batch(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """
+        :meth:`frame_pose_arrays` for N configurations: ``(N, n_frames, 7)``, ``(N, n, 7)``.
+
+        Fast path: the C kernel's ``Model``, configuration by configuration; reference: the
+        numpy batch (:meth:`forward_all_batch`, :meth:`relative_batch`), held equal by
+        test_kernel_tree.py's ``test_batches_equal_the_numpy_batch``.
+        """
+        kernel = self._kernel_model
+        if kernel is None:
+            return self._frame_pose_arrays_batch_reference(q)
+        q = np.ascontiguousarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.dof:
+            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
+                             f'got shape {q.shape}')
+        absolute = np.empty((len(q), len(self.frame_names), 7))
+        relative = np.empty((len(q), self.n_transforms, 7))
+        kernel.poses_batch(q, absolute, relative)
+        return absolute, relative
+
+    def _frame_pose_arrays_batch_reference(self, q):
+        """:meth:`frame_pose_arrays_batch` on numpy: the reference."""
+        absolute, relative = self._batch(q, relative=True)
+        return dq_to_pose_xyzw(absolute), dq_to_pose_xyzw(relative)
 
     @property
     def n_transforms(self) -> int:

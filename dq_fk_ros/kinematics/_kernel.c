@@ -682,6 +682,8 @@ static PyTypeObject ChainType = {
  * 1 prismatic), axis (3), q index, multiplier, offset value.
  * poses(q, absolute, relative): every frame's pose (n_frames, 7) and every TF transform
  * (n_rows + n_links, 7), (x, y, z, qx, qy, qz, qw) with qw >= 0; absolute may be None.
+ * poses_batch(q (N, dof), absolute (N, n_frames, 7), relative): the same, configuration by
+ * configuration (the bag tool's chunks).
  * frames(q, out): every frame's coefficients (n_frames, 8), w >= 0.
  */
 #define LINK_FIELDS 17
@@ -1063,7 +1065,51 @@ static PyObject *model_frames(ModelObject *self, PyObject *const *args, Py_ssize
     Py_RETURN_NONE;
 }
 
+static PyObject *model_poses_batch(ModelObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Py_buffer q = {0}, absolute = {0}, relative = {0};
+    PyObject *result = NULL;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "poses_batch(q, absolute, relative)");
+        return NULL;
+    }
+    if (self->chains == NULL) {
+        PyErr_SetString(PyExc_ValueError, "the model was not initialised");
+        return NULL;
+    }
+    if (take(args[0], &q, 0, "q") < 0)
+        return NULL;
+    Py_ssize_t n = self->dof ? count(&q) / self->dof : (q.ndim == 2 ? q.shape[0] : -1);
+    if (q.ndim != 2 || q.shape[1] != self->dof || n < 0) {
+        PyErr_Format(PyExc_ValueError, "q must be (N, %zd) joint values", self->dof);
+        goto done;
+    }
+    if (args[1] != Py_None
+        && model_out(args[1], &absolute, 7 * self->n_frames * n, "absolute") < 0)
+        goto done;
+    if (model_out(args[2], &relative, 7 * self->n_relative * n, "relative") < 0)
+        goto done;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        model_run(self, (const double *)q.buf + i * self->dof,
+                  (double *)relative.buf + i * 7 * self->n_relative);
+        if (absolute.obj) {
+            double *a = (double *)absolute.buf + i * 7 * self->n_frames;
+            for (Py_ssize_t k = 0; k < self->n_frames; k++)
+                pose_of(self->coeffs + 8 * k, a + 7 * k);
+        }
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    PyBuffer_Release(&q);
+    if (absolute.obj) PyBuffer_Release(&absolute);
+    if (relative.obj) PyBuffer_Release(&relative);
+    return result;
+}
+
 static PyMethodDef model_methods[] = {
+    {"poses_batch", (PyCFunction)(void (*)(void))model_poses_batch, METH_FASTCALL,
+     "poses_batch(q (N, dof), absolute, relative): poses() for N configurations"},
     {"poses", (PyCFunction)(void (*)(void))model_poses, METH_FASTCALL,
      "poses(q, absolute, relative): (x, y, z, qx, qy, qz, qw) of every frame and transform"},
     {"frames", (PyCFunction)(void (*)(void))model_frames, METH_FASTCALL,

@@ -213,3 +213,45 @@ def test_a_model_pickles_and_computes_the_same_after():
     again = pickle.loads(pickle.dumps(model))
     for a, b in zip(again.frame_pose_arrays(q), before):
         np.testing.assert_array_equal(a, b)
+
+
+def same_rotations(a, b):
+    """Return ``b`` with each quaternion's sign taken from ``a`` where ``qw`` is 0 (q ~ -q)."""
+    flip = (a[..., 6] == 0.0) & (np.sign(a[..., 3:6]) != np.sign(b[..., 3:6])).any(axis=-1)
+    b = b.copy()
+    b[..., 3:][flip] *= -1.0
+    return b
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(robot_files(), st.data())
+def test_batches_equal_the_numpy_batch(text, data):
+    model = parse_robot_description(text)
+    rows = data.draw(st.lists(st.lists(finite, min_size=model.dof, max_size=model.dof),
+                              max_size=6))
+    q = np.array(rows, dtype=float).reshape(len(rows), model.dof)
+    absolute, relative = model.frame_pose_arrays_batch(q)
+    ref_absolute, ref_relative = model._frame_pose_arrays_batch_reference(q)
+    assert absolute.shape == (len(q), len(model.frame_names), 7)
+    assert relative.shape == (len(q), model.n_transforms, 7)
+    np.testing.assert_allclose(absolute, same_rotations(absolute, ref_absolute), rtol=0,
+                               atol=1e-12)
+    np.testing.assert_allclose(relative, same_rotations(relative, ref_relative), rtol=0,
+                               atol=1e-12)
+    for k in range(len(q)):  # and configuration by configuration, the single call
+        single = model.frame_pose_arrays(q[k])
+        np.testing.assert_array_equal(absolute[k], single[0])
+        np.testing.assert_array_equal(relative[k], single[1])
+
+
+def test_a_batch_refuses_what_the_numpy_batch_refuses():
+    model = parse_robot_description(open('config/dual_arm.yaml', encoding='utf-8').read())
+    for bad in (np.zeros(model.dof), np.zeros((2, model.dof + 1)), np.zeros((2, 2, 2))):
+        for path in (model.frame_pose_arrays_batch, model._frame_pose_arrays_batch_reference):
+            with pytest.raises(ValueError, match=rf'expected an \(N, {model.dof}\) array'):
+                path(bad)
+    empty = model.frame_pose_arrays_batch(np.zeros((0, model.dof)))
+    assert empty[0].shape == (0, len(model.frame_names), 7)
+    q = np.zeros((6, model.dof * 2))[::2, ::2]  # not contiguous: copied, then taken
+    np.testing.assert_array_equal(model.frame_pose_arrays_batch(q)[0],
+                                  model.frame_pose_arrays_batch(q.copy())[0])
