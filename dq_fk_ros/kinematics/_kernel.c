@@ -272,23 +272,41 @@ static void run_block(const double *prog, Py_ssize_t n_ops, const double *base,
                     half[j] = 0.5 * (p1 + p2 * q[j * dof + t]);
                 sincos_block(half, s, c, m);
             }
+            if (p5 >= 0 || p4 != 0.0) {  /* turn and slide along z in one pass */
+                Py_ssize_t t = p5 < 0 ? 0 : (Py_ssize_t)p5;
+                double moving = p5 < 0 ? 0.0 : p2;
+                for (Py_ssize_t j = 0; j < m; j++) {
+                    double cj = c[j], sj = s[j];
+                    double nw = aw[j] * cj - az[j] * sj, nx = ax[j] * cj + ay[j] * sj,
+                           ny = ay[j] * cj - ax[j] * sj, nz = az[j] * cj + aw[j] * sj;
+                    double mw = bw[j] * cj - bz[j] * sj, mx = bx[j] * cj + by[j] * sj,
+                           my = by[j] * cj - bx[j] * sj, mz = bz[j] * cj + bw[j] * sj;
+                    double hd = p5 < 0 ? 0.5 * p4 : 0.5 * (p4 + moving * q[j * dof + t]);
+                    aw[j] = nw; ax[j] = nx; ay[j] = ny; az[j] = nz;
+                    bw[j] = mw - hd * nz; bx[j] = mx + hd * ny;
+                    by[j] = my - hd * nx; bz[j] = mz + hd * nw;
+                }
+            } else {
+                for (Py_ssize_t j = 0; j < m; j++) {
+                    double cj = c[j], sj = s[j];
+                    double nw = aw[j] * cj - az[j] * sj, nx = ax[j] * cj + ay[j] * sj,
+                           ny = ay[j] * cj - ax[j] * sj, nz = az[j] * cj + aw[j] * sj;
+                    double mw = bw[j] * cj - bz[j] * sj, mx = bx[j] * cj + by[j] * sj,
+                           my = by[j] * cj - bx[j] * sj, mz = bz[j] * cj + bw[j] * sj;
+                    aw[j] = nw; ax[j] = nx; ay[j] = ny; az[j] = nz;
+                    bw[j] = mw; bx[j] = mx; by[j] = my; bz[j] = mz;
+                }
+            }
+        } else if (p1 != 0.0 && p4 != 0.0) {  /* slide along x, then turn: one pass */
             for (Py_ssize_t j = 0; j < m; j++) {
-                double cj = c[j], sj = s[j];
-                double nw = aw[j] * cj - az[j] * sj, nx = ax[j] * cj + ay[j] * sj,
-                       ny = ay[j] * cj - ax[j] * sj, nz = az[j] * cj + aw[j] * sj;
-                double mw = bw[j] * cj - bz[j] * sj, mx = bx[j] * cj + by[j] * sj,
-                       my = by[j] * cj - bx[j] * sj, mz = bz[j] * cj + bw[j] * sj;
+                double w = bw[j] - p1 * ax[j], x = bx[j] + p1 * aw[j],
+                       y = by[j] + p1 * az[j], z = bz[j] - p1 * ay[j];
+                double nw = aw[j] * p2 - ax[j] * p3, nx = ax[j] * p2 + aw[j] * p3,
+                       ny = ay[j] * p2 + az[j] * p3, nz = az[j] * p2 - ay[j] * p3;
+                double mw = w * p2 - x * p3, mx = x * p2 + w * p3,
+                       my = y * p2 + z * p3, mz = z * p2 - y * p3;
                 aw[j] = nw; ax[j] = nx; ay[j] = ny; az[j] = nz;
                 bw[j] = mw; bx[j] = mx; by[j] = my; bz[j] = mz;
-            }
-            if (p5 >= 0 || p4 != 0.0) {
-                Py_ssize_t t = (Py_ssize_t)p5;
-                for (Py_ssize_t j = 0; j < m; j++) {
-                    double hd = p5 < 0 ? 0.5 * p4 : 0.5 * (p4 + p2 * q[j * dof + t]);
-                    double w = bw[j] - hd * az[j], x = bx[j] + hd * ay[j],
-                           y = by[j] - hd * ax[j], z = bz[j] + hd * aw[j];
-                    bw[j] = w; bx[j] = x; by[j] = y; bz[j] = z;
-                }
             }
         } else {
             if (p1 != 0.0) {
@@ -314,17 +332,27 @@ static void run_block(const double *prog, Py_ssize_t n_ops, const double *base,
             f += 8;
         }
     }
-    if (tool || end_only) {
+    if (tool) {  /* h * tool across the block: multiply()'s terms, in its order */
+        const double *b = tool;
         for (Py_ssize_t j = 0; j < m; j++) {
-            double last[8] = {aw[j], ax[j], ay[j], az[j], bw[j], bx[j], by[j], bz[j]};
-            double *o = f + j * per;
-            if (tool)
-                multiply(last, tool, o);
-            else
-                memcpy(o, last, sizeof last);
-            if (canon) canonical(o);
+            double a0 = aw[j], a1 = ax[j], a2 = ay[j], a3 = az[j];
+            double a4 = bw[j], a5 = bx[j], a6 = by[j], a7 = bz[j];
+            aw[j] = a0 * b[0] - a1 * b[1] - a2 * b[2] - a3 * b[3];
+            ax[j] = a0 * b[1] + a1 * b[0] + a2 * b[3] - a3 * b[2];
+            ay[j] = a0 * b[2] - a1 * b[3] + a2 * b[0] + a3 * b[1];
+            az[j] = a0 * b[3] + a1 * b[2] - a2 * b[1] + a3 * b[0];
+            bw[j] = a0 * b[4] - a1 * b[5] - a2 * b[6] - a3 * b[7]
+                  + a4 * b[0] - a5 * b[1] - a6 * b[2] - a7 * b[3];
+            bx[j] = a0 * b[5] + a1 * b[4] + a2 * b[7] - a3 * b[6]
+                  + a4 * b[1] + a5 * b[0] + a6 * b[3] - a7 * b[2];
+            by[j] = a0 * b[6] - a1 * b[7] + a2 * b[4] + a3 * b[5]
+                  + a4 * b[2] - a5 * b[3] + a6 * b[0] + a7 * b[1];
+            bz[j] = a0 * b[7] + a1 * b[6] - a2 * b[5] + a3 * b[4]
+                  + a4 * b[3] + a5 * b[2] - a6 * b[1] + a7 * b[0];
         }
     }
+    if (tool || end_only)
+        store(f, per, m, h, canon);
 }
 
 /* Parse (program, base, tool or None, q, out, canonical[, dof]); check sizes; 0 or -1. */

@@ -444,18 +444,36 @@ class KinematicChain:
                 frames.append(dq_multiply_coeffs(frames[-1], self._tool_t))
             yield part, frames
 
-    def forward_all_batch(self, q: ArrayLike) -> np.ndarray:
+    def forward_all_batch(self, q: ArrayLike, out: np.ndarray | None = None) -> np.ndarray:
         """
         Absolute poses of every frame for N configurations: ``(N, n_frames, 8)``.
 
         Fast path: the C kernel; reference: :meth:`_forward_all_batch_reference`
         (test_kernel.py).
+
+        :param out: a C-contiguous float64 ``(N, n_frames, 8)`` array to fill and return (no
+            allocation), else a new one.
         """
-        if KERNEL is None:
-            return self._forward_all_batch_reference(q)
+        return self._batch_into(q, out, (self.n_frames, 8), KERNEL and KERNEL.frames_batch,
+                                self._forward_all_batch_reference)
+
+    def _batch_into(self, q, out, shape, kernel, reference):
+        """Run a batch path of the kernel into ``out`` (made if None), or the reference."""
+        if out is not None and not (
+                isinstance(out, np.ndarray) and out.dtype == np.float64 and
+                out.flags.c_contiguous and out.flags.writeable and out.shape[1:] == shape):
+            raise ValueError(f'out must be a C-contiguous writable float64 (N, '
+                             f'{", ".join(map(str, shape))}) array')
+        if kernel is None:
+            result = reference(q)
+            if out is None:
+                return result
+            out[...] = result
+            return out
         q = self._q_batch(q)
-        out = np.empty((len(q), self.n_frames, 8))
-        KERNEL.frames_batch(*self._kernel_args, q, out, True)
+        if out is None:
+            out = np.empty((len(q),) + shape)
+        kernel(*self._kernel_args, q, out, True)
         return out
 
     def _forward_all_batch_reference(self, q):
@@ -467,18 +485,17 @@ class KinematicChain:
                     out[part, i, k] = frame[k]
         return _canonical_inplace(out)
 
-    def forward_batch(self, q: ArrayLike) -> np.ndarray:
+    def forward_batch(self, q: ArrayLike, out: np.ndarray | None = None) -> np.ndarray:
         """
         End-effector poses (tool if any) for N configurations: ``(N, 8)``, ``w >= 0``.
 
         Fast path: the C kernel; reference: :meth:`_forward_batch_reference` (test_kernel.py).
+
+        :param out: a C-contiguous float64 ``(N, 8)`` array to fill and return (no
+            allocation), else a new one.
         """
-        if KERNEL is None:
-            return self._forward_batch_reference(q)
-        q = self._q_batch(q)
-        out = np.empty((len(q), 8))
-        KERNEL.end_batch(*self._kernel_args, q, out, True)
-        return out
+        return self._batch_into(q, out, (8,), KERNEL and KERNEL.end_batch,
+                                self._forward_batch_reference)
 
     def _forward_batch_reference(self, q):
         """:meth:`forward_batch` with numpy, chunk by chunk: the reference."""

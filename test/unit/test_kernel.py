@@ -174,3 +174,18 @@ def test_dq_fk_pure_python_forces_the_numpy_path():
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          check=True, env=dict(os.environ, DQ_FK_PURE_PYTHON='1')).stdout
     assert out.split()[0] == 'numpy' and 'DQ_FK_PURE_PYTHON=1' in out, out
+
+
+def test_batches_fill_the_callers_buffers():
+    chain = KinematicChain([DHJoint(a=0.2, alpha=0.5, name='a'), DHJoint(d=0.1, name='b')])
+    q = np.random.default_rng(3).uniform(-2, 2, (5, 2))
+    out = np.full((5, 8), np.nan)
+    assert chain.forward_batch(q, out=out) is out
+    np.testing.assert_allclose(out, chain._forward_batch_reference(q), rtol=0, atol=1e-12)
+    frames = np.full((5, chain.n_frames, 8), np.nan)
+    assert chain.forward_all_batch(q, out=frames) is frames
+    np.testing.assert_allclose(frames, chain._forward_all_batch_reference(q), rtol=0,
+                               atol=1e-12)
+    for bad in (np.empty((4, 8)), np.empty((5, 8), np.float32), np.empty((5, 16))[:, ::2]):
+        with pytest.raises(ValueError):
+            chain.forward_batch(q, out=bad)
