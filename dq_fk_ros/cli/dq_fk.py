@@ -258,7 +258,9 @@ def cmd_list(args):
         print(f'{name:20s} {model.dof} joints  {shipped_robot_path(name)}')
     if args.verbose:
         from dq_fk_ros.kinematics.kernel import kernel_info
+        from dq_fk_ros.messages.cdr import COMPILED_WHY
         print(f"FK kernel: {kernel_info()['why']}")
+        print(f'CDR writer and JointState reader of the node: {COMPILED_WHY}')
     return 0
 
 

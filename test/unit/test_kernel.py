@@ -189,3 +189,18 @@ def test_batches_fill_the_callers_buffers():
     for bad in (np.empty((4, 8)), np.empty((5, 8), np.float32), np.empty((5, 16))[:, ::2]):
         with pytest.raises(ValueError):
             chain.forward_batch(q, out=bad)
+
+
+@pytest.mark.parametrize('pure', ['', '1'])
+def test_dq_fk_list_verbose_says_which_paths_run(pure):
+    from dq_fk_ros.messages.cdr import COMPILED
+    out = subprocess.run([sys.executable, '-m', 'dq_fk_ros.cli.dq_fk', 'list', '--verbose'],
+                         capture_output=True, text=True, check=True,
+                         env=dict(os.environ, DQ_FK_PURE_PYTHON=pure)).stdout.splitlines()
+    fk = next(line for line in out if line.startswith('FK kernel: '))
+    cdr = next(line for line in out if line.startswith('CDR writer and JointState reader'))
+    if pure:
+        assert 'numpy: DQ_FK_PURE_PYTHON=1' in fk and 'python: DQ_FK_PURE_PYTHON=1' in cdr
+    else:
+        assert (' c: ' in fk) == (kernel_info()['active'] == 'c')
+        assert (' c: ' in cdr) == (COMPILED is not None)
