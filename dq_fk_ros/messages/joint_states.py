@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import math
 import operator
 
+from dq_fk_ros.messages.cdr import COMPILED
 import numpy as np
 
 OUT_OF_LIMITS_POLICIES = ('warn', 'clamp', 'reject')
@@ -140,8 +141,8 @@ class JointStateMerger:
             of joints :meth:`merge` takes its own short path for.
         """
         complete = self._complete_names
-        if layout is None or complete is None or layout.names != complete:
-            return
+        if COMPILED is None or layout is None or complete is None or layout.names != complete:
+            return  # (without the C reader every message takes merge())
         order = self._complete_order
         lower, upper = self._complete_bounds
         if lower is None:
