@@ -1196,16 +1196,8 @@ PyMODINIT_FUNC PyInit__kernel(void)
     PyObject *m = PyModule_Create(&module);
     if (m == NULL)
         return NULL;
-    Py_INCREF(&ChainType);
-    if (PyModule_AddObject(m, "Chain", (PyObject *)&ChainType) < 0) {
-        Py_DECREF(&ChainType);
-        Py_DECREF(m);
-        return NULL;
-    }
-    Py_INCREF(&ModelType);
-    if (PyModule_AddObject(m, "Model", (PyObject *)&ModelType) < 0) {
-        Py_DECREF(&ModelType);
-        Py_DECREF(m);
+    if (PyModule_AddType(m, &ChainType) < 0 || PyModule_AddType(m, &ModelType) < 0) {
+        Py_DECREF(m);  /* (the types are named by their tp_name's last part) */
         return NULL;
     }
     return m;

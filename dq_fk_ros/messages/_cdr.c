@@ -635,16 +635,8 @@ PyMODINIT_FUNC PyInit__cdr(void)
     PyObject *m = PyModule_Create(&module);
     if (m == NULL)
         return NULL;
-    Py_INCREF(&TemplateType);
-    if (PyModule_AddObject(m, "Template", (PyObject *)&TemplateType) < 0) {
-        Py_DECREF(&TemplateType);
-        Py_DECREF(m);
-        return NULL;
-    }
-    Py_INCREF(&ReaderType);
-    if (PyModule_AddObject(m, "JointStateReader", (PyObject *)&ReaderType) < 0) {
-        Py_DECREF(&ReaderType);
-        Py_DECREF(m);
+    if (PyModule_AddType(m, &TemplateType) < 0 || PyModule_AddType(m, &ReaderType) < 0) {
+        Py_DECREF(m);  /* (the types are named by their tp_name's last part) */
         return NULL;
     }
     return m;
