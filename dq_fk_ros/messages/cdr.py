@@ -29,6 +29,7 @@ import numpy as np
 COMPILED, COMPILED_WHY = load_compiled('dq_fk_ros.messages._cdr')
 
 CDR_LE_HEADER = b'\x00\x01\x00\x00'
+_LE = CDR_LE_HEADER[:2]  # the representation identifier: plain CDR, little-endian
 _U32 = struct.Struct('<I')
 _STAMP = struct.Struct('<iI')
 # a JointState naming more joints, or larger, is refused (malformed_cdr): a robot has far
@@ -142,7 +143,7 @@ def parse_joint_state(raw, cache=None, as_tuples=False):
     :raises CdrError: truncated or not little-endian CDR.
     """
     layout = cache.layout if cache is not None else None
-    if layout is None or len(raw) != layout.size \
+    if layout is None or len(raw) != layout.size or raw[:2] != _LE \
             or layout.counts.unpack_from(raw, layout.counts_at) != layout.expected_counts \
             or (raw[12:layout.fixed_end] != layout.fixed and not layout.same_strings(raw)):
         layout = _JointStateLayout(raw, cache)

@@ -63,6 +63,17 @@ def test_big_endian_is_refused():
         parse_joint_state(bytes(raw))
 
 
+def test_a_broken_header_is_refused_after_its_layout_was_cached_too():
+    cache = JointStateNames()
+    raw = joint_state_bytes(['a'], [1.0])
+    parse_joint_state(raw, cache)
+    for at, value in ((0, 7), (1, 0)):  # not plain CDR, or big-endian: the same size
+        broken = bytearray(raw)
+        broken[at] = value
+        with pytest.raises(CdrError, match='little-endian'):
+            parse_joint_state(bytes(broken), cache)
+
+
 def test_pose_stamped_template_deserializes_to_the_values():
     rows = pose_stamped_template('world').fill(
         np.array([5_000_000_001, 7]), np.array([[1, 2, 3, 0.5, 0.5, 0.5, 0.5],
