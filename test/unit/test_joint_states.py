@@ -4,7 +4,7 @@ import math
 import struct
 
 from dq_fk_ros.messages.cdr import (
-    _joint_state_spans, COMPILED, JointStateNames, parse_joint_state)
+    _joint_state_spans, CdrError, COMPILED, JointStateNames, parse_joint_state)
 from dq_fk_ros.messages.joint_states import (
     INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, PUBLISH, REJECTED, SequenceGaps,
     TIME_JUMP_BACK_NS)
@@ -562,3 +562,34 @@ def test_the_compiled_path_takes_over_after_a_clamped_value():
     again = serialized_joint_state(NAMES, [0.5, 0.25, 0.5], [], 11, '', 0)
     stamp_ns, q, qdot = node_like_merge(merger, again, cache)
     assert (stamp_ns, q.tolist(), qdot) == (11, [0.5, 0.25, 0.5], None)
+
+
+@needs_compiled
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.lists(st.tuples(st.integers(0, 123), st.integers(0, 255)), min_size=1,
+                         max_size=3), max_size=20))
+def test_damaged_bytes_get_the_same_outcome_on_both_paths(damages):
+    fast, slow = JointStateMerger(NAMES, LIMITS), NoShortPath(NAMES, LIMITS)
+    fast_cache, slow_cache = JointStateNames(), JointStateNames()
+    good = serialized_joint_state(('c', 'a', 'b'), [0.5, 0.1, 1.0], [1.0, 2.0, 3.0],
+                                  5 * 1_000_000_000, 'base', 0)
+    assert len(good) == 124
+    for raw in [good] + [bytes(b if k not in dict(d) else dict(d)[k] for k, b in
+                               enumerate(good)) for d in damages]:
+        try:
+            a = node_like_merge(fast, raw, fast_cache)
+        except CdrError:
+            a = 'malformed'
+        try:
+            b = slow.merge(*_fields(parse_joint_state(raw, slow_cache, as_tuples=True)))
+        except CdrError:
+            b = 'malformed'
+        if isinstance(a, tuple):  # taken from the bytes: what merge publishes silently
+            assert b.status == PUBLISH and not (b.out_of_limits or b.time_jump)
+            assert (a[0], str(a[1]), str(a[2])) == (b.stamp_ns, str(b.q), str(b.qdot))
+        elif a == 'malformed' or b == 'malformed':
+            assert a == b
+        else:
+            assert (a.status, a.reason, str(a.q), str(a.qdot)) == \
+                (b.status, b.reason, str(b.q), str(b.qdot))
+    assert fast.counts == slow.counts
