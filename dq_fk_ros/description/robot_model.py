@@ -31,7 +31,7 @@ from functools import cached_property
 import math
 import re
 
-from dq_fk_ros.kinematics.dh import joint_value_list, KinematicChain
+from dq_fk_ros.kinematics.dh import joint_value_list, joint_value_vector, KinematicChain
 from dq_fk_ros.kinematics.dh_code import run_chain_program, unrolled_frame_poses
 from dq_fk_ros.kinematics.dual_quaternion import (
     dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, dq_to_pose_xyzw, DualQuaternion,
@@ -418,7 +418,7 @@ class RobotModel:
         try:  # a float64 vector of the right length goes straight in
             kernel.poses(q, absolute, relative)
         except (ValueError, TypeError):  # a list, another dtype... or a wrong q: its error
-            kernel.poses(self._q_vector(q), absolute, relative)
+            kernel.poses(joint_value_vector(q, self.joint_names), absolute, relative)
         return absolute, relative
 
     def transform_pose_array(self, q: ArrayLike,
@@ -438,7 +438,7 @@ class RobotModel:
         try:
             kernel.poses(q, None, relative)
         except (ValueError, TypeError):
-            kernel.poses(self._q_vector(q), None, relative)
+            kernel.poses(joint_value_vector(q, self.joint_names), None, relative)
         return relative
 
     def frame_pose_arrays_batch(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
@@ -470,13 +470,6 @@ class RobotModel:
     def n_transforms(self) -> int:
         """Count the TF transforms of :meth:`frame_poses`' relative: DH rows, then links."""
         return sum(len(chain.joints) for _, chain, _ in self.chains) + len(self.links)
-
-    def _q_vector(self, q):
-        """Return ``q`` as a contiguous float64 vector (the numpy path's errors if not)."""
-        q = np.ascontiguousarray(q, dtype=float)
-        if q.ndim != 1 or len(q) != self.dof:
-            joint_value_list(q, self.joint_names)  # raises the numpy path's ValueError
-        return q
 
     @cached_property
     def _kernel_model(self):
@@ -537,7 +530,7 @@ class RobotModel:
             if kernel is None:
                 return self.forward_all_batch(np.asarray(q, dtype=float)[None, :])[0]
             out = np.empty((len(self.frame_names), 8))
-            kernel.frames(self._q_vector(q), out)
+            kernel.frames(joint_value_vector(q, self.joint_names), out)
             return out
         return self.chain.forward_all(q)
 

@@ -114,6 +114,14 @@ def joint_value_list(q: ArrayLike, joint_names: Sequence[str]) -> list[float]:
     return q.tolist() if isinstance(q, np.ndarray) else [float(v) for v in q]
 
 
+def joint_value_vector(q: ArrayLike, joint_names: Sequence[str]) -> np.ndarray:
+    """Return ``q`` as a contiguous float64 vector for the kernel (ValueError as above)."""
+    q = np.ascontiguousarray(q, dtype=float)
+    if q.ndim != 1 or len(q) != len(joint_names):
+        joint_value_list(q, joint_names)  # raises the numpy path's ValueError
+    return q
+
+
 class KinematicChain:
     """
     A serial chain of :class:`DHJoint` rows with a fixed base and an optional tool.
@@ -345,10 +353,7 @@ class KinematicChain:
 
     def _q_vector(self, q):
         """Return ``q`` as a contiguous float64 vector (the numpy path's errors if not)."""
-        q = np.ascontiguousarray(q, dtype=float)
-        if q.ndim != 1 or len(q) != self.dof:
-            joint_value_list(q, self.joint_names)  # raises the numpy path's ValueError
-        return q
+        return joint_value_vector(q, self.joint_names)
 
     def _q_batch(self, q):
         """Return ``q`` as a contiguous ``(N, dof)`` float64 array (the numpy path's errors)."""

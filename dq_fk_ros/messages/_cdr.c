@@ -36,11 +36,11 @@ static void template_dealloc(TemplateObject *self)
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
-/* A sequence of offsets, each with room for `bytes` bytes in a message of `size`. */
-static Py_ssize_t *offsets(PyObject *obj, Py_ssize_t size, Py_ssize_t bytes, Py_ssize_t *n,
-                           const char *what)
+/* A sequence of ints, each in [low, high]; what names them in the error. */
+static Py_ssize_t *ints_within(PyObject *obj, Py_ssize_t low, Py_ssize_t high, Py_ssize_t *n,
+                               const char *what)
 {
-    PyObject *seq = PySequence_Fast(obj, "offsets must be a sequence of ints");
+    PyObject *seq = PySequence_Fast(obj, "offsets and indices must be sequences of ints");
     if (seq == NULL)
         return NULL;
     *n = PySequence_Fast_GET_SIZE(seq);
@@ -52,12 +52,11 @@ static Py_ssize_t *offsets(PyObject *obj, Py_ssize_t size, Py_ssize_t bytes, Py_
     }
     for (Py_ssize_t i = 0; i < *n; i++) {
         Py_ssize_t at = PyLong_AsSsize_t(PySequence_Fast_GET_ITEM(seq, i));
-        if (at == -1 && PyErr_Occurred()) {
+        int not_int = at == -1 && PyErr_Occurred();  /* not an int, or too large */
+        if (not_int)
             PyErr_Clear();
-            at = -1;
-        }
-        if (at < 4 || at > size - bytes) {  /* never the 4-byte encapsulation header */
-            PyErr_Format(PyExc_ValueError, "%s offset %zd is outside the message", what, at);
+        if (not_int || at < low || at > high) {
+            PyErr_Format(PyExc_ValueError, "%s %zd is outside %zd..%zd", what, at, low, high);
             PyMem_Free(out);
             Py_DECREF(seq);
             return NULL;
@@ -66,6 +65,13 @@ static Py_ssize_t *offsets(PyObject *obj, Py_ssize_t size, Py_ssize_t bytes, Py_
     }
     Py_DECREF(seq);
     return out;
+}
+
+/* Offsets with room for `bytes` bytes in a message of `size`, never in the 4-byte header. */
+static Py_ssize_t *offsets(PyObject *obj, Py_ssize_t size, Py_ssize_t bytes, Py_ssize_t *n,
+                           const char *what)
+{
+    return ints_within(obj, 4, size - bytes, n, what);
 }
 
 static int template_init(TemplateObject *self, PyObject *args, PyObject *kwargs)
@@ -351,33 +357,6 @@ done:
     return out;
 }
 
-/* A sequence of indices >= 0 (checked against q's length when reading). */
-static Py_ssize_t *indices(PyObject *obj, Py_ssize_t *n)
-{
-    PyObject *seq = PySequence_Fast(obj, "order must be a sequence of ints");
-    if (seq == NULL)
-        return NULL;
-    *n = PySequence_Fast_GET_SIZE(seq);
-    Py_ssize_t *out = PyMem_Malloc((*n ? *n : 1) * sizeof(Py_ssize_t));
-    if (out == NULL) {
-        Py_DECREF(seq);
-        PyErr_NoMemory();
-        return NULL;
-    }
-    for (Py_ssize_t k = 0; k < *n; k++) {
-        out[k] = PyLong_AsSsize_t(PySequence_Fast_GET_ITEM(seq, k));
-        if (out[k] < 0) {
-            PyErr_Clear();
-            PyErr_SetString(PyExc_ValueError, "order: indices into q, >= 0");
-            PyMem_Free(out);
-            Py_DECREF(seq);
-            return NULL;
-        }
-    }
-    Py_DECREF(seq);
-    return out;
-}
-
 static int reader_build(ReaderObject *self, Py_ssize_t size, Py_buffer *fixed, Py_buffer *mask,
                         PyObject *counts_at, PyObject *counts, PyObject *order,
                         PyObject *lower, PyObject *upper)
@@ -434,7 +413,7 @@ static int reader_build(ReaderObject *self, Py_ssize_t size, Py_buffer *fixed, P
         return -1;
     }
     Py_ssize_t n_order;
-    self->order = indices(order, &n_order);
+    self->order = ints_within(order, 0, PY_SSIZE_T_MAX, &n_order, "order index");
     if (self->order == NULL)
         return -1;
     if (n_order != self->n) {
