@@ -10,6 +10,13 @@
  * sin and cos, as Python's math), batches to an ulp or two (blocks of configurations with a
  * vectorisable sine and cosine, see run_block).
  *
+ * Two types, both immutable: Chain (one chain's program) and Model (a tree of chains and
+ * its links). What no Python value may do to them (docs/security.md, test_compiled_fuzz.py,
+ * make sanitize): every argument is converted to C values, and every sequence copied, before
+ * anything is checked; every size product is checked for overflow before it sizes a buffer
+ * or a loop; a type's state is set once, in __new__ (a second __init__ is refused); what the
+ * batch loop reads without the GIL is the Chain's own copy and buffers it holds for the call.
+ *
  * Only the CPython C API and the buffer protocol: no numpy headers.
  */
 #define PY_SSIZE_T_CLEAN
@@ -18,22 +25,28 @@
 #include <string.h>
 
 #define OP_FIELDS 7
+/* joint values a chain or a model takes at most (sizes stay far from overflow) */
+#define MAX_DOF (1 << 20)
 
-typedef struct {
-    Py_buffer program, base, tool, q, out;
-    int have_tool;
-} Args;
-
-static void release(Args *a)
+/* a * b into *r, unless negative or past PY_SSIZE_T_MAX: 0, else -1 */
+static int mul_size(Py_ssize_t a, Py_ssize_t b, Py_ssize_t *r)
 {
-    if (a->program.obj) PyBuffer_Release(&a->program);
-    if (a->base.obj) PyBuffer_Release(&a->base);
-    if (a->tool.obj) PyBuffer_Release(&a->tool);
-    if (a->q.obj) PyBuffer_Release(&a->q);
-    if (a->out.obj) PyBuffer_Release(&a->out);
+    if (a < 0 || b < 0 || (b != 0 && a > PY_SSIZE_T_MAX / b))
+        return -1;
+    *r = a * b;
+    return 0;
 }
 
-/* A C-contiguous float64 buffer (writable if asked); else a Python error. */
+/* a + b into *r, likewise */
+static int add_size(Py_ssize_t a, Py_ssize_t b, Py_ssize_t *r)
+{
+    if (a < 0 || b < 0 || a > PY_SSIZE_T_MAX - b)
+        return -1;
+    *r = a + b;
+    return 0;
+}
+
+/* A C-contiguous float64 buffer (writable if asked); else a Python error, view->obj NULL. */
 static int take(PyObject *obj, Py_buffer *view, int writable, const char *what)
 {
     int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
@@ -53,7 +66,25 @@ static int take(PyObject *obj, Py_buffer *view, int writable, const char *what)
     return 0;
 }
 
+static void let_go(Py_buffer *view)
+{
+    if (view->obj)
+        PyBuffer_Release(view);
+}
+
 static Py_ssize_t count(Py_buffer *v) { return v->len / 8; }
+
+/* refuse a second __init__: the state of these types is set once, in __new__ */
+static int set_once(PyObject *self, int *initialised)
+{
+    if (*initialised) {
+        PyErr_Format(PyExc_TypeError, "a %s is set once, when it is made; make a new one",
+                     Py_TYPE(self)->tp_name);
+        return -1;
+    }
+    *initialised = 1;  /* the __init__ that follows __new__ in the type's call */
+    return 0;
+}
 
 /* Check the program against the number of joint values: every index in range. */
 static int check_program(const double *p, Py_ssize_t n_ops, Py_ssize_t dof)
@@ -355,125 +386,10 @@ static void run_block(const double *prog, Py_ssize_t n_ops, const double *base,
         store(f, per, m, h, canon);
 }
 
-/* Parse (program, base, tool or None, q, out, canonical[, dof]); check sizes; 0 or -1. */
-static int parse(PyObject *const *args, Py_ssize_t nargs, Py_ssize_t expected, Args *a,
-                 const char *name)
-{
-    memset(a, 0, sizeof *a);
-    if (nargs != expected) {
-        PyErr_Format(PyExc_TypeError, "%s(program, base, tool, q, out, canonical%s)", name,
-                     expected == 7 ? ", dof" : "");
-        return -1;
-    }
-    if (take(args[0], &a->program, 0, "program") < 0 || take(args[1], &a->base, 0, "base") < 0
-        || take(args[3], &a->q, 0, "q") < 0 || take(args[4], &a->out, 1, "out") < 0)
-        return -1;
-    a->have_tool = args[2] != Py_None;
-    if (a->have_tool && take(args[2], &a->tool, 0, "tool") < 0)
-        return -1;
-    if (count(&a->program) % OP_FIELDS || count(&a->base) != 8
-        || (a->have_tool && count(&a->tool) != 8)) {
-        PyErr_SetString(PyExc_ValueError, "program must be (n, 7), base and tool 8 values");
-        return -1;
-    }
-    return 0;
-}
 
-static PyObject *kernel_frames(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
-                               int end_only)
-{
-    Args a;
-    if (parse(args, nargs, 7, &a, end_only ? "end" : "frames") < 0) {
-        release(&a);
-        return NULL;
-    }
-    int canon = PyObject_IsTrue(args[5]);
-    Py_ssize_t dof = PyLong_AsSsize_t(args[6]);
-    const double *prog = a.program.buf;
-    Py_ssize_t n_ops = count(&a.program) / OP_FIELDS;
-    Py_ssize_t per = end_only ? 8 : 8 * (1 + marks(prog, n_ops) + a.have_tool);
-    if (canon < 0 || (dof < 0 && PyErr_Occurred())) {
-        release(&a);
-        return NULL;
-    }
-    if (a.q.ndim != 1 || count(&a.q) != dof) {
-        PyErr_Format(PyExc_ValueError, "q must be %zd joint values", dof);
-        release(&a);
-        return NULL;
-    }
-    if (check_program(prog, n_ops, dof) < 0) {
-        release(&a);
-        return NULL;
-    }
-    if (count(&a.out) != per) {
-        PyErr_Format(PyExc_ValueError, "out must hold %zd values, not %zd", per,
-                     count(&a.out));
-        release(&a);
-        return NULL;
-    }
-    run(prog, n_ops, a.base.buf, a.have_tool ? a.tool.buf : NULL, a.q.buf, a.out.buf,
-        end_only, canon);
-    release(&a);
-    Py_RETURN_NONE;
-}
-
-static PyObject *kernel_batch(PyObject *self, PyObject *const *args, Py_ssize_t nargs,
-                              int end_only)
-{
-    Args a;
-    if (parse(args, nargs, 6, &a, end_only ? "end_batch" : "frames_batch") < 0) {
-        release(&a);
-        return NULL;
-    }
-    int canon = PyObject_IsTrue(args[5]);
-    const double *prog = a.program.buf;
-    Py_ssize_t n_ops = count(&a.program) / OP_FIELDS;
-    Py_ssize_t per = end_only ? 8 : 8 * (1 + marks(prog, n_ops) + a.have_tool);
-    if (canon < 0) {
-        release(&a);
-        return NULL;
-    }
-    if (a.q.ndim != 2) {
-        PyErr_SetString(PyExc_ValueError, "q must be (N, dof)");
-        release(&a);
-        return NULL;
-    }
-    Py_ssize_t n = a.q.shape[0], dof = a.q.shape[1];
-    if (check_program(prog, n_ops, dof) < 0) {
-        release(&a);
-        return NULL;
-    }
-    if (count(&a.out) != n * per) {
-        PyErr_Format(PyExc_ValueError, "out must hold %zd values, not %zd", n * per,
-                     count(&a.out));
-        release(&a);
-        return NULL;
-    }
-    const double *q = a.q.buf, *tool = a.have_tool ? a.tool.buf : NULL;
-    double *out = a.out.buf;
-    Py_BEGIN_ALLOW_THREADS
-    for (Py_ssize_t i = 0; i < n; i += BLOCK) {
-        Py_ssize_t m = n - i < BLOCK ? n - i : BLOCK;
-        run_block(prog, n_ops, a.base.buf, tool, q + i * dof, dof, m, out + i * per, per,
-                  end_only, canon);
-    }
-    Py_END_ALLOW_THREADS
-    release(&a);
-    Py_RETURN_NONE;
-}
-
-/*
- * jacobian(program, base, tool, rows, modified, q, out (6, dof), dof): the geometric
- * Jacobian of the end effector in the fixed frame, as KinematicChain.jacobian_geometric
- * (the reference): every frame from run(), then per row its joint axis (z of frame i-1,
- * standard; of frame i, modified) and, for a revolute variable, z x (p_end - p). rows is
- * (n, 3): the theta variable's index, the d variable's index (-1: none) and the scale.
- */
-#define MAX_STACK_FRAMES 128
-
+/* 2 d r*, the vector part of a pose's translation ([Zivkovic2023] eq. (17)) */
 static void translation(const double *h, double *t)
 {
-    /* 2 d r*, the vector part ([Zivkovic2023] eq. (17)) */
     double w = h[0], x = -h[1], y = -h[2], z = -h[3];
     double dw = h[4], dx = h[5], dy = h[6], dz = h[7];
     t[0] = 2.0 * (dw * x + dx * w + dy * z - dz * y);
@@ -481,185 +397,144 @@ static void translation(const double *h, double *t)
     t[2] = 2.0 * (dw * z + dx * y - dy * x + dz * w);
 }
 
-static PyObject *jacobian(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{
-    Args a;
-    Py_buffer rows = {0};
-    double stack[8 * MAX_STACK_FRAMES], *frames = stack;
-    if (nargs != 8) {
-        PyErr_SetString(PyExc_TypeError,
-                        "jacobian(program, base, tool, rows, modified, q, out, dof)");
-        return NULL;
-    }
-    PyObject *forward[7] = {args[0], args[1], args[2], args[5], args[6], Py_True, args[7]};
-    if (parse(forward, 7, 7, &a, "jacobian") < 0) {
-        release(&a);
-        return NULL;
-    }
-    PyObject *result = NULL;
-    int modified = PyObject_IsTrue(args[4]);
-    Py_ssize_t dof = PyLong_AsSsize_t(args[7]);
-    const double *prog = a.program.buf;
-    Py_ssize_t n_ops = count(&a.program) / OP_FIELDS;
-    Py_ssize_t n_frames = 1 + marks(prog, n_ops) + a.have_tool;
-    if (modified < 0 || (dof < 0 && PyErr_Occurred()))
-        goto done;
-    if (take(args[3], &rows, 0, "rows") < 0)
-        goto done;
-    Py_ssize_t n = count(&rows) / 3;
-    if (count(&rows) % 3 || n != marks(prog, n_ops)) {
-        PyErr_SetString(PyExc_ValueError, "rows must be (n, 3), one per row of the program");
-        goto done;
-    }
-    if (a.q.ndim != 1 || count(&a.q) != dof || count(&a.out) != 6 * dof) {
-        PyErr_Format(PyExc_ValueError, "q must be %zd joint values and out (6, %zd)", dof, dof);
-        goto done;
-    }
-    if (check_program(prog, n_ops, dof) < 0)
-        goto done;
-    const double *r = rows.buf;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        for (int k = 0; k < 2; k++) {
-            double index = r[3 * i + k];
-            if (index >= (double)dof || index != floor(index)) {
-                PyErr_SetString(PyExc_ValueError, "rows index a joint value q lacks");
-                goto done;
-            }
-        }
-    }
-    if (n_frames > MAX_STACK_FRAMES) {
-        frames = PyMem_Malloc(8 * n_frames * sizeof(double));
-        if (frames == NULL) {
-            PyErr_NoMemory();
-            goto done;
-        }
-    }
-    run(prog, n_ops, a.base.buf, a.have_tool ? a.tool.buf : NULL, a.q.buf, frames, 0, 0);
-    double *jac = a.out.buf, p_end[3];
-    memset(jac, 0, 6 * dof * sizeof(double));
-    translation(frames + 8 * (n_frames - 1), p_end);
-    for (Py_ssize_t i = 0; i < n; i++) {
-        const double *h = frames + 8 * (modified ? i + 1 : i);
-        double w = h[0], x = h[1], y = h[2], zq = h[3];
-        double z[3] = {2.0 * (x * zq + w * y), 2.0 * (y * zq - w * x),
-                       1.0 - 2.0 * (x * x + y * y)};
-        double scale = r[3 * i + 2], p[3];
-        Py_ssize_t ti = (Py_ssize_t)r[3 * i], di = (Py_ssize_t)r[3 * i + 1];
-        if (ti >= 0) {
-            translation(h, p);
-            double e0 = p_end[0] - p[0], e1 = p_end[1] - p[1], e2 = p_end[2] - p[2];
-            jac[0 * dof + ti] += scale * (z[1] * e2 - z[2] * e1);
-            jac[1 * dof + ti] += scale * (z[2] * e0 - z[0] * e2);
-            jac[2 * dof + ti] += scale * (z[0] * e1 - z[1] * e0);
-            for (int k = 0; k < 3; k++)
-                jac[(3 + k) * dof + ti] += scale * z[k];
-        }
-        if (di >= 0)
-            for (int k = 0; k < 3; k++)
-                jac[k * dof + di] += scale * z[k];
-    }
-    result = Py_None;
-    Py_INCREF(result);
-done:
-    if (frames != stack)
-        PyMem_Free(frames);
-    if (rows.obj)
-        PyBuffer_Release(&rows);
-    release(&a);
-    return result;
-}
-
-static PyObject *frames(PyObject *s, PyObject *const *a, Py_ssize_t n)
-{ return kernel_frames(s, a, n, 0); }
-static PyObject *end(PyObject *s, PyObject *const *a, Py_ssize_t n)
-{ return kernel_frames(s, a, n, 1); }
-static PyObject *frames_batch(PyObject *s, PyObject *const *a, Py_ssize_t n)
-{ return kernel_batch(s, a, n, 0); }
-static PyObject *end_batch(PyObject *s, PyObject *const *a, Py_ssize_t n)
-{ return kernel_batch(s, a, n, 1); }
-
 /*
- * Chain(program, base, tool, dof): a chain checked once and copied into C memory, whose
- * frames(q, out) and end(q, out) take two buffers per call (the single-call fast path;
- * the module functions above take all five each time).
+ * Chain(program, base, tool, dof, rows=None, modified=False): a chain checked and copied
+ * into C memory once. frames(q, out) and end(q, out): one configuration; frames_batch(q,
+ * out) and end_batch(q, out): N of them (q (N, dof)), without the GIL; jacobian(q, out):
+ * the geometric Jacobian (6, dof) of the end effector in the fixed frame, as
+ * KinematicChain._jacobian_geometric_reference: every frame from run(), then per row its
+ * joint axis (z of frame i-1, standard; of frame i, modified) and, for a revolute variable,
+ * z x (p_end - p). rows is (n, 3), one per DH row: the theta variable's index, the d
+ * variable's index (-1: none) and the scale; None: no jacobian().
  */
 typedef struct {
     PyObject_HEAD
-    double *prog;
-    Py_ssize_t n_ops, dof, per;
+    double *prog, *rows;
+    Py_ssize_t n_ops, dof, per, n_rows;
     double base[8], tool[8];
-    int have_tool;
+    int have_tool, modified, initialised;
 } ChainObject;
 
 static void chain_dealloc(ChainObject *self)
 {
     PyMem_Free(self->prog);
+    PyMem_Free(self->rows);
     Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+/* the Chain's state from its arguments, all of them C values already */
+static int chain_build(ChainObject *self, Py_buffer *program, Py_buffer *base,
+                       Py_buffer *tool, Py_ssize_t dof, Py_buffer *rows)
+{
+    if (count(program) % OP_FIELDS || count(base) != 8 || (tool->obj && count(tool) != 8)) {
+        PyErr_SetString(PyExc_ValueError, "program must be (n, 7), base and tool 8 values");
+        return -1;
+    }
+    if (dof < 0 || dof > MAX_DOF) {
+        PyErr_Format(PyExc_ValueError, "dof must be 0 to %d", MAX_DOF);
+        return -1;
+    }
+    Py_ssize_t n_ops = count(program) / OP_FIELDS;
+    /* copied first: what is checked is what runs */
+    self->prog = PyMem_Malloc((n_ops ? n_ops : 1) * OP_FIELDS * sizeof(double));
+    if (self->prog == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    memcpy(self->prog, program->buf, n_ops * OP_FIELDS * sizeof(double));
+    if (check_program(self->prog, n_ops, dof) < 0)
+        return -1;
+    self->n_ops = n_ops;
+    self->dof = dof;
+    Py_ssize_t n_marks = marks(self->prog, n_ops);
+    self->per = 8 * (1 + n_marks + (tool->obj != NULL));
+    memcpy(self->base, base->buf, sizeof self->base);
+    self->have_tool = tool->obj != NULL;
+    if (self->have_tool)
+        memcpy(self->tool, tool->buf, sizeof self->tool);
+    self->n_rows = -1;
+    if (rows->obj == NULL)
+        return 0;
+    Py_ssize_t n = count(rows) / 3;
+    if (count(rows) % 3 || n != n_marks) {
+        PyErr_SetString(PyExc_ValueError, "rows must be (n, 3), one per row of the program");
+        return -1;
+    }
+    self->rows = PyMem_Malloc((n ? n : 1) * 3 * sizeof(double));
+    if (self->rows == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    memcpy(self->rows, rows->buf, n * 3 * sizeof(double));
+    for (Py_ssize_t i = 0; i < n; i++)
+        for (int k = 0; k < 2; k++) {
+            double index = self->rows[3 * i + k];
+            if (index >= (double)dof || index != floor(index)) {
+                PyErr_SetString(PyExc_ValueError, "rows index a joint value q lacks");
+                return -1;
+            }
+        }
+    self->n_rows = n;
+    return 0;
+}
+
+static PyObject *chain_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+    PyObject *program, *base, *tool, *rows = Py_None;
+    Py_ssize_t dof;
+    int modified = 0;
+    static char *names[] = {"program", "base", "tool", "dof", "rows", "modified", NULL};
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOn|Op", names, &program, &base, &tool,
+                                     &dof, &rows, &modified))
+        return NULL;  /* (every Python callback an argument has runs above) */
+    ChainObject *self = (ChainObject *)type->tp_alloc(type, 0);
+    if (self == NULL)
+        return NULL;
+    Py_buffer pv = {0}, bv = {0}, tv = {0}, rv = {0};
+    int ok = take(program, &pv, 0, "program") == 0 && take(base, &bv, 0, "base") == 0
+        && (tool == Py_None || take(tool, &tv, 0, "tool") == 0)
+        && (rows == Py_None || take(rows, &rv, 0, "rows") == 0)
+        && chain_build(self, &pv, &bv, &tv, dof, &rv) == 0;
+    self->modified = modified;
+    let_go(&pv);
+    let_go(&bv);
+    let_go(&tv);
+    let_go(&rv);
+    if (!ok) {
+        Py_DECREF(self);
+        return NULL;
+    }
+    return (PyObject *)self;
 }
 
 static int chain_init(ChainObject *self, PyObject *args, PyObject *kwargs)
 {
-    PyObject *program, *base, *tool;
-    Py_ssize_t dof;
-    static char *names[] = {"program", "base", "tool", "dof", NULL};
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOn", names, &program, &base, &tool,
-                                     &dof))
+    return set_once((PyObject *)self, &self->initialised);
+}
+
+/* q, a C-contiguous float64 vector of dof values, and out, writable, of `need` values */
+static int chain_buffers(PyObject *const *args, Py_ssize_t nargs, const char *usage,
+                         Py_buffer *q, Py_buffer *out)
+{
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, usage);
         return -1;
-    Args a;
-    memset(&a, 0, sizeof a);
-    int ok = -1;
-    if (take(program, &a.program, 0, "program") < 0 || take(base, &a.base, 0, "base") < 0)
-        goto done;
-    a.have_tool = tool != Py_None;
-    if (a.have_tool && take(tool, &a.tool, 0, "tool") < 0)
-        goto done;
-    if (count(&a.program) % OP_FIELDS || count(&a.base) != 8
-        || (a.have_tool && count(&a.tool) != 8) || dof < 0) {
-        PyErr_SetString(PyExc_ValueError, "program must be (n, 7), base and tool 8 values");
-        goto done;
     }
-    Py_ssize_t n_ops = count(&a.program) / OP_FIELDS;
-    if (check_program(a.program.buf, n_ops, dof) < 0)
-        goto done;
-    double *prog = PyMem_Malloc((n_ops ? n_ops : 1) * OP_FIELDS * sizeof(double));
-    if (prog == NULL) {
-        PyErr_NoMemory();
-        goto done;
+    if (take(args[0], q, 0, "q") < 0)
+        return -1;
+    if (take(args[1], out, 1, "out") < 0) {
+        PyBuffer_Release(q);
+        return -1;
     }
-    memcpy(prog, a.program.buf, n_ops * OP_FIELDS * sizeof(double));
-    PyMem_Free(self->prog);
-    self->prog = prog;
-    self->n_ops = n_ops;
-    self->dof = dof;
-    self->per = 8 * (1 + marks(prog, n_ops) + a.have_tool);
-    memcpy(self->base, a.base.buf, sizeof self->base);
-    self->have_tool = a.have_tool;
-    if (a.have_tool)
-        memcpy(self->tool, a.tool.buf, sizeof self->tool);
-    ok = 0;
-done:
-    release(&a);
-    return ok;
+    return 0;
 }
 
 static PyObject *chain_call(ChainObject *self, PyObject *const *args, Py_ssize_t nargs,
                             int end_only)
 {
-    Py_buffer q = {0}, out = {0};
-    if (self->prog == NULL) {
-        PyErr_SetString(PyExc_ValueError, "the chain was not initialised");
+    Py_buffer q, out;
+    if (chain_buffers(args, nargs, end_only ? "end(q, out)" : "frames(q, out)", &q, &out) < 0)
         return NULL;
-    }
-    if (nargs != 2) {
-        PyErr_SetString(PyExc_TypeError, end_only ? "end(q, out)" : "frames(q, out)");
-        return NULL;
-    }
-    if (take(args[0], &q, 0, "q") < 0)
-        return NULL;
-    if (take(args[1], &out, 1, "out") < 0) {
-        PyBuffer_Release(&q);
-        return NULL;
-    }
     Py_ssize_t per = end_only ? 8 : self->per;
     if (q.ndim != 1 || count(&q) != self->dof || count(&out) != per) {
         PyErr_Format(PyExc_ValueError, "q must be %zd joint values and out %zd values",
@@ -675,29 +550,154 @@ static PyObject *chain_call(ChainObject *self, PyObject *const *args, Py_ssize_t
     Py_RETURN_NONE;
 }
 
+static PyObject *chain_batch(ChainObject *self, PyObject *const *args, Py_ssize_t nargs,
+                             int end_only)
+{
+    Py_buffer q, out;
+    if (chain_buffers(args, nargs, end_only ? "end_batch(q, out)" : "frames_batch(q, out)",
+                      &q, &out) < 0)
+        return NULL;
+    Py_ssize_t per = end_only ? 8 : self->per, need;
+    if (q.ndim != 2 || q.shape[1] != self->dof) {
+        PyErr_Format(PyExc_ValueError, "q must be (N, %zd)", self->dof);
+        goto fail;
+    }
+    Py_ssize_t n = q.shape[0];
+    if (mul_size(n, per, &need) < 0 || count(&out) != need) {
+        PyErr_Format(PyExc_ValueError, "out must hold (N, %zd) values for %zd "
+                     "configurations, not %zd", per, n, count(&out));
+        goto fail;
+    }
+    const double *qb = q.buf, *tool = self->have_tool ? self->tool : NULL;
+    double *ob = out.buf;
+    Py_ssize_t dof = self->dof;
+    /* without the GIL: the program is this Chain's (immutable), q and out held to the end */
+    Py_BEGIN_ALLOW_THREADS
+    for (Py_ssize_t i = 0; i < n; i += BLOCK) {
+        Py_ssize_t m = n - i < BLOCK ? n - i : BLOCK;
+        run_block(self->prog, self->n_ops, self->base, tool, qb + i * dof, dof, m,
+                  ob + i * per, per, end_only, 1);
+    }
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&q);
+    PyBuffer_Release(&out);
+    Py_RETURN_NONE;
+fail:
+    PyBuffer_Release(&q);
+    PyBuffer_Release(&out);
+    return NULL;
+}
+
+#define MAX_STACK_FRAMES 128
+
+static PyObject *chain_jacobian(ChainObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Py_buffer q, out;
+    double stack[8 * MAX_STACK_FRAMES], *frames = stack;
+    Py_ssize_t dof = self->dof, n_frames = self->per / 8;
+    if (self->n_rows < 0) {
+        PyErr_SetString(PyExc_ValueError, "this Chain was made without rows: no jacobian");
+        return NULL;
+    }
+    if (chain_buffers(args, nargs, "jacobian(q, out (6, dof))", &q, &out) < 0)
+        return NULL;
+    PyObject *result = NULL;
+    if (q.ndim != 1 || count(&q) != dof || count(&out) != 6 * dof) {
+        PyErr_Format(PyExc_ValueError, "q must be %zd joint values and out (6, %zd)", dof, dof);
+        goto done;
+    }
+    if (n_frames > MAX_STACK_FRAMES) {
+        frames = PyMem_Malloc(8 * n_frames * sizeof(double));
+        if (frames == NULL) {
+            PyErr_NoMemory();
+            goto done;
+        }
+    }
+    /* every frame first (q is read there only), then out is written */
+    run(self->prog, self->n_ops, self->base, self->have_tool ? self->tool : NULL, q.buf,
+        frames, 0, 0);
+    double *jac = out.buf, p_end[3];
+    const double *r = self->rows;
+    memset(jac, 0, 6 * dof * sizeof(double));
+    translation(frames + 8 * (n_frames - 1), p_end);
+    for (Py_ssize_t i = 0; i < self->n_rows; i++) {
+        const double *h = frames + 8 * (self->modified ? i + 1 : i);
+        double w = h[0], x = h[1], y = h[2], zq = h[3];
+        double z[3] = {2.0 * (x * zq + w * y), 2.0 * (y * zq - w * x),
+                       1.0 - 2.0 * (x * x + y * y)};
+        double scale = r[3 * i + 2], p[3];
+        if (r[3 * i] >= 0) {
+            Py_ssize_t ti = (Py_ssize_t)r[3 * i];
+            translation(h, p);
+            double e0 = p_end[0] - p[0], e1 = p_end[1] - p[1], e2 = p_end[2] - p[2];
+            jac[0 * dof + ti] += scale * (z[1] * e2 - z[2] * e1);
+            jac[1 * dof + ti] += scale * (z[2] * e0 - z[0] * e2);
+            jac[2 * dof + ti] += scale * (z[0] * e1 - z[1] * e0);
+            for (int k = 0; k < 3; k++)
+                jac[(3 + k) * dof + ti] += scale * z[k];
+        }
+        if (r[3 * i + 1] >= 0) {
+            Py_ssize_t di = (Py_ssize_t)r[3 * i + 1];
+            for (int k = 0; k < 3; k++)
+                jac[k * dof + di] += scale * z[k];
+        }
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    if (frames != stack)
+        PyMem_Free(frames);
+    PyBuffer_Release(&q);
+    PyBuffer_Release(&out);
+    return result;
+}
+
 static PyObject *chain_frames(ChainObject *s, PyObject *const *a, Py_ssize_t n)
 { return chain_call(s, a, n, 0); }
 static PyObject *chain_end(ChainObject *s, PyObject *const *a, Py_ssize_t n)
 { return chain_call(s, a, n, 1); }
+static PyObject *chain_frames_batch(ChainObject *s, PyObject *const *a, Py_ssize_t n)
+{ return chain_batch(s, a, n, 0); }
+static PyObject *chain_end_batch(ChainObject *s, PyObject *const *a, Py_ssize_t n)
+{ return chain_batch(s, a, n, 1); }
 
 static PyMethodDef chain_methods[] = {
     {"frames", (PyCFunction)(void (*)(void))chain_frames, METH_FASTCALL,
      "frames(q, out): every frame (w >= 0) into out, (n_frames, 8)"},
     {"end", (PyCFunction)(void (*)(void))chain_end, METH_FASTCALL,
      "end(q, out): the last frame (tool if any, w >= 0) into out, (8,)"},
+    {"frames_batch", (PyCFunction)(void (*)(void))chain_frames_batch, METH_FASTCALL,
+     "frames_batch(q (N, dof), out (N, n_frames, 8)): frames() for N configurations"},
+    {"end_batch", (PyCFunction)(void (*)(void))chain_end_batch, METH_FASTCALL,
+     "end_batch(q (N, dof), out (N, 8)): end() for N configurations"},
+    {"jacobian", (PyCFunction)(void (*)(void))chain_jacobian, METH_FASTCALL,
+     "jacobian(q, out (6, dof)): the geometric Jacobian of the end effector"},
     {NULL, NULL, 0, NULL},
+};
+
+static PyObject *chain_n_frames(ChainObject *self, void *closure)
+{ return PyLong_FromSsize_t(self->per / 8); }
+static PyObject *chain_dof(ChainObject *self, void *closure)
+{ return PyLong_FromSsize_t(self->dof); }
+
+static PyGetSetDef chain_getset[] = {
+    {"n_frames", (getter)chain_n_frames, NULL, "frames computed", NULL},
+    {"dof", (getter)chain_dof, NULL, "joint values taken", NULL},
+    {NULL, NULL, NULL, NULL, NULL},
 };
 
 static PyTypeObject ChainType = {
     PyVarObject_HEAD_INIT(NULL, 0)
     .tp_name = "dq_fk_ros.kinematics._kernel.Chain",
-    .tp_doc = "Chain(program, base, tool, dof): a chain's program, checked and copied once",
+    .tp_doc = "Chain(program, base, tool, dof, rows=None, modified=False): a chain's "
+              "program, checked and copied once (immutable)",
     .tp_basicsize = sizeof(ChainObject),
     .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_new = PyType_GenericNew,
+    .tp_new = chain_new,
     .tp_init = (initproc)chain_init,
     .tp_dealloc = (destructor)chain_dealloc,
     .tp_methods = chain_methods,
+    .tp_getset = chain_getset,
 };
 
 /*
@@ -729,11 +729,12 @@ typedef struct {
     ModelChain *chains;
     Py_ssize_t n_chains, n_links, dof, n_frames, n_relative, max_chain_dof;
     double *links, *coeffs, *q_chain;
+    int initialised;
 } ModelObject;
 
 static const double IDENTITY[8] = {1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
 
-static void model_clear(ModelObject *self)
+static void model_dealloc(ModelObject *self)
 {
     for (Py_ssize_t c = 0; c < self->n_chains; c++) {
         Py_XDECREF(self->chains[c].chain);
@@ -744,14 +745,6 @@ static void model_clear(ModelObject *self)
     PyMem_Free(self->links);
     PyMem_Free(self->coeffs);
     PyMem_Free(self->q_chain);
-    self->chains = NULL;
-    self->links = self->coeffs = self->q_chain = NULL;
-    self->n_chains = 0;
-}
-
-static void model_dealloc(ModelObject *self)
-{
-    model_clear(self);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -761,6 +754,7 @@ static int index_ok(double v, Py_ssize_t low, Py_ssize_t high)
     return v == floor(v) && v >= (double)low && v < (double)high;
 }
 
+/* One (Chain, parent, q indices, pose rows, standard) of the tuple the model holds. */
 static int model_take_chain(ModelObject *self, PyObject *item, Py_ssize_t c)
 {
     ModelChain *mc = &self->chains[c];
@@ -769,17 +763,18 @@ static int model_take_chain(ModelObject *self, PyObject *item, Py_ssize_t c)
     int standard;
     Py_buffer qv = {0}, rv = {0};
     int ok = -1;
+    if (!PyTuple_Check(item)) {
+        PyErr_SetString(PyExc_TypeError,
+                        "a chain is a tuple (Chain, parent, q indices, pose rows, standard)");
+        return -1;
+    }
+    /* (the item is a tuple the model's own tuple holds: its parts stay alive while the
+       parent's __index__ or standard's __bool__ runs; nothing below depends on them) */
     if (!PyArg_ParseTuple(item, "O!nOOp", &ChainType, &chain, &parent, &q_map, &rows,
                           &standard))
         return -1;
     ChainObject *ch = (ChainObject *)chain;
-    if (ch->prog == NULL) {
-        PyErr_SetString(PyExc_ValueError, "the chain was not initialised");
-        return -1;
-    }
-    if (take(q_map, &qv, 0, "q indices") < 0)
-        return -1;
-    if (take(rows, &rv, 0, "pose rows") < 0)
+    if (take(q_map, &qv, 0, "q indices") < 0 || take(rows, &rv, 0, "pose rows") < 0)
         goto done;
     Py_ssize_t n_rows = count(&rv) / 10;
     Py_ssize_t n_frames = ch->per / 8;
@@ -791,57 +786,61 @@ static int model_take_chain(ModelObject *self, PyObject *item, Py_ssize_t c)
         PyErr_SetString(PyExc_ValueError, "a chain hangs from a frame not computed before it");
         goto done;
     }
-    const double *qm = qv.buf, *r = rv.buf;
-    for (Py_ssize_t k = 0; k < ch->dof; k++)
-        if (!index_ok(qm[k], 0, self->dof)) {
-            PyErr_SetString(PyExc_ValueError, "a chain's q index is outside q");
-            goto done;
-        }
-    for (Py_ssize_t i = 0; i < n_rows; i++)
-        if (!index_ok(r[i * 10 + 6], -1, ch->dof) || !index_ok(r[i * 10 + 7], -1, ch->dof)) {
-            PyErr_SetString(PyExc_ValueError, "a pose row indexes a variable the chain lacks");
-            goto done;
-        }
     mc->q_map = PyMem_Malloc((ch->dof ? ch->dof : 1) * sizeof(Py_ssize_t));
     mc->rows = PyMem_Malloc((n_rows ? n_rows : 1) * 10 * sizeof(double));
     if (mc->q_map == NULL || mc->rows == NULL) {
         PyErr_NoMemory();
         goto done;
     }
-    for (Py_ssize_t k = 0; k < ch->dof; k++)
-        mc->q_map[k] = (Py_ssize_t)qm[k];
-    memcpy(mc->rows, r, n_rows * 10 * sizeof(double));
+    memcpy(mc->rows, rv.buf, n_rows * 10 * sizeof(double));  /* copied, then checked */
+    const double *qm = qv.buf, *r = mc->rows;
+    for (Py_ssize_t k = 0; k < ch->dof; k++) {
+        double v = qm[k];
+        if (!index_ok(v, 0, self->dof)) {
+            PyErr_SetString(PyExc_ValueError, "a chain's q index is outside q");
+            goto done;
+        }
+        mc->q_map[k] = (Py_ssize_t)v;
+    }
+    for (Py_ssize_t i = 0; i < n_rows; i++)
+        if (!index_ok(r[i * 10 + 6], -1, ch->dof) || !index_ok(r[i * 10 + 7], -1, ch->dof)) {
+            PyErr_SetString(PyExc_ValueError, "a pose row indexes a variable the chain lacks");
+            goto done;
+        }
+    if (add_size(self->n_frames, n_frames, &self->n_frames) < 0
+        || add_size(self->n_relative, n_rows, &self->n_relative) < 0) {
+        PyErr_SetString(PyExc_ValueError, "a model too large to compute");
+        goto done;
+    }
     Py_INCREF(chain);
     mc->chain = ch;
     mc->parent = parent;
     mc->n_frames = n_frames;
     mc->n_rows = n_rows;
-    mc->first_frame = self->n_frames;
-    mc->first_row = self->n_relative;
+    mc->first_frame = self->n_frames - n_frames;
+    mc->first_row = self->n_relative - n_rows;
     mc->standard = standard;
-    self->n_frames += n_frames;
-    self->n_relative += n_rows;
     if (ch->dof > self->max_chain_dof)
         self->max_chain_dof = ch->dof;
     ok = 0;
 done:
-    if (qv.obj) PyBuffer_Release(&qv);
-    if (rv.obj) PyBuffer_Release(&rv);
+    let_go(&qv);
+    let_go(&rv);
     return ok;
 }
 
 static int model_build(ModelObject *self, PyObject *chains, PyObject *links, Py_ssize_t dof)
 {
-    self->n_frames = self->n_relative = self->n_links = self->max_chain_dof = 0;
-    if (dof < 0) {
-        PyErr_SetString(PyExc_ValueError, "dof must be >= 0");
+    if (dof < 0 || dof > MAX_DOF) {
+        PyErr_Format(PyExc_ValueError, "dof must be 0 to %d", MAX_DOF);
         return -1;
     }
     self->dof = dof;
-    PyObject *seq = PySequence_Fast(chains, "chains must be a sequence");
+    /* a tuple of our own: a callback while a chain is read cannot change the others */
+    PyObject *seq = PySequence_Tuple(chains);
     if (seq == NULL)
         return -1;
-    Py_ssize_t n = PySequence_Fast_GET_SIZE(seq);
+    Py_ssize_t n = PyTuple_GET_SIZE(seq);
     if (n < 1) {
         Py_DECREF(seq);
         PyErr_SetString(PyExc_ValueError, "a model has at least one chain");
@@ -855,7 +854,7 @@ static int model_build(ModelObject *self, PyObject *chains, PyObject *links, Py_
     }
     for (Py_ssize_t c = 0; c < n; c++) {
         self->n_chains = c + 1;
-        if (model_take_chain(self, PySequence_Fast_GET_ITEM(seq, c), c) < 0) {
+        if (model_take_chain(self, PyTuple_GET_ITEM(seq, c), c) < 0) {
             Py_DECREF(seq);
             return -1;
         }
@@ -870,31 +869,37 @@ static int model_build(ModelObject *self, PyObject *chains, PyObject *links, Py_
         return -1;
     }
     Py_ssize_t n_links = count(&lv) / LINK_FIELDS;
-    const double *l = lv.buf;
-    for (Py_ssize_t j = 0; j < n_links; j++) {
-        const double *f = l + j * LINK_FIELDS;
-        Py_ssize_t here = self->n_frames + j;  /* a link hangs from a frame before it */
-        double kind = f[10];
-        if (!index_ok(f[0], -1, here) || !index_ok(f[1], -1, here)
-            || !(kind == -1.0 || kind == 0.0 || kind == 1.0)
-            || (kind != -1.0 && !index_ok(f[14], 0, dof))) {
-            PyBuffer_Release(&lv);
-            PyErr_SetString(PyExc_ValueError, "a link indexes a frame or joint it cannot use");
-            return -1;
-        }
-    }
     self->links = PyMem_Malloc((n_links ? n_links : 1) * LINK_FIELDS * sizeof(double));
     if (self->links == NULL) {
         PyBuffer_Release(&lv);
         PyErr_NoMemory();
         return -1;
     }
-    memcpy(self->links, l, n_links * LINK_FIELDS * sizeof(double));
+    memcpy(self->links, lv.buf, n_links * LINK_FIELDS * sizeof(double));
     PyBuffer_Release(&lv);
+    Py_ssize_t n_frames, n_relative, coeff_bytes;
+    if (add_size(self->n_frames, n_links, &n_frames) < 0
+        || add_size(self->n_relative, n_links, &n_relative) < 0
+        || mul_size(n_frames, 8 * sizeof(double), &coeff_bytes) < 0
+        || mul_size(n_frames, 7 * 8, &coeff_bytes) < 0) {
+        PyErr_SetString(PyExc_ValueError, "a model too large to compute");
+        return -1;
+    }
+    for (Py_ssize_t j = 0; j < n_links; j++) {
+        const double *f = self->links + j * LINK_FIELDS;
+        Py_ssize_t here = self->n_frames + j;  /* a link hangs from a frame before it */
+        double kind = f[10];
+        if (!index_ok(f[0], -1, here) || !index_ok(f[1], -1, here)
+            || !(kind == -1.0 || kind == 0.0 || kind == 1.0)
+            || (kind != -1.0 && !index_ok(f[14], 0, dof))) {
+            PyErr_SetString(PyExc_ValueError, "a link indexes a frame or joint it cannot use");
+            return -1;
+        }
+    }
     self->n_links = n_links;
-    self->n_frames += n_links;
-    self->n_relative += n_links;
-    self->coeffs = PyMem_Malloc(self->n_frames * 8 * sizeof(double));
+    self->n_frames = n_frames;
+    self->n_relative = n_relative;
+    self->coeffs = PyMem_Malloc((n_frames ? n_frames : 1) * 8 * sizeof(double));
     self->q_chain = PyMem_Malloc((self->max_chain_dof ? self->max_chain_dof : 1)
                                  * sizeof(double));
     if (self->coeffs == NULL || self->q_chain == NULL) {
@@ -904,19 +909,26 @@ static int model_build(ModelObject *self, PyObject *chains, PyObject *links, Py_
     return 0;
 }
 
-static int model_init(ModelObject *self, PyObject *args, PyObject *kwargs)
+static PyObject *model_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
 {
     PyObject *chains, *links;
     Py_ssize_t dof;
     static char *names[] = {"chains", "links", "dof", NULL};
     if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOn", names, &chains, &links, &dof))
-        return -1;
-    model_clear(self);
+        return NULL;
+    ModelObject *self = (ModelObject *)type->tp_alloc(type, 0);
+    if (self == NULL)
+        return NULL;
     if (model_build(self, chains, links, dof) < 0) {
-        model_clear(self);  /* a model half built is no model */
-        return -1;
+        Py_DECREF(self);  /* a model half built is no model */
+        return NULL;
     }
-    return 0;
+    return (PyObject *)self;
+}
+
+static int model_init(ModelObject *self, PyObject *args, PyObject *kwargs)
+{
+    return set_once((PyObject *)self, &self->initialised);
 }
 
 /* pose_xyzw_from_coeffs: (x, y, z, qx, qy, qz, qw), qw >= 0, [Zivkovic2023] eq. (17) */
@@ -1016,12 +1028,9 @@ static void model_run(ModelObject *self, const double *q, double *relative)
     }
 }
 
+
 static int model_q(ModelObject *self, PyObject *obj, Py_buffer *q)
 {
-    if (self->chains == NULL) {
-        PyErr_SetString(PyExc_ValueError, "the model was not initialised");
-        return -1;
-    }
     if (take(obj, q, 0, "q") < 0)
         return -1;
     if (q->ndim != 1 || count(q) != self->dof) {
@@ -1032,13 +1041,17 @@ static int model_q(ModelObject *self, PyObject *obj, Py_buffer *q)
     return 0;
 }
 
-static int model_out(PyObject *obj, Py_buffer *v, Py_ssize_t n, const char *what)
+/* a writable float64 buffer of n values times `times` (an overflow is no fit) */
+static int model_out(PyObject *obj, Py_buffer *v, Py_ssize_t n, Py_ssize_t times,
+                     const char *what)
 {
+    Py_ssize_t need;
     if (take(obj, v, 1, what) < 0)
         return -1;
-    if (count(v) != n) {
-        PyErr_Format(PyExc_ValueError, "%s must have %zd values", what, n);
+    if (mul_size(n, times, &need) < 0 || count(v) != need) {
+        PyErr_Format(PyExc_ValueError, "%s must have %zd x %zd values", what, times, n);
         PyBuffer_Release(v);
+        v->obj = NULL;
         return -1;
     }
     return 0;
@@ -1054,9 +1067,10 @@ static PyObject *model_poses(ModelObject *self, PyObject *const *args, Py_ssize_
     }
     if (model_q(self, args[0], &q) < 0)
         return NULL;
-    if (args[1] != Py_None && model_out(args[1], &absolute, 7 * self->n_frames, "absolute") < 0)
+    if (args[1] != Py_None
+        && model_out(args[1], &absolute, 7 * self->n_frames, 1, "absolute") < 0)
         goto done;
-    if (model_out(args[2], &relative, 7 * self->n_relative, "relative") < 0)
+    if (model_out(args[2], &relative, 7 * self->n_relative, 1, "relative") < 0)
         goto done;
     model_run(self, q.buf, relative.buf);
     if (absolute.obj)
@@ -1066,8 +1080,8 @@ static PyObject *model_poses(ModelObject *self, PyObject *const *args, Py_ssize_
     Py_INCREF(result);
 done:
     PyBuffer_Release(&q);
-    if (absolute.obj) PyBuffer_Release(&absolute);
-    if (relative.obj) PyBuffer_Release(&relative);
+    let_go(&absolute);
+    let_go(&relative);
     return result;
 }
 
@@ -1080,7 +1094,7 @@ static PyObject *model_frames(ModelObject *self, PyObject *const *args, Py_ssize
     }
     if (model_q(self, args[0], &q) < 0)
         return NULL;
-    if (model_out(args[1], &out, 8 * self->n_frames, "out") < 0) {
+    if (model_out(args[1], &out, 8 * self->n_frames, 1, "out") < 0) {
         PyBuffer_Release(&q);
         return NULL;
     }
@@ -1101,21 +1115,17 @@ static PyObject *model_poses_batch(ModelObject *self, PyObject *const *args, Py_
         PyErr_SetString(PyExc_TypeError, "poses_batch(q, absolute, relative)");
         return NULL;
     }
-    if (self->chains == NULL) {
-        PyErr_SetString(PyExc_ValueError, "the model was not initialised");
-        return NULL;
-    }
     if (take(args[0], &q, 0, "q") < 0)
         return NULL;
-    Py_ssize_t n = self->dof ? count(&q) / self->dof : (q.ndim == 2 ? q.shape[0] : -1);
-    if (q.ndim != 2 || q.shape[1] != self->dof || n < 0) {
+    if (q.ndim != 2 || q.shape[1] != self->dof) {
         PyErr_Format(PyExc_ValueError, "q must be (N, %zd) joint values", self->dof);
         goto done;
     }
+    Py_ssize_t n = q.shape[0];
     if (args[1] != Py_None
-        && model_out(args[1], &absolute, 7 * self->n_frames * n, "absolute") < 0)
+        && model_out(args[1], &absolute, 7 * self->n_frames, n, "absolute") < 0)
         goto done;
-    if (model_out(args[2], &relative, 7 * self->n_relative * n, "relative") < 0)
+    if (model_out(args[2], &relative, 7 * self->n_relative, n, "relative") < 0)
         goto done;
     for (Py_ssize_t i = 0; i < n; i++) {
         model_run(self, (const double *)q.buf + i * self->dof,
@@ -1130,8 +1140,8 @@ static PyObject *model_poses_batch(ModelObject *self, PyObject *const *args, Py_
     Py_INCREF(result);
 done:
     PyBuffer_Release(&q);
-    if (absolute.obj) PyBuffer_Release(&absolute);
-    if (relative.obj) PyBuffer_Release(&relative);
+    let_go(&absolute);
+    let_go(&relative);
     return result;
 }
 
@@ -1159,34 +1169,21 @@ static PyGetSetDef model_getset[] = {
 static PyTypeObject ModelType = {
     PyVarObject_HEAD_INIT(NULL, 0)
     .tp_name = "dq_fk_ros.kinematics._kernel.Model",
-    .tp_doc = "Model(chains, links, dof): a tree of chains and its links, checked once",
+    .tp_doc = "Model(chains, links, dof): a tree of chains and its links, checked once "
+              "(immutable)",
     .tp_basicsize = sizeof(ModelObject),
     .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_new = PyType_GenericNew,
+    .tp_new = model_new,
     .tp_init = (initproc)model_init,
     .tp_dealloc = (destructor)model_dealloc,
     .tp_methods = model_methods,
     .tp_getset = model_getset,
 };
 
-static PyMethodDef methods[] = {
-    {"frames", (PyCFunction)(void (*)(void))frames, METH_FASTCALL,
-     "frames(program, base, tool, q, out, canonical, dof): every frame of the chain into out"},
-    {"end", (PyCFunction)(void (*)(void))end, METH_FASTCALL,
-     "end(program, base, tool, q, out, canonical, dof): the last frame (tool if any) into out"},
-    {"frames_batch", (PyCFunction)(void (*)(void))frames_batch, METH_FASTCALL,
-     "frames_batch(program, base, tool, q (N, dof), out, canonical): N x every frame"},
-    {"jacobian", (PyCFunction)(void (*)(void))jacobian, METH_FASTCALL,
-     "jacobian(program, base, tool, rows, modified, q, out (6, dof), dof): geometric"},
-    {"end_batch", (PyCFunction)(void (*)(void))end_batch, METH_FASTCALL,
-     "end_batch(program, base, tool, q (N, dof), out, canonical): N x the last frame"},
-    {NULL, NULL, 0, NULL},
-};
-
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_kernel",
     "The DH chain's poses in C (the reference: dq_fk_ros.kinematics.dh_code.run_program).",
-    -1, methods,
+    -1, NULL,
 };
 
 PyMODINIT_FUNC PyInit__kernel(void)

@@ -166,8 +166,8 @@ class KinematicChain:
 
     def _make_kernel_chain(self):
         """Check and copy the program into the kernel once (its single calls take 2 buffers)."""
-        self._kernel_chain = None if KERNEL is None else KERNEL.Chain(*self._kernel_args,
-                                                                      self._dof)
+        self._kernel_chain = None if KERNEL is None else KERNEL.Chain(
+            *self._kernel_args, self._dof, self._jacobian_rows, self.convention == 'modified')
 
     def __getstate__(self):
         """Pickle without the kernel's copy (made again on unpickling) and generated code."""
@@ -459,17 +459,17 @@ class KinematicChain:
         :param out: a C-contiguous float64 ``(N, n_frames, 8)`` array to fill and return (no
             allocation), else a new one.
         """
-        return self._batch_into(q, out, (self.n_frames, 8), KERNEL and KERNEL.frames_batch,
+        return self._batch_into(q, out, (self.n_frames, 8), 'frames_batch',
                                 self._forward_all_batch_reference)
 
     def _batch_into(self, q, out, shape, kernel, reference):
-        """Run a batch path of the kernel into ``out`` (made if None), or the reference."""
+        """Run the kernel chain's batch method ``kernel`` into ``out`` (made if None)."""
         if out is not None and not (
                 isinstance(out, np.ndarray) and out.dtype == np.float64 and
                 out.flags.c_contiguous and out.flags.writeable and out.shape[1:] == shape):
             raise ValueError(f'out must be a C-contiguous writable float64 (N, '
                              f'{", ".join(map(str, shape))}) array')
-        if kernel is None:
+        if KERNEL is None:
             result = reference(q)
             if out is None:
                 return result
@@ -478,7 +478,7 @@ class KinematicChain:
         q = self._q_batch(q)
         if out is None:
             out = np.empty((len(q),) + shape)
-        kernel(*self._kernel_args, q, out, True)
+        getattr(self._kernel_chain, kernel)(q, out)
         return out
 
     def _forward_all_batch_reference(self, q):
@@ -499,8 +499,7 @@ class KinematicChain:
         :param out: a C-contiguous float64 ``(N, 8)`` array to fill and return (no
             allocation), else a new one.
         """
-        return self._batch_into(q, out, (8,), KERNEL and KERNEL.end_batch,
-                                self._forward_batch_reference)
+        return self._batch_into(q, out, (8,), 'end_batch', self._forward_batch_reference)
 
     def _forward_batch_reference(self, q):
         """:meth:`forward_batch` with numpy, chunk by chunk: the reference."""
@@ -562,14 +561,10 @@ class KinematicChain:
         if KERNEL is None:
             return self._jacobian_geometric_reference(q)
         out = np.empty((6, self._dof))
-        program, base, tool = self._kernel_args
-        modified = self.convention == 'modified'
         try:
-            KERNEL.jacobian(program, base, tool, self._jacobian_rows, modified, q, out,
-                            self._dof)
+            self._kernel_chain.jacobian(q, out)
         except (ValueError, TypeError):
-            KERNEL.jacobian(program, base, tool, self._jacobian_rows, modified,
-                            self._q_vector(q), out, self._dof)
+            self._kernel_chain.jacobian(self._q_vector(q), out)
         return out
 
     def _jacobian_geometric_reference(self, q):

@@ -13,6 +13,11 @@
  *       slot values[row] (a PoseStamped per frame)
  * values: a C-contiguous float64 (n, width) array; rows: a sequence of ints in [0, n).
  *
+ * Both types are immutable: their state is set once, in __new__ (a second __init__ is
+ * refused). Every argument is converted to C values, every sequence copied into a tuple
+ * of our own, before anything is checked; no size is computed that could overflow
+ * (docs/security.md, test_compiled_fuzz.py, make sanitize).
+ *
  * Only the CPython C API and the buffer protocol: no numpy headers.
  */
 #define PY_SSIZE_T_CLEAN
@@ -21,12 +26,27 @@
 #include <math.h>
 #include <string.h>
 
+/* the largest message a template or a reader takes (a JointState of 4096 joints is 300 kB) */
+#define MAX_MESSAGE (64 << 20)
+
 typedef struct {
     PyObject_HEAD
     char *data;
     Py_ssize_t size, n_stamps, n_slots, width;
     Py_ssize_t *stamps, *slots;
+    int initialised;
 } TemplateObject;
+
+static int set_once(PyObject *self, int *initialised)
+{
+    if (*initialised) {
+        PyErr_Format(PyExc_TypeError, "a %s is set once, when it is made; make a new one",
+                     Py_TYPE(self)->tp_name);
+        return -1;
+    }
+    *initialised = 1;  /* the __init__ that follows __new__ in the type's call */
+    return 0;
+}
 
 static void template_dealloc(TemplateObject *self)
 {
@@ -36,33 +56,56 @@ static void template_dealloc(TemplateObject *self)
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
-/* A sequence of ints, each in [low, high]; what names them in the error. */
-static Py_ssize_t *ints_within(PyObject *obj, Py_ssize_t low, Py_ssize_t high, Py_ssize_t *n,
-                               const char *what)
+/* One int of a sequence, in [low, high]; what names it in the error. */
+static int int_within(PyObject *item, Py_ssize_t low, Py_ssize_t high, Py_ssize_t *at,
+                      const char *what)
 {
-    PyObject *seq = PySequence_Fast(obj, "offsets and indices must be sequences of ints");
-    if (seq == NULL)
+    *at = PyLong_AsSsize_t(item);
+    int not_int = *at == -1 && PyErr_Occurred();  /* not an int, or too large */
+    if (not_int)
+        PyErr_Clear();
+    if (not_int || *at < low || *at > high) {
+        if (not_int)
+            PyErr_Format(PyExc_ValueError, "%s must be an int in %zd..%zd", what, low, high);
+        else
+            PyErr_Format(PyExc_ValueError, "%s %zd is outside %zd..%zd", what, *at, low,
+                         high);
+        return -1;
+    }
+    return 0;
+}
+
+/*
+ * A sequence of ints, each in [low, high], as a new C array (*n of them, at most max_n).
+ * The sequence is copied into a tuple first: an item's __index__ cannot change the others.
+ */
+static Py_ssize_t *ints_within(PyObject *obj, Py_ssize_t low, Py_ssize_t high, Py_ssize_t *n,
+                               Py_ssize_t max_n, const char *what)
+{
+    PyObject *seq = PySequence_Tuple(obj);
+    if (seq == NULL) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s: a sequence of ints", what);
         return NULL;
-    *n = PySequence_Fast_GET_SIZE(seq);
+    }
+    *n = PyTuple_GET_SIZE(seq);
+    if (*n > max_n) {
+        PyErr_Format(PyExc_ValueError, "%s: at most %zd of them", what, max_n);
+        Py_DECREF(seq);
+        return NULL;
+    }
     Py_ssize_t *out = PyMem_Malloc((*n ? *n : 1) * sizeof(Py_ssize_t));
     if (out == NULL) {
         Py_DECREF(seq);
         PyErr_NoMemory();
         return NULL;
     }
-    for (Py_ssize_t i = 0; i < *n; i++) {
-        Py_ssize_t at = PyLong_AsSsize_t(PySequence_Fast_GET_ITEM(seq, i));
-        int not_int = at == -1 && PyErr_Occurred();  /* not an int, or too large */
-        if (not_int)
-            PyErr_Clear();
-        if (not_int || at < low || at > high) {
-            PyErr_Format(PyExc_ValueError, "%s %zd is outside %zd..%zd", what, at, low, high);
+    for (Py_ssize_t i = 0; i < *n; i++)
+        if (int_within(PyTuple_GET_ITEM(seq, i), low, high, out + i, what) < 0) {
             PyMem_Free(out);
             Py_DECREF(seq);
             return NULL;
         }
-        out[i] = at;
-    }
     Py_DECREF(seq);
     return out;
 }
@@ -71,47 +114,68 @@ static Py_ssize_t *ints_within(PyObject *obj, Py_ssize_t low, Py_ssize_t high, P
 static Py_ssize_t *offsets(PyObject *obj, Py_ssize_t size, Py_ssize_t bytes, Py_ssize_t *n,
                            const char *what)
 {
-    return ints_within(obj, 4, size - bytes, n, what);
+    return ints_within(obj, 4, size - bytes, n, size, what);
+}
+
+/* a copy of a bytes-like object's bytes (1..MAX_MESSAGE of them) */
+static char *bytes_copy(PyObject *obj, Py_ssize_t *len, const char *what)
+{
+    Py_buffer b;
+    if (PyObject_GetBuffer(obj, &b, PyBUF_SIMPLE) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s must be bytes", what);
+        return NULL;
+    }
+    char *out = NULL;
+    if (b.len > MAX_MESSAGE) {
+        PyErr_Format(PyExc_ValueError, "%s: at most %d bytes", what, MAX_MESSAGE);
+    } else if ((out = PyMem_Malloc(b.len ? b.len : 1)) == NULL) {
+        PyErr_NoMemory();
+    } else {
+        memcpy(out, b.buf, b.len);
+        *len = b.len;
+    }
+    PyBuffer_Release(&b);
+    return out;
+}
+
+static PyObject *template_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+    PyObject *data, *stamps, *slots;
+    Py_ssize_t width;
+    static char *names[] = {"data", "stamps", "slots", "width", NULL};
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOn", names, &data, &stamps, &slots,
+                                     &width))
+        return NULL;
+    TemplateObject *self = (TemplateObject *)type->tp_alloc(type, 0);
+    if (self == NULL)
+        return NULL;
+    Py_ssize_t size = 0;
+    self->data = bytes_copy(data, &size, "data");  /* copied, then checked */
+    if (self->data == NULL)
+        goto fail;
+    if (size < 4 || self->data[1] != 1 || width < 1 || width > 64) {
+        PyErr_SetString(PyExc_ValueError,
+                        "a little-endian CDR template and a width of 1 to 64 values");
+        goto fail;
+    }
+    self->size = size;
+    self->width = width;
+    self->stamps = offsets(stamps, size, 8, &self->n_stamps, "stamp");
+    if (self->stamps == NULL)
+        goto fail;
+    self->slots = offsets(slots, size, 8 * width, &self->n_slots, "slot");
+    if (self->slots == NULL)
+        goto fail;
+    return (PyObject *)self;
+fail:
+    Py_DECREF(self);
+    return NULL;
 }
 
 static int template_init(TemplateObject *self, PyObject *args, PyObject *kwargs)
 {
-    Py_buffer data;
-    PyObject *stamps, *slots;
-    Py_ssize_t width;
-    static char *names[] = {"data", "stamps", "slots", "width", NULL};
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "y*OOn", names, &data, &stamps, &slots,
-                                     &width))
-        return -1;
-    PyMem_Free(self->data);
-    PyMem_Free(self->stamps);
-    PyMem_Free(self->slots);
-    self->data = NULL;
-    self->stamps = self->slots = NULL;
-    int ok = -1;
-    if (data.len < 4 || ((const char *)data.buf)[1] != 1 || width < 1 || width > 64) {
-        PyErr_SetString(PyExc_ValueError,
-                        "a little-endian CDR template and a width of 1 to 64 values");
-        goto done;
-    }
-    self->size = data.len;
-    self->width = width;
-    self->stamps = offsets(stamps, data.len, 8, &self->n_stamps, "stamp");
-    if (self->stamps == NULL)
-        goto done;
-    self->slots = offsets(slots, data.len, 8 * width, &self->n_slots, "slot");
-    if (self->slots == NULL)
-        goto done;
-    self->data = PyMem_Malloc(data.len);
-    if (self->data == NULL) {
-        PyErr_NoMemory();
-        goto done;
-    }
-    memcpy(self->data, data.buf, data.len);
-    ok = 0;
-done:
-    PyBuffer_Release(&data);
-    return ok;
+    return set_once((PyObject *)self, &self->initialised);
 }
 
 /* sec, nanosec: as builtin_interfaces/Time takes them (int32, uint32) */
@@ -120,10 +184,10 @@ static int stamp_args(PyObject *sec_obj, PyObject *nsec_obj, int32_t *sec, uint3
     long long s = PyLong_AsLongLong(sec_obj);
     if (s == -1 && PyErr_Occurred())
         return -1;
-    unsigned long long n = PyLong_AsUnsignedLongLong(nsec_obj);
-    if (n == (unsigned long long)-1 && PyErr_Occurred())
+    long long n = PyLong_AsLongLong(nsec_obj);
+    if (n == -1 && PyErr_Occurred())
         return -1;
-    if (s < INT32_MIN || s > INT32_MAX || n > UINT32_MAX) {
+    if (s < INT32_MIN || s > INT32_MAX || n < 0 || n > UINT32_MAX) {
         PyErr_SetString(PyExc_ValueError, "a stamp of int32 sec and uint32 nanosec");
         return -1;
     }
@@ -132,7 +196,7 @@ static int stamp_args(PyObject *sec_obj, PyObject *nsec_obj, int32_t *sec, uint3
     return 0;
 }
 
-/* values (n, width) float64 C-contiguous; every row index in [0, n) */
+/* values (n, width) float64 C-contiguous */
 static int take_values(TemplateObject *self, PyObject *obj, Py_buffer *v, Py_ssize_t *n)
 {
     if (PyObject_GetBuffer(obj, v, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
@@ -150,18 +214,6 @@ static int take_values(TemplateObject *self, PyObject *obj, Py_buffer *v, Py_ssi
     return 0;
 }
 
-static int row_at(PyObject *rows, Py_ssize_t i, Py_ssize_t n, Py_ssize_t *row)
-{
-    *row = PyLong_AsSsize_t(PySequence_Fast_GET_ITEM(rows, i));
-    if (*row == -1 && PyErr_Occurred())
-        return -1;
-    if (*row < 0 || *row >= n) {
-        PyErr_Format(PyExc_IndexError, "row %zd of %zd values", *row, n);
-        return -1;
-    }
-    return 0;
-}
-
 static PyObject *message(TemplateObject *self, int32_t sec, uint32_t nsec, char **out)
 {
     PyObject *msg = PyBytes_FromStringAndSize(self->data, self->size);
@@ -175,27 +227,35 @@ static PyObject *message(TemplateObject *self, int32_t sec, uint32_t nsec, char 
     return msg;
 }
 
+/*
+ * The call's arguments as C values: the stamp, the rows (a tuple of our own, each an int
+ * in [0, n) by then) and the values' buffer, in that order, so that no Python code runs
+ * once the buffer is checked.
+ */
 static int parse_call(TemplateObject *self, PyObject *const *args, Py_ssize_t nargs,
                       const char *usage, int32_t *sec, uint32_t *nsec, Py_buffer *v,
-                      Py_ssize_t *n, PyObject **rows)
+                      Py_ssize_t *n, Py_ssize_t **rows, Py_ssize_t *n_rows)
 {
-    if (self->data == NULL) {
-        PyErr_SetString(PyExc_ValueError, "the template was not initialised");
-        return -1;
-    }
     if (nargs != 4) {
         PyErr_SetString(PyExc_TypeError, usage);
         return -1;
     }
     if (stamp_args(args[0], args[1], sec, nsec) < 0)
         return -1;
-    *rows = PySequence_Fast(args[3], "rows must be a sequence of ints");
+    *rows = ints_within(args[3], 0, PY_SSIZE_T_MAX, n_rows, PY_SSIZE_T_MAX / 8, "row");
     if (*rows == NULL)
         return -1;
     if (take_values(self, args[2], v, n) < 0) {
-        Py_DECREF(*rows);
+        PyMem_Free(*rows);
         return -1;
     }
+    for (Py_ssize_t i = 0; i < *n_rows; i++)
+        if ((*rows)[i] >= *n) {
+            PyErr_Format(PyExc_IndexError, "row %zd of %zd values", (*rows)[i], *n);
+            PyBuffer_Release(v);
+            PyMem_Free(*rows);
+            return -1;
+        }
     return 0;
 }
 
@@ -204,31 +264,25 @@ static PyObject *template_one(TemplateObject *self, PyObject *const *args, Py_ss
     int32_t sec;
     uint32_t nsec;
     Py_buffer v;
-    Py_ssize_t n, row;
-    PyObject *rows, *msg = NULL;
+    Py_ssize_t n, *rows, n_rows;
+    PyObject *msg = NULL;
     char *out;
     if (parse_call(self, args, nargs, "one(sec, nanosec, values, rows)", &sec, &nsec, &v, &n,
-                   &rows) < 0)
+                   &rows, &n_rows) < 0)
         return NULL;
-    if (PySequence_Fast_GET_SIZE(rows) != self->n_slots) {
-        PyErr_Format(PyExc_ValueError, "%zd rows for %zd slots",
-                     PySequence_Fast_GET_SIZE(rows), self->n_slots);
+    if (n_rows != self->n_slots) {
+        PyErr_Format(PyExc_ValueError, "%zd rows for %zd slots", n_rows, self->n_slots);
         goto done;
     }
     msg = message(self, sec, nsec, &out);
     if (msg == NULL)
         goto done;
-    for (Py_ssize_t i = 0; i < self->n_slots; i++) {
-        if (row_at(rows, i, n, &row) < 0) {
-            Py_CLEAR(msg);
-            goto done;
-        }
-        memcpy(out + self->slots[i], (const double *)v.buf + row * self->width,
+    for (Py_ssize_t i = 0; i < self->n_slots; i++)
+        memcpy(out + self->slots[i], (const double *)v.buf + rows[i] * self->width,
                8 * self->width);
-    }
 done:
     PyBuffer_Release(&v);
-    Py_DECREF(rows);
+    PyMem_Free(rows);
     return msg;
 }
 
@@ -237,33 +291,32 @@ static PyObject *template_each(TemplateObject *self, PyObject *const *args, Py_s
     int32_t sec;
     uint32_t nsec;
     Py_buffer v;
-    Py_ssize_t n, row;
-    PyObject *rows, *list = NULL;
+    Py_ssize_t n, *rows, n_rows;
+    PyObject *list = NULL;
     char *out;
     if (parse_call(self, args, nargs, "each(sec, nanosec, values, rows)", &sec, &nsec, &v,
-                   &n, &rows) < 0)
+                   &n, &rows, &n_rows) < 0)
         return NULL;
     if (self->n_slots != 1) {
         PyErr_SetString(PyExc_ValueError, "each() takes a template of one slot");
         goto done;
     }
-    Py_ssize_t count = PySequence_Fast_GET_SIZE(rows);
-    list = PyList_New(count);
+    list = PyList_New(n_rows);
     if (list == NULL)
         goto done;
-    for (Py_ssize_t i = 0; i < count; i++) {
-        PyObject *msg;
-        if (row_at(rows, i, n, &row) < 0 || (msg = message(self, sec, nsec, &out)) == NULL) {
+    for (Py_ssize_t i = 0; i < n_rows; i++) {
+        PyObject *msg = message(self, sec, nsec, &out);
+        if (msg == NULL) {
             Py_CLEAR(list);
             goto done;
         }
-        memcpy(out + self->slots[0], (const double *)v.buf + row * self->width,
+        memcpy(out + self->slots[0], (const double *)v.buf + rows[i] * self->width,
                8 * self->width);
         PyList_SET_ITEM(list, i, msg);
     }
 done:
     PyBuffer_Release(&v);
-    Py_DECREF(rows);
+    PyMem_Free(rows);
     return list;
 }
 
@@ -278,10 +331,10 @@ static PyMethodDef template_methods[] = {
 static PyTypeObject TemplateType = {
     PyVarObject_HEAD_INIT(NULL, 0)
     .tp_name = "dq_fk_ros.messages._cdr.Template",
-    .tp_doc = "Template(data, stamps, slots, width): a fixed-layout CDR message",
+    .tp_doc = "Template(data, stamps, slots, width): a fixed-layout CDR message (immutable)",
     .tp_basicsize = sizeof(TemplateObject),
     .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_new = PyType_GenericNew,
+    .tp_new = template_new,
     .tp_init = (initproc)template_init,
     .tp_dealloc = (destructor)template_dealloc,
     .tp_methods = template_methods,
@@ -298,9 +351,11 @@ static PyTypeObject TemplateType = {
  * padding may hold anything), the same three array lengths, every position finite and
  * within [lower, upper], every velocity finite (or none at all), no jump back in time. Then
  * it writes position k to q[order[k]] and velocity k (NaN without) to qdot[order[k]] (the
- * merger's lists of floats), copies all of q and qdot to q_out and qdot_out (float64), and
- * returns the stamp in ns. Anything else: None, nothing written (the reference decides).
+ * merger's lists of exact floats), copies all of q and qdot to q_out and qdot_out (float64),
+ * and returns the stamp in ns. Anything else: None, nothing written (the reference decides).
  */
+#define MAX_NAMES 4096
+
 typedef struct {
     PyObject_HEAD
     Py_ssize_t size, fixed_len, n, n_vel, pos_at, vel_at, counts_at[3];
@@ -309,33 +364,30 @@ typedef struct {
     unsigned char *fixed, *mask;
     Py_ssize_t *order;
     double *lower, *upper;
+    int initialised;
 } ReaderObject;
 
-static void reader_free(ReaderObject *self)
+static void reader_dealloc(ReaderObject *self)
 {
     PyMem_Free(self->fixed);
     PyMem_Free(self->mask);
     PyMem_Free(self->order);
     PyMem_Free(self->lower);
     PyMem_Free(self->upper);
-    self->fixed = self->mask = NULL;
-    self->order = NULL;
-    self->lower = self->upper = NULL;
-}
-
-static void reader_dealloc(ReaderObject *self)
-{
-    reader_free(self);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
+/* n floats of a sequence (copied into a tuple first), as a new C array */
 static double *floats_of(PyObject *obj, Py_ssize_t n, const char *what)
 {
-    PyObject *seq = PySequence_Fast(obj, "bounds must be sequences of floats");
-    if (seq == NULL)
+    PyObject *seq = PySequence_Tuple(obj);
+    if (seq == NULL) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s: a sequence of floats", what);
         return NULL;
+    }
     double *out = NULL;
-    if (PySequence_Fast_GET_SIZE(seq) != n) {
+    if (PyTuple_GET_SIZE(seq) != n) {
         PyErr_Format(PyExc_ValueError, "%s must have one value per name", what);
         goto done;
     }
@@ -345,7 +397,7 @@ static double *floats_of(PyObject *obj, Py_ssize_t n, const char *what)
         goto done;
     }
     for (Py_ssize_t i = 0; i < n; i++) {
-        out[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(seq, i));
+        out[i] = PyFloat_AsDouble(PyTuple_GET_ITEM(seq, i));
         if (out[i] == -1.0 && PyErr_Occurred()) {
             PyMem_Free(out);
             out = NULL;
@@ -357,108 +409,110 @@ done:
     return out;
 }
 
-static int reader_build(ReaderObject *self, Py_ssize_t size, Py_buffer *fixed, Py_buffer *mask,
+/* the reader's state: every sequence converted to C first, then checked together */
+static int reader_build(ReaderObject *self, Py_ssize_t size, PyObject *fixed, PyObject *mask,
                         PyObject *counts_at, PyObject *counts, PyObject *order,
                         PyObject *lower, PyObject *upper)
 {
-    if (fixed->len != mask->len || 12 + fixed->len > size) {
-        PyErr_SetString(PyExc_ValueError, "fixed and mask: the same length, inside the message");
+    Py_ssize_t mask_len = 0, n3 = 0, nc = 0, n_order = 0;
+    Py_ssize_t *at = NULL, *cs = NULL;
+    int ok = -1;
+    if (size < 12 || size > MAX_MESSAGE) {
+        PyErr_Format(PyExc_ValueError, "size must be 12 to %d bytes", MAX_MESSAGE);
         return -1;
     }
     self->size = size;
-    self->fixed_len = fixed->len;
-    self->fixed = PyMem_Malloc(fixed->len ? fixed->len : 1);
-    self->mask = PyMem_Malloc(fixed->len ? fixed->len : 1);
-    if (self->fixed == NULL || self->mask == NULL) {
-        PyErr_NoMemory();
+    if ((self->fixed = (unsigned char *)bytes_copy(fixed, &self->fixed_len, "fixed")) == NULL
+        || (self->mask = (unsigned char *)bytes_copy(mask, &mask_len, "mask")) == NULL)
+        return -1;
+    if (self->fixed_len != mask_len || self->fixed_len > size - 12) {
+        PyErr_SetString(PyExc_ValueError, "fixed and mask: the same length, inside the message");
         return -1;
     }
-    memcpy(self->fixed, fixed->buf, fixed->len);
-    memcpy(self->mask, mask->buf, mask->len);
-    Py_ssize_t n3;
-    Py_ssize_t *at = offsets(counts_at, size, 4, &n3, "count");
-    if (at == NULL)
-        return -1;
-    if (n3 != 3) {
-        PyMem_Free(at);
-        PyErr_SetString(PyExc_ValueError, "three array lengths");
-        return -1;
+    if ((at = offsets(counts_at, size, 4, &n3, "count")) == NULL
+        || (cs = ints_within(counts, 0, MAX_NAMES, &nc, 3, "array length")) == NULL)
+        goto done;
+    if (n3 != 3 || nc != 3) {
+        PyErr_SetString(PyExc_ValueError, "three array lengths and their offsets");
+        goto done;
     }
-    memcpy(self->counts_at, at, sizeof self->counts_at);
-    PyMem_Free(at);
-    PyObject *cs = PySequence_Fast(counts, "counts must be a sequence");
-    if (cs == NULL)
-        return -1;
-    int bad = PySequence_Fast_GET_SIZE(cs) != 3;
-    for (int k = 0; k < 3 && !bad; k++) {
-        unsigned long c = PyLong_AsUnsignedLong(PySequence_Fast_GET_ITEM(cs, k));
-        bad = (c == (unsigned long)-1 && PyErr_Occurred()) || c > 4096;
-        self->counts[k] = (uint32_t)c;
+    for (int k = 0; k < 3; k++) {
+        self->counts_at[k] = at[k];
+        self->counts[k] = (uint32_t)cs[k];
     }
-    Py_DECREF(cs);
-    if (bad) {
-        PyErr_Clear();
-        PyErr_SetString(PyExc_ValueError, "three array lengths of at most 4096");
-        return -1;
-    }
-    self->n = self->counts[0];
-    self->n_vel = self->counts[1];
+    self->n = cs[0];
+    self->n_vel = cs[1];
     if (self->n_vel != 0 && self->n_vel != self->n) {
         PyErr_SetString(PyExc_ValueError, "velocities: none, or one per position");
-        return -1;
+        goto done;
     }
-    if (self->pos_at < 4 || self->pos_at + 8 * self->n > size
-        || self->vel_at < 4 || self->vel_at + 8 * self->n_vel > size) {
+    /* (n <= 4096: 8 n cannot overflow; the offsets are compared without adding to them) */
+    if (self->pos_at < 4 || self->pos_at > size || 8 * self->n > size - self->pos_at
+        || self->vel_at < 4 || self->vel_at > size || 8 * self->n_vel > size - self->vel_at) {
         PyErr_SetString(PyExc_ValueError, "the arrays lie outside the message");
-        return -1;
+        goto done;
     }
-    Py_ssize_t n_order;
-    self->order = ints_within(order, 0, PY_SSIZE_T_MAX, &n_order, "order index");
+    self->order = ints_within(order, 0, MAX_NAMES * 16, &n_order, MAX_NAMES, "order index");
     if (self->order == NULL)
-        return -1;
+        goto done;
     if (n_order != self->n) {
         PyErr_SetString(PyExc_ValueError, "order: one index per name");
-        return -1;
+        goto done;
     }
-    self->lower = floats_of(lower, self->n, "lower");
-    if (self->lower == NULL)
-        return -1;
-    self->upper = floats_of(upper, self->n, "upper");
-    if (self->upper == NULL)
-        return -1;
-    return 0;
+    if ((self->lower = floats_of(lower, self->n, "lower")) == NULL
+        || (self->upper = floats_of(upper, self->n, "upper")) == NULL)
+        goto done;
+    if (self->jump_back_ns < 0) {
+        PyErr_SetString(PyExc_ValueError, "jump_back_ns must be >= 0");
+        goto done;
+    }
+    ok = 0;
+done:
+    PyMem_Free(at);
+    PyMem_Free(cs);
+    return ok;
 }
 
-static int reader_init(ReaderObject *self, PyObject *args, PyObject *kwargs)
+static PyObject *reader_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
 {
-    Py_ssize_t size;
-    Py_buffer fixed, mask;
-    PyObject *counts_at, *counts, *order, *lower, *upper;
+    Py_ssize_t size, pos_at, vel_at;
+    PyObject *fixed, *mask, *counts_at, *counts, *order, *lower, *upper;
     long long jump;
     static char *names[] = {"size", "fixed", "mask", "counts_at", "counts", "positions_at",
                             "velocities_at", "order", "lower", "upper", "jump_back_ns",
                             NULL};
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "ny*y*OOnnOOOL", names, &size, &fixed,
-                                     &mask, &counts_at, &counts, &self->pos_at,
-                                     &self->vel_at, &order, &lower, &upper, &jump))
-        return -1;
-    reader_free(self);
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "nOOOOnnOOOL", names, &size, &fixed,
+                                     &mask, &counts_at, &counts, &pos_at, &vel_at, &order,
+                                     &lower, &upper, &jump))
+        return NULL;
+    ReaderObject *self = (ReaderObject *)type->tp_alloc(type, 0);
+    if (self == NULL)
+        return NULL;
+    self->pos_at = pos_at;
+    self->vel_at = vel_at;
     self->jump_back_ns = jump;
-    int ok = reader_build(self, size, &fixed, &mask, counts_at, counts, order, lower, upper);
-    if (ok < 0)
-        reader_free(self);  /* a reader half built reads nothing */
-    PyBuffer_Release(&fixed);
-    PyBuffer_Release(&mask);
-    return ok;
+    if (reader_build(self, size, fixed, mask, counts_at, counts, order, lower, upper) < 0) {
+        Py_DECREF(self);  /* a reader half built is no reader */
+        return NULL;
+    }
+    return (PyObject *)self;
+}
+
+static int reader_init(ReaderObject *self, PyObject *args, PyObject *kwargs)
+{
+    return set_once((PyObject *)self, &self->initialised);
 }
 
 static int out_vector(PyObject *obj, Py_buffer *v, Py_ssize_t n)
 {
-    if (PyObject_GetBuffer(obj, v, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0)
+    if (PyObject_GetBuffer(obj, v, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0) {
+        v->obj = NULL;
         return -1;
+    }
     if (v->itemsize != 8 || v->format == NULL || strcmp(v->format, "d") != 0
         || v->len != 8 * n) {
         PyBuffer_Release(v);
+        v->obj = NULL;
         PyErr_Format(PyExc_ValueError, "q_out and qdot_out: writable float64, %zd values", n);
         return -1;
     }
@@ -467,36 +521,46 @@ static int out_vector(PyObject *obj, Py_buffer *v, Py_ssize_t n)
 
 static PyObject *reader_read(ReaderObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (self->fixed == NULL || self->lower == NULL || self->upper == NULL) {
-        PyErr_SetString(PyExc_ValueError, "the reader was not initialised");
-        return NULL;
-    }
     if (nargs != 6 || !PyList_CheckExact(args[2]) || !PyList_CheckExact(args[3])) {
         PyErr_SetString(PyExc_TypeError, "read(raw, last_stamp_ns, q, qdot, q_out, qdot_out)"
                                          " with q and qdot lists of floats");
         return NULL;
     }
+    /* first every argument as C values (the stamp's __index__ may run Python code), then
+       the checks, then the work, with no Python code between them */
+    int have_last = args[1] != Py_None;
+    long long last = 0;
+    if (have_last) {
+        last = PyLong_AsLongLong(args[1]);
+        if (last == -1 && PyErr_Occurred())
+            return NULL;
+    }
     PyObject *q = args[2], *qdot = args[3];
     Py_ssize_t dof = PyList_GET_SIZE(q);
+    Py_buffer raw = {0}, q_out = {0}, qdot_out = {0};
+    PyObject *result = NULL;
+    if (PyObject_GetBuffer(args[0], &raw, PyBUF_SIMPLE) < 0) {
+        raw.obj = NULL;
+        goto done;
+    }
+    if (out_vector(args[4], &q_out, dof) < 0 || out_vector(args[5], &qdot_out, dof) < 0)
+        goto done;
     if (PyList_GET_SIZE(qdot) != dof) {
         PyErr_SetString(PyExc_ValueError, "q and qdot: the same length");
-        return NULL;
+        goto done;
     }
     for (Py_ssize_t k = 0; k < self->n; k++)
         if (self->order[k] >= dof) {
             PyErr_SetString(PyExc_ValueError, "order indexes past q");
-            return NULL;
+            goto done;
         }
     for (Py_ssize_t i = 0; i < dof; i++)
         if (!PyFloat_Check(PyList_GET_ITEM(q, i)) || !PyFloat_Check(PyList_GET_ITEM(qdot, i))) {
             PyErr_SetString(PyExc_TypeError, "q and qdot: lists of floats");
-            return NULL;
+            goto done;
         }
-    Py_buffer raw;
-    if (PyObject_GetBuffer(args[0], &raw, PyBUF_SIMPLE) < 0)
-        return NULL;
     const unsigned char *b = raw.buf;
-    PyObject *result = Py_None;
+    result = Py_None;
     if (raw.len != self->size || b[0] != 0 || b[1] != 1)
         goto done;
     for (Py_ssize_t i = 0; i < self->fixed_len; i++)
@@ -525,28 +589,25 @@ static PyObject *reader_read(ReaderObject *self, PyObject *const *args, Py_ssize
     uint32_t nsec;
     memcpy(&sec, b + 4, 4);
     memcpy(&nsec, b + 8, 4);
-    long long stamp = (long long)sec * 1000000000LL + nsec;
-    if (stamp != 0 && args[1] != Py_None) {
-        long long last = PyLong_AsLongLong(args[1]);
-        if (last == -1 && PyErr_Occurred()) {
-            result = NULL;
-            goto done;
-        }
-        if (stamp < last - self->jump_back_ns)
+    long long stamp = (long long)sec * 1000000000LL + nsec;  /* |.| < 2^62: no overflow */
+    if (stamp != 0 && have_last) {
+        long long limit;
+        if (__builtin_sub_overflow(last, self->jump_back_ns, &limit))
+            limit = LLONG_MIN;
+        if (stamp < limit)
             goto done;
     }
-    Py_buffer q_out, qdot_out;
-    if (out_vector(args[4], &q_out, dof) < 0) {
+    /* The new floats go in first, the old ones are let go of last: letting go of an item
+       (a float subclass's __del__) may run Python code, which must find nothing half done. */
+    PyObject *held_stack[2 * 128], **held = held_stack;
+    if (self->n > 128 && (held = PyMem_Malloc(2 * self->n * sizeof(PyObject *))) == NULL) {
+        PyErr_NoMemory();
         result = NULL;
         goto done;
     }
-    if (out_vector(args[5], &qdot_out, dof) < 0) {
-        PyBuffer_Release(&q_out);
-        result = NULL;
-        goto done;
-    }
-    PyObject *stamp_obj = PyLong_FromLongLong(stamp);
-    for (Py_ssize_t k = 0; k < self->n && stamp_obj; k++) {
+    Py_ssize_t n_held = 0;
+    result = PyLong_FromLongLong(stamp);
+    for (Py_ssize_t k = 0; k < self->n && result; k++) {
         double v, r = NAN;
         memcpy(&v, pos + 8 * k, 8);
         if (self->n_vel)
@@ -555,25 +616,34 @@ static PyObject *reader_read(ReaderObject *self, PyObject *const *args, Py_ssize
         if (fv == NULL || fr == NULL) {
             Py_XDECREF(fv);
             Py_XDECREF(fr);
-            Py_CLEAR(stamp_obj);
+            Py_CLEAR(result);
             break;
         }
-        PyList_SetItem(q, self->order[k], fv);     /* steals; frees the old float */
-        PyList_SetItem(qdot, self->order[k], fr);
+        Py_ssize_t at = self->order[k];
+        held[n_held++] = PyList_GET_ITEM(q, at);
+        held[n_held++] = PyList_GET_ITEM(qdot, at);
+        PyList_SET_ITEM(q, at, fv);  /* steals fv; the old item is held */
+        PyList_SET_ITEM(qdot, at, fr);
     }
-    if (stamp_obj) {
+    if (result) {
         double *qo = q_out.buf, *qdo = qdot_out.buf;
         for (Py_ssize_t i = 0; i < dof; i++) {
             qo[i] = PyFloat_AS_DOUBLE(PyList_GET_ITEM(q, i));
             qdo[i] = PyFloat_AS_DOUBLE(PyList_GET_ITEM(qdot, i));
         }
     }
+    PyBuffer_Release(&raw);
     PyBuffer_Release(&q_out);
     PyBuffer_Release(&qdot_out);
-    PyBuffer_Release(&raw);
-    return stamp_obj;
+    for (Py_ssize_t i = 0; i < n_held; i++)
+        Py_DECREF(held[i]);
+    if (held != held_stack)
+        PyMem_Free(held);
+    return result;
 done:
-    PyBuffer_Release(&raw);
+    if (raw.obj) PyBuffer_Release(&raw);
+    if (q_out.obj) PyBuffer_Release(&q_out);
+    if (qdot_out.obj) PyBuffer_Release(&qdot_out);
     Py_XINCREF(result);
     return result;
 }
@@ -587,10 +657,11 @@ static PyMethodDef reader_methods[] = {
 static PyTypeObject ReaderType = {
     PyVarObject_HEAD_INIT(NULL, 0)
     .tp_name = "dq_fk_ros.messages._cdr.JointStateReader",
-    .tp_doc = "JointStateReader(...): the merger's short path for one JointState layout",
+    .tp_doc = "JointStateReader(...): the merger's short path for one JointState layout "
+              "(immutable)",
     .tp_basicsize = sizeof(ReaderObject),
     .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_new = PyType_GenericNew,
+    .tp_new = reader_new,
     .tp_init = (initproc)reader_init,
     .tp_dealloc = (destructor)reader_dealloc,
     .tp_methods = reader_methods,

@@ -116,5 +116,8 @@ def test_the_c_writer_refuses_what_it_cannot_write():
                  (buf, [0], [24], 7), (buf, [4], [24], 0), (buf, [4], ['x'], 7)):
         with pytest.raises((ValueError, TypeError)):
             _cdr.Template(*args)
-    with pytest.raises(ValueError, match='not initialised'):
-        _cdr.Template.__new__(_cdr.Template).one(0, 0, values, [0])
+    with pytest.raises(TypeError):
+        _cdr.Template.__new__(_cdr.Template)  # nothing without arguments
+    with pytest.raises(TypeError, match='set once'):
+        writer.__init__(b'\x00\x01\x00\x00', [], [], 1)
+    assert len(writer.one(1, 2, values, [2])) == len(template.buf)

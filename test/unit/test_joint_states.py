@@ -543,9 +543,14 @@ def test_the_compiled_reader_refuses_what_it_cannot_use():
                          ('upper', ['x'] * 3)):
         with pytest.raises((TypeError, ValueError)):
             _cdr.JointStateReader(**{**good, field: value})
-    unready = _cdr.JointStateReader.__new__(_cdr.JointStateReader)
-    with pytest.raises(ValueError, match='not initialised'):
-        unready.read(raw, None, [0.0] * 3, [0.0] * 3, out, out)
+    with pytest.raises(TypeError):
+        _cdr.JointStateReader.__new__(_cdr.JointStateReader)  # nothing without arguments
+    made = _cdr.JointStateReader(**good)
+    with pytest.raises(TypeError, match='set once'):  # a second __init__ changes nothing
+        made.__init__(**{**good, 'size': 8})
+    q, qdot = [0.0] * 3, [0.0] * 3
+    assert made.read(raw, None, q, qdot, out, np.empty(3)) == 10
+    assert q == [0.1, 0.2, 0.3]
 
 
 def _fields(parsed):

@@ -107,38 +107,48 @@ def test_bad_input_is_refused_as_the_numpy_path_refuses_it():
 
 
 @needs_kernel
-def test_the_kernel_itself_refuses_buffers_it_cannot_use():
+def test_the_kernel_chain_refuses_buffers_it_cannot_use():
     from dq_fk_ros.kinematics import _kernel
     chain = KinematicChain([DHJoint(a=0.2, name='a')])
     program, base, tool = chain._kernel_args
+    rows = chain._jacobian_rows
     good_out = np.empty((2, 8))
-    cases = [
-        (program, base, tool, np.zeros(1, np.float32), good_out),      # wrong dtype
-        (program, base, tool, np.zeros(1), np.empty((3, 8))),          # wrong size
-        (program, base, tool, np.zeros(1), np.empty((2, 8))[:, ::2]),  # not contiguous
-        (program, base, tool, np.zeros(0), good_out),                  # index past q
-        (program[:, :5].copy(), base, tool, np.zeros(1), good_out),    # not (n, 7)
-        (program, base[:4].copy(), tool, np.zeros(1), good_out),       # base not 8
-        (np.full_like(program, np.nan), base, tool, np.zeros(1), good_out),
+    made = [
+        (program[:, :5].copy(), base, tool, 1),      # not (n, 7)
+        (program, base[:4].copy(), tool, 1),         # base not 8
+        (np.full_like(program, np.nan), base, tool, 1),
+        (program, base, tool, 0),                    # the program reads q[0]
+        (program.astype(np.float32), base, tool, 1),
     ]
-    for args in cases:
+    for args in made:
         with pytest.raises(ValueError):
-            _kernel.frames(*args, True, len(args[3]))
+            _kernel.Chain(*args)
+    for bad_rows in (rows[:, :2].copy(), np.array([[5.0, -1.0, 1.0]]), np.zeros((2, 3)),
+                     np.array([[np.nan, -1.0, 1.0]])):
+        with pytest.raises(ValueError):
+            _kernel.Chain(program, base, tool, 1, bad_rows)
+    kernel_chain = _kernel.Chain(program, base, tool, 1, rows)
+    calls = [
+        (np.zeros(1, np.float32), good_out),      # wrong dtype
+        (np.zeros(1), np.empty((3, 8))),          # wrong size
+        (np.zeros(1), np.empty((2, 8))[:, ::2]),  # not contiguous
+        (np.zeros(0), good_out),                  # too few joint values
+    ]
+    for args in calls:
+        with pytest.raises(ValueError):
+            kernel_chain.frames(*args)
     with pytest.raises(ValueError, match='q must be 1 joint values'):
-        _kernel.frames(program, base, tool, np.zeros(2), good_out, True, 1)
+        kernel_chain.frames(np.zeros(2), good_out)
     read_only = np.empty((2, 8))
     read_only.setflags(write=False)
     with pytest.raises(ValueError, match='writable'):
-        _kernel.frames(program, base, tool, np.zeros(1), read_only, True, 1)
+        kernel_chain.frames(np.zeros(1), read_only)
     with pytest.raises(TypeError):
-        _kernel.frames(program, base)
-    rows = chain._jacobian_rows
-    for bad_rows in (rows[:, :2].copy(), np.array([[5.0, -1.0, 1.0]]), np.zeros((2, 3))):
-        with pytest.raises(ValueError):
-            _kernel.jacobian(program, base, tool, bad_rows, False, np.zeros(1),
-                             np.empty((6, 1)), 1)
+        kernel_chain.frames(program)
     with pytest.raises(ValueError):
-        _kernel.jacobian(program, base, tool, rows, False, np.zeros(1), np.empty((5, 1)), 1)
+        kernel_chain.jacobian(np.zeros(1), np.empty((5, 1)))
+    with pytest.raises(ValueError, match='without rows'):
+        _kernel.Chain(program, base, tool, 1).jacobian(np.zeros(1), np.empty((6, 1)))
 
 
 def test_a_chain_pickles_and_computes_the_same_after():
@@ -150,21 +160,22 @@ def test_a_chain_pickles_and_computes_the_same_after():
 
 
 @needs_kernel
-def test_the_kernel_chain_refuses_what_it_cannot_use():
+def test_the_kernel_chain_is_set_once():
+    """A second __init__ is refused and changes nothing; __new__ alone checks everything."""
     from dq_fk_ros.kinematics import _kernel
     chain = KinematicChain([DHJoint(a=0.2, name='a')])
     program, base, tool = chain._kernel_args
-    with pytest.raises(ValueError):
-        _kernel.Chain(program, base, tool, 0)        # the program reads q[0]
-    with pytest.raises(ValueError):
-        _kernel.Chain(program[:, :3].copy(), base, tool, 1)
     kernel_chain = _kernel.Chain(program, base, tool, 1)
-    for q, out in ((np.zeros(2), np.empty((2, 8))), (np.zeros(1), np.empty((3, 8))),
-                   (np.zeros(1, np.float32), np.empty((2, 8)))):
-        with pytest.raises(ValueError):
-            kernel_chain.frames(q, out)
-    with pytest.raises(ValueError):
-        _kernel.Chain.__new__(_kernel.Chain).frames(np.zeros(1), np.empty((2, 8)))
+    with pytest.raises(TypeError, match='set once'):
+        kernel_chain.__init__(program[:0].copy(), base, None, 0)
+    out = np.empty((2, 8))
+    kernel_chain.frames(np.zeros(1), out)
+    np.testing.assert_array_equal(out, chain._forward_all_reference([0.0]))
+    with pytest.raises(TypeError):
+        _kernel.Chain.__new__(_kernel.Chain)  # no state without its arguments
+    made = _kernel.Chain.__new__(_kernel.Chain, program, base, tool, 1)  # no __init__ needed
+    made.frames(np.zeros(1), out)
+    np.testing.assert_array_equal(out, chain._forward_all_reference([0.0]))
     with pytest.raises(TypeError):
         kernel_chain.end(np.zeros(1))
 

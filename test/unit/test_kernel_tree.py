@@ -191,14 +191,13 @@ def test_the_kernel_model_refuses_what_it_cannot_use():
     for args in bad_cases:
         with pytest.raises((ValueError, TypeError)):
             _kernel.Model(*args)
-    half_built = _kernel.Model.__new__(_kernel.Model)
-    with pytest.raises(ValueError, match='not initialised'):
-        half_built.frames(np.zeros(1), np.empty((2, 8)))
-    failed = _kernel.Model([good], no_links, 1)
-    with pytest.raises(ValueError):
-        failed.__init__([], no_links, 1)
-    with pytest.raises(ValueError, match='not initialised'):  # a failed init leaves nothing
-        failed.poses(np.zeros(1), None, np.empty((1, 7)))
+    with pytest.raises(TypeError):
+        _kernel.Model.__new__(_kernel.Model)  # no state without its arguments
+    made = _kernel.Model([good], no_links, 1)
+    with pytest.raises(TypeError, match='set once'):  # a second __init__ changes nothing
+        made.__init__([], no_links, 1)
+    relative = np.empty((1, 7))
+    made.poses(np.zeros(1), None, relative)
     with pytest.raises(TypeError):
         kernel.poses(np.zeros(model.dof))
 
