@@ -15,13 +15,14 @@ DEMO_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 80) + 20 )))
 
 BENCH_VENV ?= .venv-bench
 
-.PHONY: help setup browser demo demo-live test bench mutate screenshot clean
+.PHONY: help setup browser demo demo-live test sanitize bench mutate screenshot clean
 
 help:
 	@echo 'make setup  create .venv with ROS 2 Jazzy (PyPI), tf2_msgs and dq_fk_ros'
 	@echo 'make demo   setup, then node + fake joint publisher: print every RL15 frame pose'
 	@echo 'make demo-live  the same, sweeping the joints, and dq_fk_view: the robot in a browser (Ctrl-C)'
 	@echo 'make test   setup (and Chromium for the browser tests), then linters, unit and integration tests'
+	@echo 'make sanitize  the C extensions under ASan and UBSan: their tests and a fuzz (FUZZ=long: longer)'
 	@echo 'make bench  benchmarks: the core against its peers (installed in .venv-bench)'
 	@echo 'make mutate mutation testing of the pure modules (minutes; not part of make test)'
 	@echo 'make screenshot  the README picture of dq_fk_view, made by its browser test'
@@ -79,6 +80,13 @@ demo-live: setup
 
 test: setup browser
 	@scripts/run_tests $(PY)
+
+# the C extensions built with -fsanitize=address,undefined, their unit tests and the
+# hypothesis fuzz of every compiled entry point run under them (scripts/sanitize); FUZZ=ci
+# is a short budget (CI), FUZZ=long a deeper search
+FUZZ ?= ci
+sanitize: setup
+	@scripts/sanitize $(PY) $(FUZZ)
 
 # the browser tests need Debian's Chromium and its driver (system packages, like cmake):
 # installed with apt when missing and this runs as root, else one line saying how

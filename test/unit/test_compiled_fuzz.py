@@ -1,0 +1,351 @@
+"""
+No Python value crashes the C extensions: a hypothesis fuzz of every public compiled entry point.
+
+``_kernel.Chain`` (made, ``frames``, ``end``, ``frames_batch``, ``end_batch``, ``jacobian``),
+``_kernel.Model`` (made, ``poses``, ``poses_batch``, ``frames``), ``_cdr.Template`` (made,
+``one``, ``each``) and ``_cdr.JointStateReader`` (made, ``read``) get random shapes (0, 1,
+huge, 2**62), dtypes, strides (negative, non-contiguous, overlapping input and output,
+read-only out), wrong types, and objects whose dunder methods mutate the callee or its other
+arguments while the arguments are read. Every call either works or raises one of ALLOWED;
+``make sanitize`` runs this file under AddressSanitizer and UndefinedBehaviorSanitizer,
+where any memory error or undefined behaviour aborts the run (docs/security.md).
+"""
+
+import math
+
+from hypothesis import given, strategies as st
+import numpy as np
+import pytest
+
+from dq_fk_ros.description.loading import parse_robot_description
+from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
+from dq_fk_ros.kinematics.kernel import kernel_info
+from dq_fk_ros.messages.cdr import COMPILED, pose_stamped_template, tf_message_template
+
+pytestmark = pytest.mark.skipif(
+    kernel_info()['active'] != 'c' or COMPILED is None,
+    reason='the Python paths are active (DQ_FK_PURE_PYTHON or no compiler): nothing to fuzz')
+
+ALLOWED = (ValueError, TypeError, IndexError, OverflowError, MemoryError, BufferError)
+
+SIZES = [0, 1, 2, 3, 6, 7, 8, 10, 16, 17, 64, 65]
+# rows of an empty array whose product with a C size wraps (numpy takes at most 2**60 / 8)
+HUGE_ROWS = [2**31, 2**52, 2**57, 2**59]
+ODD_FLOATS = [math.nan, math.inf, -math.inf, 1e300, -1e300, -0.0, 0.5, -1.0, -2.0, 2.0**53,
+              2.0**63, 1e18, 3.0, 127.0, 4096.0]
+
+
+def attempt(call, *args, **kwargs):
+    """Call; a refusal of ALLOWED is an answer, anything else (or a crash) is a failure."""
+    try:
+        return call(*args, **kwargs)
+    except ALLOWED:
+        return None
+
+
+class Mutator:
+    """A value whose __index__, __float__ and __bool__ first run ``action`` (the hostile part)."""
+
+    def __init__(self, value, action):
+        self.value, self.action = value, action
+
+    def _act(self):
+        try:
+            self.action()
+        except Exception:  # noqa: B902 -- what the action raises is not the call's answer
+            pass
+
+    def __index__(self):
+        self._act()
+        return int(self.value)
+
+    __int__ = __index__
+
+    def __float__(self):
+        self._act()
+        return float(self.value)
+
+    def __bool__(self):
+        self._act()
+        return bool(self.value)
+
+
+class FloatWithDel(float):
+    """A float whose __del__ empties a list: the merger's lists must survive it."""
+
+    victim = None
+
+    def __del__(self):
+        if FloatWithDel.victim is not None:
+            FloatWithDel.victim.clear()
+
+
+@st.composite
+def hostile_arrays(draw, like=None):
+    """An array, or something else, of the kinds a buffer argument must survive."""
+    kind = draw(st.sampled_from(['like', 'like', 'like', 'shape', 'huge', 'float32', 'int64',
+                                 'big_endian', 'object', 'reversed', 'strided', 'read_only',
+                                 'scalar', 'list', 'bytes', 'bytearray', 'none', 'int']))
+    if like is not None and kind == 'like':
+        arr = np.array(like, dtype=float, copy=True)
+        if arr.size and draw(st.booleans()):
+            flat = arr.reshape(-1)
+            for _ in range(draw(st.integers(1, 3))):
+                flat[draw(st.integers(0, flat.size - 1))] = draw(st.sampled_from(ODD_FLOATS))
+        return arr
+    shape = tuple(draw(st.lists(st.sampled_from(SIZES), min_size=1, max_size=3)))
+    if kind in ('shape', 'like'):
+        return np.zeros(shape)
+    if kind == 'huge':  # a shape whose product wraps, of no size at all
+        rest = tuple(draw(st.lists(st.sampled_from([16, 8, 7, 1]), max_size=2)))
+        huge = draw(st.sampled_from(HUGE_ROWS).filter(
+            lambda h: h * int(np.prod(rest)) * 8 < 2**63))  # numpy's own limit
+        return np.empty((huge, 0) + rest)
+    if kind == 'float32':
+        return np.zeros(shape, np.float32)
+    if kind == 'int64':
+        return np.zeros(shape, np.int64)
+    if kind == 'big_endian':
+        return np.zeros(shape, '>f8')
+    if kind == 'object':
+        return np.full(shape, None, dtype=object)
+    if kind == 'reversed':
+        return np.zeros(shape)[::-1]
+    if kind == 'strided':
+        return np.zeros(shape + (2,))[..., 0]
+    if kind == 'read_only':
+        arr = np.zeros(shape)
+        arr.setflags(write=False)
+        return arr
+    if kind == 'scalar':
+        return np.float64(1.0)
+    if kind == 'list':
+        return [0.0] * shape[0]
+    if kind == 'bytes':
+        return bytes(8 * shape[0])
+    if kind == 'bytearray':
+        return bytearray(8 * shape[0])
+    if kind == 'none':
+        return None
+    return 3
+
+
+def chain_parts(chain):
+    """The arguments a KinematicChain gives _kernel.Chain."""
+    program, base, tool = chain._kernel_args
+    return program, base, tool, chain._dof, chain._jacobian_rows, chain.convention == 'modified'
+
+
+CHAINS = [
+    KinematicChain([DHJoint(a=0.2, alpha=0.3, name='a'),
+                    DHJoint(d=0.1, joint_type='prismatic', name='b')]),
+    KinematicChain([DHJoint(a=0.1, d=0.01 * i, joint_type='fixed') for i in range(15)]),
+    KinematicChain([DHJoint(a=0.3, alpha=-0.5, name=f'j{i}') for i in range(6)],
+                   convention='modified'),
+    parse_robot_description(open('config/rl15.yaml', encoding='utf-8').read()).chain,
+]
+
+
+@given(st.data())
+def test_a_chain_survives_any_arguments(data):
+    chain = data.draw(st.sampled_from(CHAINS))
+    program, base, tool, dof, rows, modified = chain_parts(chain)
+    args = [data.draw(hostile_arrays(program)), data.draw(hostile_arrays(base)),
+            data.draw(st.one_of(st.none(), hostile_arrays(tool if tool is not None else base))),
+            data.draw(st.sampled_from([dof, dof, 0, 1, -1, 2**62, 2**63 - 1, 1 << 21])),
+            data.draw(st.one_of(st.none(), hostile_arrays(rows))), modified]
+    from dq_fk_ros.kinematics import _kernel
+    made = attempt(_kernel.Chain, *args)
+    if made is None:
+        made = _kernel.Chain(program, base, tool, dof, rows, modified)
+    n_frames, dof = made.n_frames, made.dof
+    single = (np.zeros(dof), np.empty((n_frames, 8)))
+    for _ in range(data.draw(st.integers(1, 4))):
+        method = data.draw(st.sampled_from(['frames', 'end', 'frames_batch', 'end_batch',
+                                            'jacobian']))
+        n = data.draw(st.sampled_from([0, 1, 3, 64, 65]))
+        shapes = {'frames': ((dof,), (n_frames, 8)), 'end': ((dof,), (8,)),
+                  'frames_batch': ((n, dof), (n, n_frames, 8)), 'end_batch': ((n, dof), (n, 8)),
+                  'jacobian': ((dof,), (6, dof))}[method]
+        q = data.draw(hostile_arrays(np.zeros(shapes[0])))
+        out = data.draw(st.one_of(hostile_arrays(np.zeros(shapes[1])),
+                                  st.just('overlap')))
+        if isinstance(out, str) and isinstance(q, np.ndarray) and q.dtype == float:
+            out = q  # input and output the same memory
+        elif isinstance(out, np.ndarray) and out is not q:
+            out = np.ascontiguousarray(out) if data.draw(st.booleans()) else out
+        attempt(getattr(made, method), q, out)
+        attempt(getattr(made, method), *single)
+        if data.draw(st.booleans()):
+            attempt(made.__init__, *args)  # refused: the state is set once
+    out = np.empty((n_frames, 8))
+    made.frames(np.zeros(dof), out)  # the chain is what it was made as, after all of it
+    same = _kernel.Chain(program, base, tool, chain._dof, rows, modified)
+    if (made.n_frames, made.dof) == (same.n_frames, same.dof):
+        again = np.empty((n_frames, 8))
+        same.frames(np.zeros(dof), again)
+        if not np.isnan(out).any():
+            np.testing.assert_array_equal(out, again)
+
+
+DUAL_ARM = parse_robot_description(open('config/dual_arm.yaml', encoding='utf-8').read())
+
+
+def model_parts(model):
+    """The arguments RobotModel gives _kernel.Model, as lists one can break."""
+    kernel = model._kernel_model
+    assert kernel is not None
+    index = {name: k for k, name in enumerate(model.frame_names)}
+    index[model.fixed_frame] = -1
+    chains = [[chain._kernel_chain, index[parent], np.array(q_map, dtype=float),
+               np.array(chain._pose_rows, dtype=float).reshape(-1, 10),
+               chain.convention == 'standard']
+              for (parent, chain, _), q_map in zip(model.chains, model._q_maps)]
+    return chains, kernel
+
+
+@given(st.data())
+def test_a_model_survives_any_arguments(data):
+    from dq_fk_ros.kinematics import _kernel
+    model = data.draw(st.sampled_from([DUAL_ARM, parse_robot_description(
+        open('config/rl15.yaml', encoding='utf-8').read())]))
+    chains, kernel = model_parts(model)
+    good_links = np.array([[0.0, -1.0, 1, 0, 0, 0, 0, 0, 0, 0, 0.0, 0, 0, 1, 0.0, 1.0, 0.0]])
+    chain_list = []
+    for parts in chains:
+        parts = list(parts)
+        if data.draw(st.integers(0, 3)) == 0:
+            at = data.draw(st.integers(0, 4))
+            parts[at] = data.draw(st.one_of(
+                hostile_arrays(parts[at] if at in (2, 3) else None),
+                st.sampled_from([-2, -1, 0, 10**6, 2**62, None, 'x', 0.5])))
+        if data.draw(st.integers(0, 5)) == 0:  # a parent whose __index__ breaks the rest
+            parts[1] = Mutator(parts[1], chain_list.clear)
+        if data.draw(st.integers(0, 5)) == 0:  # a standard whose __bool__ re-makes the model
+            parts[4] = Mutator(parts[4], lambda: kernel.__init__(chain_list, good_links, 1))
+        chain_list.append(tuple(parts) if data.draw(st.integers(0, 9)) else parts)
+    links = data.draw(st.one_of(hostile_arrays(good_links), hostile_arrays(np.zeros((0, 17)))))
+    dof = data.draw(st.sampled_from([model.dof, model.dof, 0, -1, 2**62,
+                                     Mutator(model.dof, chain_list.clear)]))
+    made = attempt(_kernel.Model, chain_list if data.draw(st.booleans()) else
+                   tuple(chain_list), links, dof)
+    if made is None:
+        made = kernel
+    n, r, d = made.n_frames, made.n_relative, model.dof
+    for _ in range(data.draw(st.integers(1, 4))):
+        method = data.draw(st.sampled_from(['poses', 'poses_batch', 'frames']))
+        b = data.draw(st.sampled_from([0, 1, 3]))
+        shapes = {'poses': ((d,), (n, 7), (r, 7)), 'frames': ((d,), (n, 8)),
+                  'poses_batch': ((b, d), (b, n, 7), (b, r, 7))}[method]
+        args = [data.draw(hostile_arrays(np.zeros(s))) for s in shapes]
+        if method != 'frames' and data.draw(st.booleans()):
+            args[1] = None
+        if data.draw(st.integers(0, 4)) == 0 and isinstance(args[0], np.ndarray):
+            args[-1] = args[0]  # overlapping input and output
+        attempt(getattr(made, method), *args)
+    relative = np.empty((kernel.n_relative, 7))
+    kernel.poses(np.zeros(model.dof), None, relative)  # the robot's own model is unchanged
+    expected = np.empty_like(relative)
+    model._kernel_model.poses(np.zeros(model.dof), None, expected)
+    np.testing.assert_array_equal(relative, expected)
+
+
+def _tf_template():
+    return tf_message_template([('a', 'b'), ('a', 'c')])
+
+
+@given(st.data())
+def test_a_template_survives_any_arguments(data):
+    from dq_fk_ros.messages import _cdr
+    template = data.draw(st.sampled_from([pose_stamped_template('world'), _tf_template()]))
+    buf = bytes(template.buf)
+    slots = [at for at, _ in template.floats]
+    victim = list(slots)
+    args = [data.draw(st.sampled_from([buf, bytearray(buf), b'', b'\x00\x00\x00\x00',
+                                       b'\x00\x01', 'text', None, memoryview(buf)[::2]])),
+            data.draw(st.sampled_from([template.stamps, [], [0], [len(buf)], [-1], [2**62],
+                                       ['x'], 5, None,
+                                       [Mutator(4, victim.clear)]])),
+            data.draw(st.sampled_from([victim, slots, [len(buf) - 56], [2**63 - 1], ['x'], None,
+                                       [Mutator(slots[0], victim.clear)] + slots[1:]])),
+            data.draw(st.sampled_from([7, 7, 0, 1, 65, -1, 2**62, Mutator(7, victim.clear)]))]
+    made = attempt(_cdr.Template, *args)
+    if made is None:
+        made = _cdr.Template(buf, template.stamps, slots, 7)
+    for _ in range(data.draw(st.integers(1, 4))):
+        n = data.draw(st.sampled_from([0, 1, 3, 8]))
+        values = data.draw(hostile_arrays(np.zeros((n, 7))))
+        rows = list(range(min(n, len(slots)))) + data.draw(
+            st.lists(st.sampled_from([0, 1, 2, -1, n, 2**62, 2**63 - 1, 'x', None]),
+                     max_size=2))
+        if data.draw(st.booleans()):
+            rows = [Mutator(rows[0], rows.clear) if rows else Mutator(0, rows.clear)] + rows[1:]
+        sec = data.draw(st.sampled_from([0, 1, -1, 2**31, -2**31, 2**64, 'x', 1.5,
+                                         Mutator(1, rows.clear)]))
+        nsec = data.draw(st.sampled_from([0, 999999999, -1, 2**32, 2**64, None]))
+        method = data.draw(st.sampled_from(['one', 'each']))
+        result = attempt(getattr(made, method), sec, nsec, values, rows)
+        if method == 'one' and isinstance(result, bytes):
+            assert len(result) == len(buf)
+        if data.draw(st.booleans()):
+            attempt(made.__init__, *args)
+    assert len(made.one(1, 2, np.zeros((len(slots), 7)), list(range(len(slots))))) == len(buf)
+
+
+def _reader_parts():
+    from dq_fk_ros.messages.cdr import JointStateNames
+    from dq_fk_ros.messages.joint_states import JointStateMerger
+    from test_joint_states import NAMES, LIMITS, node_like_merge, serialized_joint_state
+    merger, cache = JointStateMerger(NAMES, LIMITS, 'clamp'), JointStateNames()
+    raw = serialized_joint_state(NAMES, [0.1, 0.2, 0.3], [], 10, '', 0)
+    node_like_merge(merger, raw, cache)
+    layout = cache.layout
+    good = {'size': layout.size, 'fixed': layout.fixed, 'mask': bytes(len(layout.fixed)),
+            'counts_at': layout.count_offsets, 'counts': layout.expected_counts,
+            'positions_at': layout.positions[0], 'velocities_at': layout.velocities[0],
+            'order': [0, 1, 2], 'lower': [0.0] * 3, 'upper': [1.0] * 3, 'jump_back_ns': 1}
+    return good, raw
+
+
+READER_PARTS = _reader_parts() if COMPILED is not None else ({}, b'')
+
+
+@given(st.data())
+def test_a_joint_state_reader_survives_any_arguments(data):
+    from dq_fk_ros.messages import _cdr
+    good, raw = READER_PARTS
+    kwargs = dict(good)
+    victim = list(good['order'])
+    kwargs['order'] = victim
+    for _ in range(data.draw(st.integers(0, 3))):
+        field = data.draw(st.sampled_from(sorted(good)))
+        kwargs[field] = data.draw(st.sampled_from([
+            -1, 0, 4, 2**31, 2**62, 2**63 - 8, 2**63 - 1, None, 'x', b'', b'\xff' * 3,
+            bytes(10**3), [], [0, 1], [0, 1, 2, 3], [-1, 0, 1], [2**62] * 3,
+            [Mutator(0, victim.clear), 1, 2], Mutator(good[field], victim.clear)
+            if isinstance(good[field], int) else good[field]]))
+    made = attempt(_cdr.JointStateReader, **kwargs)
+    if made is None:
+        made = _cdr.JointStateReader(**good)
+    for _ in range(data.draw(st.integers(1, 4))):
+        dof = data.draw(st.sampled_from([3, 3, 0, 2, 4]))
+        q = [0.0] * dof
+        qdot = [0.0] * data.draw(st.sampled_from([dof, dof, 0, 5]))
+        if data.draw(st.booleans()) and q:
+            FloatWithDel.victim = q
+            q[data.draw(st.integers(0, len(q) - 1))] = FloatWithDel(0.5)
+        last = data.draw(st.sampled_from([None, 0, 10, -2**63, 2**63 - 1, 2**64, 'x',
+                                          Mutator(5, q.clear), Mutator(5, qdot.clear),
+                                          Mutator(5, lambda: made.__init__(**good))]))
+        message = data.draw(st.sampled_from([raw, bytearray(raw), raw[:-1], raw + b'\x00',
+                                             b'', bytes(len(raw)), 'text', None]))
+        q_out = data.draw(hostile_arrays(np.zeros(3)))
+        qdot_out = data.draw(st.one_of(hostile_arrays(np.zeros(3)), st.just('same')))
+        if isinstance(qdot_out, str):
+            qdot_out = q_out
+        attempt(made.read, message, last, q, qdot, q_out, qdot_out)
+        FloatWithDel.victim = None
+    q, qdot = [0.0] * 3, [0.0] * 3
+    out = np.empty(3)
+    assert _cdr.JointStateReader(**good).read(raw, None, q, qdot, out, np.empty(3)) == 10
+    assert q == [0.1, 0.2, 0.3]
