@@ -41,15 +41,19 @@ def find_bags(paths):
     """
     Return every bag under ``paths`` as :class:`FoundBag`, in a stable (sorted) order.
 
+    A bag found twice (named twice, or inside a folder also named) is listed once, with the
+    name it got first.
+
     :raises BagError: a path that does not exist, two bags that would share an output name,
-        or a walk finding more than :data:`MAX_BAGS`.
+        a bag without a name of its own (``/``), or a walk finding more than
+        :data:`MAX_BAGS`.
     """
     found = []
     for path in paths:
         path = os.fspath(path)
         if not os.path.lexists(path):
             raise BagError(f'{path}: no such bag or folder')
-        top = os.path.basename(os.path.normpath(path))
+        top = os.path.basename(os.path.abspath(path))  # '.' and 'in/..' by their own names
         if os.path.isfile(path):
             found.append(FoundBag(path, _strip_extension(top)))
         elif is_bag_folder(path):
@@ -58,8 +62,18 @@ def find_bags(paths):
             found += _walk(path)
         if len(found) > MAX_BAGS:
             raise BagError(f'{path}: more than {MAX_BAGS} bags; name fewer folders')
+    unique, seen = [], set()
+    for bag in found:  # the same bag named twice (in/run in/run, or in in/run): once
+        real = os.path.realpath(bag.path)
+        if real not in seen:
+            seen.add(real)
+            unique.append(bag)
+    found = unique
     names = {}
     for bag in found:
+        if not bag.name or bag.name in (os.curdir, os.pardir):
+            raise BagError(f'{bag.path}: a bag needs a name of its own for its output; name '
+                           f'its parent folder instead')
         other = names.setdefault(bag.name, bag.path)
         if other != bag.path:
             raise BagError(f'{other} and {bag.path} would both be written to {bag.name}; '

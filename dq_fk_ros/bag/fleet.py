@@ -24,12 +24,13 @@ import math
 import multiprocessing
 import os
 import shutil
+import sys
 import time
 
 from dq_fk_ros.bag.discover import find_bags
 from dq_fk_ros.bag.fleet_units import RobotSpec, run_unit, Unit, UnitResult
 from dq_fk_ros.bag.join import join_bags
-from dq_fk_ros.bag.manifest import FleetState
+from dq_fk_ros.bag.manifest import check_bag_name, FleetState
 from dq_fk_ros.bag.process import ProcessOptions, set_progress_counter
 from dq_fk_ros.bag.progress import Progress
 from dq_fk_ros.bag.reading import BagError, joint_state_connections, open_reader, Ros1Bag
@@ -68,6 +69,7 @@ class FleetSummary:
     bags: list
     seconds: float = 0.0
     workers: int = 1
+    notes: list = field(default_factory=list)  # one line each (a manifest set aside)
 
     @property
     def failed(self):
@@ -85,12 +87,12 @@ class FleetSummary:
                 'workers': self.workers, 'failed': self.failed,
                 'done': sum(b.status == 'done' for b in self.bags),
                 'skipped': sum(b.status == 'skipped' for b in self.bags),
-                'messages_in': self.messages_in}
+                'messages_in': self.messages_in, 'notes': list(self.notes)}
 
 
 def process_fleet(inputs, output_dir, robot, options=None, jobs=None, scheduler=None,
                   force=False, progress=True, window_messages=None, base=None, tip=None,
-                  packages=None):
+                  packages=None, say=None):
     """
     Process every bag under ``inputs`` into ``output_dir``; return a :class:`FleetSummary`.
 
@@ -106,16 +108,21 @@ def process_fleet(inputs, output_dir, robot, options=None, jobs=None, scheduler=
     :param force: redo bags whose output is complete.
     :param window_messages: JointStates per window of a large MCAP bag (default: the fleet's
         messages over four units per worker, at least :data:`MIN_WINDOW_MESSAGES`).
-    :raises BagError: for a command that cannot run (paths, options); a bag's own problems
-        are reported in its :class:`BagReport` instead.
+    :param say: called with each one-line note for the user before the work starts (a
+        manifest set aside); default: printed on stderr as ``dq_fk_bag: ...``.
+    :raises BagError: for a command that cannot run (paths, options, a bag named as the
+        fleet's state folder); a bag's own problems are reported in its :class:`BagReport`.
     """
     start = time.perf_counter()
+    say = say or (lambda line: print(f'dq_fk_bag: {line}', file=sys.stderr))
     options = options or ProcessOptions()
     if options.csv_path or options.csv_only:
         raise BagError('--csv and --csv-only write one file per bag: not with --output-dir')
     spec = RobotSpec(os.fspath(robot), base, tip, tuple(sorted((packages or {}).items())))
     spec.load()  # a robot file that cannot be used stops the command before any work
     found = find_bags(inputs)
+    for bag in found:
+        check_bag_name(bag.name)
     _check_output_dir(output_dir, [os.fspath(p) for p in inputs] + [b.path for b in found])
     os.makedirs(output_dir, exist_ok=True)
     with FleetState(output_dir, spec, options) as state:
@@ -128,10 +135,12 @@ def process_fleet(inputs, output_dir, robot, options=None, jobs=None, scheduler=
                 report.tf_out = state.bags[bag.name]['output'].get('/tf', 0)
                 continue
             units += _plan(bag, state.work_folder(bag.name), spec, options)
+        for note in state.notes:
+            say(note)
         runner = _Runner(units, reports, state, jobs, scheduler, window_messages, progress)
         runner.run()
         return FleetSummary([reports[b.name] for b in found],
-                            time.perf_counter() - start, runner.workers)
+                            time.perf_counter() - start, runner.workers, state.notes)
 
 
 def _check_output_dir(output_dir, inputs):

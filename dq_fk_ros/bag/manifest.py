@@ -8,6 +8,11 @@ count per topic. A bag is complete when all of these still match and its output 
 output is written in ``OUT/.dq_fk_fleet/work``, renamed into place, and only then recorded:
 a run killed at any point leaves nothing that would be taken as complete. One run at a time
 may write an output folder (a lock).
+
+The state folder's name is reserved: no bag may be named so (:func:`check_bag_name`). A
+manifest that is not what the fleet wrote (hand-edited, truncated, another version, too
+large) is set aside as ``manifest.json.set-aside-<time>``, said in one line
+(:attr:`FleetState.notes`), and every bag it named is processed again.
 """
 
 from dataclasses import asdict
@@ -16,7 +21,9 @@ import hashlib
 import json
 import os
 import shutil
+import stat
 import struct
+import time
 
 from dq_fk_ros.bag.join import topic_counts
 from dq_fk_ros.bag.reading import BagError
@@ -26,6 +33,44 @@ VERSION = 1
 EDGE_BYTES = 64 * 1024
 MAX_SUMMARY_BYTES = 64 * 1024 * 1024
 FOOTER_BYTES = 37  # MCAP: footer record (1 + 8 + 20) and the closing magic (8)
+MAX_MANIFEST_BYTES = 1 << 30  # a million bags' entries fit many times over
+
+
+def check_bag_name(name: str) -> None:
+    """Refuse a bag whose output would be the fleet's state folder (or lie inside it)."""
+    if name.split(os.sep, 1)[0] == STATE or name.split('/', 1)[0] == STATE:
+        raise BagError(f'{name}: {STATE} is the name of the fleet\'s own state folder in '
+                       f'--output-dir; rename the bag')
+
+
+def _is_fingerprint(value):
+    return (isinstance(value, dict) and set(value) == {'files', 'summary_sha256'}
+            and isinstance(value['summary_sha256'], str)
+            and isinstance(value['files'], list)
+            and all(isinstance(f, list) and len(f) == 3 and isinstance(f[0], str)
+                    and all(type(v) is int for v in f[1:]) for f in value['files']))
+
+
+def _is_entry(entry):
+    return (isinstance(entry, dict) and set(entry) == {'input', 'options', 'output'}
+            and isinstance(entry['options'], str) and _is_fingerprint(entry['input'])
+            and isinstance(entry['output'], dict)
+            and all(isinstance(k, str) and type(v) is int for k, v in entry['output'].items()))
+
+
+def manifest_bags(text: bytes) -> dict | None:
+    """Return the bags of a manifest as the fleet writes it; None for anything else."""
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError):  # not JSON, or nested past Python's stack
+        return None
+    if not (isinstance(data, dict) and set(data) == {'version', 'bags'}
+            and data['version'] == VERSION and type(data['version']) is int
+            and isinstance(data['bags'], dict)):
+        return None
+    if not all(isinstance(k, str) and _is_entry(v) for k, v in data['bags'].items()):
+        return None
+    return data['bags']
 
 
 def input_fingerprint(path):
@@ -84,10 +129,15 @@ class FleetState:
         self.work = os.path.join(self.folder, 'work')
         self.options = options_fingerprint(spec, options)
         self.bags = {}
+        self.notes = []  # one line each: what the run should tell its user
         self._lock = None
 
     def __enter__(self):
         """Take the lock, read the manifest, clear a killed run's work folders."""
+        if os.path.islink(self.folder) or (os.path.lexists(self.folder)
+                                           and not os.path.isdir(self.folder)):
+            raise BagError(f'{self.folder}: not a folder of this fleet (a link or a file); '
+                           f'remove it or choose another --output-dir')
         os.makedirs(self.folder, exist_ok=True)
         self._lock = open(os.path.join(self.folder, 'lock'), 'w')
         try:
@@ -98,14 +148,30 @@ class FleetState:
                            f'folder') from None
         shutil.rmtree(self.work, ignore_errors=True)
         os.makedirs(self.work)
-        try:
-            with open(os.path.join(self.folder, 'manifest.json'), encoding='utf-8') as f:
-                data = json.load(f)
-            if data.get('version') == VERSION and isinstance(data.get('bags'), dict):
-                self.bags = data['bags']
-        except (OSError, ValueError):
-            self.bags = {}
+        self.bags = self._read_manifest()
         return self
+
+    def _read_manifest(self):
+        """The manifest's bags; one not written by the fleet is set aside (a note)."""
+        path = os.path.join(self.folder, 'manifest.json')
+        try:
+            fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+        except FileNotFoundError:
+            return {}
+        except OSError:  # a link, a folder, unreadable
+            bags = None
+        else:
+            with os.fdopen(fd, 'rb') as stream:
+                size = os.fstat(stream.fileno()).st_size
+                bags = (manifest_bags(stream.read()) if size <= MAX_MANIFEST_BYTES
+                        and stat.S_ISREG(os.fstat(stream.fileno()).st_mode) else None)
+        if bags is None:
+            aside = f'{path}.set-aside-{time.strftime("%Y%m%dT%H%M%S")}-{os.getpid()}'
+            os.rename(path, aside)
+            self.notes.append(f'{path}: not a manifest this fleet wrote; set aside as '
+                              f'{os.path.basename(aside)}, every bag is processed again')
+            return {}
+        return bags
 
     def __exit__(self, *exc):
         """Remove the work folders and release the lock."""
@@ -159,7 +225,10 @@ class FleetState:
 
     def _save(self):
         path = os.path.join(self.folder, 'manifest.json')
-        with open(path + '.new', 'w', encoding='utf-8') as stream:
+        if os.path.lexists(path + '.new'):
+            os.remove(path + '.new')  # (a link left there is not written through)
+        fd = os.open(path + '.new', os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+        with os.fdopen(fd, 'w', encoding='utf-8') as stream:
             json.dump({'version': VERSION, 'bags': self.bags}, stream, indent=1,
                       sort_keys=True)
             stream.flush()
@@ -167,4 +236,5 @@ class FleetState:
         os.replace(path + '.new', path)
 
 
-__all__ = ['FleetState', 'input_fingerprint', 'options_fingerprint']
+__all__ = ['check_bag_name', 'FleetState', 'input_fingerprint', 'manifest_bags',
+           'options_fingerprint']

@@ -300,3 +300,61 @@ def test_without_dask_the_message_says_how_to_get_it(tmp_path, monkeypatch, caps
                    '--robot', 'rl15', '--scheduler', 'local'])
     err = capsys.readouterr().err
     assert rc == 2 and "pip install 'dq_fk_ros[cluster]'" in err
+
+
+def test_a_bag_named_as_the_fleet_state_is_refused_and_the_state_kept(tmp_path, capsys):
+    rl15_bag(tmp_path / 'in' / 'run', 30)
+    out = tmp_path / 'out'
+    assert bag_main(['process', str(tmp_path / 'in'), '--output-dir', str(out), '--robot',
+                     'rl15', '--jobs', '1', '--quiet']) == 0
+    manifest = (out / '.dq_fk_fleet' / 'manifest.json').read_bytes()
+    rl15_bag(tmp_path / 'in' / '.dq_fk_fleet', 30)  # would be written over the state folder
+    capsys.readouterr()
+    for argv in ([str(tmp_path / 'in')], [str(tmp_path / 'in' / '.dq_fk_fleet')]):
+        rc = bag_main(['process', *argv, '--output-dir', str(out), '--robot', 'rl15',
+                       '--jobs', '1', '--quiet'])
+        err = capsys.readouterr().err
+        assert rc == 2 and err.count('\n') == 1 and 'state folder' in err, err
+        assert (out / '.dq_fk_fleet' / 'manifest.json').read_bytes() == manifest
+    assert messages(out / 'run') == serial(tmp_path / 'in' / 'run', tmp_path / 's')
+
+
+@pytest.mark.parametrize('content', [
+    b'{"version":1,"bags":{"run":"x"}}', b'[1,2]', b'null', b'[' * 100_000, b'\xff\xfe\x00',
+    b'{"version":1,"bags":{"run":{"input":{},"options":"","output":{}}}}',
+    b'{"version":2,"bags":{}}', b''], ids=['entry', 'list', 'null', 'nested', 'binary',
+                                         'hollow', 'version', 'empty'])
+def test_a_manifest_the_fleet_did_not_write_is_set_aside_and_the_work_redone(tmp_path, capsys,
+                                                                            content):
+    rl15_bag(tmp_path / 'in' / 'run', 30)
+    out = tmp_path / 'out'
+    args = ['process', str(tmp_path / 'in'), '--output-dir', str(out), '--robot', 'rl15',
+            '--jobs', '1', '--quiet']
+    assert bag_main(args) == 0
+    state = out / '.dq_fk_fleet'
+    (state / 'manifest.json').write_bytes(content)
+    capsys.readouterr()
+    assert bag_main(args) == 0
+    captured = capsys.readouterr()
+    notes = [line for line in captured.err.splitlines() if 'set aside' in line]
+    assert len(notes) == 1 and 'Traceback' not in captured.err, captured.err
+    aside = [p.name for p in state.iterdir() if p.name.startswith('manifest.json.set-aside-')]
+    assert len(aside) == 1 and (state / aside[0]).read_bytes() == content
+    assert ' 1 done, 0 skipped' in captured.out  # redone, not taken as complete
+    assert messages(out / 'run') == serial(tmp_path / 'in' / 'run', tmp_path / 's')
+    assert bag_main(args) == 0  # and the manifest written again is the fleet's own
+    assert ' 0 done, 1 skipped' in capsys.readouterr().out
+
+
+def test_a_bag_named_twice_is_processed_once(tmp_path, capsys):
+    rl15_bag(tmp_path / 'in' / 'run', 30)
+    out = tmp_path / 'out'
+    for argv in ([str(tmp_path / 'in' / 'run')] * 2,
+                 [str(tmp_path / 'in'), str(tmp_path / 'in' / 'run')],
+                 [str(tmp_path / 'in' / 'run'), str(tmp_path / 'in' / '..' / 'in' / 'run')]):
+        rc = bag_main(['process', *argv, '--output-dir', str(out), '--robot', 'rl15',
+                       '--jobs', '2', '--quiet', '--force'])
+        captured = capsys.readouterr()
+        assert rc == 0 and captured.err == '', captured.err
+        assert '1 bags: 1 done' in captured.out
+    assert messages(out / 'run') == serial(tmp_path / 'in' / 'run', tmp_path / 's')
