@@ -40,7 +40,7 @@ setup(
             'dq_fk_node = dq_fk_ros.ros.node:main',
             'dq_fk = dq_fk_ros.cli.dq_fk:main',
             'fake_joint_publisher = dq_fk_ros.ros.fake_joint_publisher:main',
-            'dq_fk_bag = dq_fk_ros.cli.dq_fk_bag:main',
+            'dq_fk_bag = dq_fk_ros.cli.interrupts:run_dq_fk_bag',
             'dq_fk_view = dq_fk_ros.ros.view:main',
         ],
     },

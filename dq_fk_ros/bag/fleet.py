@@ -27,6 +27,7 @@ import shutil
 import sys
 import time
 
+from dq_fk_ros.bag.child_processes import signals_blocked, stop_children
 from dq_fk_ros.bag.discover import find_bags
 from dq_fk_ros.bag.fleet_units import RobotSpec, run_unit, Unit, UnitResult
 from dq_fk_ros.bag.join import join_bags
@@ -246,12 +247,24 @@ class _Runner:
                     set_progress_counter(None)
             else:
                 self._run_pool()
-        finally:
+        except BaseException:  # Ctrl-C, SIGTERM: every worker stops at once, quietly
             if self.client is not None:
-                self.client.close()
-                if getattr(self.client, '_dq_fk_cluster', None) is not None:
-                    self.client._dq_fk_cluster.close()
+                _abandon_cluster()
+            raise
+        try:
+            self._close_client()
+        except BaseException:  # interrupted while the cluster closes
+            _abandon_cluster()
+            raise
         self.meter.update(self.done_messages, force=True)
+
+    def _close_client(self, timeout=None):
+        if self.client is not None:
+            client, self.client = self.client, None
+            cluster = getattr(client, '_dq_fk_cluster', None)
+            client.close(timeout=timeout)
+            if cluster is not None:
+                cluster.close(timeout=timeout)
 
     def _run_pool(self):
         ctx = multiprocessing.get_context('spawn')
@@ -259,26 +272,40 @@ class _Runner:
         todo = list(self.units)
         tries = {}
         while todo:
-            with ProcessPoolExecutor(max_workers=min(self.jobs, len(todo)), mp_context=ctx,
-                                     initializer=set_progress_counter,
-                                     initargs=(counter,)) as pool:
-                futures = {pool.submit(run_unit, u): u for u in todo}
-                todo = []
-                while futures:
-                    finished, _ = wait(futures, timeout=0.5, return_when=FIRST_COMPLETED)
-                    for future in finished:
-                        unit = futures.pop(future)
-                        try:
-                            result = future.result()
-                        except BrokenProcessPool:  # a worker died (killed, out of memory)
-                            tries[unit] = tries.get(unit, 0) + 1
-                            if tries[unit] < MAX_TRIES:
-                                todo.append(unit)
-                                continue
-                            result = UnitResult(unit, problem='the worker processing it '
-                                                'died (killed or out of memory)')
-                        self._finish(result, counter.value)
-                    self._show(counter.value)
+            pool = None
+            try:
+                with signals_blocked():  # the workers never see the terminal's Ctrl-C
+                    pool = ProcessPoolExecutor(max_workers=min(self.jobs, len(todo)),
+                                               mp_context=ctx, initializer=set_progress_counter,
+                                               initargs=(counter,))
+                    futures = {pool.submit(run_unit, u): u for u in todo}
+                todo = self._drain(futures, tries, counter)
+            except BaseException:  # Ctrl-C, SIGTERM: the workers go first, then we do
+                stop_children()
+                if pool is not None:
+                    pool.shutdown(wait=False, cancel_futures=True)
+                raise
+            pool.shutdown()
+
+    def _drain(self, futures, tries, counter):
+        """Finish the pool's units as they complete; return those to run again."""
+        todo = []
+        while futures:
+            finished, _ = wait(futures, timeout=0.5, return_when=FIRST_COMPLETED)
+            for future in finished:
+                unit = futures.pop(future)
+                try:
+                    result = future.result()
+                except BrokenProcessPool:  # a worker died (killed, out of memory)
+                    tries[unit] = tries.get(unit, 0) + 1
+                    if tries[unit] < MAX_TRIES:
+                        todo.append(unit)
+                        continue
+                    result = UnitResult(unit, problem='the worker processing it '
+                                        'died (killed or out of memory)')
+                self._finish(result, counter.value)
+            self._show(counter.value)
+        return todo
 
     def _run_dask(self):
         from distributed import as_completed
@@ -359,17 +386,40 @@ def _needs_whole_run(summaries):
     return any(s.time_jumps for s in summaries) or summaries[0].written == 0
 
 
+ABANDONED = []  # a Dask client given up on an interrupt: this process must exit at once
+
+
+def _abandon_cluster():
+    """
+    Stop a LocalCluster's workers at once, quietly, and leave its client unclosed.
+
+    Closing a Dask client whose workers are gone waits for its timeouts (10 s and more);
+    the command that was interrupted exits instead (``os._exit`` once its own state is
+    saved, :data:`ABANDONED` tells it).
+    """
+    import logging
+    logging.getLogger('distributed').setLevel(logging.CRITICAL + 1)
+    stop_children()
+    ABANDONED.append(True)
+
+
 def _dask_client(scheduler, jobs):
     """Connect to a Dask scheduler, or start a LocalCluster of ``jobs`` processes."""
     try:
-        from distributed import Client, LocalCluster
+        with signals_blocked():  # threads it starts (that start its workers) block SIGINT
+            from distributed import Client, LocalCluster
     except ImportError:
         raise BagError("--scheduler needs Dask's distributed: pip install 'dq_fk_ros[cluster]' "
                        "(or pip install 'dask[distributed]')") from None
     if scheduler == 'local':
-        cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                               dashboard_address=None, host='127.0.0.1')
-        client = Client(cluster)
+        try:
+            with signals_blocked():
+                cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, host='127.0.0.1')
+                client = Client(cluster)
+        except BaseException:  # Ctrl-C while it starts: its workers stop too
+            _abandon_cluster()
+            raise
         client._dq_fk_cluster = cluster
         return client
     try:

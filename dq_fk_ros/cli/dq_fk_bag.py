@@ -22,6 +22,7 @@ from dq_fk_ros.bag.process import process_bag, ProcessOptions
 from dq_fk_ros.bag.reading import BagDamaged, BagError
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.cli.dq_fk import add_package_option, add_urdf_chain_options
+from dq_fk_ros.cli.interrupts import interrupted_code, take_signals
 from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.loading import load_robot
 
@@ -183,7 +184,8 @@ def main(argv=None):
 
     0: done. 1: the bag was read, but part of it was damaged (skipped) or no message could
     be used. 2: the command cannot run as given (arguments, paths, robot file, topics,
-    a refused output); nothing is written then. 130: interrupted.
+    a refused output); nothing is written then. 130 (143): interrupted by Ctrl-C
+    (SIGTERM), with :func:`~dq_fk_ros.cli.interrupts.take_signals` in force.
     """
     args = build_parser().parse_args(argv)
     try:
@@ -225,9 +227,17 @@ def main(argv=None):
               + (f': {exc.filename}' if exc.filename else ''), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        return 130
+        print('dq_fk_bag: interrupted; what was finished is kept (a fleet run again resumes '
+              'the rest)', file=sys.stderr)
+        fleet = sys.modules.get('dq_fk_ros.bag.fleet')
+        if fleet is not None and fleet.ABANDONED:  # a Dask client would wait 10 s to close
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(interrupted_code())
+        return interrupted_code()
     return 0
 
 
 if __name__ == '__main__':
+    take_signals()
     sys.exit(main())

@@ -1,0 +1,64 @@
+"""
+Ctrl-C and SIGTERM end a command quietly, at any moment: exit 130 or 143, no traceback.
+
+:func:`run` is what the ``dq_fk_bag`` console script calls: it takes both signals before
+the program's modules are imported (an import takes a third of a second), so a signal that
+comes while Python is still loading them ends the command as one that comes later does.
+Either signal raises ``KeyboardInterrupt`` in the main thread, so every ``finally`` and
+``with`` on the way out runs (the fleet stops its workers, its state folder drops the work
+of unfinished bags); a second signal while that runs ends the process at once.
+Worker processes never see the terminal's Ctrl-C: the command stops them itself
+(:mod:`dq_fk_ros.bag.child_processes`).
+"""
+
+import importlib
+import os
+import signal
+import sys
+
+_received = []
+
+
+def _on_signal(signum, frame):
+    if _received:  # a second signal: the clean-up is taking too long for the user
+        os._exit(128 + _received[0])
+    _received.append(signum)
+    raise KeyboardInterrupt
+
+
+def take_signals() -> None:
+    """Make SIGINT and SIGTERM raise ``KeyboardInterrupt`` (the first; a second exits)."""
+    signal.signal(signal.SIGINT, _on_signal)
+    signal.signal(signal.SIGTERM, _on_signal)
+
+
+def interrupted_code() -> int:
+    """Return the exit status of an interrupted command: 128 + the signal (130: Ctrl-C)."""
+    return 128 + (_received[0] if _received else signal.SIGINT)
+
+
+def run(module: str = 'dq_fk_ros.cli.dq_fk_bag') -> None:
+    """Take the signals, import ``module`` and exit with its ``main()``'s status."""
+    take_signals()
+    try:
+        code = importlib.import_module(module).main()
+    except KeyboardInterrupt:
+        code = interrupted_code()
+    # the work is done and saved: a signal while Python shuts down (its atexit hooks,
+    # a Dask client's threads) ends the process at once
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _exit_now)
+    sys.exit(code)
+
+
+def _exit_now(signum, frame):
+    sys.stderr.flush()
+    os._exit(128 + signum)
+
+
+def run_dq_fk_bag() -> None:
+    """The ``dq_fk_bag`` console script."""
+    run('dq_fk_ros.cli.dq_fk_bag')
+
+
+__all__ = ['interrupted_code', 'run', 'run_dq_fk_bag', 'take_signals']
