@@ -24,6 +24,7 @@ one line on its stderr.
 
 import ast
 from collections.abc import Callable, Mapping, Sequence
+import errno
 import json
 import os
 import re
@@ -201,13 +202,16 @@ def _confine(roots, time_limit_s, memory):
         roots.append(os.path.realpath(folder).rstrip(os.sep) + os.sep)
 
     def confined_open(file, mode='r', *args, **kwargs):
-        if not isinstance(file, (str, bytes, os.PathLike)) or \
-                any(c in str(mode) for c in 'wax+'):
-            raise PermissionError('xacro may not write files')
+        # (errno, strerror and filename all set: xacro builds its message from the last two)
+        if not isinstance(file, (str, bytes, os.PathLike)):
+            raise PermissionError(errno.EACCES, 'xacro may open only files by name', '?')
+        shown = os.fsdecode(file)[:200]
+        if any(c in str(mode) for c in 'wax+'):
+            raise PermissionError(errno.EACCES, 'refused, xacro may not write files', shown)
         path = os.path.realpath(os.fsdecode(file))
         if not any(path.startswith(root) for root in roots):
-            raise PermissionError(f"xacro may read files only under the robot's package and "
-                                  f'the allowed folders; refused: {os.fsdecode(file)[:200]}')
+            raise PermissionError(errno.EACCES, "refused, outside the robot's package and the "
+                                  'allowed folders (--package, read_roots)', shown)
         return real_open(path, mode, *args, **kwargs)
 
     builtins.open = io.open = confined_open
@@ -289,6 +293,7 @@ def _one_line(exc):
     lines = [line.strip() for line in str(exc)[:2000].splitlines() if line.strip()]
     text = ' '.join(lines) if lines else type(exc).__name__
     text = re.sub(r"<class '[\w.]+'>: ", '', text)
+    text = re.sub(r'(?<=\S) \[Errno \d+\] .*$', '', text)  # the OSError said again
     for cut in range(len(text) // 2, 0, -1):  # "A A rest": say A once
         first = text[:cut]
         if text[cut + 1:].startswith(first) and text[cut] == ' ':

@@ -219,3 +219,20 @@ def test_a_macro_that_calls_itself_is_one_line(tmp_path):
     with pytest.raises(XacroRefused) as caught:
         expand_xacro(path, [tmp_path])
     assert str(caught.value) == 'xacro nested too deeply (macros or expressions)'
+
+
+@pytest.mark.parametrize('body, refused', [
+    ('<xacro:include filename="/etc/passwd"/><link name="a"/>', '/etc/passwd'),
+    ('<link name="${xacro.load_yaml(\'/etc/hostname\')}"/>', '/etc/hostname'),
+])
+def test_a_refused_read_says_what_and_why_in_one_line(tmp_path, body, refused):
+    """Nothing is read; the user sees the file refused and the rule, not a TypeError."""
+    robot = tmp_path / 'pkg'
+    robot.mkdir()
+    path = write(robot, 'r.urdf.xacro', HEAD + body + TAIL)
+    with pytest.raises(RobotDescriptionError) as caught:
+        read_urdf_text(path, read_roots=[robot])
+    message = str(caught.value)
+    assert '\n' not in message and refused in message, message
+    assert "outside the robot's package" in message and 'NoneType' not in message, message
+    assert message.count('outside') == 1, message
