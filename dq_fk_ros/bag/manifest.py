@@ -39,7 +39,7 @@ MAX_MANIFEST_BYTES = 1 << 30  # a million bags' entries fit many times over
 def check_bag_name(name: str) -> None:
     """Refuse a bag whose output would be the fleet's state folder (or lie inside it)."""
     if name.split(os.sep, 1)[0] == STATE or name.split('/', 1)[0] == STATE:
-        raise BagError(f'{name}: {STATE} is the name of the fleet\'s own state folder in '
+        raise BagError(f"{name}: {STATE} is the name of the fleet's own state folder in "
                        f'--output-dir; rename the bag')
 
 
@@ -152,7 +152,7 @@ class FleetState:
         return self
 
     def _read_manifest(self):
-        """The manifest's bags; one not written by the fleet is set aside (a note)."""
+        """Return the manifest's bags; one not written by the fleet is set aside (a note)."""
         path = os.path.join(self.folder, 'manifest.json')
         try:
             fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)

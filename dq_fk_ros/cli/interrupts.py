@@ -57,7 +57,7 @@ def _exit_now(signum, frame):
 
 
 def run_dq_fk_bag() -> None:
-    """The ``dq_fk_bag`` console script."""
+    """Run the ``dq_fk_bag`` console script."""
     run('dq_fk_ros.cli.dq_fk_bag')
 
 

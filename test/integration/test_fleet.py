@@ -322,10 +322,10 @@ def test_a_bag_named_as_the_fleet_state_is_refused_and_the_state_kept(tmp_path, 
 @pytest.mark.parametrize('content', [
     b'{"version":1,"bags":{"run":"x"}}', b'[1,2]', b'null', b'[' * 100_000, b'\xff\xfe\x00',
     b'{"version":1,"bags":{"run":{"input":{},"options":"","output":{}}}}',
-    b'{"version":2,"bags":{}}', b''], ids=['entry', 'list', 'null', 'nested', 'binary',
-                                         'hollow', 'version', 'empty'])
-def test_a_manifest_the_fleet_did_not_write_is_set_aside_and_the_work_redone(tmp_path, capsys,
-                                                                            content):
+    b'{"version":2,"bags":{}}', b''],
+    ids=['entry', 'list', 'null', 'nested', 'binary', 'hollow', 'version', 'empty'])
+def test_a_manifest_the_fleet_did_not_write_is_set_aside_and_the_work_redone(
+        tmp_path, capsys, content):
     rl15_bag(tmp_path / 'in' / 'run', 30)
     out = tmp_path / 'out'
     args = ['process', str(tmp_path / 'in'), '--output-dir', str(out), '--robot', 'rl15',
@@ -361,7 +361,7 @@ def test_a_bag_named_twice_is_processed_once(tmp_path, capsys):
 
 
 def _processes_marked(mark):
-    """Pids of the processes whose environment holds ``mark`` (what a run left behind)."""
+    """Return the pids of the processes whose environment holds ``mark`` (left behind)."""
     found = []
     for pid in os.listdir('/proc'):
         if pid.isdigit():
@@ -394,9 +394,11 @@ def signal_fleet(tmp_path_factory):
 def test_a_signal_at_any_moment_exits_quietly_and_a_new_run_resumes(signal_fleet, tmp_path,
                                                                     how, signum):
     """
-    Ctrl-C (to the whole process group, as a terminal sends it) or SIGTERM (to the command
-    alone, as a supervisor does) before, while and after the workers start: exit 130 (143)
-    within 2 s, no traceback, no process left; the next run's outputs are byte-identical.
+    Exit quietly on Ctrl-C or SIGTERM before, while and after the workers start.
+
+    Ctrl-C goes to the whole process group (as a terminal sends it), SIGTERM to the command
+    alone (as a supervisor does): exit 130 (143) within 2 s, no traceback, no process left;
+    the next run's outputs are byte-identical.
     """
     out = tmp_path / 'out'
     extra = {'pool': ['--jobs', '2'], 'serial': ['--jobs', '1'],

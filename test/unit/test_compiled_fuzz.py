@@ -13,14 +13,13 @@ where any memory error or undefined behaviour aborts the run (docs/security.md).
 
 import math
 
-from hypothesis import given, strategies as st
-import numpy as np
-import pytest
-
 from dq_fk_ros.description.loading import parse_robot_description
 from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
 from dq_fk_ros.kinematics.kernel import kernel_info
 from dq_fk_ros.messages.cdr import COMPILED, pose_stamped_template, tf_message_template
+from hypothesis import given, strategies as st
+import numpy as np
+import pytest
 
 pytestmark = pytest.mark.skipif(
     kernel_info()['active'] != 'c' or COMPILED is None,
@@ -44,7 +43,7 @@ def attempt(call, *args, **kwargs):
 
 
 class Mutator:
-    """A value whose __index__, __float__ and __bool__ first run ``action`` (the hostile part)."""
+    """Run ``action`` first in __index__, __float__ and __bool__ (the hostile part)."""
 
     def __init__(self, value, action):
         self.value, self.action = value, action
@@ -82,7 +81,7 @@ class FloatWithDel(float):
 
 @st.composite
 def hostile_arrays(draw, like=None):
-    """An array, or something else, of the kinds a buffer argument must survive."""
+    """Draw an array, or something else, of the kinds a buffer argument must survive."""
     kind = draw(st.sampled_from(['like', 'like', 'like', 'shape', 'huge', 'float32', 'int64',
                                  'big_endian', 'object', 'reversed', 'strided', 'read_only',
                                  'scalar', 'list', 'bytes', 'bytearray', 'none', 'int']))
@@ -131,7 +130,7 @@ def hostile_arrays(draw, like=None):
 
 
 def chain_parts(chain):
-    """The arguments a KinematicChain gives _kernel.Chain."""
+    """Return the arguments a KinematicChain gives _kernel.Chain."""
     program, base, tool = chain._kernel_args
     return program, base, tool, chain._dof, chain._jacobian_rows, chain.convention == 'modified'
 
@@ -192,7 +191,7 @@ DUAL_ARM = parse_robot_description(open('config/dual_arm.yaml', encoding='utf-8'
 
 
 def model_parts(model):
-    """The arguments RobotModel gives _kernel.Model, as lists one can break."""
+    """Return the arguments RobotModel gives _kernel.Model, as lists one can break."""
     kernel = model._kernel_model
     assert kernel is not None
     index = {name: k for k, name in enumerate(model.frame_names)}

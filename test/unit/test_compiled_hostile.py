@@ -12,16 +12,15 @@ import subprocess
 import sys
 import textwrap
 
-import pytest
-
 from dq_fk_ros.kinematics.kernel import kernel_info
 from dq_fk_ros.messages.cdr import COMPILED
+import pytest
 
 pytestmark = pytest.mark.skipif(
     kernel_info()['active'] != 'c' or COMPILED is None,
     reason='the Python paths are active (DQ_FK_PURE_PYTHON or no compiler): nothing compiled')
 
-PRELUDE = '''
+PRELUDE = """
 import numpy as np
 from dq_fk_ros.kinematics import _kernel
 from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
@@ -37,9 +36,9 @@ def model_of(chain, n_links=0):
     parts = (chain._kernel_chain, -1, np.zeros(chain._dof),
              np.array(chain._pose_rows, dtype=float).reshape(-1, 10), True)
     return _kernel.Model([parts], np.zeros((n_links, 17)), chain._dof), parts
-'''
+"""
 
-READER = '''
+READER = """
 import sys
 sys.path.insert(0, 'test/unit')
 from dq_fk_ros.messages import _cdr
@@ -55,22 +54,22 @@ good = {'size': layout.size, 'fixed': layout.fixed, 'mask': bytes(len(layout.fix
         'positions_at': layout.positions[0], 'velocities_at': layout.velocities[0],
         'order': [0, 1, 2], 'lower': [0.0] * 3, 'upper': [1.0] * 3, 'jump_back_ns': 1}
 out = np.empty(3)
-'''
+"""
 
 CASES = {
     # the size check multiplied n * per and wrapped: 2**57 configurations, 16 frames
-    'chain batch of 2**57 configurations': '''
+    'chain batch of 2**57 configurations': """
 chain = fixed_chain(15)
 print(refused(chain.forward_all_batch, np.empty((2**57, 0)), out=np.empty((0, 16, 8))))
-''',
+""",
     # 7 * n_relative * N wrapped to 0 in Model.poses_batch
-    'model batch whose size wraps': '''
+    'model batch whose size wraps': """
 model, _ = model_of(fixed_chain(32))
 print(refused(model.poses_batch, np.empty((2**59, 0)), None, np.empty((0, 7))))
 print(refused(model.poses_batch, np.empty((2**59, 0)), np.empty((0, 7)), np.empty((0, 7))))
-''',
+""",
     # re-initialising a Chain a Model holds freed the program the model then ran
-    'a chain re-initialised under its model': '''
+    'a chain re-initialised under its model': """
 chain = KinematicChain([DHJoint(a=.2, name=f'j{i}') for i in range(6)])
 model, parts = model_of(chain)
 small = fixed_chain(1)._kernel_args
@@ -78,9 +77,9 @@ print(refused(parts[0].__init__, small[0], small[1], None, 0))
 relative = np.empty((model.n_relative, 7))
 model.poses(np.zeros(6), None, relative)
 print(bool(np.isfinite(relative).all()))
-''',
+""",
     # an argument's __bool__ re-ran Model.__init__ while the arguments were parsed
-    'a model re-initialised from its own arguments': '''
+    'a model re-initialised from its own arguments': """
 model, parts = model_of(fixed_chain(3))
 class Evil:
     def __bool__(self):
@@ -99,15 +98,15 @@ made = _kernel.Model(chains, np.zeros((0, 17)), 0)
 relative = np.empty((model.n_relative, 7))
 model.poses(np.zeros(0), None, relative)
 print(made.n_frames, bool(np.isfinite(relative).all()))
-''',
+""",
     # a failed re-init left the new offsets behind: read() went out of the message
-    'a joint state reader after a failed re-init': READER + '''
+    'a joint state reader after a failed re-init': READER + """
 reader = _cdr.JointStateReader(**good)
 print(refused(reader.__init__, **{**good, 'positions_at': 10**6}))
 print(reader.read(raw, None, [0.0] * 3, [0.0] * 3, out, np.empty(3)))
-''',
+""",
     # last_stamp's __index__ re-ran a failing init after the length checks: NULL read
-    'a joint state reader re-initialised by the stamp': READER + '''
+    'a joint state reader re-initialised by the stamp': READER + """
 reader = _cdr.JointStateReader(**good)
 q = [0.0] * 3
 class Stamp:
@@ -120,12 +119,12 @@ class Stamp:
         return 0
 print(refused(reader.read, raw, Stamp(), q, [0.0] * 3, out, np.empty(3)))
 print(reader.read(raw, None, [0.0] * 3, [0.0] * 3, out, np.empty(3)))
-''',
+""",
     # positions_at=2**63-8 passed the bounds check by signed overflow
-    'a joint state reader with positions at 2**63-8': READER + '''
+    'a joint state reader with positions at 2**63-8': READER + """
 print(refused(_cdr.JointStateReader, **{**good, 'positions_at': 2**63 - 8}))
 print(refused(_cdr.JointStateReader, **{**good, 'velocities_at': 2**63 - 8}))
-''',
+""",
 }
 
 EXPECTED = {
