@@ -121,4 +121,44 @@ def check_mesh_file(path: str) -> None:
         raise ValueError(f'larger than {MAX_MESH_BYTES >> 20} MiB')
 
 
-__all__ = ['check_mesh_file', 'mesh_allow_list', 'MeshFile', 'visual_mesh_uris']
+def read_mesh_file(path: str) -> bytes:
+    """
+    Return the bytes of the mesh file ``path``, opened once and checked by its descriptor.
+
+    Opened with ``O_NOFOLLOW`` (a link put in its place is refused), then checked on the
+    open descriptor (``fstat``: a regular file of at most MAX_MESH_BYTES; on Linux, the
+    file opened is ``path`` itself, not one reached through a folder link) and read from
+    it: a name checked and then reopened could be a different file by then. ValueError
+    says why not.
+    """
+    flags = os.O_RDONLY | getattr(os, 'O_NOFOLLOW', 0) | getattr(os, 'O_NONBLOCK', 0) \
+        | getattr(os, 'O_CLOEXEC', 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        raise ValueError(f'cannot be opened ({exc.strerror})') from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise ValueError('not a regular file')
+        if info.st_size > MAX_MESH_BYTES:
+            raise ValueError(f'larger than {MAX_MESH_BYTES >> 20} MiB')
+        proc = f'/proc/self/fd/{fd}'
+        if os.path.exists(proc) and os.readlink(proc) != path:
+            raise ValueError('reached through a link')
+        chunks, size = [], 0
+        while size <= MAX_MESH_BYTES:
+            chunk = os.read(fd, 1 << 20)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+        if size > MAX_MESH_BYTES:
+            raise ValueError(f'larger than {MAX_MESH_BYTES >> 20} MiB')
+        return b''.join(chunks)
+    finally:
+        os.close(fd)
+
+
+__all__ = ['check_mesh_file', 'mesh_allow_list', 'MeshFile', 'read_mesh_file',
+           'visual_mesh_uris']

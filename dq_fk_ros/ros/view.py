@@ -32,6 +32,9 @@ from dq_fk_ros.ros.view_state import STALE_AFTER_S, ViewState
 from dq_fk_ros.ros.view_web import DEFAULT_RATE_HZ, make_app, web_root
 
 DEFAULT_PORT = 8765
+MAX_CONNECTIONS = 256        # open at once; one more is closed as it comes (fds stay free)
+HEADER_TIMEOUT_S = 10.0      # a connection's first request must have its headers by then
+KEEPALIVE_TIMEOUT_S = 15.0   # an idle connection between requests is closed after this
 TF_QUEUE_DEPTH = 1000  # /tf messages DDS keeps for the view between two takes
 
 
@@ -116,25 +119,109 @@ def parse_args(argv):
     return args
 
 
+class GuardedProtocol(asyncio.Protocol):
+    """
+    aiohttp's request handler for one connection, within the server's limits.
+
+    At most MAX_CONNECTIONS open at once: at the cap, a new connection takes the place of
+    the oldest one still sending its first request's headers (a half-sent request holds no
+    place a real client needs), else it is closed as it is accepted. The first request's
+    headers (up to the blank line) within HEADER_TIMEOUT_S, else the connection is closed.
+    Between requests, aiohttp's keep-alive timeout; WebSocket messages, its own size limit
+    and heartbeat. Everything else is the inner protocol's.
+    """
+
+    open_now = 0
+    waiting = {}  # the connections still sending their first headers, oldest first
+
+    def __init__(self, inner, loop, counts):
+        """Wrap ``inner`` (aiohttp's RequestHandler), counting what is refused in counts."""
+        self.inner, self.loop, self.counts = inner, loop, counts
+        self.timer, self.transport, self.head, self.counted = None, None, b'', False
+
+    def connection_made(self, transport):
+        """Take the connection if under the cap, and start the header clock."""
+        self.transport = transport
+        if GuardedProtocol.open_now >= MAX_CONNECTIONS and GuardedProtocol.waiting:
+            oldest = next(iter(GuardedProtocol.waiting))
+            oldest._drop('evicted_connections')
+        if GuardedProtocol.open_now >= MAX_CONNECTIONS:
+            self.counts['refused_connections'] = self.counts.get('refused_connections', 0) + 1
+            transport.abort()
+            return
+        GuardedProtocol.open_now += 1
+        self.counted = True
+        GuardedProtocol.waiting[self] = None
+        self.timer = self.loop.call_later(HEADER_TIMEOUT_S, self._drop, 'slow_requests')
+        self.inner.connection_made(transport)
+
+    def _drop(self, why):
+        self.counts[why] = self.counts.get(why, 0) + 1
+        self.transport.abort()
+        self.connection_lost(None)  # (its place is free now; abort's own call finds it so)
+
+    def data_received(self, data):
+        """Pass data on; the header clock stops at the first request's blank line."""
+        if not self.counted:
+            return
+        if self.timer is not None:
+            self.head = (self.head + data)[-4096:]
+            if b'\r\n\r\n' in self.head:
+                self.timer.cancel()
+                self.timer, self.head = None, b''
+                GuardedProtocol.waiting.pop(self, None)
+        self.inner.data_received(data)
+
+    def eof_received(self):
+        """Pass the end of the stream on."""
+        return self.inner.eof_received() if self.counted else None
+
+    def pause_writing(self):
+        """Pass flow control on."""
+        if self.counted:
+            self.inner.pause_writing()
+
+    def resume_writing(self):
+        """Pass flow control on."""
+        if self.counted:
+            self.inner.resume_writing()
+
+    def connection_lost(self, exc):
+        """Free the connection's place."""
+        if self.timer is not None:
+            self.timer.cancel()
+            self.timer = None
+        GuardedProtocol.waiting.pop(self, None)
+        if self.counted:
+            self.counted = False
+            GuardedProtocol.open_now -= 1
+            self.inner.connection_lost(exc)
+
+
 async def serve(args, state, ready=None):
     """Run the web server until SIGINT/SIGTERM; print the address to open."""
     from aiohttp import web
     bound = [] if args.host in ('0.0.0.0', '::', '') else [args.host]
     app = make_app(state, args.rate, allowed_hosts=tuple(bound + args.allow_host))
-    runner = web.AppRunner(app, handle_signals=False)
+    runner = web.AppRunner(app, handle_signals=False, keepalive_timeout=KEEPALIVE_TIMEOUT_S,
+                           max_line_size=8190, max_field_size=8190)
     await runner.setup()
-    site = web.TCPSite(runner, args.host, args.port)
+    loop = asyncio.get_running_loop()
+    server = None
     try:
-        await site.start()
-        host, port = runner.addresses[0][:2]
+        server = await loop.create_server(
+            lambda: GuardedProtocol(runner.server(), loop, state.counts), args.host,
+            args.port, backlog=128, reuse_address=True)
+        host, port = server.sockets[0].getsockname()[:2]
         shown = f'[{host}]' if ':' in host else host
         print(f'dq_fk_view: open http://{shown}:{port}/', flush=True)
         stop = asyncio.Event()
-        loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.add_signal_handler(sig, stop.set)
         await stop.wait()
     finally:
+        if server is not None:
+            server.close()
         await runner.cleanup()
 
 

@@ -15,6 +15,7 @@ import ipaddress
 import json
 import os
 
+from dq_fk_ros.description.meshes import read_mesh_file
 from dq_fk_ros.description.shipped import share_folders
 
 DEFAULT_RATE_HZ = 30.0
@@ -117,7 +118,13 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()):
             return web.Response(status=404, text='not found\n')
         kind = {'.stl': 'model/stl', '.dae': 'model/vnd.collada+xml',
                 '.obj': 'model/obj'}[os.path.splitext(path)[1].lower()]
-        return web.FileResponse(path, headers={'Content-Type': kind})
+        try:  # opened once, checked and read by its descriptor (not reopened by name)
+            data = await asyncio.get_running_loop().run_in_executor(None, read_mesh_file, path)
+        except ValueError:
+            with state.lock:
+                state.counts['refused_meshes'] = state.counts.get('refused_meshes', 0) + 1
+            return web.Response(status=404, text='not found\n')
+        return web.Response(body=data, headers={'Content-Type': kind})
 
     async def no_icon(_):
         return web.Response(status=204)  # the page has none; a browser asks anyway

@@ -322,3 +322,32 @@ def test_allow_host_adds_a_name(processes):
                 assert r.status == 403
 
     asyncio.run(scenario())
+
+
+def test_half_sent_requests_cannot_take_the_server(processes):
+    """1100 connections that never finish their headers: /status answers, stderr stays quiet."""
+    import socket
+    import urllib.request
+    proc, url = start_view(processes)
+    port = int(url.rsplit(':', 1)[1])
+    held = []
+    try:
+        for _ in range(1100):  # more than a process's 1024 descriptors
+            sock = socket.create_connection(('127.0.0.1', port))
+            sock.sendall(b'GET / HTTP/1.1\r\nHost: 127.0.0.1')
+            held.append(sock)
+        started = time.monotonic()
+        with urllib.request.urlopen(url + '/status', timeout=5) as response:
+            status = json.loads(response.read())
+        assert time.monotonic() - started < 2.0
+        assert status['evicted_connections'] >= 1100 - 256
+    finally:
+        for sock in held:
+            sock.close()
+    time.sleep(0.5)
+    assert proc.poll() is None
+    proc.send_signal(2)
+    out, err = proc.communicate(timeout=10)
+    said = (out or '') + (err or '')  # (the harness may join stderr to stdout)
+    assert 'Traceback' not in said and 'out of system resource' not in said, said[-2000:]
+    assert len(said) < 2000, said[-2000:]

@@ -121,3 +121,50 @@ def test_a_description_the_urdf_reader_would_refuse_names_no_mesh():
     assert visual_mesh_uris(bomb) == []
     from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
     assert visual_mesh_uris(text + ' ' * MAX_URDF_BYTES) == []
+
+
+def test_a_mesh_is_read_from_the_descriptor_it_was_checked_by(tmp_path):
+    """A link in the mesh's place (or on its way), a FIFO, a folder: refused; never followed."""
+    import threading
+    from dq_fk_ros.description.meshes import read_mesh_file
+    secret = tmp_path / 'secret.txt'
+    secret.write_bytes(b'root:x:0:0\n')
+    good = tmp_path / 'pkg' / 'meshes' / 'arm.stl'
+    good.parent.mkdir(parents=True)
+    good.write_bytes(b'solid arm\nendsolid arm\n')
+    assert read_mesh_file(str(good)) == good.read_bytes()
+    link = tmp_path / 'pkg' / 'meshes' / 'link.stl'
+    link.symlink_to(secret)
+    fifo = tmp_path / 'pkg' / 'meshes' / 'fifo.stl'
+    os.mkfifo(fifo)
+    (tmp_path / 'away').symlink_to(tmp_path / 'pkg')
+    for path in (link, fifo, good.parent, tmp_path / 'away' / 'meshes' / 'arm.stl'):
+        with pytest.raises(ValueError):
+            read_mesh_file(str(path))
+    flipping = tmp_path / 'pkg' / 'meshes' / 'flip.stl'
+    flipping.write_bytes(b'solid flip\nendsolid flip\n')
+    stop = threading.Event()
+
+    def flip():  # the file and a link to the secret, in turn, as fast as it goes
+        while not stop.is_set():
+            os.replace(secret, tmp_path / 'secret.hold')
+            os.symlink(tmp_path / 'secret.hold', tmp_path / 'new.stl')
+            os.replace(tmp_path / 'new.stl', flipping)
+            (tmp_path / 'file.stl').write_bytes(b'solid flip\nendsolid flip\n')
+            os.replace(tmp_path / 'file.stl', flipping)
+            os.replace(tmp_path / 'secret.hold', secret)
+    thread = threading.Thread(target=flip)
+    thread.start()
+    served = 0
+    try:
+        for _ in range(3000):
+            try:
+                data = read_mesh_file(str(flipping))
+            except ValueError:
+                continue
+            assert b'root' not in data
+            served += 1
+    finally:
+        stop.set()
+        thread.join()
+    assert served > 0
