@@ -1,5 +1,7 @@
 """A test-side rclpy context: probe node, publishers, subscriptions and a spin loop."""
 
+import itertools
+import os
 import time
 
 from dq_fk_ros.ros.executables import executable
@@ -16,14 +18,42 @@ TF_STATIC_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
+# the programs whose node a test may address by name: each started under a name of its own
+# (another run's or another user's node of the same program never answers for it)
+NODE_NAMES = {'dq_fk_node': 'dq_fk_node', 'fake_joint_publisher': 'fake_joint_publisher'}
+_started = itertools.count()
+
+
+def unique_node_name(base):
+    """Return a node name no other test, run or user on this machine has: base_pid_n."""
+    return f'{base}_{os.getpid()}_{next(_started)}'
+
+
 def start(processes, name, *params, namespace=None, log_level='warn'):
-    """Start one of the package's programs with ``-p`` parameters, reaped by ``processes``."""
+    """
+    Start one of the package's programs with ``-p`` parameters, reaped by ``processes``.
+
+    dq_fk_node and fake_joint_publisher run under a unique node name (the process's
+    ``node_name``; its private topics are under it: :func:`node_topic`).
+    """
     argv = executable(name) + ['--ros-args', '--log-level', log_level]
+    node_name = None
+    if name in NODE_NAMES:
+        node_name = unique_node_name(NODE_NAMES[name])
+        argv += ['-r', f'{NODE_NAMES[name]}:__node:={node_name}']
     if namespace:
         argv += ['-r', f'__ns:={namespace}']
     for p in params:
         argv += ['-p', p]
-    return processes.start(argv)
+    proc = processes.start(argv)
+    proc.node_name = node_name
+    proc.namespace = (namespace or '').rstrip('/')
+    return proc
+
+
+def node_topic(proc, relative):
+    """Return the full name of a started node's private topic (``~/relative``)."""
+    return f'{proc.namespace}/{proc.node_name}/{relative}'
 
 
 class Harness:
@@ -34,7 +64,9 @@ class Harness:
         rclpy.init(context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.nodes = []
-        self.probe = self.add(rclpy.create_node('dq_fk_test_probe', context=self.context))
+        self.probe = self.add(rclpy.create_node(unique_node_name('dq_fk_test_probe'),
+                                                context=self.context))
+        self.node_name = None
         self.joint_pub = self.probe.create_publisher(JointState, joint_states_topic, 10)
         self.received = {}
 
@@ -44,8 +76,15 @@ class Harness:
         return node
 
     def start_node(self, **params):
+        """Start a DqFkNode in this context under a unique name (:meth:`topic`)."""
         overrides = [Parameter(k, value=v) for k, v in params.items()]
-        return self.add(DqFkNode(context=self.context, parameter_overrides=overrides))
+        self.node_name = unique_node_name('dq_fk_node')
+        return self.add(DqFkNode(context=self.context, parameter_overrides=overrides,
+                                 cli_args=['--ros-args', '-r', f'__node:={self.node_name}']))
+
+    def topic(self, relative):
+        """Return the full name of ``~/relative`` for the last started node."""
+        return f'/{self.node_name}/{relative}'
 
     def listen(self, msg_type, topic, qos=10):
         self.received[topic] = []
@@ -81,7 +120,7 @@ class Harness:
         rclpy.shutdown(context=self.context)
 
 
-def set_robot_file(harness, path, node='dq_fk_node'):
+def set_robot_file(harness, path, node):
     """Set a running node's ``robot_description_file`` through its parameter service."""
     from rclpy.parameter_client import AsyncParameterClient
     client = AsyncParameterClient(harness.probe, node)

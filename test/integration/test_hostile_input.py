@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
-from ros_harness import start
+from ros_harness import node_topic, start
 from sensor_msgs.msg import JointState
 
 pytestmark = pytest.mark.integration
@@ -67,10 +67,10 @@ def ee_position(poses):
 def test_the_running_node_refuses_every_bad_robot_file_and_keeps_its_robot(
         processes, listener, tmp_path):
     node = start(processes, 'dq_fk_node', f'robot_description_dirs:={tmp_path}')
-    poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = listener.listen(PoseStamped, node_topic(node, 'pose/eeCarry_seg6'))
     zero = listener.joint_state(RL15_JOINTS, [0] * 6)
     assert listener.spin_until(lambda: poses, publish=zero, timeout_s=20)
-    client = listener.probe.create_client(SetParameters, '/dq_fk_node/set_parameters')
+    client = listener.probe.create_client(SetParameters, node_topic(node, 'set_parameters'))
     assert client.wait_for_service(timeout_sec=10)
     for path, words in bad_robot_files(tmp_path):
         result = set_parameter(listener, client, 'robot_description_file', str(path))
@@ -111,7 +111,7 @@ def test_a_flood_of_unknown_joint_names_keeps_memory_and_diagnostics_small(
     """Every message names 20 new joints: memory, log and /diagnostics must stay bounded."""
     node = start(processes, 'dq_fk_node', 'joint_states_reliability:=reliable')
     diagnostics = listener.listen(DiagnosticArray, '/diagnostics')
-    poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = listener.listen(PoseStamped, node_topic(node, 'pose/eeCarry_seg6'))
     zero = listener.joint_state(RL15_JOINTS, [0] * 6)
     assert listener.spin_until(lambda: poses and diagnostics, publish=zero, timeout_s=20)
     baseline = rss_mib(node.pid)

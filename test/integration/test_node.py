@@ -37,7 +37,7 @@ def position_of(msg):
 
 def test_rl15_zero_pose_is_fig4_on_the_pose_topic_and_through_tf(ros):
     ros.start_node()
-    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = ros.listen(PoseStamped, ros.topic('pose/eeCarry_seg6'))
     tf = ros.listen(TFMessage, '/tf')
     zero = ros.joint_state(RL15_JOINTS, [0] * 6)
     assert ros.spin_until(lambda: poses and tf, publish=zero)
@@ -66,7 +66,7 @@ BAD_MESSAGES = [
 
 def test_every_bad_input_leaves_the_node_alive_and_publishing(ros):
     node = ros.start_node()
-    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = ros.listen(PoseStamped, ros.topic('pose/eeCarry_seg6'))
     chain = load_robot_description(shipped_robot_path('rl15')).chain
     assert ros.spin_until(lambda: poses, publish=ros.joint_state(RL15_JOINTS, [0] * 6))
     for k, (what, names, positions) in enumerate(BAD_MESSAGES):
@@ -89,7 +89,7 @@ def test_every_bad_input_leaves_the_node_alive_and_publishing(ros):
 def test_an_exception_in_the_input_thread_is_counted_and_the_node_goes_on(ros):
     """The input thread ended silently when its callback raised: no /tf ever after."""
     node = ros.start_node()
-    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = ros.listen(PoseStamped, ros.topic('pose/eeCarry_seg6'))
     zero = ros.joint_state(RL15_JOINTS, [0] * 6)
     assert ros.spin_until(lambda: poses, publish=zero)
     note = node._gaps.note
@@ -106,7 +106,7 @@ def test_an_exception_in_the_input_thread_is_counted_and_the_node_goes_on(ros):
 
 def test_missing_joints_hold_publishing_back(ros):
     node = ros.start_node()
-    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = ros.listen(PoseStamped, ros.topic('pose/eeCarry_seg6'))
     partial = ros.joint_state(RL15_JOINTS[:4], [0] * 4)
     assert not ros.spin_until(lambda: poses, timeout_s=1.0, publish=partial)
     status = {v.key: v.value for v in node.diagnostics().values}
@@ -152,12 +152,12 @@ def test_reload_with_a_bad_file_keeps_the_old_model(ros, tmp_path):
     bad.write_text('robot: x\nbase: {frame: b}\nchain: []\n')
     result = node.set_parameters([Parameter('robot_description_file', value=str(bad))])[0]
     assert not result.successful and 'expected a non-empty list' in result.reason
-    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = ros.listen(PoseStamped, ros.topic('pose/eeCarry_seg6'))
     assert ros.spin_until(lambda: poses, publish=ros.joint_state(RL15_JOINTS, [0] * 6))
     # a good file is taken: the Panda's flange topic appears
     good = shipped_robot_path('panda')
     assert node.set_parameters([Parameter('robot_description_file', value=good)])[0].successful
-    flange = ros.listen(PoseStamped, '/dq_fk_node/pose/panda_link8')
+    flange = ros.listen(PoseStamped, ros.topic('pose/panda_link8'))
     panda = ros.joint_state([f'panda_joint{i}' for i in range(1, 8)], [0] * 7)
     assert ros.spin_until(lambda: flange, publish=panda)
     np.testing.assert_allclose(position_of(flange[-1]), [0.088, 0, 0.926], atol=1e-9)
@@ -179,7 +179,7 @@ def test_frame_prefix_applies_to_every_frame_id(ros):
 
 def test_twist_from_joint_velocities(ros):
     ros.start_node()
-    twists = ros.listen(TwistStamped, '/dq_fk_node/twist/eeCarry_seg6')
+    twists = ros.listen(TwistStamped, ros.topic('twist/eeCarry_seg6'))
     chain = load_robot_description(shipped_robot_path('rl15')).chain
     q, qdot = np.linspace(-0.5, 0.5, 6), np.linspace(0.2, 1.2, 6)
     assert ros.spin_until(lambda: twists, publish=ros.joint_state(RL15_JOINTS, q, qdot))
@@ -193,7 +193,7 @@ def test_twist_from_joint_velocities(ros):
 def test_a_zero_stamp_is_never_published(ros):
     from builtin_interfaces.msg import Time
     ros.start_node()
-    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = ros.listen(PoseStamped, ros.topic('pose/eeCarry_seg6'))
     zero = ros.joint_state(RL15_JOINTS, [0] * 6, stamp=Time())
     assert ros.spin_until(lambda: poses, publish=zero)
     assert poses[-1].header.stamp.sec > 0
@@ -221,7 +221,7 @@ def test_use_sim_time_stamps_from_clock(ros):
     from rosgraph_msgs.msg import Clock
     ros.start_node(use_sim_time=True)
     clock_pub = ros.probe.create_publisher(Clock, '/clock', 10)
-    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = ros.listen(PoseStamped, ros.topic('pose/eeCarry_seg6'))
     sim = Time(sec=1234, nanosec=500)
     zero = ros.joint_state(RL15_JOINTS, [0] * 6, stamp=Time())
 
@@ -234,7 +234,7 @@ def test_use_sim_time_stamps_from_clock(ros):
 def test_a_flood_of_messages_leaves_the_node_alive_with_the_latest_state(ros):
     """Thousands of messages at once: some may be dropped by the queue, never the last one."""
     node = ros.start_node()
-    poses = ros.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6', 1000)
+    poses = ros.listen(PoseStamped, ros.topic('pose/eeCarry_seg6'), 1000)
     chain = load_robot_description(shipped_robot_path('rl15')).chain
     assert ros.spin_until(lambda: poses, publish=ros.joint_state(RL15_JOINTS, [0] * 6))
     qs = np.random.default_rng(9).uniform(-1, 1, size=(3000, 6))

@@ -17,7 +17,7 @@ from geometry_msgs.msg import PoseStamped
 import homogeneous_tf as htf
 import numpy as np
 import pytest
-from ros_harness import start, TF_STATIC_QOS
+from ros_harness import node_topic, start, TF_STATIC_QOS
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
@@ -32,12 +32,12 @@ def stamp_key(stamp):
 def test_poses_and_tf_equal_core_fk_of_the_published_joints(processes, listener, robot):
     path = shipped_robot_path(robot)
     model = load_robot_description(path)
-    start(processes, 'dq_fk_node', f'robot_description_file:={path}')
+    node = start(processes, 'dq_fk_node', f'robot_description_file:={path}')
     start(processes, 'fake_joint_publisher', f'robot_description_file:={path}', 'mode:=sine',
           'rate_hz:=50.0')
     joints = listener.listen(JointState, '/joint_states')
     ee = model.frame_names[-1]
-    poses = listener.listen(PoseStamped, f'/dq_fk_node/pose/{ee}')
+    poses = listener.listen(PoseStamped, node_topic(node, f'pose/{ee}'))
     tf = listener.listen(TFMessage, '/tf')
     assert listener.spin_until(lambda: len(poses) >= 100 and len(tf) >= 100, timeout_s=20)
     by_stamp = {stamp_key(m.header.stamp): m for m in joints}
@@ -84,8 +84,8 @@ def test_fault_injection_every_valid_update_published_and_rejections_counted(pro
                                                                              listener):
     model = load_robot_description(shipped_robot_path('rl15'))
     # reliable input, so that "every valid update is published" is checkable exactly
-    start(processes, 'dq_fk_node', 'joint_states_reliability:=reliable')
-    poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    node = start(processes, 'dq_fk_node', 'joint_states_reliability:=reliable')
+    poses = listener.listen(PoseStamped, node_topic(node, 'pose/eeCarry_seg6'))
     diagnostics = listener.listen(DiagnosticArray, '/diagnostics')
     joints = listener.listen(JointState, '/joint_states', 1000)
     assert listener.spin_until(lambda: diagnostics, timeout_s=10)  # the node is up
@@ -113,8 +113,8 @@ def test_fault_injection_every_valid_update_published_and_rejections_counted(pro
 
 
 def test_the_node_resumes_when_the_publisher_restarts(processes, listener):
-    start(processes, 'dq_fk_node')
-    poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    node = start(processes, 'dq_fk_node')
+    poses = listener.listen(PoseStamped, node_topic(node, 'pose/eeCarry_seg6'))
     publisher = start(processes, 'fake_joint_publisher', 'mode:=zeros')
     assert listener.spin_until(lambda: poses, timeout_s=20)
     os.killpg(publisher.pid, signal.SIGKILL)
@@ -131,16 +131,16 @@ def test_the_node_resumes_when_the_publisher_restarts(processes, listener):
 
 def test_two_robots_with_different_prefixes_do_not_mix(processes, listener):
     panda = shipped_robot_path('panda')
-    start(processes, 'dq_fk_node', 'frame_prefix:=left/', namespace='/left')
+    left_node = start(processes, 'dq_fk_node', 'frame_prefix:=left/', namespace='/left')
     start(processes, 'fake_joint_publisher', 'mode:=zeros', namespace='/left')
-    start(processes, 'dq_fk_node', 'frame_prefix:=right/', f'robot_description_file:={panda}',
-          namespace='/right')
+    right_node = start(processes, 'dq_fk_node', 'frame_prefix:=right/',
+                       f'robot_description_file:={panda}', namespace='/right')
     start(processes, 'fake_joint_publisher', f'robot_description_file:={panda}', 'mode:=fixed',
           'positions:=[0.3, -0.2, 0.1, -1.5, 0.2, 1.6, 0.4]', namespace='/right')
     tf = listener.listen(TFMessage, '/tf')
     static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
-    left = listener.listen(PoseStamped, '/left/dq_fk_node/pose/eeCarry_seg6')
-    right = listener.listen(PoseStamped, '/right/dq_fk_node/pose/panda_link8')
+    left = listener.listen(PoseStamped, node_topic(left_node, 'pose/eeCarry_seg6'))
+    right = listener.listen(PoseStamped, node_topic(right_node, 'pose/panda_link8'))
 
     def children():
         return {t.child_frame_id for msg in tf + static for t in msg.transforms}

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
-from ros_harness import start
+from ros_harness import node_topic, start
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
                                 'unit'))
@@ -45,10 +45,10 @@ def set_parameter(listener, client, name, value, timeout_s=30):
 def started_node(processes, listener, *params):
     """Start dq_fk_node with ``params``; return it, its /pose listener and a service client."""
     node = start(processes, 'dq_fk_node', *params, log_level='info')
-    poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = listener.listen(PoseStamped, node_topic(node, 'pose/eeCarry_seg6'))
     zero = listener.joint_state(RL15_JOINTS, [0] * 6)
     assert listener.spin_until(lambda: poses, publish=zero, timeout_s=20)
-    client = listener.probe.create_client(SetParameters, '/dq_fk_node/set_parameters')
+    client = listener.probe.create_client(SetParameters, node_topic(node, 'set_parameters'))
     assert client.wait_for_service(timeout_sec=10)
     return node, poses, client
 
@@ -212,7 +212,7 @@ def test_joint_states_naming_too_many_joints_are_refused(processes, listener):
     from diagnostic_msgs.msg import DiagnosticArray
     node = start(processes, 'dq_fk_node')
     diagnostics = listener.listen(DiagnosticArray, '/diagnostics')
-    poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6')
+    poses = listener.listen(PoseStamped, node_topic(node, 'pose/eeCarry_seg6'))
     names = RL15_JOINTS + [f'extra_{k}' for k in range(1100)]
     huge = listener.joint_state(names, [0.0] * len(names))
 

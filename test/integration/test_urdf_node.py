@@ -273,7 +273,7 @@ def test_a_xacro_with_find_on_a_pip_only_install(ros_domain_id, tmp_path, proces
     harness = Harness()
     try:
         harness.start_node(robot_description_file=str(robot), package_paths=[option])
-        poses = harness.listen(PoseStamped, '/dq_fk_node/pose/l2')
+        poses = harness.listen(PoseStamped, harness.topic('pose/l2'))
         fake = processes.start(executable('fake_joint_publisher') + [
             '--ros-args', '-p', f'robot_description_file:={robot}', '-p',
             f"package_paths:=['{option}']", '-p', 'mode:=fixed', '-p',
@@ -319,8 +319,8 @@ def test_tf_names_as_the_urdf_writes_them_and_valid_topic_names(ros_domain_id):
         assert not result.successful and "urdf_tip_link 'nolink' is not a link" in \
             result.reason, result.reason
         tf = harness.listen(TFMessage, '/tf')
-        tip = harness.listen(PoseStamped, '/dq_fk_node/pose/tip_1')
-        link = harness.listen(PoseStamped, '/dq_fk_node/pose/link_11_0')
+        tip = harness.listen(PoseStamped, harness.topic('pose/tip_1'))
+        link = harness.listen(PoseStamped, harness.topic('pose/link_11_0'))
         state = harness.joint_state(['j1', 'j2'], [0.5, 0.0])
         assert harness.spin_until(lambda: tf and tip and link, publish=state)
         edges = {(t.header.frame_id, t.child_frame_id) for m in tf for t in m.transforms}

@@ -63,7 +63,7 @@ def wait_for(driver, script, timeout_s=20.0):
 def test_the_page_shows_every_frame_where_the_kinematics_put_it(
         processes, browser, tmp_path, listener):
     model = load_robot_description(shipped_robot_path('rl15'))
-    start(processes, 'dq_fk_node')
+    node = start(processes, 'dq_fk_node')
     fake = start(processes, 'fake_joint_publisher', 'mode:=fixed',
                  f'positions:=[{", ".join(str(v) for v in RL15_Q)}]', 'rate_hz:=20.0')
     _, url = start_view(processes, '--stale-after', '0.6')
@@ -125,7 +125,7 @@ def test_the_page_shows_every_frame_where_the_kinematics_put_it(
         'css selector', '.frame-label[data-frame="eeCarry_seg6"]').get_attribute('class')
     # a robot reload: the page rebuilds the model from the new description
     version = browser.execute_script('return window.dqFkView.robotVersion')
-    set_robot_file(listener, shipped_robot_path('puma560'))
+    set_robot_file(listener, shipped_robot_path('puma560'), node.node_name)
     links = wait_for(browser, f'return window.dqFkView.robotVersion > {version} && '
                               f'window.dqFkView.robotLinks')
     assert 'puma_link6' in links and 'eeCarry_seg6' not in links
@@ -167,7 +167,7 @@ def test_the_server_with_many_rude_and_early_clients(processes, listener):
             # a page opened before any robot is known: it gets both once they come
             early, none = await _client(session, url, count=0)
             assert none == []
-            start(processes, 'dq_fk_node')
+            node = start(processes, 'dq_fk_node')
             start(processes, 'fake_joint_publisher', 'rate_hz:=100.0')
             robot = await _until(early, lambda m: m['type'] == 'robot')
             assert 'eeCarry_seg6' in robot['urdf']
@@ -196,7 +196,7 @@ def test_the_server_with_many_rude_and_early_clients(processes, listener):
             assert counts['bad_input'] == 4 and counts['clients'] == 19
             await _until(rude, lambda m: m['type'] == 'frames')
             # a robot reload: the pages get the new description
-            client = AsyncParameterClient(listener.probe, 'dq_fk_node')
+            client = AsyncParameterClient(listener.probe, node.node_name)
             assert client.wait_for_services(timeout_sec=10.0)
             future = client.set_parameters([Parameter(
                 'robot_description_file', value=shipped_robot_path('panda'))])

@@ -77,11 +77,12 @@ def show(processes, urdf_path, *view_args, positions=None):
     """Start the node, fixed joint states and the view for a URDF; return (model, view, url)."""
     model = load_robot(urdf_path).model
     positions = fixed_positions(model) if positions is None else positions
-    start(processes, 'dq_fk_node', f'robot_description_file:={urdf_path}')
+    node = start(processes, 'dq_fk_node', f'robot_description_file:={urdf_path}')
     start(processes, 'fake_joint_publisher', f'robot_description_file:={urdf_path}',
           'mode:=fixed', f'positions:=[{", ".join(repr(v) for v in positions)}]',
           'rate_hz:=20.0')
     view, url = start_view(processes, erd_package(), *view_args)
+    view.robot_node = node  # (the node's unique name, for its parameters)
     return model, positions, view, url
 
 
@@ -231,7 +232,7 @@ def test_the_server_serves_only_the_current_robots_meshes(processes, listener, t
                  '/vendor/../setup.py', '/mesh/0/shoulder.dae'):
         assert status(path) == 404, path
     # a robot reload: the list follows the new robot's URDF
-    set_robot_file(listener, shipped_robot_path('rl15'))
+    set_robot_file(listener, shipped_robot_path('rl15'), view.robot_node.node_name)
     assert listener.spin_until(lambda: status('/mesh/0/base.dae') == 404, timeout_s=20)
 
 
