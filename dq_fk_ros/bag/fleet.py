@@ -27,7 +27,8 @@ import shutil
 import sys
 import time
 
-from dq_fk_ros.bag.child_processes import signals_blocked, stop_children
+from dq_fk_ros.bag.child_processes import (run_with_sigint_blocked, signals_blocked,
+                                           stop_children)
 from dq_fk_ros.bag.discover import find_bags
 from dq_fk_ros.bag.fleet_units import RobotSpec, run_unit, Unit, UnitResult
 from dq_fk_ros.bag.join import join_bags
@@ -387,6 +388,7 @@ def _needs_whole_run(summaries):
 
 
 ABANDONED = []  # a Dask client given up on an interrupt: this process must exit at once
+_LOCAL_CLUSTERS = []  # the LocalClusters this process started
 
 
 def _abandon_cluster():
@@ -399,7 +401,11 @@ def _abandon_cluster():
     """
     import logging
     logging.getLogger('distributed').setLevel(logging.CRITICAL + 1)
-    stop_children()
+    from distributed.core import Status
+    for cluster in _LOCAL_CLUSTERS:  # a nanny would start a new worker for one stopped
+        for nanny in list(getattr(cluster, 'workers', {}).values()):
+            nanny.status = Status.closing
+    stop_children(at_once=True)
     ABANDONED.append(True)
 
 
@@ -412,11 +418,13 @@ def _dask_client(scheduler, jobs):
         raise BagError("--scheduler needs Dask's distributed: pip install 'dq_fk_ros[cluster]' "
                        "(or pip install 'dask[distributed]')") from None
     if scheduler == 'local':
+        def make():  # its threads and workers never see the terminal's Ctrl-C: we stop them
+            made = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
+                                dashboard_address=None, host='127.0.0.1')
+            _LOCAL_CLUSTERS.append(made)
+            return made, Client(made)
         try:
-            with signals_blocked():
-                cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, host='127.0.0.1')
-                client = Client(cluster)
+            cluster, client = run_with_sigint_blocked(make)
         except BaseException:  # Ctrl-C while it starts: its workers stop too
             _abandon_cluster()
             raise
