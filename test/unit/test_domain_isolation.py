@@ -2,7 +2,8 @@
 
 import socket
 
-from conftest import _acquire_private_domain_id, bound_udp_ports, domain_in_use
+import dds_domains
+from dds_domains import acquire_private_domain_id, bound_udp_ports, domain_in_use
 
 
 def test_a_domain_with_a_foreign_participant_is_seen_as_in_use():
@@ -26,13 +27,12 @@ def test_a_domain_with_a_foreign_participant_is_seen_as_in_use():
 
 
 def test_the_run_is_given_a_domain_nobody_else_is_on(monkeypatch, ros_domain_id):
-    import conftest
     for target in range(101, 0, -1):  # one this run (and any other) does not hold
         if target == ros_domain_id:
             continue
-        monkeypatch.setattr(conftest, 'domain_in_use', lambda d, ports=None: d != target)
+        monkeypatch.setattr(dds_domains, 'domain_in_use', lambda d, ports=None: d != target)
         try:
-            domain_id, lock = _acquire_private_domain_id()
+            domain_id, lock = acquire_private_domain_id()
         except RuntimeError:  # another run holds its lock: try another
             continue
         lock.close()
