@@ -119,57 +119,73 @@ def parse_args(argv):
     return args
 
 
+class Connections:
+    """The server's open connections, oldest first, each 'headers', 'http' or 'websocket'."""
+
+    def __init__(self, counts, cap=MAX_CONNECTIONS):
+        """Count what is dropped in ``counts`` (the view's /status)."""
+        self.counts, self.cap, self.open = counts, cap, {}
+
+    def make_room(self):
+        """Say whether a new connection may come in, dropping an old one if need be."""
+        if len(self.open) < self.cap:
+            return True
+        for kind in ('headers', 'http'):  # a half-sent request first, then the oldest request
+            for proto, state in self.open.items():
+                if state == kind:
+                    proto.drop('evicted_connections')
+                    return True
+        self.counts['refused_connections'] = self.counts.get('refused_connections', 0) + 1
+        return False
+
+
 class GuardedProtocol(asyncio.Protocol):
     """
     aiohttp's request handler for one connection, within the server's limits.
 
-    At most MAX_CONNECTIONS open at once: at the cap, a new connection takes the place of
-    the oldest one still sending its first request's headers (a half-sent request holds no
-    place a real client needs), else it is closed as it is accepted. The first request's
-    headers (up to the blank line) within HEADER_TIMEOUT_S, else the connection is closed.
-    Between requests, aiohttp's keep-alive timeout; WebSocket messages, its own size limit
-    and heartbeat. Everything else is the inner protocol's.
+    At most MAX_CONNECTIONS open at once (:class:`Connections`): at the cap, a new
+    connection takes the place of the oldest one still sending its first request's headers
+    (a half-sent request holds no place a real client needs), else of the oldest plain HTTP
+    one (a page's WebSocket is kept); with only WebSockets open it is closed as it comes.
+    The first request's headers (up to the blank line) within HEADER_TIMEOUT_S, else the
+    connection is closed. Between requests, aiohttp's keep-alive timeout; WebSocket
+    messages, its own size limit and heartbeat. Everything else is the inner protocol's.
     """
 
-    open_now = 0
-    waiting = {}  # the connections still sending their first headers, oldest first
-
-    def __init__(self, inner, loop, counts):
-        """Wrap ``inner`` (aiohttp's RequestHandler), counting what is refused in counts."""
-        self.inner, self.loop, self.counts = inner, loop, counts
+    def __init__(self, inner, loop, connections):
+        """Wrap ``inner`` (aiohttp's RequestHandler) as one of ``connections``."""
+        self.inner, self.loop, self.connections = inner, loop, connections
         self.timer, self.transport, self.head, self.counted = None, None, b'', False
 
     def connection_made(self, transport):
-        """Take the connection if under the cap, and start the header clock."""
+        """Take the connection if there is room, and start the header clock."""
         self.transport = transport
-        if GuardedProtocol.open_now >= MAX_CONNECTIONS and GuardedProtocol.waiting:
-            oldest = next(iter(GuardedProtocol.waiting))
-            oldest._drop('evicted_connections')
-        if GuardedProtocol.open_now >= MAX_CONNECTIONS:
-            self.counts['refused_connections'] = self.counts.get('refused_connections', 0) + 1
+        if not self.connections.make_room():
             transport.abort()
             return
-        GuardedProtocol.open_now += 1
         self.counted = True
-        GuardedProtocol.waiting[self] = None
-        self.timer = self.loop.call_later(HEADER_TIMEOUT_S, self._drop, 'slow_requests')
+        self.connections.open[self] = 'headers'
+        self.timer = self.loop.call_later(HEADER_TIMEOUT_S, self.drop, 'slow_requests')
         self.inner.connection_made(transport)
 
-    def _drop(self, why):
-        self.counts[why] = self.counts.get(why, 0) + 1
+    def drop(self, why):
+        """Close the connection now, counted under ``why``; its place is free at once."""
+        counts = self.connections.counts
+        counts[why] = counts.get(why, 0) + 1
         self.transport.abort()
-        self.connection_lost(None)  # (its place is free now; abort's own call finds it so)
+        self.connection_lost(None)  # (abort's own call later finds it gone)
 
     def data_received(self, data):
         """Pass data on; the header clock stops at the first request's blank line."""
         if not self.counted:
             return
         if self.timer is not None:
-            self.head = (self.head + data)[-4096:]
+            self.head = (self.head + data)[-8192:]
             if b'\r\n\r\n' in self.head:
                 self.timer.cancel()
+                upgrade = b'upgrade: websocket' in self.head.lower()
+                self.connections.open[self] = 'websocket' if upgrade else 'http'
                 self.timer, self.head = None, b''
-                GuardedProtocol.waiting.pop(self, None)
         self.inner.data_received(data)
 
     def eof_received(self):
@@ -191,10 +207,9 @@ class GuardedProtocol(asyncio.Protocol):
         if self.timer is not None:
             self.timer.cancel()
             self.timer = None
-        GuardedProtocol.waiting.pop(self, None)
         if self.counted:
             self.counted = False
-            GuardedProtocol.open_now -= 1
+            self.connections.open.pop(self, None)
             self.inner.connection_lost(exc)
 
 
@@ -209,8 +224,9 @@ async def serve(args, state, ready=None):
     loop = asyncio.get_running_loop()
     server = None
     try:
+        connections = Connections(state.counts)
         server = await loop.create_server(
-            lambda: GuardedProtocol(runner.server(), loop, state.counts), args.host,
+            lambda: GuardedProtocol(runner.server(), loop, connections), args.host,
             args.port, backlog=128, reuse_address=True)
         host, port = server.sockets[0].getsockname()[:2]
         shown = f'[{host}]' if ':' in host else host
