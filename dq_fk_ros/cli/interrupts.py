@@ -11,6 +11,7 @@ Worker processes never see the terminal's Ctrl-C: the command stops them itself
 (:mod:`dq_fk_ros.bag.child_processes`).
 """
 
+import atexit
 import importlib
 import os
 import signal
@@ -44,15 +45,26 @@ def run(module: str = 'dq_fk_ros.cli.dq_fk_bag') -> None:
         code = importlib.import_module(module).main()
     except KeyboardInterrupt:
         code = interrupted_code()
-    # the work is done and saved: a signal while Python shuts down (its atexit hooks,
-    # a Dask client's threads) ends the process at once
+    # The work is done and saved. A signal from here on ends the process at once, with
+    # 128 + the signal: while the exit hooks run (a Dask client's, logging's), and after
+    # them, where Python's own shutdown would have reset the handlers and let the default
+    # action kill the process (-2) instead.
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, _exit_now)
-    sys.exit(code)
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe: nothing more can be said there
+            pass
+    os._exit(0 if code is None else code if isinstance(code, int) else 1)
 
 
 def _exit_now(signum, frame):
-    sys.stderr.flush()
+    try:
+        sys.stderr.flush()
+    except (OSError, ValueError):
+        pass
     os._exit(128 + signum)
 
 
