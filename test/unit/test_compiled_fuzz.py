@@ -70,13 +70,16 @@ class Mutator:
 
 
 class FloatWithDel(float):
-    """A float whose __del__ empties a list: the merger's lists must survive it."""
+    """A float whose __del__ empties the list it was put in: the reader must survive it."""
 
-    victim = None
+    def __new__(cls, value, victim):
+        """Make the float, remembering the list it will empty."""
+        made = super().__new__(cls, value)
+        made.victim = victim
+        return made
 
     def __del__(self):
-        if FloatWithDel.victim is not None:
-            FloatWithDel.victim.clear()
+        self.victim.clear()
 
 
 @st.composite
@@ -330,9 +333,9 @@ def test_a_joint_state_reader_survives_any_arguments(data):
         dof = data.draw(st.sampled_from([3, 3, 0, 2, 4]))
         q = [0.0] * dof
         qdot = [0.0] * data.draw(st.sampled_from([dof, dof, 0, 5]))
-        if data.draw(st.booleans()) and q:
-            FloatWithDel.victim = q
-            q[data.draw(st.integers(0, len(q) - 1))] = FloatWithDel(0.5)
+        if dof and data.draw(st.booleans()):
+            at = data.draw(st.integers(0, dof - 1))
+            q[at] = FloatWithDel(0.5, q)
         last = data.draw(st.sampled_from([None, 0, 10, -2**63, 2**63 - 1, 2**64, 'x',
                                           Mutator(5, q.clear), Mutator(5, qdot.clear),
                                           Mutator(5, lambda: made.__init__(**good))]))
@@ -343,7 +346,6 @@ def test_a_joint_state_reader_survives_any_arguments(data):
         if isinstance(qdot_out, str):
             qdot_out = q_out
         attempt(made.read, message, last, q, qdot, q_out, qdot_out)
-        FloatWithDel.victim = None
     q, qdot = [0.0] * 3, [0.0] * 3
     out = np.empty(3)
     assert _cdr.JointStateReader(**good).read(raw, None, q, qdot, out, np.empty(3)) == 10
