@@ -412,8 +412,7 @@ def _abandon_cluster():
 def _dask_client(scheduler, jobs):
     """Connect to a Dask scheduler, or start a LocalCluster of ``jobs`` processes."""
     try:
-        with signals_blocked():  # threads it starts (that start its workers) block SIGINT
-            from distributed import Client, LocalCluster
+        from distributed import Client, LocalCluster
     except ImportError:
         raise BagError("--scheduler needs Dask's distributed: pip install 'dq_fk_ros[cluster]' "
                        "(or pip install 'dask[distributed]')") from None

@@ -20,6 +20,7 @@ from dq_fk_ros.messages.cdr import COMPILED, pose_stamped_template, tf_message_t
 from hypothesis import given, strategies as st
 import numpy as np
 import pytest
+from test_joint_states import reader_arguments
 
 pytestmark = pytest.mark.skipif(
     kernel_info()['active'] != 'c' or COMPILED is None,
@@ -296,22 +297,7 @@ def test_a_template_survives_any_arguments(data):
     attempt(made.one, 1, 2, np.zeros((len(slots), 7)), list(range(len(slots))))
 
 
-def _reader_parts():
-    from dq_fk_ros.messages.cdr import JointStateNames
-    from dq_fk_ros.messages.joint_states import JointStateMerger
-    from test_joint_states import NAMES, LIMITS, node_like_merge, serialized_joint_state
-    merger, cache = JointStateMerger(NAMES, LIMITS, 'clamp'), JointStateNames()
-    raw = serialized_joint_state(NAMES, [0.1, 0.2, 0.3], [], 10, '', 0)
-    node_like_merge(merger, raw, cache)
-    layout = cache.layout
-    good = {'size': layout.size, 'fixed': layout.fixed, 'mask': bytes(len(layout.fixed)),
-            'counts_at': layout.count_offsets, 'counts': layout.expected_counts,
-            'positions_at': layout.positions[0], 'velocities_at': layout.velocities[0],
-            'order': [0, 1, 2], 'lower': [0.0] * 3, 'upper': [1.0] * 3, 'jump_back_ns': 1}
-    return good, raw
-
-
-READER_PARTS = _reader_parts() if COMPILED is not None else ({}, b'')
+READER_PARTS = reader_arguments() if COMPILED is not None else ({}, b'')
 
 
 @given(st.data())

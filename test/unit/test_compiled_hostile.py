@@ -42,17 +42,8 @@ READER = """
 import sys
 sys.path.insert(0, 'test/unit')
 from dq_fk_ros.messages import _cdr
-from dq_fk_ros.messages.cdr import JointStateNames
-from dq_fk_ros.messages.joint_states import JointStateMerger
-from test_joint_states import NAMES, LIMITS, node_like_merge, serialized_joint_state
-merger, cache = JointStateMerger(NAMES, LIMITS, 'clamp'), JointStateNames()
-raw = serialized_joint_state(NAMES, [0.1, 0.2, 0.3], [], 10, '', 0)
-node_like_merge(merger, raw, cache)
-layout = cache.layout
-good = {'size': layout.size, 'fixed': layout.fixed, 'mask': bytes(len(layout.fixed)),
-        'counts_at': layout.count_offsets, 'counts': layout.expected_counts,
-        'positions_at': layout.positions[0], 'velocities_at': layout.velocities[0],
-        'order': [0, 1, 2], 'lower': [0.0] * 3, 'upper': [1.0] * 3, 'jump_back_ns': 1}
+from test_joint_states import reader_arguments
+good, raw = reader_arguments()
 out = np.empty(3)
 """
 

@@ -430,6 +430,24 @@ def node_like_merge(merger, raw, cache):
     return result
 
 
+def reader_arguments():
+    """
+    Return ``(arguments, raw)``: a JointStateReader's keyword arguments, and its message.
+
+    The layout a node-like merge learns from ``raw`` (NAMES at 0.1, 0.2, 0.3, stamp 10 ns),
+    bounds [0, 1] for each joint.
+    """
+    merger, cache = JointStateMerger(NAMES, LIMITS, 'clamp'), JointStateNames()
+    raw = serialized_joint_state(NAMES, [0.1, 0.2, 0.3], [], 10, '', 0)
+    node_like_merge(merger, raw, cache)
+    layout = cache.layout
+    return {'size': layout.size, 'fixed': layout.fixed, 'mask': bytes(len(layout.fixed)),
+            'counts_at': layout.count_offsets, 'counts': layout.expected_counts,
+            'positions_at': layout.positions[0], 'velocities_at': layout.velocities[0],
+            'order': [0, 1, 2], 'lower': [0.0] * 3, 'upper': [1.0] * 3,
+            'jump_back_ns': 1}, raw
+
+
 def serialized_joint_state(names, positions, velocities, stamp_ns, frame_id, padding):
     msg = JointState(name=list(names), position=list(positions), velocity=list(velocities))
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
@@ -531,11 +549,7 @@ def test_the_compiled_reader_refuses_what_it_cannot_use():
                  (raw,)):
         with pytest.raises((TypeError, ValueError)):
             reader.read(*args)
-    layout = cache.layout
-    good = {'size': layout.size, 'fixed': layout.fixed, 'mask': bytes(len(layout.fixed)),
-            'counts_at': layout.count_offsets, 'counts': layout.expected_counts,
-            'positions_at': layout.positions[0], 'velocities_at': layout.velocities[0],
-            'order': [0, 1, 2], 'lower': [0.0] * 3, 'upper': [1.0] * 3, 'jump_back_ns': 1}
+    good, _ = reader_arguments()
     _cdr.JointStateReader(**good)
     for field, value in (('mask', b'\xff'), ('size', 8), ('counts_at', (0, 1, 2)),
                          ('counts', (3, 2, 0)), ('positions_at', 10 ** 6),
