@@ -19,8 +19,13 @@ class BagOutputs:
     """The output bag's connections and the chunked, vectorised writing of FK results."""
 
     def __init__(self, writer, model, typestore, pose_namespace, frame_prefix, copy_from,
-                 poses='all'):
-        """Register /tf, /tf_static, pose topics (all, end, none), copied input topics."""
+                 poses='all', dh_frames=None):
+        """
+        Register /tf, /tf_static, pose topics (all, end, none), copied input topics.
+
+        :param dh_frames: whether TF and the pose topics carry the DH frames (None: the
+            model's default, as the node's ``publish_dh_frames``).
+        """
         from rosbags.interfaces import (
             Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime)
 
@@ -33,15 +38,14 @@ class BagOutputs:
         self.writer = writer
         self.typestore = typestore
         # frame ids, TF parents, static and moving transforms, helpers: as the node's
-        self.plan = plan = OutputPlan(model, frame_prefix)
+        self.plan = plan = OutputPlan(model, frame_prefix, dh_frames)
         add = writer.add_connection
         self.tf = add('/tf', 'tf2_msgs/msg/TFMessage', typestore=typestore,
                       offered_qos_profiles=qos(100, volatile))
         self.tf_static = add('/tf_static', 'tf2_msgs/msg/TFMessage', typestore=typestore,
                              offered_qos_profiles=qos(1, latched))
-        n_frames = len(model.frame_names)
         self.end = model.end_effector_index
-        self.pose_frames = {'all': list(range(n_frames)), 'end': [self.end],
+        self.pose_frames = {'all': list(plan.pose_frames), 'end': [self.end],
                             'none': []}[poses]
         self.poses = [add(f'{pose_namespace}/pose/{model.topic_names[k]}',
                           'geometry_msgs/msg/PoseStamped', typestore=typestore,
@@ -62,7 +66,12 @@ class BagOutputs:
             self.pose_groups.append(([index[n] for n in sorted(group)],
                                      [i for i, k in enumerate(self.pose_frames)
                                       if frame_needs[k] == group]))
-        self.pose_template = pose_stamped_template(plan.fixed_frame_id)
+        # a template per pose frame: its PoseStamped's frame id is its TF tree's root
+        templates = {frame_id: pose_stamped_template(frame_id)
+                     for frame_id in {plan.pose_frame_ids.get(k, plan.fixed_frame_id)
+                                      for k in self.pose_frames}}
+        self.pose_templates = [templates[plan.pose_frame_ids.get(k, plan.fixed_frame_id)]
+                               for k in self.pose_frames]
         self.static_template = tf_message_template(plan.static_edges)
         try:
             self.urdf = description_urdf(model)
@@ -96,6 +105,8 @@ class BagOutputs:
         model = self.model
         # (N, frames, 7) and (N, transforms, 7): the compiled kernel, as the node's
         absolute, relative = model.frame_pose_arrays_batch(q)
+        end = absolute[:, self.end]
+        absolute = self.plan.rooted_poses(absolute)  # frames below a floating joint
         n = len(q)
         helpers = self.plan.helpers
         moving = None
@@ -103,7 +114,7 @@ class BagOutputs:
             moving = np.array([np.concatenate(helpers.moving_poses(row)) for row in q])
         stamps_ns, log_times_ns = np.asarray(stamps_ns), np.asarray(log_times_ns)
         channels = [self.poses[i] for i in self.base_poses]
-        payloads = [self.pose_template.fill(stamps_ns, absolute[:, self.pose_frames[i]])
+        payloads = [self.pose_templates[i].fill(stamps_ns, absolute[:, self.pose_frames[i]])
                     for i in self.base_poses]
         tf = list(self._tf_payloads(relative, moving, stamps_ns, seen))
         if len(tf) == 1 and tf[0][0] is None:  # every message the same transforms
@@ -119,9 +130,10 @@ class BagOutputs:
             if rows.any():
                 self.writer.write_rows(
                     [self.poses[i] for i in poses], log_times_ns[rows],
-                    [self.pose_template.fill(stamps_ns[rows], absolute[rows, self.pose_frames[i]])
+                    [self.pose_templates[i].fill(stamps_ns[rows],
+                                                 absolute[rows, self.pose_frames[i]])
                      for i in poses])
-        return absolute[:, self.end]
+        return end
 
     def _tf_payloads(self, relative, moving, stamps_ns, seen):
         """

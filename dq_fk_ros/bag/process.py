@@ -174,7 +174,9 @@ class ProcessOptions:
     ``sqlite3``; ``csv_path``: also the end effector's pose per message (``csv_only``: no
     bag); ``copy_input``: the input topics copied through; ``pose_namespace``,
     ``frame_prefix``, ``out_of_limits``: as the node's; ``poses``: ``all``, ``end`` or
-    ``none``; ``chunk``: messages computed at once.
+    ``none``; ``chunk``: messages computed at once; ``dh_frames``: whether /tf and the pose
+    topics carry the DH frames (None: the robot's default, as the node's
+    ``publish_dh_frames``).
     """
 
     topic: str = None
@@ -189,6 +191,7 @@ class ProcessOptions:
     progress: bool = True
     chunk: int = CHUNK
     poses: str = 'all'
+    dh_frames: bool = None
 
 
 def process_bag(in_path, out_path, robot, options=None, **changes):
@@ -298,7 +301,7 @@ def _process_with(reader, model, in_path, out_path, o, window=None):
     copy_from = list(reader.connections) if copy_input else []
     try:
         outputs = BagOutputs(writer, model, typestore, pose_namespace, frame_prefix,
-                             copy_from, poses) if writer is not None else None
+                             copy_from, poses, o.dh_frames) if writer is not None else None
     except BagError:  # refused before anything was written: leave no output behind
         writer.abort()
         shutil.rmtree(out_path, ignore_errors=True)

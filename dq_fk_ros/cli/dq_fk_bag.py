@@ -68,7 +68,12 @@ def build_parser():
                    help='pose topics are <ns>/pose/<frame> (default /dq_fk_node, as the node)')
     p.add_argument('--frame-prefix', default='', help='as the node parameter frame_prefix')
     p.add_argument('--poses', choices=('all', 'end', 'none'), default='all',
-                   help='pose topics written: every frame (default), the end effector, none')
+                   help='pose topics written: every frame on TF (default), the end effector, '
+                   'none')
+    p.add_argument('--dh-frames', dest='dh_frames', action='store_true', default=None,
+                   help="as the node's publish_dh_frames: /tf and poses carry the DH frames "
+                   "too (a URDF robot's default is the URDF's links only, as "
+                   'robot_state_publisher; a DH file has them anyway)')
     p.add_argument('--out-of-limits', choices=('warn', 'clamp', 'reject'), default='warn')
     p.add_argument('--quiet', action='store_true', help='no progress output')
     g = p.add_argument_group('a fleet of bags (docs/bags.md, "A fleet of bags")')
@@ -136,7 +141,8 @@ def process_many(args):
     options = ProcessOptions(
         topic=args.topic, storage=args.storage, copy_input=args.copy_input,
         pose_namespace=args.pose_namespace, frame_prefix=args.frame_prefix,
-        out_of_limits=args.out_of_limits, progress=False, poses=args.poses)
+        out_of_limits=args.out_of_limits, progress=False, poses=args.poses,
+        dh_frames=args.dh_frames)
     summary = process_fleet(args.paths, args.output_dir, args.robot, options, jobs=args.jobs,
                             scheduler=args.scheduler, force=args.force,
                             progress=not args.quiet, window_messages=args.window_messages,
@@ -199,7 +205,8 @@ def main(argv=None):
                 topic=args.topic, storage=args.storage, overwrite=args.overwrite,
                 csv_path=args.csv, csv_only=args.csv_only, copy_input=args.copy_input,
                 pose_namespace=args.pose_namespace, frame_prefix=args.frame_prefix,
-                out_of_limits=args.out_of_limits, progress=not args.quiet, poses=args.poses)
+                out_of_limits=args.out_of_limits, progress=not args.quiet, poses=args.poses,
+                dh_frames=args.dh_frames)
             s = process_bag(args.paths[0], args.paths[1], robot, options)
             print(summary_line(args.paths[0], s))
         elif args.command == 'example':

@@ -26,15 +26,20 @@ The base transform places frame 0 in its parent; every URDF link becomes a ``lin
 entry (its pose in the DH frame it moves with, published under its URDF parent), so TF
 carries the URDF's own tree. A mimic joint is a mimic row (chains of mimics followed to
 their source). A chain is split where two axes are so nearly parallel that their common
-normal lies :data:`FAR_NORMAL_M` away. Floating and planar joints (and what is below them),
-and mimics of joints that are not published, are skipped and named.
+normal lies :data:`FAR_NORMAL_M` away. Floating and planar joints are as robot_state_publisher
+has them: a planar joint is a fixed one at its origin (kdl_parser converts it); a floating
+joint's child is a ``type: floating`` link, computed at the joint's origin and on TF the
+root of a tree of its own, everything below it published (no DH chain crosses a floating
+joint: a moving joint below one starts a chain). Mimics of joints that are not published
+are skipped and named. The DH frames are the computation's: the YAML says
+``publish_dh_frames: false``, so TF carries the URDF's links alone.
 
 Why this file is long: cutting a URDF tree into chains is one algorithm (choice of chains,
 mimic sources, the precision split, links on DH frames); reading and writing are elsewhere.
 """
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import os
 
 from dq_fk_ros.description.dh_fit import dh_row, frames_on_axes, normal_feet
@@ -90,10 +95,11 @@ def chain_joints(tree: UrdfTree, base: str | None = None, tip: str | None = None
         at = tree.joints[at].parent
     joints.reverse()
     for joint in joints:
-        if joint.kind in ('floating', 'planar'):
+        if joint.kind == 'floating':
             raise RobotDescriptionError(f'{source}: joint {joint.name!r} on the chain is '
-                                        f'{joint.kind}; a DH chain takes revolute, continuous, '
-                                        f'prismatic and fixed joints')
+                                        f'floating; a DH chain takes revolute, continuous, '
+                                        f'prismatic, fixed and planar (as fixed) joints: choose '
+                                        f'a {base_option} below it or a {tip_option} above it')
     return base, tip, joints
 
 
@@ -108,7 +114,7 @@ def longest_chain_tips(tree: UrdfTree, base: str) -> list[str]:
     stack = [(base, 0, None)]
     while stack:
         link, count, last = stack.pop()
-        below = [j for j in tree.children.get(link, []) if j.kind not in ('floating', 'planar')]
+        below = [j for j in tree.children.get(link, []) if j.kind != 'floating']
         if not below:
             if count > best:
                 best, tips = count, {last}
@@ -162,7 +168,7 @@ def urdf_to_description(text: str, source: str = '<string>', base: str | None = 
     """
     if convention not in ('standard', 'modified'):
         raise RobotDescriptionError(f'convention {convention!r}; allowed: standard, modified')
-    tree = parse_urdf(text, source)
+    tree, orphans = _detach_orphan_mimics(parse_urdf(text, source))
     base, tip, path = chain_joints(tree, base, tip, options)
     for link in [base] + [j.child for j in path]:
         _check_frame(link, source)
@@ -213,12 +219,7 @@ def urdf_to_description(text: str, source: str = '<string>', base: str | None = 
     text = _description_text(tree, source, base, tip, convention, chains, links, skipped,
                              end_effector)
     parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here
-    warnings = ()
-    loose = [j for j in skipped if j.kind in ('floating', 'planar')]
-    if loose:
-        warnings += (f'{source}: {len(loose)} floating or planar joint(s) get no transform, as '
-                     f'in robot_state_publisher (their links are not on TF): '
-                     f'{listing([comment(j.name)[:80] for j in loose], 5)}',)
+    warnings = _joint_kind_warnings(tree, source, base, published, orphans)
     if tree.slashed:
         shown = ', '.join(comment(n)[:80] for n in tree.slashed[:5])
         more = f' and {len(tree.slashed) - 5} more' if len(tree.slashed) > 5 else ''
@@ -269,16 +270,14 @@ def _publishable(tree, base):
     """
     Return the names of the joints below ``base`` that get a transform.
 
-    Floating and planar joints get none (robot_state_publisher's rule), nor anything below
-    them; nor joints with names this package cannot publish, nor mimics of joints that are
-    not published (followed to their source through chains of mimics).
+    Every joint of robot_state_publisher (a floating one gets a frame but no transform),
+    but joints with names this package cannot publish, and mimics of joints that are not
+    published (followed to their source through chains of mimics).
     """
     ok, stack = set(), [base]
     while stack:
         link = stack.pop()
         for j in tree.children.get(link, []):
-            if j.kind in ('floating', 'planar'):
-                continue
             if len(j.child) > MAX_NAME_CHARS or not TF_FRAME_ID.fullmatch(j.child):
                 continue
             if j.kind in MOVING and j.mimic is None and not JOINT_NAME.fullmatch(j.name):
@@ -375,7 +374,7 @@ def _longest_path(tree, link, published):
         if count > best_count:
             best, best_count = path, count
         for j in reversed(tree.children.get(at, [])):
-            if j.name in published:
+            if j.name in published and j.kind != 'floating':  # no chain crosses one
                 stack.append((j.child, path + [j]))
     while best and best[-1].kind not in MOVING:
         best = best[:-1]
@@ -462,12 +461,18 @@ def _link_entry(joint, pose, body, frame_pose):
     entry = {'frame': child, 'parent': body[child]}
     if entry['parent'] != joint.parent:
         entry['tf_parent'] = joint.parent
+    if joint.kind == 'floating':  # at its origin; no transform (the YAML's type: floating)
+        entry['type'] = 'floating'
     offset = np.linalg.solve(frame_pose[body[child]], pose[child])
     entry['xyz'] = offset[:3, 3].tolist()
     w, x, y, z = quat_from_matrix(offset[:3, :3])
     entry['quaternion'] = [x, y, z, w]
     note = (f'URDF link {child}: child of {joint.name} ({joint.kind}'
-            f'{", mimic" if joint.mimic else ""}) on {joint.parent}')
+            f'{", mimic" if joint.mimic else ""}) on {joint.parent}'
+            + ('; fixed at its origin, as robot_state_publisher' if joint.kind == 'planar'
+               else '')
+            + ('; at its origin, not on TF: it roots a TF tree' if joint.kind == 'floating'
+               else ''))
     return entry, note
 
 
@@ -480,21 +485,79 @@ def _description_text(tree, source, base, tip, convention, chains, links, skippe
         f'Converted by `dq_fk from-urdf` from {comment(source)}: the chain {comment(base)} -> '
         f'{comment(tip)}{more}.',
         f'{convention} DH frames on the joint axes by their common normals (docs/urdf.md); '
-        f'the DH frames are published as {first[0]}..{first[-1]}'
+        f'the DH frames are {first[0]}..{first[-1]}'
         + (' (<tip>_dh0... for the other chains)' if more else '')
-        + ', the URDF links under their URDF parents.']
+        + '; TF carries the URDF links under their URDF parents, as robot_state_publisher '
+        '(publish_dh_frames: true adds the DH frames).']
     comments += [f'skipped: side branch {comment(j.name)} ({j.kind}) -> {comment(j.child)}: '
                  f'{_why_skipped(j)}' for j in skipped]
     texts = [ChainText(c['parent'], c['base'], tuple(c['names']), tuple(c['rows']),
                        f"from {comment(c['plan'].anchor)} to {comment(c['plan'].tip)}; frame 0 "
                        f"in {comment(c['parent'])}") for c in chains]
-    return description_yaml(comments, tree.name, convention, base, texts, links, end_effector)
+    return description_yaml(comments, tree.name, convention, base, texts, links, end_effector,
+                            publish_dh_frames=False)
+
+
+def _detach_orphan_mimics(tree):
+    """
+    Return ``(tree, names)``: the mimic joints whose source is no moving joint made floating.
+
+    robot_state_publisher publishes such a joint once a JointState names its source, which
+    the URDF does not have; the links below it get their transforms all the same. As a
+    floating joint's child (computed at the joint's origin), the mimic's child roots a TF
+    tree of its own.
+    """
+    everything = set(tree.by_name)
+    orphans = {j.child: replace(j, kind='floating', mimic=None) for j in tree.joints.values()
+               if j.mimic is not None and j.kind in MOVING
+               and _mimic_source(tree, j, everything)[0] is None}
+    if not orphans:
+        return tree, ()
+    joints = {child: orphans.get(child, j) for child, j in tree.joints.items()}
+    children = {parent: [orphans.get(j.child, j) for j in below]
+                for parent, below in tree.children.items()}
+    tree = replace(tree, joints=joints, children=children)
+    return tree, tuple(j.name for j in orphans.values())
+
+
+def _joint_kind_warnings(tree, source, base, published, orphans=()):
+    """
+    Say once each how the URDF's planar and floating joints are published (one line each).
+
+    As robot_state_publisher: a planar joint is fixed at its origin (kdl_parser converts it
+    and warns), a floating joint has no transform and its child roots a TF tree.
+    """
+    below = list(_below(tree, base, published))
+    joints = [tree.joints[link] for link in below]
+    out = ()
+    planar = [comment(j.name)[:80] for j in joints if j.kind == 'planar']
+    if planar:
+        out += (f'{source}: {len(planar)} planar joint(s) published as fixed at their origin, '
+                f'on /tf_static (robot_state_publisher: kdl_parser converts them): '
+                f'{listing(planar, 5)}',)
+    shown = [comment(j.name)[:80] for j in joints if j.name in orphans]
+    if shown:
+        out += (f'{source}: {len(shown)} mimic joint(s) of joints the URDF does not have get '
+                f'no transform (robot_state_publisher: not until a JointState names the '
+                f'source); each child roots a TF tree, the links below published relative to '
+                f'it: {listing(shown, 5)}',)
+    floating = [j for j in joints if j.kind == 'floating' and j.name not in orphans]
+    if floating:
+        parts = []
+        for j in floating[:5]:
+            count = sum(1 for _ in _below(tree, j.child, published))
+            parts.append(f'{comment(j.name)[:80]} ({comment(j.parent)[:80]} -> '
+                         f'{comment(j.child)[:80]}, {count} link(s) below)')
+        more = f' and {len(floating) - 5} more' if len(floating) > 5 else ''
+        out += (f'{source}: {len(floating)} floating joint(s) not published, as '
+                f'robot_state_publisher (joint states cannot say where the child is; '
+                f'odometry or localisation publishes it); each child roots a TF tree of its '
+                f'own, the links below it published relative to it: {", ".join(parts)}{more}',)
+    return out
 
 
 def _why_skipped(joint):
     """Say in a few words why a side-branch joint is not published."""
-    if joint.kind in ('floating', 'planar'):
-        return f'a {joint.kind} joint (a DH description takes one-axis joints)'
     if joint.mimic is not None:
         return f'mimics {joint.mimic[0]}, which is not published'
     return 'a name this package cannot publish'

@@ -72,6 +72,9 @@ class LinkFrame:
     link's own: ``joint`` then names it (a side-branch joint, such as a gripper's, with
     ``limits`` and ``max_velocity``; optional in joint states, see
     :attr:`RobotModel.optional_joints`).
+    ``floating``: the link hangs from a URDF floating joint: computed at the joint's origin,
+    it gets no TF transform (joint states cannot say where it is: odometry or localisation
+    publishes it) and roots a TF tree of its own (:attr:`RobotModel.tree_roots`).
     """
 
     frame: str
@@ -82,6 +85,7 @@ class LinkFrame:
     joint: str = ''
     limits: tuple = (-math.inf, math.inf)
     max_velocity: float = math.inf
+    floating: bool = False
 
 
 @dataclass(frozen=True)
@@ -113,7 +117,10 @@ class RobotModel:
     ``fixed_frame``); ``moving[i]`` says whether that parent -> child transform depends on
     joint values (else it is static). ``end_effector`` names the frame a user means by
     "the end effector" (default: the last chain frame). ``urdf`` is the URDF XML the robot
-    was converted from (None for a DH file). Lengths are metres, angles radians.
+    was converted from (None for a DH file). ``publish_dh_frames`` says whether the DH
+    frames are frames a user means to see on TF (a DH file: they are its link frames) or
+    only the computation's (a URDF's: its links are the frames; ``dq_fk from-urdf`` writes
+    ``publish_dh_frames: false``). Lengths are metres, angles radians.
     """
 
     name: str
@@ -128,6 +135,7 @@ class RobotModel:
     end_effector: str = ''
     urdf: str = None
     branches: tuple = ()
+    publish_dh_frames: bool = True
 
     @cached_property
     def joint_names(self) -> tuple[str, ...]:
@@ -269,6 +277,24 @@ class RobotModel:
         if name == self.fixed_frame and self.urdf is None:
             return name
         return prefix + name
+
+    @cached_property
+    def tree_roots(self) -> tuple[int, ...]:
+        """
+        Per frame: the index of the root of its TF tree, -1 for the fixed frame.
+
+        A floating link (:attr:`LinkFrame.floating`) roots a tree of its own (itself), as
+        robot_state_publisher leaves a floating joint's child without a parent on TF; every
+        other frame is in its TF parent's tree.
+        """
+        index = {name: k for k, name in enumerate(self.frame_names)}
+        index[self.fixed_frame] = -1
+        floating = {self.n_dh_frames + j for j, link in enumerate(self.links) if link.floating}
+        roots = []
+        for k, parent in enumerate(self.parent_frames):  # TF parents come first
+            p = index[parent]
+            roots.append(k if k in floating else (-1 if p < 0 else roots[p]))
+        return tuple(roots)
 
     @cached_property
     def topic_names(self) -> list[str]:

@@ -28,11 +28,11 @@ LENGTH_UNITS = {'m': 1.0, 'cm': 0.01, 'mm': 0.001}
 ANGLE_UNITS = {'rad': 1.0, 'deg': math.pi / 180.0}
 ROW_TYPES = JOINT_TYPES  # a row's type is its joint's
 TOP_FIELDS = ('robot', 'description', 'convention', 'units', 'fixed_frame', 'base', 'chain',
-              'tool', 'chains', 'links', 'end_effector')
+              'tool', 'chains', 'links', 'end_effector', 'publish_dh_frames')
 CHAIN_FIELDS = ('parent', 'base', 'chain', 'tool')
 LINK_FIELDS = ('frame', 'parent', 'tf_parent', 'xyz', 'rpy', 'quaternion', 'type', 'axis',
                'joint', 'limits', 'max_velocity', 'mimic')
-LINK_TYPES = ('fixed', 'revolute', 'prismatic')
+LINK_TYPES = ('fixed', 'revolute', 'prismatic', 'floating')
 UNIT_FIELDS = ('length', 'angle')
 TRANSFORM_FIELDS = ('frame', 'xyz', 'rpy', 'quaternion')
 ROW_FIELDS = ('frame', 'joint', 'type', 'theta', 'd', 'a', 'alpha', 'scale', 'limits',
@@ -280,6 +280,10 @@ class _Parser:
             if end_effector not in seen or end_effector == fixed_frame:
                 self.fail('', f"field 'end_effector' names {end_effector!r}, which is not a "
                           f'frame of the robot; frames: {listing(list(seen)[1:])}')
+        dh_frames = data.get('publish_dh_frames', True)
+        if not isinstance(dh_frames, bool):
+            self.fail('', f"field 'publish_dh_frames' must be true or false, got "
+                      f'{describe(dh_frames)}')
 
         chains = self.chains(specs, convention)
         chain = chains[0][1]
@@ -318,7 +322,8 @@ class _Parser:
             parent_frames=tuple(parents + [link.tf_parent for link in links]),
             moving=tuple(moving), chain=chain,
             max_velocity=np.array([velocity.get(n, math.inf) for n in joint_names]),
-            links=tuple(links), end_effector=end_effector, branches=branches)
+            links=tuple(links), end_effector=end_effector, branches=branches,
+            publish_dh_frames=dh_frames)
 
     def chain_specs(self, data, fixed_frame, seen):
         """Parse ``base``/``chain``/``tool`` or ``chains``: one dict per chain, frames noted."""
@@ -439,12 +444,13 @@ class _Parser:
                 self.fail(where, f'field {field!r} names {parents[field]!r}, which is not an '
                           f'earlier frame; frames so far: {listing(seen)}')
         kind = self.choice(row.get('type', 'fixed'), where, 'type', LINK_TYPES)
-        if kind == 'fixed':
+        if kind in ('fixed', 'floating'):
             for field in ('axis', 'joint', 'limits', 'max_velocity', 'mimic'):
                 if field in row:
                     self.fail(where, f'field {field!r} applies only to a link of type revolute '
                               f'or prismatic')
-            return LinkFrame(frame, parents['parent'], offset, parents['tf_parent'])
+            return LinkFrame(frame, parents['parent'], offset, parents['tf_parent'],
+                             floating=kind == 'floating')
         if ('mimic' in row) == ('joint' in row):
             given = 'both' if 'mimic' in row else 'neither'
             self.fail(where, f"a {kind} link takes either 'joint' (a joint of its own) or "

@@ -237,10 +237,12 @@ class HelperFrames:
     (``eeCarry_seg6`` under ``wrist_seg5``) and gives every URDF link a transform.
     """
 
-    def __init__(self, model: RobotModel):
-        """Find the helper links of ``model``'s URDF and their offsets."""
+    def __init__(self, model: RobotModel, enabled: bool = True):
+        """Find the helper links of ``model``'s URDF and their offsets (none if not enabled)."""
         self.model = model
         self.static, self.moving = [], []
+        if not enabled:
+            return
         try:
             self._joints = urdf_joints(model)
         except ValueError:  # no URDF for this robot (a scale other than +-1): no helpers

@@ -63,7 +63,7 @@ class ChainText:
 
 def description_yaml(comments: Sequence[str], robot: str, convention: str, fixed_frame: str,
                      chains: Sequence['ChainText'], links: Sequence[Mapping],
-                     end_effector: str) -> str:
+                     end_effector: str, publish_dh_frames: bool = True) -> str:
     """
     Return the YAML text of a robot description (``docs/robot_description.md``).
 
@@ -72,6 +72,7 @@ def description_yaml(comments: Sequence[str], robot: str, convention: str, fixed
     :param chains: :class:`ChainText` per chain; one chain is written as ``base``/``chain``,
         more as ``chains:``.
     :param links: ``(entry mapping, comment)`` per ``links`` entry.
+    :param publish_dh_frames: whether TF carries the DH frames by default (false: written).
     """
     lines = [f'# {printable_line(text)}' for text in comments]
     lines += [f'robot: {json.dumps(comment(robot)[:128])}', f'convention: {convention}',
@@ -98,6 +99,9 @@ def description_yaml(comments: Sequence[str], robot: str, convention: str, fixed
         for entry, note in links:
             lines += [f'  # {comment(note)}', f'  - {flow(entry)}']
     lines.append(f'end_effector: {end_effector}')
+    if not publish_dh_frames:
+        lines += ['# TF carries the links, not the DH frames (the node parameter '
+                  'publish_dh_frames overrides)', 'publish_dh_frames: false']
     return '\n'.join(lines) + '\n'
 
 

@@ -152,6 +152,23 @@ def dq_to_pose_xyzw(h: np.ndarray) -> np.ndarray:
     return np.concatenate([dq_translation_array(h), quat_wxyz_to_xyzw(h[..., :4])], axis=-1)
 
 
+def pose_xyzw_in(frame: ArrayLike, pose: ArrayLike) -> np.ndarray:
+    """
+    Return ``pose`` expressed in ``frame``: both ``(..., 7)`` x y z qx qy qz qw, in one frame.
+
+    ``frame^-1 * pose``: position ``R^T (p - p_frame)``, rotation ``q_frame* q``, ``qw >= 0``.
+    """
+    frame, pose = np.asarray(frame, dtype=float), np.asarray(pose, dtype=float)
+    q_frame = quat_xyzw_to_wxyz(frame[..., 3:])
+    inverse = quat_conjugate(q_frame)
+    offset = np.concatenate([np.zeros(pose.shape[:-1] + (1,)), pose[..., :3] - frame[..., :3]],
+                            axis=-1)
+    position = quat_multiply(quat_multiply(inverse, offset), q_frame)[..., 1:]
+    rotation = quat_multiply(inverse, quat_xyzw_to_wxyz(pose[..., 3:]))
+    rotation = np.where(rotation[..., :1] < 0.0, -rotation, rotation)
+    return np.concatenate([position, quat_wxyz_to_xyzw(rotation)], axis=-1)
+
+
 def pose_xyzw_from_coeffs(h: Sequence[float]) -> Pose:
     """
     Pose ``(x, y, z, qx, qy, qz, qw)`` of 8 plain floats, ``qw >= 0``; no numpy.

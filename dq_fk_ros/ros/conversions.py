@@ -54,11 +54,12 @@ class FrameMessages:
 
     Laid out from the robot's :class:`~dq_fk_ros.messages.output_plan.OutputPlan` (frame
     ids, TF parents, static and moving transforms, helper frames: the bag tool writes from
-    the same plan). The URDF's helper links are published as children of their DH frames:
-    constant ones on /tf_static, moving ones on /tf.
+    the same plan). With the DH frames on TF, the URDF's helper links are published as
+    children of their DH frames: constant ones on /tf_static, moving ones on /tf.
+    ``poses[k]`` is frame k's PoseStamped, in the root of its TF tree.
     """
 
-    def __init__(self, model, frame_prefix='', shown_optional=(), plan=None):
+    def __init__(self, model, frame_prefix='', shown_optional=(), plan=None, dh_frames=None):
         """
         Build the message objects for ``model``.
 
@@ -66,9 +67,11 @@ class FrameMessages:
             transforms and poses that need others are left out (``hidden``).
         :param plan: the :class:`OutputPlan` of ``model`` and ``frame_prefix`` if already made
             (making its helper frames for a big robot takes tens of ms).
+        :param dh_frames: whether TF carries the DH frames (None: the model's default);
+            ignored when ``plan`` is given.
         """
         self.model = model
-        self.plan = plan = OutputPlan(model, frame_prefix) if plan is None else plan
+        self.plan = plan = OutputPlan(model, frame_prefix, dh_frames) if plan is None else plan
         self.fixed_frame_id = fixed = plan.fixed_frame_id
         self.frame_ids = plan.frame_ids
         self.helpers = plan.helpers
@@ -81,9 +84,9 @@ class FrameMessages:
             plan.tf_edges(self.moving_edges)])
         self._helper_transforms = self.tf.transforms[len(self.moving_edges):]
         self.poses = []
-        for _ in self.frame_ids:
+        for k in range(len(self.frame_ids)):
             msg = PoseStamped()
-            msg.header.frame_id = fixed
+            msg.header.frame_id = plan.pose_frame_ids.get(k, fixed)
             self.poses.append(msg)
         self.twist_frames = plan.twist_frames
         self.twists = []
@@ -101,6 +104,8 @@ class FrameMessages:
             for transform, pose in zip(self._helper_transforms, self.helpers.moving_poses(q)):
                 transform.header.stamp = stamp
                 set_transform(transform.transform, [float(v) for v in pose])
+        if self.plan.rooted:
+            absolute = self.plan.rooted_poses(np.array(absolute, dtype=float)).tolist()
         for msg, pose in zip(self.poses, absolute):
             msg.header.stamp = stamp
             set_pose(msg.pose, pose)
@@ -153,6 +158,7 @@ class FrameBytes:
     def __init__(self, messages):
         """Lay out the messages of a :class:`FrameMessages` (same robot, same prefix)."""
         self.helpers = messages.helpers
+        self.plan = messages.plan
         self.moving_edges = messages.moving_edges
         self._moving = tuple(k for _, k in self.moving_edges)
         self.sends_tf = bool(messages.tf.transforms)  # a robot with nothing moving: no /tf
@@ -166,6 +172,11 @@ class FrameBytes:
         self._twist = twist.packer()
         self._tf_c = tf.compiled(7)
         self._pose_c = pose.compiled(7)
+        # frames posed in the child of a floating joint: a template per such frame id
+        self._rooted = {}
+        for k, _ in self.plan.rooted:
+            template = pose_stamped_template(self.plan.pose_frame_ids[k])
+            self._rooted[k] = (template.packer(), template.compiled(7))
 
     def tf(self, sec, nanosec, relative, q=None):
         """
@@ -199,12 +210,27 @@ class FrameBytes:
 
         :param absolute: an ``(n, 7)`` float64 array (the C writer) or a list of poses.
         """
+        if self._rooted:
+            return self._poses_rooted(sec, nanosec, absolute, frames)
         if self._pose_c is not None and isinstance(absolute, np.ndarray):
             return self._pose_c.each(sec, nanosec, absolute, frames)
         if isinstance(absolute, np.ndarray):
             absolute = absolute.tolist()
         pack = self._pose.pack
         return [pack(sec, nanosec, (absolute[k],)) for k in frames]
+
+    def _poses_rooted(self, sec, nanosec, absolute, frames):
+        """:meth:`poses` where some frames are posed in a floating joint's child."""
+        array = self.plan.rooted_poses(np.array(absolute, dtype=float))
+        compiled = isinstance(absolute, np.ndarray)
+        out = []
+        for k in frames:
+            packer, writer = self._rooted.get(k, (self._pose, self._pose_c))
+            if compiled and writer is not None:
+                out += writer.each(sec, nanosec, array, (k,))
+            else:
+                out.append(packer.pack(sec, nanosec, (array[k].tolist(),)))
+        return out
 
     def twist(self, sec, nanosec, v, w):
         """Return a serialized TwistStamped: linear ``v``, angular ``w`` (fixed-frame axes)."""

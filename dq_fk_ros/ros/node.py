@@ -83,7 +83,7 @@ class DqFkNode(Node):
         self._merger = None
         self._last_publish_ns = None
         self._last_update_ns = None
-        self._apply_model(model, self._build_outputs(model, p.frame_prefix))
+        self._apply_model(model, self._build_outputs(model, p.frame_prefix, p.publish_dh_frames))
 
         self._names_cache = JointStateNames()
         self._gaps = SequenceGaps()  # joint states lost before the node took them
@@ -190,13 +190,16 @@ class DqFkNode(Node):
         old, p = self._params, self._params.changed(new)
         outputs = None
         try:
-            if model is not None or p.frame_prefix != old.frame_prefix:
-                outputs = self._build_outputs(model or self._model, p.frame_prefix)
+            if model is not None or p.frame_prefix != old.frame_prefix or \
+                    p.publish_dh_frames != old.publish_dh_frames:
+                outputs = self._build_outputs(model or self._model, p.frame_prefix,
+                                              p.publish_dh_frames)
         except Exception as exc:  # nothing a user sets may stop the node (a name too long...)
             return self._refuse(exc, quote=True)
         resend_static = p.publish_tf and not old.publish_tf
         resend_description = p.publish_robot_description and not old.publish_robot_description
-        rebuild = model is not None or any(k in new for k in ('out_of_limits', 'frame_prefix'))
+        rebuild = model is not None or any(k in new for k in ('out_of_limits', 'frame_prefix',
+                                                              'publish_dh_frames'))
         self._params = p
         if rebuild:
             self._apply_model(model or self._model, outputs)
@@ -211,18 +214,20 @@ class DqFkNode(Node):
         self._refresh_readers()
         return SetParametersResult(successful=True)
 
-    def _build_outputs(self, model, prefix):
+    def _build_outputs(self, model, prefix, dh_frames=None):
         """
         Return ``(messages, pose publishers, twist publishers)`` for a robot and prefix.
 
-        Built before anything is replaced: if a topic name is refused (too long in this
-        namespace, say), the publishers made so far are destroyed and the error raised.
+        A pose topic per frame on TF (:attr:`OutputPlan.pose_frames`). Built before anything
+        is replaced: if a topic name is refused, those made so far are destroyed, the error
+        raised.
         """
-        messages = FrameMessages(model, prefix)
+        messages = FrameMessages(model, prefix, dh_frames=dh_frames)
         made = []
         try:
-            for topic in model.topic_names:
-                made.append(self.create_publisher(PoseStamped, f'~/pose/{topic}', 10))
+            for k in messages.plan.pose_frames:
+                made.append(self.create_publisher(
+                    PoseStamped, f'~/pose/{model.topic_names[k]}', 10))
             for k in messages.twist_frames:
                 made.append(self.create_publisher(
                     TwistStamped, f'~/twist/{model.topic_names[k]}', 10))
@@ -230,7 +235,7 @@ class DqFkNode(Node):
             for pub in made:
                 self.destroy_publisher(pub)
             raise
-        n = len(model.frame_names)
+        n = len(messages.plan.pose_frames)
         return messages, made[:n], made[n:]
 
     def _apply_model(self, model, outputs=None):
@@ -251,6 +256,8 @@ class DqFkNode(Node):
             for pub in self._pose_pubs + self._twist_pubs:
                 self.destroy_publisher(pub)
             self._messages, self._pose_pubs, self._twist_pubs = outputs
+            self._pose_frames = self._messages.plan.pose_frames  # frame index per pose topic
+            self.get_logger().info(self._messages.plan.summary())
             # bytes straight to the handles: publishers are replaced under the node's lock
             self._send_pose = [raw_publisher(pub) for pub in self._pose_pubs]
             self._send_twist = [raw_publisher(pub) for pub in self._twist_pubs]
@@ -357,15 +364,20 @@ class DqFkNode(Node):
             self._merger.counts['rate_limited'] += 1
             return
         stamp = stamp_ns or now_ns
+        send_tf = True
         if p.publish_frequency > 0 and not p.ignore_timestamp:
-            # robot_state_publisher's throttle: by the stamps, not the clock (bags replay
-            # alike at any rate); a stamp back in time publishes and starts over
+            # robot_state_publisher's throttle of /tf: by the stamps, not the clock (bags
+            # replay alike at any rate); a stamp back in time publishes and starts over
             last = self._last_stamp_ns
             if last is not None and last <= stamp < last + 1e9 / p.publish_frequency:
                 self._merger.counts['rate_limited'] += 1
-                return
-        self._last_stamp_ns = stamp
-        self._publish(stamp_ns if (p.use_joint_state_stamp and stamp_ns) else now_ns, q, qdot)
+                send_tf = False
+                if not (p.publish_poses and self._read_poses or p.publish_twist and
+                        self._any_twist_read):
+                    return  # nothing else to send: no FK either
+        self._last_stamp_ns = stamp if send_tf else self._last_stamp_ns
+        self._publish(stamp_ns if (p.use_joint_state_stamp and stamp_ns) else now_ns, q, qdot,
+                      send_tf)
         self._last_publish_ns = now_ns
         self._merger.counts['published'] += 1
 
@@ -378,13 +390,14 @@ class DqFkNode(Node):
         self._bytes = FrameBytes(self._messages)
         self._shown_optional = seen
         hidden = self._messages.hidden
-        self._pose_read = [read and k not in hidden for k, read in enumerate(self._pose_read)]
+        self._pose_read = [read and k not in hidden
+                           for k, read in zip(self._pose_frames, self._pose_read)]
         self._note_read_poses()
         if new:
             self.get_logger().info(f'joint states name joints {listing(new, 10)}: publishing '
                                    f'the links that depend on them')
 
-    def _publish(self, stamp_ns, q, qdot):
+    def _publish(self, stamp_ns, q, qdot, send_tf=True):
         """Publish /tf and the read pose and twist topics, serialized, stamped ``stamp_ns``."""
         model = self._model
         if model.optional_joints:
@@ -401,7 +414,7 @@ class DqFkNode(Node):
             relative = model.transform_pose_array(q, self._relative)
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self._bytes
-        if self._params.publish_tf and out.sends_tf:
+        if send_tf and self._params.publish_tf and out.sends_tf:
             self._send_tf(out.tf(sec, nanosec, relative, q))
         if poses:
             for send, data in zip(self._send_read_poses,
@@ -437,15 +450,17 @@ class DqFkNode(Node):
                 self._gaps.single_publisher(publishers == 1)
             if pose_pubs is self._pose_pubs and twist_pubs is self._twist_pubs:
                 hidden = self._messages.hidden  # side-branch links not named yet
-                self._pose_read = [read and k not in hidden for k, read in enumerate(pose)]
+                self._pose_read = [read and k not in hidden
+                                   for k, read in zip(self._pose_frames, pose)]
                 self._twist_read = twist
                 self._any_twist_read = any(twist)
                 self._note_read_poses()
 
     def _note_read_poses(self):
         """Index the pose topics someone reads, and their senders (for :meth:`_publish`)."""
-        self._read_poses = [k for k, read in enumerate(self._pose_read) if read]
-        self._send_read_poses = [self._send_pose[k] for k in self._read_poses]
+        read = [i for i, on in enumerate(self._pose_read) if on]
+        self._read_poses = [self._pose_frames[i] for i in read]
+        self._send_read_poses = [self._send_pose[i] for i in read]
 
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self):

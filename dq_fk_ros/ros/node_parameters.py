@@ -30,6 +30,7 @@ INPUT_BATCH_MS_MAX = 100.0
 MIN_RATE_HZ = 0.01  # publish_frequency, max_publish_rate_hz: 0 (off) or at least this
 MAX_RATE_HZ = 1e6
 MAX_FRAME_PREFIX_CHARS = 64
+PUBLISH_FREQUENCY_DEFAULT = 20.0  # robot_state_publisher's (Jazzy), Hz
 
 # the node's parameters (declared from this table; `dq_fk_node --help` prints it)
 NODE_PARAMETERS = (
@@ -46,11 +47,18 @@ NODE_PARAMETERS = (
     Param('urdf_tip_link', '',
           'for a URDF: the link the first DH chain ends at (the end effector); empty: the child '
           'of the last moving joint of the longest chain'),
-    Param('publish_frequency', 0.0,
-          'as robot_state_publisher: at most this many /tf updates per second of JointState '
-          'stamps; 0: every update (robot_state_publisher defaults to 20)'),
+    Param('publish_frequency', PUBLISH_FREQUENCY_DEFAULT,
+          'as robot_state_publisher (and its default): at most this many /tf messages per '
+          'second of JointState stamps; 0: every update. The pose and twist topics are sent '
+          'at every update'),
     Param('ignore_timestamp', False,
-          'as robot_state_publisher: publish every update whatever publish_frequency says'),
+          'as robot_state_publisher: publish /tf at every update whatever publish_frequency '
+          'says'),
+    Param('publish_dh_frames', None,
+          'put the DH frames the kinematics computes with (and their URDF helper links) on '
+          "TF and ~/pose beside the links; unset: the robot's default (false for a URDF: "
+          "TF is robot_state_publisher's tree; true for a DH file, whose DH frames are its "
+          'link frames)', unset_type=bool),
     Param('frame_prefix', '',
           'prepended to every frame id except the fixed frame'),
     Param('publish_tf', True,
@@ -105,8 +113,9 @@ class NodeParameters:
     robot_description: str = ''
     urdf_base_link: str = ''
     urdf_tip_link: str = ''
-    publish_frequency: float = 0.0
+    publish_frequency: float = PUBLISH_FREQUENCY_DEFAULT
     ignore_timestamp: bool = False
+    publish_dh_frames: bool | None = None
     frame_prefix: str = ''
     publish_tf: bool = True
     publish_poses: bool = True
@@ -181,6 +190,10 @@ def _check_choice(name, value, allowed):
 
 def check_values(new):
     """Raise ParameterError (one line) for a value in ``{name: value}`` the node cannot use."""
+    dh_frames = new.get('publish_dh_frames')
+    if dh_frames is not None and not isinstance(dh_frames, bool):
+        shown = printable_line(repr(dh_frames), 70)
+        raise ParameterError(f'parameter publish_dh_frames is {shown}; allowed: true, false')
     if 'out_of_limits' in new:
         _check_choice('out_of_limits', new['out_of_limits'], OUT_OF_LIMITS_POLICIES)
     if 'joint_states_reliability' in new:

@@ -14,21 +14,33 @@ from dq_fk_ros.ros.package_paths import DESCRIPTION as PACKAGE_PATHS_DESCRIPTION
 
 @dataclass(frozen=True)
 class Param:
-    """One ROS parameter: ``default`` gives its type; ``read_only``: set at start only."""
+    """
+    One ROS parameter: ``default`` gives its type; ``read_only``: set at start only.
+
+    A ``default`` of None with ``unset_type`` (``bool``, ``str``...) declares a parameter
+    of that type without a value (rclpy's statically typed, unset parameter): its value is
+    None until a user sets one.
+    """
 
     name: str
     default: object
     description: str
     read_only: bool = False
+    unset_type: type = None
 
 
 def declare(node, params):
     """Declare every parameter of ``params`` on ``node``; return ``{name: value}``."""
     from rcl_interfaces.msg import ParameterDescriptor
+    from rclpy.parameter import Parameter
+    types = {bool: Parameter.Type.BOOL, str: Parameter.Type.STRING,
+             float: Parameter.Type.DOUBLE, int: Parameter.Type.INTEGER}
     for p in params:
-        node.declare_parameter(p.name, p.default, ParameterDescriptor(
+        value = types[p.unset_type] if p.default is None else p.default
+        node.declare_parameter(p.name, value, ParameterDescriptor(
             description=p.description, read_only=p.read_only))
-    return {p.name: node.get_parameter(p.name).value for p in params}
+    # an unset parameter's value is None (get_parameter raises for it)
+    return {p.name: node.get_parameter_or(p.name, None).value for p in params}
 
 
 def help_text(program, summary, params, package_paths=True):
@@ -36,7 +48,8 @@ def help_text(program, summary, params, package_paths=True):
     lines = [f'usage: {program} [--ros-args -p NAME:=VALUE ... | --params-file FILE]', '']
     lines += textwrap.wrap(summary, 92)
     lines += ['', 'ROS parameters (default; "read only": at start only):']
-    rows = [(p.name, repr(p.default) + (', read only' if p.read_only else ''), p.description)
+    rows = [(p.name, (f'{p.unset_type.__name__}, unset' if p.default is None else
+                      repr(p.default)) + (', read only' if p.read_only else ''), p.description)
             for p in params]
     if package_paths:
         rows.append(('package_paths', '[], read only', PACKAGE_PATHS_DESCRIPTION))

@@ -29,12 +29,18 @@ def unique_node_name(base):
     return f'{base}_{os.getpid()}_{next(_started)}'
 
 
+EVERY_UPDATE = 'publish_frequency:=0.0'
+
+
 def start(processes, name, *params, namespace=None, log_level='warn'):
     """
     Start one of the package's programs with ``-p`` parameters, reaped by ``processes``.
 
     dq_fk_node and fake_joint_publisher run under a unique node name (the process's
-    ``node_name``; its private topics are under it: :func:`node_topic`).
+    ``node_name``; its private topics are under it: :func:`node_topic`). dq_fk_node sends
+    /tf at every update (``publish_frequency:=0.0``, :data:`EVERY_UPDATE`) unless ``params``
+    set ``publish_frequency``: the tests count and compare updates; test_urdf_node.py
+    checks the default (robot_state_publisher's 20 Hz).
     """
     argv = executable(name) + ['--ros-args', '--log-level', log_level]
     node_name = None
@@ -43,6 +49,8 @@ def start(processes, name, *params, namespace=None, log_level='warn'):
         argv += ['-r', f'{NODE_NAMES[name]}:__node:={node_name}']
     if namespace:
         argv += ['-r', f'__ns:={namespace}']
+    if name == 'dq_fk_node' and not any(p.startswith('publish_frequency:=') for p in params):
+        params = (EVERY_UPDATE,) + params
     for p in params:
         argv += ['-p', p]
     proc = processes.start(argv)
@@ -76,7 +84,8 @@ class Harness:
         return node
 
     def start_node(self, **params):
-        """Start a DqFkNode in this context under a unique name (:meth:`topic`)."""
+        """Start a DqFkNode in this context under a unique name; /tf at every update (as start)."""
+        params.setdefault('publish_frequency', 0.0)
         overrides = [Parameter(k, value=v) for k, v in params.items()]
         self.node_name = unique_node_name('dq_fk_node')
         return self.add(DqFkNode(context=self.context, parameter_overrides=overrides,

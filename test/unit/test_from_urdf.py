@@ -140,7 +140,7 @@ def test_z1_gripper_is_a_side_branch_with_an_optional_joint():
     assert_matches_pinocchio(model, text, conversion.base, 200)
 
 
-def test_floating_side_branches_and_orphan_mimics_are_skipped_and_named():
+def test_orphan_mimics_are_skipped_and_named_and_a_floating_child_is_kept():
     text = serial_urdf(DEGENERATE['skew axes'])[:-len('</robot>\n')] + (
         '  <link name="drone"/><joint name="free" type="floating"><parent link="l2"/>'
         '<child link="drone"/></joint>\n'
@@ -148,13 +148,13 @@ def test_floating_side_branches_and_orphan_mimics_are_skipped_and_named():
         '<child link="pad"/><mimic joint="free"/><axis xyz="0 0 1"/>'
         '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>\n</robot>\n')
     conversion = urdf_to_description(text, 'mine.urdf', tip='l3')
-    assert [j.name for j in conversion.skipped] == ['free', 'pad_joint']
-    assert '# skipped: side branch free (floating) -> drone: a floating joint' in \
-        conversion.text
+    assert [j.name for j in conversion.skipped] == ['pad_joint']
     assert '# skipped: side branch pad_joint (revolute) -> pad: mimics free, which is not ' \
         'published' in conversion.text
     model = parse_robot_description(conversion.text)
-    assert 'drone' not in model.frame_names and 'pad' not in model.frame_names
+    assert 'pad' not in model.frame_names
+    drone = model.links[model.frame_names.index('drone') - model.n_dh_frames]
+    assert drone.floating and drone.tf_parent == 'l2'
 
 
 def test_converted_text_says_where_every_row_came_from():
@@ -163,7 +163,9 @@ def test_converted_text_says_where_every_row_came_from():
     lines = conversion.text.splitlines()
     assert lines[0].startswith('# Converted by `dq_fk from-urdf` from ')
     assert 'ur5_robot.urdf: the chain world -> tool0' in lines[0]
-    assert 'the DH frames are published as dh0..dh6, the URDF links' in lines[1]
+    assert 'the DH frames are dh0..dh6; TF carries the URDF links under their URDF parents' \
+        in lines[1]
+    assert lines[-1] == 'publish_dh_frames: false'
     rows = [k for k, line in enumerate(lines) if line.startswith('  - {frame: "dh')]
     assert len(rows) == 6
     for k in rows:
@@ -806,16 +808,33 @@ def test_every_vendor_urdf_is_published_whole_and_equals_pinocchio(path):
     assert_matches_pinocchio(model, text, model.fixed_frame, 200, mimic=mimic)
 
 
-def test_floating_and_planar_joints_get_no_transform_and_one_warning_line():
+def test_floating_and_planar_joints_are_as_robot_state_publisher_and_said_once():
+    """Both were skipped with what was below them; RSP publishes planar as fixed."""
     text = ('<robot name="f"><link name="b"/><link name="a"/><link name="drone"/>'
             '<link name="puck"/><joint name="j" type="revolute"><parent link="b"/>'
             '<child link="a"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" '
             'velocity="1"/></joint><joint name="fly" type="floating"><parent link="b"/>'
             '<child link="drone"/></joint><joint name="slide" type="planar"><parent link="b"/>'
             '<child link="puck"/></joint></robot>')
+    text = text.replace('<child link="puck"/>', '<child link="puck"/><origin xyz="1 2 3"/>')
+    text = text.replace('</robot>', '<link name="rotor"/><joint name="spin" type="continuous">'
+                        '<parent link="drone"/><child link="rotor"/><axis xyz="0 0 1"/>'
+                        '<origin xyz="0 0 0.5"/></joint></robot>')
     conversion = urdf_to_description(text, 'f.urdf')
     model = parse_robot_description(conversion.text, 'f.yaml')
-    assert 'drone' not in model.frame_names and 'puck' not in model.frame_names
-    assert [w for w in conversion.warnings if 'floating or planar' in w] == [
-        'f.urdf: 2 floating or planar joint(s) get no transform, as in robot_state_publisher '
-        '(their links are not on TF): fly, slide']
+    assert conversion.skipped == ()
+    assert conversion.warnings == (
+        'f.urdf: 1 planar joint(s) published as fixed at their origin, on /tf_static '
+        '(robot_state_publisher: kdl_parser converts them): slide',
+        'f.urdf: 1 floating joint(s) not published, as robot_state_publisher (joint states '
+        'cannot say where the child is; odometry or localisation publishes it); each child '
+        'roots a TF tree of its own, the links below it published relative to it: fly '
+        '(b -> drone, 1 link(s) below)')
+    links = {link.frame: link for link in model.links}
+    assert links['drone'].floating and not links['puck'].floating
+    assert 'spin' in model.joint_names  # below the floating joint: published
+    static = {model.frame_names[k]: pose for k, pose in model.static_transforms()}
+    np.testing.assert_allclose(static['puck'], [1, 2, 3, 0, 0, 0, 1], atol=1e-15)
+    rotor = model.frame_names.index('rotor')
+    assert model.parent_frames[rotor] == 'drone' and model.moving[rotor]
+    assert model.frame_names[model.tree_roots[rotor]] == 'drone'
