@@ -21,6 +21,7 @@ from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.description.to_urdf import matrix_to_rpy, robot_to_urdf
 from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
+from dq_fk_ros.messages.output_plan import OutputPlan
 import numpy as np
 
 
@@ -75,19 +76,25 @@ def _number(text, name):
     return value
 
 
-def frames_table(model, q):
+def frames_table(model, q, dh_frames=None):
     """
-    One dict per frame: name, TF parent, pose in the fixed frame (m; quaternion x y z w).
+    One dict per frame: name, TF parent, on TF, pose in the fixed frame (m; quaternion x y z w).
 
-    The pose is absolute (in the fixed frame), not relative to ``tf_parent``.
+    The pose is absolute (in the fixed frame), not relative to ``tf_parent``. ``on_tf``: the
+    node publishes the frame's transform (``dh_frames``: its ``publish_dh_frames``; None:
+    the robot's default), ``root`` for a floating joint's child (a TF root, no transform).
     """
     poses = model.forward_all(q)
+    on_tf = set(OutputPlan(model, dh_frames=dh_frames).tf_frames)
+    roots = set(model.tree_roots)
     rows = []
-    for name, parent, h in zip(model.frame_names, model.parent_frames, poses):
+    for k, (name, parent, h) in enumerate(zip(model.frame_names, model.parent_frames, poses)):
         dq = DualQuaternion(h)
         pose = dq.to_pose_xyzw()
         matrix = dq.to_matrix()
-        rows.append({'frame': name, 'tf_parent': parent, 'position': pose[:3].tolist(),
+        rows.append({'frame': name, 'tf_parent': parent,
+                     'on_tf': 'yes' if k in on_tf else 'root' if k in roots else 'no',
+                     'position': pose[:3].tolist(),
                      'quaternion_xyzw': pose[3:].tolist(),
                      'rpy': list(matrix_to_rpy(matrix[:3, :3])), 'matrix': matrix.tolist()})
     return rows
@@ -157,7 +164,7 @@ def cmd_fk(args):
         if v < lo or v > hi:
             print(f'warning: {n} = {v:.6g} is outside its limits [{lo:.6g}, {hi:.6g}]',
                   file=sys.stderr)
-    rows = frames_table(model, q)
+    rows = frames_table(model, q, args.dh_frames)
     if args.json:
         for r in rows:
             if not args.rpy:
@@ -171,15 +178,17 @@ def cmd_fk(args):
         return 0
     width = max(len(r['frame']) for r in rows)
     pwidth = max(len(r['tf_parent']) for r in rows)
-    header = f'{"frame":{width}s}  {"tf_parent":{pwidth}s}  {"x":>10s} {"y":>10s} {"z":>10s}  ' \
+    header = f'{"frame":{width}s}  {"tf_parent":{pwidth}s}  {"on_tf":5s}  ' \
+             f'{"x":>10s} {"y":>10s} {"z":>10s}  ' \
              f'{"qx":>9s} {"qy":>9s} {"qz":>9s} {"qw":>9s}'
     if args.rpy:
         header += f'  {"roll":>9s} {"pitch":>9s} {"yaw":>9s}'
     print(f'# {model.name}: every pose is in {model.fixed_frame}, not relative to its tf_parent '
-          f'(m; quaternion x y z w{"; rpy rad" if args.rpy else ""})')
+          f'(m; quaternion x y z w{"; rpy rad" if args.rpy else ""}); on_tf: the node publishes '
+          f'its transform (root: a TF root, below a floating joint)')
     print(header)
     for r in rows:
-        line = (f'{r["frame"]:{width}s}  {r["tf_parent"]:{pwidth}s}  '
+        line = (f'{r["frame"]:{width}s}  {r["tf_parent"]:{pwidth}s}  {r["on_tf"]:5s}  '
                 + ' '.join(f'{_tidy(v):10.6f}' for v in r['position']) + '  '
                 + ' '.join(f'{_tidy(v):9.6f}' for v in r['quaternion_xyzw']))
         if args.rpy:
@@ -282,6 +291,9 @@ def build_parser():
     p.add_argument('--rpy', action='store_true', help='also print roll, pitch, yaw (rad)')
     p.add_argument('--matrix', action='store_true', help='also print the 4x4 matrix')
     p.add_argument('--json', action='store_true', help='print JSON instead of a table')
+    p.add_argument('--dh-frames', dest='dh_frames', action='store_true', default=None,
+                   help="mark the DH frames on TF too, as the node's publish_dh_frames "
+                   "(default: the robot's: a URDF's links only, a DH file's every frame)")
     p.add_argument('--code', action='store_true',
                    help="print the robot's generated straight-line FK code (frame_poses) and "
                    'stop')

@@ -86,6 +86,8 @@ class Harness:
     def start_node(self, **params):
         """Start a DqFkNode in this context under a unique name; /tf at every update (as start)."""
         params.setdefault('publish_frequency', 0.0)
+        if params['publish_frequency'] is None:  # the node's own default
+            del params['publish_frequency']
         overrides = [Parameter(k, value=v) for k, v in params.items()]
         self.node_name = unique_node_name('dq_fk_node')
         return self.add(DqFkNode(context=self.context, parameter_overrides=overrides,

@@ -307,8 +307,10 @@ def test_the_readme_lists_every_parameter_with_its_type_and_default(ros):
         if name not in rclpys_own:
             try:
                 declared[name] = node.get_parameter(name)
-            except ParameterUninitializedException:  # a string array given no default
-                declared[name] = Parameter(name, Parameter.Type.STRING_ARRAY, [])
+            except ParameterUninitializedException:  # typed, no value: its declared type
+                kind = Parameter.Type(node.describe_parameter(name).type)
+                declared[name] = Parameter(name, kind, [] if kind ==
+                                           Parameter.Type.STRING_ARRAY else None)
     assert sorted(rows) == sorted(declared)
     types = {Parameter.Type.STRING: 'string', Parameter.Type.DOUBLE: 'double',
              Parameter.Type.BOOL: 'bool', Parameter.Type.INTEGER: 'int',
@@ -318,6 +320,8 @@ def test_the_readme_lists_every_parameter_with_its_type_and_default(ros):
         assert kind == types[param.type_], name
         if param.type_ == Parameter.Type.STRING_ARRAY:
             shown = str(list(param.value))
+        elif param.value is None:
+            shown = 'unset'  # the robot's default (publish_dh_frames)
         elif param.type_ == Parameter.Type.BOOL:
             shown = 'true' if param.value else 'false'
         else:

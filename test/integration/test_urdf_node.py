@@ -12,6 +12,7 @@ import xml.etree.ElementTree as ElementTree
 
 from builtin_interfaces.msg import Time
 from dq_fk_ros.description.loading import load_robot
+from geometry_msgs.msg import PoseStamped
 import homogeneous_tf as htf
 import numpy as np
 import pinocchio_oracle as oracle
@@ -125,15 +126,18 @@ def test_reload_between_urdf_and_dh_and_a_bad_urdf_is_refused(ros_domain_id, tmp
         harness.close()
 
 
-def test_publish_frequency_throttles_by_stamps_unless_ignore_timestamp(ros_domain_id):
+def test_publish_frequency_throttles_tf_by_stamps_unless_ignore_timestamp(ros_domain_id):
+    """robot_state_publisher's default, 20 Hz of stamps, on /tf; the poses at every update."""
     names = [f'joint_{i}' for i in range(1, 7)]
-    for params, expected_ms in (({'publish_frequency': 20.0}, [0, 50, 100]),
-                                ({'publish_frequency': 20.0, 'ignore_timestamp': True},
-                                 list(range(0, 101, 10)))):
+    every = list(range(0, 101, 10))
+    for params, expected_ms in (({'publish_frequency': None}, [0, 50, 100]),
+                                ({'publish_frequency': 20.0, 'ignore_timestamp': True}, every),
+                                ({'publish_frequency': 0.0}, every)):
         harness = Harness()
         try:
             harness.start_node(**params)
             tf = harness.listen(TFMessage, '/tf', 100)
+            poses = harness.listen(PoseStamped, harness.topic('pose/eeCarry_seg6'), 100)
             harness.spin_until(lambda: False, timeout_s=0.5)  # discovery
             for ms in range(0, 101, 10):
                 stamp = Time(sec=100, nanosec=ms * 1_000_000)
@@ -143,6 +147,7 @@ def test_publish_frequency_throttles_by_stamps_unless_ignore_timestamp(ros_domai
             harness.spin_until(lambda: False, timeout_s=0.3)
             got = [t.transforms[0].header.stamp.nanosec // 1_000_000 for t in tf]
             assert got == expected_ms, params
+            assert [p.header.stamp.nanosec // 1_000_000 for p in poses] == every, params
         finally:
             harness.close()
 
@@ -334,5 +339,38 @@ def test_tf_names_as_the_urdf_writes_them_and_valid_topic_names(ros_domain_id):
         np.testing.assert_allclose([p.x, p.y, p.z], [0.2 * math.cos(0.5), 0.2 * math.sin(0.5),
                                                      0.0], atol=1e-12)
         assert tip[-1].header.frame_id == 'base_link'
+    finally:
+        harness.close()
+
+
+def test_publish_dh_frames_puts_the_dh_frames_on_tf_and_back_off(ros_domain_id):
+    """A URDF's default is robot_state_publisher's tree; the DH frames for debugging."""
+    harness = Harness()
+    try:
+        node = harness.start_node(robot_description_file=vendor_path(UR5),
+                                  urdf_tip_link='tool0')
+        tf = harness.listen(TFMessage, '/tf', 100)
+        static = harness.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+        names = list(node._model.joint_names)
+        msg = harness.joint_state(names, [0.1] * 6)
+
+        def frames():
+            return {t.child_frame_id for m in static[-1:] + tf[-1:] for t in m.transforms}
+        assert harness.spin_until(lambda: static and tf, publish=msg)
+        links = set(urdf_parents(open(vendor_path(UR5)).read()))
+        assert frames() == links
+        assert node.get_parameter_or('publish_dh_frames', None).value is None  # unset
+        result = node.set_parameters([Parameter('publish_dh_frames', value=True)])
+        assert result[0].successful
+        tf.clear()
+        assert harness.spin_until(lambda: tf and 'dh3' in frames(), publish=msg)
+        assert frames() >= links | {f'dh{k}' for k in range(7)}
+        assert harness.probe.count_publishers(harness.topic('pose/dh3')) == 1
+        assert node.set_parameters([Parameter('publish_dh_frames', value=False)])[0].successful
+        tf.clear()
+        assert harness.spin_until(lambda: tf and 'dh3' not in frames(), publish=msg)
+        assert frames() == links
+        refused = node.set_parameters([Parameter('publish_dh_frames', value='yes')])
+        assert not refused[0].successful
     finally:
         harness.close()

@@ -6,6 +6,7 @@ from dq_fk_ros.cli.dq_fk import main
 from dq_fk_ros.description.shipped import shipped_robot_path
 import numpy as np
 import pytest
+from vendor_urdfs import robots_dir
 
 
 def run(capsys, *argv):
@@ -18,8 +19,8 @@ def test_fk_table_shows_the_rl15_end_effector(capsys):
     rc, out, _ = run(capsys, 'fk', 'rl15')
     assert rc == 0
     last = out.strip().splitlines()[-1].split()
-    assert last[:2] == ['eeCarry_seg6', 'wrist_seg5']
-    assert [float(v) for v in last[2:9]] == pytest.approx(
+    assert last[:3] == ['eeCarry_seg6', 'wrist_seg5', 'yes']  # a DH file's frame: on TF
+    assert [float(v) for v in last[3:10]] == pytest.approx(
         [1.025, 0.0, 1.445, 0.707107, 0.0, 0.707107, 0.0], abs=1e-6)
 
 
@@ -127,3 +128,23 @@ def test_fk_code_prints_the_code_the_node_runs(robot, capsys):
          else model.chain._unrolled.__globals__, namespace)
     q = np.linspace(-0.5, 0.5, model.dof).tolist()
     assert namespace['frame_poses'](q) == model.frame_poses(q)  # the same function, printed
+
+
+def test_a_floating_root_urdf_validates_and_fk_marks_what_is_on_tf(capsys, tmp_path):
+    """solo12 under a floating joint: "no moving joint below world", 0 links, said ok."""
+    text = open(f'{robots_dir()}/solo_description/robots/solo12.urdf').read()
+    at = text.index('<link')
+    path = tmp_path / 'solo12_floating.urdf'
+    path.write_text(text[:at] + '<link name="world"/><joint name="root" type="floating">'
+                    '<parent link="world"/><child link="base_link"/></joint>' + text[at:])
+    rc, out, _ = run(capsys, 'validate', str(path))
+    assert rc == 0 and '12 joints' in out, out
+    rc, out, _ = run(capsys, 'fk', str(path), '--json')
+    frames = {f['frame']: f['on_tf'] for f in json.loads(out)['frames']}
+    assert frames['base_link'] == 'root' and frames['FL_FOOT'] == 'yes'
+    assert {name for name, on in frames.items() if on == 'yes'} == {
+        f'{leg}_{part}' for leg in ('FL', 'FR', 'HL', 'HR')
+        for part in ('SHOULDER', 'UPPER_LEG', 'LOWER_LEG', 'FOOT')}
+    rc, out, _ = run(capsys, 'fk', str(path), '--dh-frames')
+    assert rc == 0 and any(line.split()[:3] == ['dh0', 'world', 'yes']
+                           for line in out.splitlines())

@@ -140,7 +140,7 @@ def test_z1_gripper_is_a_side_branch_with_an_optional_joint():
     assert_matches_pinocchio(model, text, conversion.base, 200)
 
 
-def test_orphan_mimics_are_skipped_and_named_and_a_floating_child_is_kept():
+def test_a_floating_child_and_a_mimic_of_it_are_kept_as_tree_roots():
     text = serial_urdf(DEGENERATE['skew axes'])[:-len('</robot>\n')] + (
         '  <link name="drone"/><joint name="free" type="floating"><parent link="l2"/>'
         '<child link="drone"/></joint>\n'
@@ -148,13 +148,14 @@ def test_orphan_mimics_are_skipped_and_named_and_a_floating_child_is_kept():
         '<child link="pad"/><mimic joint="free"/><axis xyz="0 0 1"/>'
         '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>\n</robot>\n')
     conversion = urdf_to_description(text, 'mine.urdf', tip='l3')
-    assert [j.name for j in conversion.skipped] == ['pad_joint']
-    assert '# skipped: side branch pad_joint (revolute) -> pad: mimics free, which is not ' \
-        'published' in conversion.text
+    assert conversion.skipped == ()
+    assert 'mimic joint(s) of joints the URDF does not have get no transform' in \
+        conversion.warnings[0] and conversion.warnings[0].endswith(': pad_joint')
     model = parse_robot_description(conversion.text)
-    assert 'pad' not in model.frame_names
-    drone = model.links[model.frame_names.index('drone') - model.n_dh_frames]
-    assert drone.floating and drone.tf_parent == 'l2'
+    links = {link.frame: link for link in model.links}
+    # robot_state_publisher never moves pad_joint (its source has no value): a TF root
+    assert links['drone'].floating and links['drone'].tf_parent == 'l2'
+    assert links['pad'].floating and links['pad'].tf_parent == 'l3'
 
 
 def test_converted_text_says_where_every_row_came_from():
