@@ -586,3 +586,44 @@ def test_a_tree_bag_writes_what_the_node_publishes_message_for_message(tmp_path)
                 for t in transforms]
     assert len(by_topic['/tf_static']) == 1
     assert fields(written.transforms) == fields(static.transforms)
+
+
+def test_a_floating_base_urdf_bag_has_robot_state_publishers_tf_and_poses_in_its_root(
+        tmp_path, capsys):
+    """solo12 under a floating joint: the bag's /tf is the node's, RSP's edges, no DH frame."""
+    from test_rsp_parity import rsp_edges, with_joint
+    from vendor_urdfs import robots_dir
+    text = with_joint(open(os.path.join(robots_dir(), 'solo_description/robots/solo12.urdf'))
+                      .read(), 'floating', 'root')
+    urdf = tmp_path / 'solo12_floating.urdf'
+    urdf.write_text(text)
+    moving, fixed = rsp_edges(text)
+    joints = sorted({c.replace('_UPPER_LEG', '_HFE').replace('_LOWER_LEG', '_KFE')
+                     .replace('_SHOULDER', '_HAA') for _, c in moving})
+    assert len(joints) == 12  # solo12's joints are named after their child links
+    rng = np.random.default_rng(3)
+    states = [(T0 + k * 10_000_000, rng.uniform(-0.5, 0.5, 12)) for k in range(20)]
+    write_bag(tmp_path / 'in', [(s, js_bytes(joints, v, s)) for s, v in states])
+    for dh_frames in (False, True):
+        out = tmp_path / f'out_{dh_frames}'
+        rc, _, err = run_process(capsys, str(tmp_path / 'in'), str(out), '--robot', str(urdf),
+                                 *(['--dh-frames'] if dh_frames else []))
+        assert rc == 0, err
+        tf = read_topic(out, '/tf')
+        static = read_topic(out, '/tf_static')
+        edges = {(t.header.frame_id, t.child_frame_id) for t in tf[-1][1].transforms}
+        static_edges = {(t.header.frame_id, t.child_frame_id) for t in static[0][1].transforms}
+        if not dh_frames:
+            assert len(tf) == 20 and edges == moving and static_edges == fixed
+        else:  # the DH frames beside the links, never the floating edge
+            assert edges > moving and static_edges > fixed
+            assert not any(c == 'base_link' for _, c in edges | static_edges)
+        with Reader(out) as reader:
+            poses = {c.topic for c in reader.connections if '/pose/' in c.topic}
+        links = {f'/dq_fk_node/pose/{c}' for _, c in moving | fixed}
+        assert (poses == links) if not dh_frames else (poses > links)
+        foot = read_topic(out, '/dq_fk_node/pose/FL_FOOT')[-1][1]
+        assert foot.header.frame_id == 'base_link'  # the root of its TF tree
+        transforms = tf[-1][1].transforms + static[0][1].transforms
+        np.testing.assert_allclose(htf.pose_matrix(foot.pose),
+                                   htf.compose(transforms, 'base_link', 'FL_FOOT'), atol=1e-12)

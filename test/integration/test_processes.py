@@ -62,6 +62,28 @@ def test_poses_and_tf_equal_core_fk_of_the_published_joints(processes, listener,
                                        htf.pose_matrix_of_tuple(relative[k - 1]), atol=1e-9)
 
 
+@pytest.mark.parametrize('kind', ['floating', 'planar'])
+def test_fake_joint_publisher_drives_a_urdf_with_a_floating_or_planar_root(
+        processes, listener, tmp_path, kind):
+    """solo12 under a floating or planar root: JointStates named no joint, 16 of 16 missing."""
+    from test_rsp_parity import rsp_edges, with_joint
+    from vendor_urdfs import robots_dir
+    path = tmp_path / f'solo12_{kind}.urdf'
+    path.write_text(with_joint(open(os.path.join(
+        robots_dir(), 'solo_description/robots/solo12.urdf')).read(), kind, 'root'))
+    moving, fixed = rsp_edges(path.read_text())
+    start(processes, 'dq_fk_node', f'robot_description_file:={path}')
+    start(processes, 'fake_joint_publisher', f'robot_description_file:={path}', 'mode:=sine',
+          'rate_hz:=50.0')
+    joints = listener.listen(JointState, '/joint_states')
+    tf = listener.listen(TFMessage, '/tf')
+    static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+    assert listener.spin_until(lambda: joints and tf and static, timeout_s=20)
+    assert len(joints[-1].name) == 12
+    assert {(t.header.frame_id, t.child_frame_id) for t in tf[-1].transforms} == moving
+    assert {(t.header.frame_id, t.child_frame_id) for t in static[-1].transforms} == fixed
+
+
 def test_tf_static_reaches_a_subscriber_that_starts_late(processes, listener):
     start(processes, 'dq_fk_node')
     time.sleep(2.0)
