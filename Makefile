@@ -127,7 +127,11 @@ bench: setup $(BENCH_VENV)/.stamp
 	  ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_node.py --example-robot-data $$robot \
 	    --updates 500 --rounds 3 || exit 1; echo; done
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_e2e.py --example-robot-data \
-	  tiago_description/robots/tiago_dual.urdf --rates 1000 --repeat 2 --capacity 0
+	  tiago_description/robots/tiago_dual.urdf --rates 1000 --repeat 3 --capacity 0
+	@echo
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_e2e.py --example-robot-data \
+	  tiago_description/robots/tiago_dual.urdf --rates 1000 --repeat 3 --capacity 0 \
+	  --fastdds-profile config/fastdds_large_tf_localhost.xml
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_rclpy_floor.py
 	@echo

@@ -309,6 +309,9 @@ def main(argv=None):
                         help='the robot: a shipped name, a DH file or a URDF (default rl15)')
     parser.add_argument('--example-robot-data', metavar='PATH', help='a URDF of the '
                         'example-robot-data wheel, e.g. tiago_description/robots/tiago_dual.urdf')
+    parser.add_argument('--fastdds-profile', metavar='XML',
+                        help='a Fast DDS profile for all three processes (e.g. '
+                        'config/fastdds_large_tf_localhost.xml: an 8 MiB shared-memory segment)')
     parser.add_argument('--publish', nargs=3, metavar=('RATE', 'COUNT', 'RELIABLE'),
                         help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -319,6 +322,8 @@ def main(argv=None):
                            args.publish[2] == '1', args.robot)
         except (KeyboardInterrupt, RCLError):  # the flood ends with SIGINT (context gone)
             return 0
+    if args.fastdds_profile:  # before rclpy starts here; the children inherit it
+        os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = os.path.abspath(args.fastdds_profile)
     if args.example_robot_data:
         from bench_node import example_robot_data  # (this folder)
         args.robot = example_robot_data(args.example_robot_data)
@@ -337,6 +342,8 @@ def main(argv=None):
           f'{args.seconds:g} s per run, {os.cpu_count()} CPUs, loopback; node on CPU 1, '
           f'publisher on CPU 0 (taskset), this subscriber unpinned; nothing else running; '
           f'input_thread:={args.input_thread}'
+          + (f', Fast DDS profile {os.path.basename(args.fastdds_profile)}'
+             if args.fastdds_profile else ", Fast DDS's default transports")
           + (f', qos_depth:={args.qos_depth}' if args.qos_depth else '')
           + (f', input_batch_ms:={args.input_batch_ms!r}' if args.input_batch_ms is not None
              else ''))

@@ -359,6 +359,8 @@ def test_publish_dh_frames_puts_the_dh_frames_on_tf_and_back_off(ros_domain_id):
         assert harness.spin_until(lambda: static and tf, publish=msg)
         links = set(urdf_parents(open(vendor_path(UR5)).read()))
         assert frames() == links
+        assert harness.probe.count_publishers(harness.topic('pose/dh3')) == 0
+        assert harness.probe.count_publishers(harness.topic('pose/tool0')) == 1
         assert node.get_parameter_or('publish_dh_frames', None).value is None  # unset
         result = node.set_parameters([Parameter('publish_dh_frames', value=True)])
         assert result[0].successful
