@@ -47,6 +47,11 @@ $(STAMPS)/dev: requirements/dev.txt $(STAMPS)/runtime
 	@$(STEP) "install requirements/dev.txt" $(LOGS)/dev.log $(PIP) -r requirements/dev.txt
 	@touch $@
 
+$(STAMPS)/foxglove: requirements/foxglove.txt $(STAMPS)/runtime
+	@echo 'setup: installing the Foxglove SDK (the optional extra of dq_fk_foxglove)'
+	@$(STEP) "install requirements/foxglove.txt" $(LOGS)/foxglove.log $(PIP) -r requirements/foxglove.txt
+	@touch $@
+
 $(STAMPS)/tf2_msgs: vendor/tf2_msgs/CMakeLists.txt vendor/tf2_msgs/package.xml \
                     vendor/tf2_msgs/msg/TFMessage.msg requirements/tf2_msgs-build.txt \
                     scripts/ensure_tf2_msgs.sh $(STAMPS)/runtime
@@ -63,7 +68,7 @@ $(STAMPS)/web: web/package.json web/package-lock.json $(STAMPS)/python
 	@touch $@
 
 $(STAMPS)/project: setup.py setup.cfg package.xml $(wildcard dq_fk_ros/*/_*.c) $(STAMPS)/dev \
-                  $(STAMPS)/tf2_msgs $(STAMPS)/web
+                  $(STAMPS)/foxglove $(STAMPS)/tf2_msgs $(STAMPS)/web
 	@echo 'setup: installing dq_fk_ros (editable)'
 	@$(STEP) "install dq_fk_ros in editable mode" $(LOGS)/project.log \
 	  $(PIP) --no-deps --no-build-isolation -e .

@@ -28,7 +28,8 @@ setup(
                            extra_compile_args=['-O2'], optional=True)],
     install_requires=['setuptools', 'numpy', 'PyYAML'],
     # dq_fk_bag process --scheduler: a Dask cluster (pip install 'dq_fk_ros[cluster]')
-    extras_require={'cluster': ['dask[distributed]']},
+    # dq_fk_foxglove: the Foxglove SDK's WebSocket server (pip install 'dq_fk_ros[foxglove]')
+    extras_require={'cluster': ['dask[distributed]'], 'foxglove': ['foxglove-sdk>=0.30']},
     zip_safe=True,
     maintainer='dq_fk_ros developers',
     maintainer_email='dq_fk_ros@example.com',
@@ -42,6 +43,7 @@ setup(
             'fake_joint_publisher = dq_fk_ros.ros.fake_joint_publisher:main',
             'dq_fk_bag = dq_fk_ros.cli.interrupts:run_dq_fk_bag',
             'dq_fk_view = dq_fk_ros.ros.view:main',
+            'dq_fk_foxglove = dq_fk_ros.ros.foxglove_live:main',
         ],
     },
 )

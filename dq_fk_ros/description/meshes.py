@@ -1,7 +1,8 @@
 """
 The mesh files a URDF's visuals name: where they are, and which of them may be served.
 
-``dq_fk_view`` serves a robot's meshes to its page. A robot description may come from any
+``dq_fk_view`` serves a robot's meshes to its page, ``dq_fk_foxglove`` to Foxglove's
+``fetchAsset`` (:class:`MeshAssets`). A robot description may come from any
 peer on the DDS domain, so the files it names are an allow-list built from the URDF each
 time it changes, and nothing else: a ``package://`` URI is resolved by
 :class:`~dq_fk_ros.description.packages.PackageResolver` and must stay inside its package
@@ -14,6 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 import os
 import stat
+import threading
 from urllib.parse import quote, unquote
 import xml.etree.ElementTree as ElementTree
 
@@ -160,5 +162,41 @@ def read_mesh_file(path: str) -> bytes:
         os.close(fd)
 
 
-__all__ = ['check_mesh_file', 'mesh_allow_list', 'MeshFile', 'read_mesh_file',
+class MeshAssets:
+    """
+    The mesh files of the current URDF, fetched by the URI the URDF writes (thread-safe).
+
+    What a Foxglove client's ``fetchAsset`` may read: :meth:`replace` builds the allow-list
+    of a new URDF (:func:`mesh_allow_list`, the same rules as ``dq_fk_view``'s) and forgets
+    the old one; :meth:`fetch` returns a listed file's bytes (:func:`read_mesh_file`) and
+    None for any other URI (traversal, ``file://`` outside ``mesh_dirs``, unknown).
+    """
+
+    def __init__(self, resolver: PackageResolver, mesh_dirs: Sequence[str] = ()):
+        """Start with no URDF: nothing is fetchable."""
+        self.resolver = resolver
+        self.mesh_dirs = tuple(mesh_dirs)
+        self._paths = {}
+        self._lock = threading.Lock()
+
+    def replace(self, urdf_text: str) -> list[str]:
+        """Make the meshes of ``urdf_text`` the only fetchable files; one line per refusal."""
+        meshes = mesh_allow_list(urdf_text, self.resolver, self.mesh_dirs)
+        with self._lock:
+            self._paths = {m.uri: m.path for m in meshes if m.path}
+        return [m.problem for m in meshes if m.problem]
+
+    def fetch(self, uri: str) -> bytes | None:
+        """Return the bytes of the listed mesh ``uri``, or None (not listed, or unreadable)."""
+        with self._lock:
+            path = self._paths.get(uri) if isinstance(uri, str) else None
+        if path is None:
+            return None
+        try:
+            return read_mesh_file(path)
+        except ValueError:
+            return None
+
+
+__all__ = ['check_mesh_file', 'mesh_allow_list', 'MeshAssets', 'MeshFile', 'read_mesh_file',
            'visual_mesh_uris']

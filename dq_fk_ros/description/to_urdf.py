@@ -83,7 +83,8 @@ class UrdfJoint:
     One URDF joint of a robot: what :func:`robot_to_urdf` writes and the node publishes.
 
     ``origin`` is the joint frame in the parent link (a :class:`DualQuaternion`); ``kind``
-    is ``fixed``, ``revolute``, ``continuous`` or ``prismatic``; ``variable`` names the
+    is ``fixed``, ``revolute``, ``continuous``, ``prismatic`` or ``floating`` (a floating
+    link's, at its origin); ``variable`` names the
     joint value that moves it (the followed joint for a mimic joint); ``limits`` is
     ``(lower, upper, velocity, effort)`` or None; ``mimic`` is ``(joint, multiplier)`` or
     ``(joint, multiplier, offset)``.
@@ -120,8 +121,9 @@ def urdf_joints(model: RobotModel) -> list['UrdfJoint']:
         external = branch.external if branch is not None else ()
         joints += _chain_joints(model, chain, start, parent, external, velocity, limits)
     for link in model.links:  # fixed to the frame they are attached to, or its mimic
-        if link.motion is None:
-            joints.append(UrdfJoint(f'{link.frame}_fixed', 'fixed', link.parent, link.frame,
+        if link.motion is None:  # (a floating one at its origin: the URDF it came from)
+            kind = 'floating' if link.floating else 'fixed'
+            joints.append(UrdfJoint(f'{link.frame}_{kind}', kind, link.parent, link.frame,
                                     link.offset))
             continue
         kind, axis, variable, multiplier, offset = link.motion
@@ -215,7 +217,7 @@ def link_poses(model: RobotModel, q: ArrayLike,
     poses = {model.fixed_frame: DualQuaternion.identity()}
     for j in joints:
         pose = poses[j.parent] * j.origin
-        if j.kind != 'fixed':
+        if j.kind not in ('fixed', 'floating'):  # a floating joint at its origin
             amount = value[j.variable] * (j.mimic[1] if j.mimic else 1.0) + \
                 (j.mimic[2] if j.mimic and len(j.mimic) > 2 else 0.0)
             if j.kind == 'prismatic':

@@ -20,7 +20,8 @@ TF_STATIC_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
 
 # the programs whose node a test may address by name: each started under a name of its own
 # (another run's or another user's node of the same program never answers for it)
-NODE_NAMES = {'dq_fk_node': 'dq_fk_node', 'fake_joint_publisher': 'fake_joint_publisher'}
+NODE_NAMES = {'dq_fk_node': 'dq_fk_node', 'fake_joint_publisher': 'fake_joint_publisher',
+              'dq_fk_foxglove': 'dq_fk_foxglove'}
 _started = itertools.count()
 
 
@@ -32,7 +33,7 @@ def unique_node_name(base):
 EVERY_UPDATE = 'publish_frequency:=0.0'
 
 
-def start(processes, name, *params, namespace=None, log_level='warn'):
+def start(processes, name, *params, namespace=None, log_level='warn', options=()):
     """
     Start one of the package's programs with ``-p`` parameters, reaped by ``processes``.
 
@@ -42,7 +43,7 @@ def start(processes, name, *params, namespace=None, log_level='warn'):
     set ``publish_frequency``: the tests count and compare updates; test_urdf_node.py
     checks the default (robot_state_publisher's 20 Hz).
     """
-    argv = executable(name) + ['--ros-args', '--log-level', log_level]
+    argv = executable(name) + list(options) + ['--ros-args', '--log-level', log_level]
     node_name = None
     if name in NODE_NAMES:
         node_name = unique_node_name(NODE_NAMES[name])

@@ -306,26 +306,26 @@ def test_the_readme_lists_every_parameter_with_its_type_and_default(ros):
     for name in node.list_parameters([], 0).names:
         if name not in rclpys_own:
             try:
-                declared[name] = node.get_parameter(name)
+                param = node.get_parameter(name)
+                declared[name] = (param.type_, param.value)
             except ParameterUninitializedException:  # typed, no value: its declared type
                 kind = Parameter.Type(node.describe_parameter(name).type)
-                declared[name] = Parameter(name, kind, [] if kind ==
-                                           Parameter.Type.STRING_ARRAY else None)
+                declared[name] = (kind, [] if kind == Parameter.Type.STRING_ARRAY else None)
     assert sorted(rows) == sorted(declared)
     types = {Parameter.Type.STRING: 'string', Parameter.Type.DOUBLE: 'double',
              Parameter.Type.BOOL: 'bool', Parameter.Type.INTEGER: 'int',
              Parameter.Type.STRING_ARRAY: 'string[]'}
-    for name, param in declared.items():
+    for name, (type_, value) in declared.items():
         kind, default = rows[name]
-        assert kind == types[param.type_], name
-        if param.type_ == Parameter.Type.STRING_ARRAY:
-            shown = str(list(param.value))
-        elif param.value is None:
+        assert kind == types[type_], name
+        if type_ == Parameter.Type.STRING_ARRAY:
+            shown = str(list(value))
+        elif value is None:
             shown = 'unset'  # the robot's default (publish_dh_frames)
-        elif param.type_ == Parameter.Type.BOOL:
-            shown = 'true' if param.value else 'false'
+        elif type_ == Parameter.Type.BOOL:
+            shown = 'true' if value else 'false'
         else:
-            shown = str(param.value) if param.value != '' else "''"
+            shown = str(value) if value != '' else "''"
         assert default == shown, name
 
 

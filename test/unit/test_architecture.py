@@ -24,7 +24,7 @@ THIRD_PARTY = {
     # decompressors, called directly to bound a chunk's size
     'bag': {'numpy', 'rosbags', 'mcap', 'compression', 'backports', 'lz4', 'yaml',
             'distributed'},
-    'ros': {'numpy', 'rclpy', 'aiohttp', 'ament_index_python', 'builtin_interfaces',
+    'ros': {'numpy', 'rclpy', 'aiohttp', 'foxglove', 'ament_index_python', 'builtin_interfaces',
             'diagnostic_msgs', 'geometry_msgs',
             'rcl_interfaces', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'tf2_msgs'},
     'cli': {'numpy'},

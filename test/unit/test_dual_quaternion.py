@@ -4,7 +4,7 @@ import math
 
 from dq_fk_ros.kinematics.dual_quaternion import (
     canonical, dq_from_pose_array, dq_multiply_array, dq_normalize_array, dq_to_pose_xyzw,
-    DualQuaternion, quat_from_matrix, quat_wxyz_to_xyzw, quat_xyzw_to_wxyz)
+    DualQuaternion, pose_xyzw_in, quat_from_matrix, quat_wxyz_to_xyzw, quat_xyzw_to_wxyz)
 import homogeneous as hm
 import numpy as np
 import pytest
@@ -256,3 +256,21 @@ def test_the_plain_float_product_and_inverse_match_the_class():
         np.testing.assert_allclose(inverse, a.inverse().coeffs, atol=1e-14)
         np.testing.assert_allclose(dq_multiply_coeffs(inverse, tuple(a.coeffs)),
                                    [1, 0, 0, 0, 0, 0, 0, 0], atol=1e-14)
+
+
+def test_pose_xyzw_in_is_the_inverse_frame_times_the_pose():
+    """``pose_xyzw_in`` against 4x4 matrices, batched."""
+    rng = np.random.default_rng(11)
+    frames, poses, expected = [], [], []
+    for _ in range(20):
+        a = DualQuaternion.from_rotation(rng.normal(size=3), rng.uniform(-3, 3)) * \
+            DualQuaternion.from_translation(rng.normal(size=3))
+        b = DualQuaternion.from_rotation(rng.normal(size=3), rng.uniform(-3, 3)) * \
+            DualQuaternion.from_translation(rng.normal(size=3))
+        frames.append(a.to_pose_xyzw())
+        poses.append(b.to_pose_xyzw())
+        expected.append(np.linalg.inv(a.to_matrix()) @ b.to_matrix())
+    got = pose_xyzw_in(np.array(frames), np.array(poses))
+    assert (got[:, 6] >= 0).all()
+    for pose, matrix in zip(got, expected):
+        np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]), matrix, atol=1e-12)

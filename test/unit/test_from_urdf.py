@@ -839,3 +839,7 @@ def test_floating_and_planar_joints_are_as_robot_state_publisher_and_said_once()
     rotor = model.frame_names.index('rotor')
     assert model.parent_frames[rotor] == 'drone' and model.moving[rotor]
     assert model.frame_names[model.tree_roots[rotor]] == 'drone'
+    # the converted robot written back as a URDF keeps the floating joint (at its origin)
+    written = ElementTree.fromstring(robot_to_urdf(model))
+    kinds = {j.find('child').get('link'): j.get('type') for j in written.findall('joint')}
+    assert kinds['drone'] == 'floating' and kinds['puck'] == 'fixed'

@@ -1,0 +1,204 @@
+"""
+What dq_fk_foxglove sends to Foxglove: the newest of each input, at most ``rate`` a second.
+
+:class:`FoxgloveFeed` takes what the ROS side receives (serialized /tf, decoded /tf_static,
+the URDF, serialized joint states and poses) and, at each :meth:`FoxgloveFeed.flush`, logs
+the newest of each on the Foxglove SDK's channels: ``/tf`` and ``/tf_static`` as
+``foxglove.FrameTransforms``, ``/robot_description`` as JSON ``{"data": urdf}`` (what the
+3D panel's URDF layer reads from a topic), ``/joint_states`` as JSON (the fields of
+``sensor_msgs/JointState``), each pose topic as ``foxglove.PoseInFrame``. Static
+transforms and the URDF are kept and logged again when a client subscribes to them (what
+transient local does for a late ROS subscriber). The URDF's meshes are served by
+:class:`~dq_fk_ros.description.meshes.MeshAssets`, replaced with each new description.
+
+No ROS here; the channels come from the ``foxglove`` module given at construction, so the
+module is imported only by the program that needs it.
+"""
+
+import json
+import threading
+
+from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state, TfLatest
+
+MAX_POSE_TOPICS = 1024       # pose channels advertised at most (one per ~/pose/<frame>)
+MAX_STATIC_FRAMES = 100_000  # static transforms kept (every child frame once)
+DESCRIPTION_SCHEMA = {'type': 'object', 'properties': {'data': {'type': 'string'}}}
+JOINT_STATE_SCHEMA = {
+    'type': 'object', 'properties': {
+        'header': {'type': 'object', 'properties': {
+            'stamp': {'type': 'object', 'properties': {
+                'sec': {'type': 'integer'}, 'nanosec': {'type': 'integer'}}},
+            'frame_id': {'type': 'string'}}},
+        'name': {'type': 'array', 'items': {'type': 'string'}},
+        'position': {'type': 'array', 'items': {'type': 'number'}},
+        'velocity': {'type': 'array', 'items': {'type': 'number'}}}}
+
+
+class FoxgloveFeed:
+    """The channels of one Foxglove server and the newest input for each (thread-safe)."""
+
+    def __init__(self, foxglove, assets, log=print):
+        """
+        Create the fixed channels with the ``foxglove`` module (the SDK) and its context.
+
+        :param assets: a :class:`~dq_fk_ros.description.meshes.MeshAssets`, replaced here
+            with each new robot description.
+        :param log: called with one line per thing a user should know (a mesh not served).
+        """
+        from foxglove import Channel
+        from foxglove.channels import FrameTransformsChannel
+        self.fox = foxglove
+        self.assets = assets
+        self.log = log
+        self.lock = threading.Lock()
+        self.tf = FrameTransformsChannel('/tf')
+        self.tf_static = FrameTransformsChannel('/tf_static')
+        self.description = Channel('/robot_description', schema=DESCRIPTION_SCHEMA,
+                                   message_encoding='json')
+        self.joint_states = Channel('/joint_states', schema=JOINT_STATE_SCHEMA,
+                                    message_encoding='json')
+        self.pose_channels = {}    # ROS topic -> PoseInFrameChannel
+        self.tf_latest = TfLatest()
+        self.static = {}           # child -> (parent, pose, stamp_ns)
+        self.urdf = None
+        self.joint_state_raw = None
+        self.pose_raw = {}         # topic -> newest serialized PoseStamped
+        self.resend = set()        # channels a client subscribed to since the last flush
+        self.static_changed = False
+        self.description_changed = False
+        self.counts = {'tf_messages': 0, 'bad_input': 0, 'flushes': 0}
+        self._names = JointStateNames()
+
+    # -- in, from the ROS callbacks ------------------------------------------------------
+    def take_raw_tf(self, raw):
+        """Keep a serialized /tf if it is its layout's newest (unreadable bytes: counted)."""
+        with self.lock:
+            self.counts['tf_messages'] += 1
+            try:
+                self.tf_latest.take(raw)
+            except CdrError:
+                self.counts['bad_input'] += 1
+
+    def take_static(self, transforms):
+        """Keep ``[(parent, child, pose, stamp_ns), ...]`` of a /tf_static message."""
+        with self.lock:
+            for parent, child, pose, stamp_ns in transforms:
+                if child in self.static or len(self.static) < MAX_STATIC_FRAMES:
+                    self.static[child] = (parent, pose, stamp_ns)
+            self.static_changed = True
+
+    def take_description(self, text):
+        """Keep a new URDF; its meshes, and no other file, become fetchable."""
+        with self.lock:
+            if text == self.urdf:
+                return
+        for problem in self.assets.replace(text):
+            self.log(problem)
+        with self.lock:
+            self.urdf = text
+            self.description_changed = True
+
+    def take_joint_state(self, raw):
+        """Keep the newest serialized JointState."""
+        self.joint_state_raw = raw
+
+    def take_pose(self, topic, raw):
+        """Keep the newest serialized PoseStamped of ``topic``."""
+        self.pose_raw[topic] = raw
+
+    def add_pose_topic(self, topic):
+        """Advertise a pose topic's channel (at most MAX_POSE_TOPICS); say whether it is new."""
+        from foxglove.channels import PoseInFrameChannel
+        with self.lock:
+            if topic in self.pose_channels or len(self.pose_channels) >= MAX_POSE_TOPICS:
+                return False
+            self.pose_channels[topic] = PoseInFrameChannel(topic)
+            return True
+
+    def subscribed(self, topic):
+        """Note that a client subscribed to ``topic``: a kept message is sent again."""
+        with self.lock:
+            self.resend.add(topic)
+
+    # -- out, at most rate times a second ------------------------------------------------
+    def flush(self, poses_from=None):
+        """
+        Log the newest of every input on its channel (and what new subscribers need).
+
+        :param poses_from: called as ``poses_from(raw)`` to read a PoseStamped: returns
+            ``(stamp_ns, frame_id, (x, y, z, qx, qy, qz, qw))`` (the ROS side's reader).
+        """
+        m = self.fox.messages
+        with self.lock:
+            newest = self.tf_latest.pop()
+            resend, self.resend = self.resend, set()
+            static = None
+            if self.static_changed or '/tf_static' in resend:
+                static = [(p, c, pose, s) for c, (p, pose, s) in self.static.items()]
+                self.static_changed = False
+            urdf = None
+            if self.description_changed or '/robot_description' in resend:
+                urdf = self.urdf
+                self.description_changed = False
+            self.counts['flushes'] += 1
+        for transforms, stamp_ns in newest:
+            self.tf.log(frame_transforms(m, [(p, c, pose, stamp_ns) for p, c, pose in
+                                             transforms]))
+        if static:
+            self.tf_static.log(frame_transforms(m, static))
+        if urdf is not None:
+            self.description.log(json.dumps({'data': urdf}))
+        raw, self.joint_state_raw = self.joint_state_raw, None
+        if raw is not None:
+            self._log_joint_state(raw)
+        if poses_from is not None:
+            pending, self.pose_raw = self.pose_raw, {}
+            for topic, raw in pending.items():
+                channel = self.pose_channels.get(topic)
+                try:
+                    stamp_ns, frame_id, pose = poses_from(raw)
+                except Exception:  # not a PoseStamped after all: counted, never fatal
+                    self.counts['bad_input'] += 1
+                    continue
+                if channel is not None:
+                    channel.log(pose_in_frame(m, stamp_ns, frame_id, pose))
+
+    def _log_joint_state(self, raw):
+        try:
+            stamp_ns, names, positions, velocities = parse_joint_state(raw, self._names)
+        except CdrError:
+            self.counts['bad_input'] += 1
+            return
+        sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+        self.joint_states.log(json.dumps({
+            'header': {'stamp': {'sec': sec, 'nanosec': nanosec}, 'frame_id': ''},
+            'name': list(names), 'position': [_finite(v) for v in positions],
+            'velocity': [_finite(v) for v in velocities]}))
+
+
+def _finite(value):
+    """JSON has no NaN or infinity: such a value is sent as null."""
+    value = float(value)
+    return value if value - value == 0.0 else None
+
+
+def frame_transforms(m, transforms):
+    """Return a ``foxglove.FrameTransforms`` of ``[(parent, child, pose, stamp_ns), ...]``."""
+    out = []
+    for parent, child, (x, y, z, qx, qy, qz, qw), stamp_ns in transforms:
+        sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
+        out.append(m.FrameTransform(
+            timestamp=m.Timestamp(sec, nsec), parent_frame_id=parent, child_frame_id=child,
+            translation=m.Vector3(x=x, y=y, z=z), rotation=m.Quaternion(x=qx, y=qy, z=qz, w=qw)))
+    return m.FrameTransforms(transforms=out)
+
+
+def pose_in_frame(m, stamp_ns, frame_id, pose):
+    """Return a ``foxglove.PoseInFrame`` of a pose ``(x, y, z, qx, qy, qz, qw)``."""
+    x, y, z, qx, qy, qz, qw = pose
+    sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
+    return m.PoseInFrame(timestamp=m.Timestamp(sec, nsec), frame_id=frame_id, pose=m.Pose(
+        position=m.Vector3(x=x, y=y, z=z), orientation=m.Quaternion(x=qx, y=qy, z=qz, w=qw)))
+
+
+__all__ = ['FoxgloveFeed', 'frame_transforms', 'MAX_POSE_TOPICS', 'pose_in_frame']

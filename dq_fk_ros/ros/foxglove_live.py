@@ -1,0 +1,237 @@
+"""
+dq_fk_foxglove: the robot live in Foxglove on a pip-only ROS, without foxglove_bridge.
+
+    dq_fk_foxglove [--host 127.0.0.1] [--port 8765] [--package NAME=DIR] [--mesh-dir DIR]
+                   [--rate 30]
+
+An rclpy node on the same DDS domain takes ``/tf``, ``/tf_static`` (transient local),
+``robot_description`` (transient local), ``joint_states`` and every pose topic
+(``geometry_msgs/PoseStamped`` topics with ``/pose/`` in their name: each ``dq_fk_node``'s
+``~/pose/<frame>``) from any publisher; the Foxglove SDK's WebSocket server (``foxglove-sdk``,
+the optional extra ``dq_fk_ros[foxglove]``) serves them (:mod:`dq_fk_ros.ros.foxglove_feed`
+says how): at most ``--rate`` messages a second per channel, the newest only, whatever the
+input rate. The Foxglove app fetches the URDF's meshes (``package://``) through the server's
+asset handler, which reads exactly the mesh files the current URDF names
+(:class:`~dq_fk_ros.description.meshes.MeshAssets`, the allow-list of ``dq_fk_view``). It
+listens on 127.0.0.1 unless ``--host`` says otherwise: anyone who reaches the port sees the
+robot and may fetch its meshes (docs/foxglove.md, "Security").
+
+A pose topic's ROS subscription exists only while a Foxglove client subscribes to its
+channel: ``dq_fk_node`` publishes a pose topic only while someone reads it.
+"""
+
+import argparse
+import os
+import sys
+import threading
+
+DEFAULT_PORT = 8765
+DEFAULT_RATE_HZ = 30.0
+DISCOVERY_PERIOD_S = 2.0   # how often new pose topics are looked for
+QUEUE_DEPTH = 1000         # serialized messages DDS keeps between two flushes
+MESSAGE_BACKLOG = 256      # messages queued per client before the oldest are dropped
+MISSING = ('dq_fk_foxglove needs the Foxglove SDK: pip install "dq_fk_ros[foxglove]" '
+           '(or pip install foxglove-sdk; make setup installs it)')
+
+
+def parse_args(argv):
+    """Return the command line's options (ROS arguments already removed)."""
+    parser = argparse.ArgumentParser(
+        prog='dq_fk_foxglove',
+        description='The robot live in Foxglove (Open connection > Foxglove WebSocket > '
+        'ws://127.0.0.1:8765): /tf, /tf_static, robot_description, joint_states and the pose '
+        'topics of any publisher, through the Foxglove SDK.')
+    parser.add_argument('--host', default='127.0.0.1',
+                        help='address to listen on (default 127.0.0.1: this machine only; '
+                        'another exposes the robot and its meshes to whoever reaches it)')
+    parser.add_argument('--port', type=int, default=DEFAULT_PORT,
+                        help=f'port (default {DEFAULT_PORT}; 0: any free one)')
+    parser.add_argument('--rate', type=float, default=DEFAULT_RATE_HZ,
+                        help=f'messages per second per channel at most, the newest '
+                        f'(default {DEFAULT_RATE_HZ:g})')
+    parser.add_argument('--package', action='append', default=[], metavar='NAME=DIR',
+                        help="where package NAME is, for the URDF's package:// meshes "
+                        '(repeatable; before the ament index and ROS_PACKAGE_PATH)')
+    parser.add_argument('--mesh-dir', action='append', default=[], metavar='DIR',
+                        help='a folder file:// meshes may be served from (repeatable; '
+                        'none by default)')
+    args = parser.parse_args(argv)
+    if not (0 <= args.port <= 65535):
+        parser.error(f'--port {args.port}: give 0..65535')
+    if not (0 < args.rate <= 1000):
+        parser.error(f'--rate {args.rate:g}: give more than 0 and at most 1000')
+    from dq_fk_ros.description.packages import parse_package_option
+    try:
+        args.packages = dict(parse_package_option(option) for option in args.package)
+    except ValueError as exc:
+        parser.error(str(exc))
+    for folder in args.mesh_dir:
+        if not os.path.isdir(folder):
+            parser.error(f'--mesh-dir {folder}: no such folder')
+    return args
+
+
+class RosInput:
+    """The rclpy side: subscriptions that feed a :class:`FoxgloveFeed`, and its timers."""
+
+    def __init__(self, feed, rate_hz, context=None):
+        """Subscribe on a node of its own; flush ``feed`` ``rate_hz`` times a second."""
+        import rclpy
+        from rclpy.node import Node
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import String
+        from tf2_msgs.msg import TFMessage
+        self.feed = feed
+        self.node = node = Node('dq_fk_foxglove', context=context)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.queued = QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
+        # kHz inputs, serialized, on a helper node no executor spins: taken at each flush,
+        # only the newest of each read (nothing wakes per message)
+        self.raw = rclpy.create_node('_dq_fk_foxglove_input', context=node.context,
+                                     start_parameter_services=False, enable_rosout=False)
+        self.tf = self.raw.create_subscription(TFMessage, '/tf', lambda _: None, self.queued,
+                                               raw=True)
+        self.joint_states = self.raw.create_subscription(
+            JointState, 'joint_states', lambda _: None, self.queued, raw=True)
+        node.create_subscription(TFMessage, '/tf_static', self._on_static,
+                                 QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                                            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        node.create_subscription(String, 'robot_description',
+                                 lambda m: feed.take_description(m.data), latched)
+        self.poses = {}            # topic -> raw subscription, while a client wants it
+        self.wanted = {}           # topic -> clients subscribed to its channel
+        self.lock = threading.Lock()
+        node.create_timer(1.0 / rate_hz, self.flush)
+        node.create_timer(DISCOVERY_PERIOD_S, self.discover)
+        self.discover()
+
+    def _on_static(self, msg):
+        self.feed.take_static([
+            (t.header.frame_id, t.child_frame_id,
+             (t.transform.translation.x, t.transform.translation.y, t.transform.translation.z,
+              t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
+              t.transform.rotation.w),
+             t.header.stamp.sec * 1_000_000_000 + t.header.stamp.nanosec)
+            for t in msg.transforms])
+
+    def discover(self):
+        """Advertise a channel for every pose topic on the graph (dq_fk_node's ~/pose/...)."""
+        for topic, types in self.node.get_topic_names_and_types():
+            if '/pose/' in topic and 'geometry_msgs/msg/PoseStamped' in types:
+                self.feed.add_pose_topic(topic)
+
+    def want(self, topic, delta):
+        """Count a client (un)subscribing to ``topic``'s channel (from the server's thread)."""
+        with self.lock:
+            self.wanted[topic] = max(0, self.wanted.get(topic, 0) + delta)
+
+    def _follow_wanted(self):
+        """Subscribe to the pose topics clients want, and only those (in the executor)."""
+        from geometry_msgs.msg import PoseStamped
+        with self.lock:
+            wanted = {t for t, n in self.wanted.items() if n > 0 and t in self.feed.pose_channels}
+        for topic in wanted - set(self.poses):
+            self.poses[topic] = self.raw.create_subscription(
+                PoseStamped, topic, lambda _: None, self.queued, raw=True)
+        for topic in set(self.poses) - wanted:
+            self.raw.destroy_subscription(self.poses.pop(topic))
+
+    def flush(self):
+        """Take what is queued (the newest of each kept) and send it to Foxglove."""
+        from dq_fk_ros.ros.raw_input import take_queued
+        try:
+            self._follow_wanted()
+            take_queued(self.tf, self.feed.take_raw_tf)
+            take_queued(self.joint_states, self.feed.take_joint_state)
+            for topic, subscription in self.poses.items():
+                take_queued(subscription, lambda raw, t=topic: self.feed.take_pose(t, raw))
+        except Exception:  # a subscription destroyed meanwhile (shutting down)
+            return
+        self.feed.flush(read_pose_stamped)
+
+    def destroy(self):
+        """Destroy both nodes."""
+        self.raw.destroy_node()
+        self.node.destroy_node()
+
+
+def read_pose_stamped(raw):
+    """Return ``(stamp_ns, frame_id, (x, y, z, qx, qy, qz, qw))`` of a serialized PoseStamped."""
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.serialization import deserialize_message
+    msg = deserialize_message(raw, PoseStamped)
+    p, o = msg.pose.position, msg.pose.orientation
+    return (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
+            msg.header.frame_id, (p.x, p.y, p.z, o.x, o.y, o.z, o.w))
+
+
+def make_listener(foxglove, ros, feed):
+    """Return the server's listener: subscriptions to pose channels follow the clients."""
+    class Listener(foxglove.ServerListener):
+        def on_subscribe(self, client, channel):
+            feed.subscribed(channel.topic)
+            ros.want(channel.topic, +1)
+
+        def on_unsubscribe(self, client, channel):
+            ros.want(channel.topic, -1)
+    return Listener()
+
+
+def main(argv=None):
+    """Run dq_fk_foxglove until SIGINT/SIGTERM; return the exit code."""
+    from rclpy.utilities import remove_ros_args
+    argv = sys.argv if argv is None else argv
+    args = parse_args(remove_ros_args(argv)[1:])
+    try:
+        import foxglove
+        import foxglove.channels  # noqa: F401
+    except ImportError:
+        print(MISSING, file=sys.stderr)
+        return 1
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from dq_fk_ros.description.meshes import MeshAssets
+    from dq_fk_ros.description.packages import PackageResolver
+    from dq_fk_ros.ros.foxglove_feed import FoxgloveFeed
+
+    def log(line):
+        print(f'dq_fk_foxglove: {line}', file=sys.stderr, flush=True)
+    rclpy.init(args=argv)
+    ros = server = None
+    try:
+        assets = MeshAssets(PackageResolver(args.packages), args.mesh_dir)
+        feed = FoxgloveFeed(foxglove, assets, log)
+        ros = RosInput(feed, args.rate)
+
+        def fetch(uri):
+            return assets.fetch(uri)
+        try:
+            server = foxglove.start_server(
+                name='dq_fk_foxglove', host=args.host, port=args.port, asset_handler=fetch,
+                server_listener=make_listener(foxglove, ros, feed),
+                message_backlog_size=MESSAGE_BACKLOG)
+        except Exception as exc:  # the port is taken, the address is not ours
+            print(f'dq_fk_foxglove: cannot listen on {args.host}:{args.port}: {exc}',
+                  file=sys.stderr)
+            return 1
+        shown = f'[{args.host}]' if ':' in args.host else args.host
+        print(f'dq_fk_foxglove: in Foxglove, Open connection > Foxglove WebSocket > '
+              f'ws://{shown}:{server.port}', flush=True)
+        executor = SingleThreadedExecutor(context=ros.node.context)
+        executor.add_node(ros.node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if server is not None:
+            server.stop()
+        if ros is not None:
+            ros.destroy()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,250 @@
+"""
+dq_fk_foxglove against a Foxglove WebSocket client written from the protocol's spec.
+
+The node, the fake joint publisher and dq_fk_foxglove run as processes on the test's DDS
+domain; a test-side ROS listener records what the node published, and the client
+(:mod:`foxglove_client`) what Foxglove would see: the same transforms, the URDF, its meshes
+byte for byte, and nothing else from the disk.
+"""
+
+import os
+import select
+import time
+import xml.etree.ElementTree as ElementTree
+
+from dq_fk_ros.description.meshes import visual_mesh_uris
+from dq_fk_ros.ros.executables import executable
+from foxglove_client import FoxgloveClient, wait
+import pytest
+from ros_harness import start, TF_STATIC_QOS
+from tf2_msgs.msg import TFMessage
+from vendor_urdfs import robots_dir, UR5, vendor_path
+
+pytestmark = pytest.mark.integration
+
+
+def start_foxglove(processes, *args):
+    """Start dq_fk_foxglove on a free port; return ``(process, ws:// URL)`` once it listens."""
+    proc = start(processes, 'dq_fk_foxglove', options=['--port', '0', *args])
+    deadline = time.monotonic() + 30
+    seen = []
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([proc.stdout], [], [], 0.2)
+        if ready:
+            line = proc.stdout.readline()
+            seen.append(line)
+            if 'Foxglove WebSocket > ' in line:
+                return proc, line.rsplit('> ', 1)[1].strip()
+        if proc.poll() is not None:
+            break
+    raise AssertionError(f'dq_fk_foxglove did not start: {"".join(seen)}')
+
+
+def transforms_of_proto(message):
+    """Return ``{(parent, child): (stamp ns, x, y, z, qx, qy, qz, qw)}`` of FrameTransforms."""
+    out = {}
+    for t in message.transforms:
+        out[(t.parent_frame_id, t.child_frame_id)] = (
+            t.timestamp.seconds * 1_000_000_000 + t.timestamp.nanos,
+            t.translation.x, t.translation.y, t.translation.z,
+            t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w)
+    return out
+
+
+def transforms_of_ros(msg):
+    """Return the same for a tf2_msgs/TFMessage."""
+    return {(t.header.frame_id, t.child_frame_id): (
+        t.header.stamp.sec * 1_000_000_000 + t.header.stamp.nanosec,
+        t.transform.translation.x, t.transform.translation.y, t.transform.translation.z,
+        t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
+        t.transform.rotation.w) for t in msg.transforms}
+
+
+def assert_same_as_the_node(client, tf, static):
+    """Every /tf FrameTransforms equals the node's /tf of its stamp; /tf_static the same."""
+    assert wait(lambda: len(client.messages.get('/tf', [])) >= 5 and
+                client.messages.get('/tf_static'), 30), sorted(client.messages)
+    by_stamp = {}
+    for msg in list(tf):
+        got = transforms_of_ros(msg)
+        by_stamp[next(iter(got.values()))[0]] = got
+    matched = 0
+    for _, message in client.messages['/tf']:
+        got = transforms_of_proto(message)
+        expected = by_stamp.get(next(iter(got.values()))[0])
+        if expected is not None:
+            assert got.keys() == expected.keys()
+            for edge, values in got.items():
+                assert values == pytest.approx(expected[edge], abs=1e-9), edge
+            matched += 1
+    assert matched >= 3
+    latched = {}
+    for msg in static:
+        latched.update(transforms_of_ros(msg))
+    sent = transforms_of_proto(client.messages['/tf_static'][-1][1])
+    assert sent.keys() == latched.keys()
+    for edge, values in sent.items():
+        assert values[1:] == pytest.approx(latched[edge][1:], abs=1e-9), edge
+
+
+def test_rl15_frames_reach_foxglove_as_the_node_computed_them(processes, listener):
+    start(processes, 'dq_fk_node', 'publish_frequency:=0.0')
+    start(processes, 'fake_joint_publisher', 'mode:=sine', 'rate_hz:=200.0')
+    tf = listener.listen(TFMessage, '/tf', 1000)
+    static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+    _, url = start_foxglove(processes)
+    client = FoxgloveClient(url)
+    try:
+        assert client.subprotocol in ('foxglove.sdk.v1', 'foxglove.websocket.v1')
+        assert client.server_info['op'] == 'serverInfo'
+        tf_channel = client.channel('/tf')
+        assert tf_channel['schemaName'] == 'foxglove.FrameTransforms'
+        client.subscribe('/tf', '/tf_static', '/joint_states')
+        listener.spin_until(lambda: len(tf) >= 50 and static, timeout_s=30)
+        sent_before = len(client.messages.get('/tf', []))
+        listener.spin_until(lambda: len(client.messages.get('/tf', [])) >= sent_before + 8,
+                            timeout_s=30)
+        assert_same_as_the_node(client, tf, static)
+        edges = transforms_of_proto(client.messages['/tf'][-1][1])
+        assert ('wrist_seg5', 'eeCarry_seg6') in edges
+        joints = client.messages['/joint_states'][-1][1]
+        assert joints['name'][:6] == [f'joint_{k}' for k in range(1, 7)]
+        # 200 Hz in, at most --rate (30) a second out, the newest
+        count = len(client.messages['/tf'])
+        listener.spin_until(lambda: False, timeout_s=2.0)
+        per_second = (len(client.messages['/tf']) - count) / 2.0
+        assert 10 <= per_second <= 33, per_second
+    finally:
+        client.close()
+
+
+def test_ur5_meshes_come_back_byte_for_byte_and_nothing_else(processes, listener, tmp_path):
+    urdf_path = vendor_path(UR5)
+    package = os.path.dirname(robots_dir())  # the share folder of package example-robot-data
+    prefix = 'package://example-robot-data/'
+    start(processes, 'dq_fk_node', f'robot_description_file:={urdf_path}',
+          f'urdf_tip_link:={UR5[1]}', 'publish_frequency:=0.0')
+    start(processes, 'fake_joint_publisher', f'robot_description_file:={urdf_path}',
+          f'urdf_tip_link:={UR5[1]}', 'mode:=sine', 'rate_hz:=100.0')
+    tf = listener.listen(TFMessage, '/tf', 1000)
+    static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
+    secret = tmp_path / 'secret.stl'
+    secret.write_bytes(b'solid not-yours\nendsolid\n')
+    _, url = start_foxglove(processes, '--package', f'example-robot-data={package}')
+    client = FoxgloveClient(url)
+    try:
+        client.subscribe('/tf', '/tf_static', '/robot_description')
+        listener.spin_until(lambda: client.messages.get('/robot_description'), timeout_s=30)
+        urdf = client.messages['/robot_description'][-1][1]['data']
+        assert urdf == open(urdf_path).read()
+        uris = visual_mesh_uris(urdf)
+        assert len(uris) >= 7 and all(u.startswith(prefix) for u in uris)
+        for uri in uris:
+            status, error, data = client.fetch_asset(uri)
+            path = os.path.join(package, uri[len(prefix):])
+            assert (status, error) == (0, '') and data == open(path, 'rb').read(), uri
+        first = uris[0][len(prefix):]
+        for uri in (f'{prefix}../../../../../etc/passwd',
+                    f'{prefix}{first}/../../../../../../../etc/passwd',
+                    f'{prefix}robots/../../../../../../etc/passwd',
+                    f'file://{secret}', '/etc/passwd', f'file://{package}/{first}',
+                    f'{prefix}robots/ur_description/urdf/ur5_robot.urdf',
+                    'http://example.com/a.stl', 'package://other/meshes/a.stl', ''):
+            status, error, data = client.fetch_asset(uri)
+            assert status == 1 and data == b'' and 'root:' not in error, uri
+        listener.spin_until(lambda: len(tf) >= 50 and static, timeout_s=30)
+        sent_before = len(client.messages.get('/tf', []))
+        listener.spin_until(lambda: len(client.messages.get('/tf', [])) >= sent_before + 8,
+                            timeout_s=30)
+        assert_same_as_the_node(client, tf, static)
+        links = {c for _, c in transforms_of_proto(client.messages['/tf'][-1][1])} | \
+            {c for _, c in transforms_of_proto(client.messages['/tf_static'][-1][1])}
+        joints = ElementTree.fromstring(urdf).findall('joint')
+        assert links == {j.find('child').get('link') for j in joints}  # the URDF's tree
+    finally:
+        client.close()
+
+
+def test_a_static_robot_reaches_a_client_that_connects_late(processes, listener, tmp_path):
+    path = tmp_path / 'rig.urdf'
+    path.write_text('<robot name="rig"><link name="link1"/><link name="link2"/>'
+                    '<joint name="j" type="fixed"><parent link="link1"/><child link="link2"/>'
+                    '<origin xyz="5 0 0"/></joint></robot>')
+    start(processes, 'dq_fk_node', f'robot_description_file:={path}')
+    _, url = start_foxglove(processes)
+    listener.spin_until(lambda: False, timeout_s=3.0)  # long after the only /tf_static
+    client = FoxgloveClient(url)
+    try:
+        client.subscribe('/tf_static')
+        assert wait(lambda: client.messages.get('/tf_static'), 20)
+        sent = transforms_of_proto(client.messages['/tf_static'][-1][1])
+        assert list(sent) == [('link1', 'link2')] and sent[('link1', 'link2')][1] == 5.0
+        second = FoxgloveClient(url)  # and another one later still
+        try:
+            second.subscribe('/tf_static')
+            assert wait(lambda: second.messages.get('/tf_static'), 20)
+        finally:
+            second.close()
+    finally:
+        client.close()
+
+
+def test_bad_clients_cannot_stop_the_server_or_grow_it(processes, listener):
+    start(processes, 'dq_fk_node', 'publish_frequency:=0.0')
+    start(processes, 'fake_joint_publisher', 'mode:=sine', 'rate_hz:=200.0')
+    proc, url = start_foxglove(processes)
+
+    def rss_kb():
+        with open(f'/proc/{proc.pid}/status') as status:
+            return next(int(line.split()[1]) for line in status if line.startswith('VmRSS'))
+    good = FoxgloveClient(url)
+    good.subscribe('/tf')
+    assert wait(lambda: good.messages.get('/tf'), 30)
+    before = rss_kb()
+    bad = [FoxgloveClient(url) for _ in range(5)]
+    slow = []
+    try:
+        channel = bad[0].channel('/tf')['id']
+        bad[0].send(b'\xff' * 10_000)                       # a binary frame of no opcode
+        bad[1].send('{"op": "nonsense", "x": [[[[[[[]]]]]]]}')  # an unknown op
+        bad[2].send('not json at all {{{')
+        bad[3].send({'op': 'subscribe', 'subscriptions': [
+            {'id': k, 'channelId': channel} for k in range(5000)]})
+        for k in range(2000):                               # thousands of subscribes
+            bad[4].send({'op': 'subscribe', 'subscriptions': [{'id': 10_000 + k,
+                                                               'channelId': channel}]})
+        slow += [FoxgloveClient(url) for _ in range(3)]     # readers that never read
+        for s in slow:
+            s.subscribe('/tf', '/joint_states')
+            s._loop.call_soon_threadsafe(s._ws._response.connection.transport.pause_reading)
+        count = len(good.messages['/tf'])
+        listener.spin_until(lambda: False, timeout_s=5.0)
+        assert len(good.messages['/tf']) > count + 50  # the good client is still served
+        assert proc.poll() is None
+        assert rss_kb() - before < 64 * 1024, (before, rss_kb())  # KB
+    finally:
+        for client in bad + slow:
+            client.close()
+        good.close()
+
+
+def test_without_the_sdk_it_says_how_to_get_it(processes, tmp_path):
+    hide = tmp_path / 'hide'
+    hide.mkdir()
+    (hide / 'foxglove.py').write_text('raise ImportError("hidden by the test")\n')
+    proc = processes.start(executable('dq_fk_foxglove'),
+                           env={'PYTHONPATH': str(hide)})
+    output, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 1
+    assert output.strip().splitlines() == [
+        'dq_fk_foxglove needs the Foxglove SDK: pip install "dq_fk_ros[foxglove]" '
+        '(or pip install foxglove-sdk; make setup installs it)']
+
+
+def test_it_listens_on_loopback_only_by_default(processes):
+    _, url = start_foxglove(processes)
+    port = int(url.rsplit(':', 1)[1])
+    with open('/proc/net/tcp') as table:
+        listening = [line.split()[1] for line in table.readlines()[1:]
+                     if line.split()[3] == '0A' and line.split()[1].endswith(f':{port:04X}')]
+    assert listening == [f'0100007F:{port:04X}']
