@@ -643,6 +643,17 @@ def tf_values(raw, layout):
     return transforms, stamp
 
 
+def _string_checks(layout):
+    """Return ``((start, bytes), ...)``: a layout's strings, adjacent ones joined."""
+    out = []
+    for a, b in layout.strings:
+        if out and out[-1][0] + len(out[-1][1]) == a:
+            out[-1] = (out[-1][0], out[-1][1] + layout.raw[a:b])
+        else:
+            out.append((a, layout.raw[a:b]))
+    return tuple(out)
+
+
 class TfLatest:
     """
     Keep the newest serialized ``TFMessage`` of each layout (publisher), unread.
@@ -657,21 +668,28 @@ class TfLatest:
         self.max_layouts = max_layouts
         self._by_size = {}     # size -> [layout, ...]
         self._latest = {}      # layout -> newest raw since pop()
+        self._checks = {}      # layout -> ((start, bytes), ...): its count and frame ids
         self._order = []
 
     def take(self, raw):
         """Note ``raw`` as its layout's newest message (CdrError: unreadable)."""
+        raw = raw if isinstance(raw, bytes) else bytes(raw)
         for layout in self._by_size.get(len(raw), ()):
-            if all(raw[a:b] == layout.raw[a:b] for a, b in layout.strings):
+            for start, text in self._checks[layout]:  # (no copy of raw: startswith)
+                if not raw.startswith(text, start):
+                    break
+            else:
                 self._latest[layout] = raw
                 return
         layout = tf_layout(raw)
+        self._checks[layout] = _string_checks(layout)
         self._by_size.setdefault(layout.size, []).append(layout)
         self._order.append(layout)
         if len(self._order) > self.max_layouts:
             old = self._order.pop(0)
             self._by_size[old.size].remove(old)
             self._latest.pop(old, None)
+            self._checks.pop(old, None)
         self._latest[layout] = raw
 
     def pop(self):

@@ -16,8 +16,10 @@ asset handler, which reads exactly the mesh files the current URDF names
 listens on 127.0.0.1 unless ``--host`` says otherwise: anyone who reaches the port sees the
 robot and may fetch its meshes (docs/foxglove.md, "Security").
 
-A pose topic's ROS subscription exists only while a Foxglove client subscribes to its
-channel: ``dq_fk_node`` publishes a pose topic only while someone reads it.
+The ROS subscriptions of ``joint_states`` and of a pose topic exist only while a Foxglove
+client subscribes to their channel (``dq_fk_node`` publishes a pose topic only while
+someone reads it), and keep the newest message only (a queue of one); ``/tf`` is always
+taken, every message, for each publisher's newest (an odometry's and a robot's).
 """
 
 import argparse
@@ -28,7 +30,7 @@ import threading
 DEFAULT_PORT = 8765
 DEFAULT_RATE_HZ = 30.0
 DISCOVERY_PERIOD_S = 2.0   # how often new pose topics are looked for
-QUEUE_DEPTH = 1000         # serialized messages DDS keeps between two flushes
+QUEUE_DEPTH = 1000         # serialized /tf messages DDS keeps between two flushes
 MESSAGE_BACKLOG = 256      # messages queued per client before the oldest are dropped
 MISSING = ('dq_fk_foxglove needs the Foxglove SDK: pip install "dq_fk_ros[foxglove]" '
            '(or pip install foxglove-sdk; make setup installs it)')
@@ -87,14 +89,15 @@ class RosInput:
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.queued = QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
+        self.newest = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
         # kHz inputs, serialized, on a helper node no executor spins: taken at each flush,
         # only the newest of each read (nothing wakes per message)
         self.raw = rclpy.create_node('_dq_fk_foxglove_input', context=node.context,
                                      start_parameter_services=False, enable_rosout=False)
         self.tf = self.raw.create_subscription(TFMessage, '/tf', lambda _: None, self.queued,
                                                raw=True)
-        self.joint_states = self.raw.create_subscription(
-            JointState, 'joint_states', lambda _: None, self.queued, raw=True)
+        self.joint_state_type = JointState
+        self.joint_states = None   # while a client wants /joint_states
         node.create_subscription(TFMessage, '/tf_static', self._on_static,
                                  QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                                             durability=DurabilityPolicy.TRANSIENT_LOCAL))
@@ -103,9 +106,23 @@ class RosInput:
         self.poses = {}            # topic -> raw subscription, while a client wants it
         self.wanted = {}           # topic -> clients subscribed to its channel
         self.lock = threading.Lock()
-        node.create_timer(1.0 / rate_hz, self.flush)
         node.create_timer(DISCOVERY_PERIOD_S, self.discover)
         self.discover()
+        # the flushes in a thread of their own, not an executor timer (an executor wake-up
+        # costs more than a flush)
+        self.period_s = 1.0 / rate_hz
+        self.stopped = threading.Event()
+        self.thread = threading.Thread(target=self._flush_loop, name='dq_fk_foxglove flush',
+                                       daemon=True)
+        self.thread.start()
+
+    def _flush_loop(self):
+        import time
+        next_at = time.monotonic()
+        while not self.stopped.is_set():
+            self.flush()
+            next_at = max(next_at + self.period_s, time.monotonic())
+            self.stopped.wait(next_at - time.monotonic())
 
     def _on_static(self, msg):
         self.feed.take_static([
@@ -128,15 +145,24 @@ class RosInput:
             self.wanted[topic] = max(0, self.wanted.get(topic, 0) + delta)
 
     def _follow_wanted(self):
-        """Subscribe to the pose topics clients want, and only those (in the executor)."""
+        """Subscribe to the topics clients want, and only those (in the executor)."""
         from geometry_msgs.msg import PoseStamped
         with self.lock:
-            wanted = {t for t, n in self.wanted.items() if n > 0 and t in self.feed.pose_channels}
-        for topic in wanted - set(self.poses):
+            wanted = {t for t, n in self.wanted.items() if n > 0}
+        poses = wanted & set(self.feed.pose_channels)
+        for topic in poses - set(self.poses):
             self.poses[topic] = self.raw.create_subscription(
-                PoseStamped, topic, lambda _: None, self.queued, raw=True)
-        for topic in set(self.poses) - wanted:
+                PoseStamped, topic, lambda _: None, self.newest, raw=True)
+        for topic in set(self.poses) - poses:
             self.raw.destroy_subscription(self.poses.pop(topic))
+        if ('/joint_states' in wanted) != (self.joint_states is not None):
+            if self.joint_states is None:
+                self.joint_states = self.raw.create_subscription(
+                    self.joint_state_type, 'joint_states', lambda _: None, self.newest,
+                    raw=True)
+            else:
+                self.raw.destroy_subscription(self.joint_states)
+                self.joint_states = None
 
     def flush(self):
         """Take what is queued (the newest of each kept) and send it to Foxglove."""
@@ -144,7 +170,8 @@ class RosInput:
         try:
             self._follow_wanted()
             take_queued(self.tf, self.feed.take_raw_tf)
-            take_queued(self.joint_states, self.feed.take_joint_state)
+            if self.joint_states is not None:
+                take_queued(self.joint_states, self.feed.take_joint_state)
             for topic, subscription in self.poses.items():
                 take_queued(subscription, lambda raw, t=topic: self.feed.take_pose(t, raw))
         except Exception:  # a subscription destroyed meanwhile (shutting down)
@@ -152,7 +179,9 @@ class RosInput:
         self.feed.flush(read_pose_stamped)
 
     def destroy(self):
-        """Destroy both nodes."""
+        """Stop the flushes, then destroy both nodes."""
+        self.stopped.set()
+        self.thread.join(timeout=2.0)
         self.raw.destroy_node()
         self.node.destroy_node()
 
