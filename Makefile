@@ -15,12 +15,13 @@ DEMO_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 80) + 20 )))
 
 BENCH_VENV ?= .venv-bench
 
-.PHONY: help setup browser demo demo-live test sanitize bench mutate screenshot clean
+.PHONY: help setup browser demo demo-live demo-foxglove test sanitize bench mutate screenshot clean
 
 help:
 	@echo 'make setup  create .venv with ROS 2 Jazzy (PyPI), tf2_msgs and dq_fk_ros'
 	@echo 'make demo   setup, then node + fake joint publisher: print every RL15 frame pose'
 	@echo 'make demo-live  the same, sweeping the joints, and dq_fk_view: the robot in a browser (Ctrl-C)'
+	@echo 'make demo-foxglove  the same with dq_fk_foxglove: the robot in the Foxglove app (Ctrl-C)'
 	@echo 'make test   setup (and Chromium for the browser tests), then linters, unit and integration tests'
 	@echo 'make sanitize  the C extensions under ASan and UBSan: their tests and a fuzz (FUZZ=long: longer)'
 	@echo 'make bench  benchmarks: the core against its peers (installed in .venv-bench)'
@@ -83,6 +84,9 @@ demo: setup
 demo-live: setup
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.ros.demo --live --view
 
+demo-foxglove: setup
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.ros.demo --live --foxglove
+
 test: setup browser
 	@scripts/run_tests $(PY)
 
@@ -141,6 +145,8 @@ bench: setup $(BENCH_VENV)/.stamp
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_rclpy_floor.py
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_view.py
+	@echo
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_foxglove.py
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_flood_memory.py
 	@echo

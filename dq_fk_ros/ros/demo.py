@@ -5,7 +5,8 @@ Starts the node with the shipped RL15 and the fake publisher in ``zeros`` mode, 
 first poses, prints one line per frame as received (frame, parent from TF, position,
 quaternion x y z w) and stops. With ``--live`` the publisher sweeps the joints (``sine``) and
 the end-effector pose is printed twice a second until Ctrl-C; with ``--view`` dq_fk_view
-shows the robot in a browser too (it prints the address to open).
+shows the robot in a browser too (it prints the address to open); with ``--foxglove``
+dq_fk_foxglove serves it to the Foxglove app (the demo prints what to click there).
 
 The caller sets ``ROS_DOMAIN_ID`` and ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
 (``make demo`` does).
@@ -27,6 +28,14 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from tf2_msgs.msg import TFMessage
+
+
+FOXGLOVE_STEPS = """demo: in the Foxglove app (desktop, or app.foxglove.dev on this machine):
+  1. Open connection > Foxglove WebSocket > ws://127.0.0.1:{port} > Open
+  2. Add panel > 3D; in its settings: Frame > Display frame: world
+  3. Custom layers > + > URDF: Source "Topic", Topic "/robot_description"
+  4. (a pose plot) Add panel > Plot; + series /dq_fk_node/pose/eeCarry_seg6.pose.position.z
+  or import docs/foxglove_layout.json (Layouts > Import) for both panels at once"""
 
 
 class PoseWatcher:
@@ -65,8 +74,10 @@ def main(argv=None):
                         help='keep running in sine mode, printing the end-effector pose')
     parser.add_argument('--view', action='store_true',
                         help='also start dq_fk_view (the robot in a browser; prints its URL)')
+    parser.add_argument('--foxglove', action='store_true',
+                        help='also start dq_fk_foxglove (the robot in the Foxglove app)')
     parser.add_argument('--port', type=int, default=DEFAULT_PORT,
-                        help=f'dq_fk_view port ({DEFAULT_PORT})')
+                        help=f'dq_fk_view or dq_fk_foxglove port ({DEFAULT_PORT})')
     parser.add_argument('--timeout', type=float, default=30.0,
                         help='seconds to wait for the first poses (default 30)')
     args = parser.parse_args(argv)
@@ -87,6 +98,10 @@ def main(argv=None):
         procs.append(subprocess.Popen(executable('dq_fk_view') + [
             '--port', str(args.port), '--select', 'eeCarry_seg6'] + log_args,
             start_new_session=True))
+    if args.foxglove:
+        procs.append(subprocess.Popen(executable('dq_fk_foxglove') + [
+            '--port', str(args.port)] + log_args, start_new_session=True))
+        print(FOXGLOVE_STEPS.format(port=args.port), flush=True)
     rclpy.init(args=log_args)
     node = rclpy.create_node('dq_fk_demo')
     executor = SingleThreadedExecutor()

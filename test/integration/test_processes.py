@@ -189,7 +189,7 @@ def test_two_robots_with_different_prefixes_do_not_mix(processes, listener):
 
 
 @pytest.mark.parametrize('program', ['dq_fk_node', 'fake_joint_publisher', 'dq_fk_view',
-                                     'dq_fk', 'dq_fk_bag'])
+                                     'dq_fk', 'dq_fk_bag', 'dq_fk_foxglove'])
 @pytest.mark.parametrize('flag', ['--help', '-h'])
 def test_every_program_answers_help_with_its_options_and_starts_nothing(program, flag,
                                                                         processes):
