@@ -53,10 +53,13 @@ class FoxgloveFeed:
         self.lock = threading.Lock()
         self.tf = FrameTransformsChannel('/tf')
         self.tf_static = FrameTransformsChannel('/tf_static')
-        self.description = Channel('/robot_description', schema=DESCRIPTION_SCHEMA,
-                                   message_encoding='json')
-        self.joint_states = Channel('/joint_states', schema=JOINT_STATE_SCHEMA,
-                                    message_encoding='json')
+        # named as the ROS types: the 3D panel's URDF layer lists std_msgs/msg/String topics
+        self.description = Channel('/robot_description', schema=foxglove.Schema(
+            name='std_msgs/msg/String', encoding='jsonschema',
+            data=json.dumps(DESCRIPTION_SCHEMA).encode()), message_encoding='json')
+        self.joint_states = Channel('/joint_states', schema=foxglove.Schema(
+            name='sensor_msgs/msg/JointState', encoding='jsonschema',
+            data=json.dumps(JOINT_STATE_SCHEMA).encode()), message_encoding='json')
         self.pose_channels = {}    # ROS topic -> PoseInFrameChannel
         self.tf_latest = TfLatest()
         self.static = {}           # child -> (parent, pose, stamp_ns)

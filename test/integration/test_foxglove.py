@@ -99,6 +99,9 @@ def test_rl15_frames_reach_foxglove_as_the_node_computed_them(processes, listene
         assert client.server_info['op'] == 'serverInfo'
         tf_channel = client.channel('/tf')
         assert tf_channel['schemaName'] == 'foxglove.FrameTransforms'
+        # the 3D panel's URDF layer lists topics of std_msgs String schemas
+        assert client.channel('/robot_description')['schemaName'] == 'std_msgs/msg/String'
+        assert client.channel('/joint_states')['schemaName'] == 'sensor_msgs/msg/JointState'
         client.subscribe('/tf', '/tf_static', '/joint_states')
         listener.spin_until(lambda: len(tf) >= 50 and static, timeout_s=30)
         sent_before = len(client.messages.get('/tf', []))
