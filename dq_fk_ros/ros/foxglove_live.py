@@ -120,7 +120,12 @@ class RosInput:
         import time
         next_at = time.monotonic()
         while not self.stopped.is_set():
-            self.flush()
+            try:
+                self.flush()
+            except Exception as exc:  # nothing a publisher sends may stop the flushes
+                self.feed.counts['flush_errors'] = self.feed.counts.get('flush_errors', 0) + 1
+                if self.feed.counts['flush_errors'] == 1:
+                    self.feed.log(f'a flush failed (reported once): {exc!r}'[:300])
             next_at = max(next_at + self.period_s, time.monotonic())
             self.stopped.wait(next_at - time.monotonic())
 

@@ -37,7 +37,8 @@ def start(processes, name, *params, namespace=None, log_level='warn', options=()
     """
     Start one of the package's programs with ``-p`` parameters, reaped by ``processes``.
 
-    dq_fk_node and fake_joint_publisher run under a unique node name (the process's
+    ``options`` go before ``--ros-args`` (a program's own command line, dq_fk_foxglove's).
+    dq_fk_node, fake_joint_publisher and dq_fk_foxglove run under a unique node name (the process's
     ``node_name``; its private topics are under it: :func:`node_topic`). dq_fk_node sends
     /tf at every update (``publish_frequency:=0.0``, :data:`EVERY_UPDATE`) unless ``params``
     set ``publish_frequency``: the tests count and compare updates; test_urdf_node.py
