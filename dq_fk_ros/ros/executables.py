@@ -99,3 +99,25 @@ def _one_line(exc):
     """Return the first line of an exception's message, without rcl's source locations."""
     from dq_fk_ros.description.errors import first_line
     return first_line(exc).split(', at /')[0]
+
+
+def add_mesh_options(parser):
+    """Add ``--package NAME=DIR`` and ``--mesh-dir DIR``: where a URDF's meshes may come from."""
+    parser.add_argument('--package', action='append', default=[], metavar='NAME=DIR',
+                        help="where package NAME is, for the URDF's package:// meshes "
+                        '(repeatable; before the ament index and ROS_PACKAGE_PATH)')
+    parser.add_argument('--mesh-dir', action='append', default=[], metavar='DIR',
+                        help='a folder file:// meshes may be served from (repeatable; '
+                        'none by default)')
+
+
+def check_mesh_options(parser, args):
+    """Check the options of :func:`add_mesh_options`; set ``args.packages`` ({name: dir})."""
+    from dq_fk_ros.description.packages import parse_package_option
+    try:
+        args.packages = dict(parse_package_option(option) for option in args.package)
+    except ValueError as exc:
+        parser.error(str(exc))
+    for folder in args.mesh_dir:
+        if not os.path.isdir(folder):
+            parser.error(f'--mesh-dir {folder}: no such folder')

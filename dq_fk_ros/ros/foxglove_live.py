@@ -23,9 +23,10 @@ taken, every message, for each publisher's newest (an odometry's and a robot's).
 """
 
 import argparse
-import os
 import sys
 import threading
+
+from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options
 
 DEFAULT_PORT = 8765
 DEFAULT_RATE_HZ = 30.0
@@ -51,25 +52,13 @@ def parse_args(argv):
     parser.add_argument('--rate', type=float, default=DEFAULT_RATE_HZ,
                         help=f'messages per second per channel at most, the newest '
                         f'(default {DEFAULT_RATE_HZ:g})')
-    parser.add_argument('--package', action='append', default=[], metavar='NAME=DIR',
-                        help="where package NAME is, for the URDF's package:// meshes "
-                        '(repeatable; before the ament index and ROS_PACKAGE_PATH)')
-    parser.add_argument('--mesh-dir', action='append', default=[], metavar='DIR',
-                        help='a folder file:// meshes may be served from (repeatable; '
-                        'none by default)')
+    add_mesh_options(parser)
     args = parser.parse_args(argv)
     if not (0 <= args.port <= 65535):
         parser.error(f'--port {args.port}: give 0..65535')
     if not (0 < args.rate <= 1000):
         parser.error(f'--rate {args.rate:g}: give more than 0 and at most 1000')
-    from dq_fk_ros.description.packages import parse_package_option
-    try:
-        args.packages = dict(parse_package_option(option) for option in args.package)
-    except ValueError as exc:
-        parser.error(str(exc))
-    for folder in args.mesh_dir:
-        if not os.path.isdir(folder):
-            parser.error(f'--mesh-dir {folder}: no such folder')
+    check_mesh_options(parser, args)
     return args
 
 

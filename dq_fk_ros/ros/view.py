@@ -22,12 +22,12 @@ shows is :class:`~dq_fk_ros.ros.view_state.ViewState`, the web server
 
 import argparse
 import asyncio
-import os
 import signal
 import sys
 import threading
 
 from dq_fk_ros.description.packages import PackageResolver
+from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options
 from dq_fk_ros.ros.view_state import STALE_AFTER_S, ViewState
 from dq_fk_ros.ros.view_web import DEFAULT_RATE_HZ, make_app, web_root
 
@@ -93,12 +93,7 @@ def parse_args(argv):
     parser.add_argument('--rate', type=float, default=DEFAULT_RATE_HZ,
                         help=f'poses sent to pages per second at most (default '
                         f'{DEFAULT_RATE_HZ:g})')
-    parser.add_argument('--package', action='append', default=[], metavar='NAME=DIR',
-                        help="where package NAME is, for the URDF's package:// meshes "
-                        '(repeatable; before the ament index and ROS_PACKAGE_PATH)')
-    parser.add_argument('--mesh-dir', action='append', default=[], metavar='DIR',
-                        help='a folder file:// meshes may be served from (repeatable; '
-                        'none by default)')
+    add_mesh_options(parser)
     parser.add_argument('--stale-after', type=float, default=STALE_AFTER_S,
                         help='seconds without an update after which a frame is greyed')
     args = parser.parse_args(argv)
@@ -108,14 +103,7 @@ def parse_args(argv):
         parser.error(f'--rate {args.rate:g}: give more than 0 and at most 1000')
     if not (args.stale_after > 0):
         parser.error('--stale-after: give a positive number of seconds')
-    from dq_fk_ros.description.packages import parse_package_option
-    try:
-        args.packages = dict(parse_package_option(option) for option in args.package)
-    except ValueError as exc:
-        parser.error(str(exc))
-    for folder in args.mesh_dir:
-        if not os.path.isdir(folder):
-            parser.error(f'--mesh-dir {folder}: no such folder')
+    check_mesh_options(parser, args)
     return args
 
 
