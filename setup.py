@@ -38,12 +38,12 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'dq_fk_node = dq_fk_ros.ros.node:main',
+            'dq_fk_node = dq_fk_ros.ros.executables:run_dq_fk_node',
             'dq_fk = dq_fk_ros.cli.dq_fk:main',
-            'fake_joint_publisher = dq_fk_ros.ros.fake_joint_publisher:main',
+            'fake_joint_publisher = dq_fk_ros.ros.executables:run_fake_joint_publisher',
             'dq_fk_bag = dq_fk_ros.cli.interrupts:run_dq_fk_bag',
-            'dq_fk_view = dq_fk_ros.ros.view:main',
-            'dq_fk_foxglove = dq_fk_ros.ros.foxglove_live:main',
+            'dq_fk_view = dq_fk_ros.ros.executables:run_dq_fk_view',
+            'dq_fk_foxglove = dq_fk_ros.ros.executables:run_dq_fk_foxglove',
         ],
     },
 )

@@ -61,17 +61,34 @@ def run_with_sigint_blocked(make):
 @contextlib.contextmanager
 def signals_blocked():
     """
-    Block SIGINT in this thread while processes (or threads that start them) are started.
+    Block SIGINT in this thread, and hold SIGINT and SIGTERM back, while it starts processes.
 
-    A signal that comes meanwhile is delivered when the block ends (keep it short; else
-    :func:`run_with_sigint_blocked`).
+    The processes (and threads) started meanwhile inherit SIGINT blocked. A SIGINT or SIGTERM
+    that comes meanwhile takes effect when the block ends (keep it short; else
+    :func:`run_with_sigint_blocked`): in the main thread its Python handler is held back too
+    (another thread may take the signal, and Python runs handlers in the main thread even
+    where it is blocked), so none stops this thread half-way through handing a spawned
+    worker its start-up data (the worker, left reading a closed pipe, would print an
+    ``EOFError`` traceback, and it is not yet a child :func:`stop_children` knows).
     """
     prepare_children()
+    caught = []
+    held = {}
+    if threading.current_thread() is threading.main_thread():
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            handler = signal.getsignal(signum)
+            if callable(handler):  # (not SIG_DFL, SIG_IGN, nor one set outside Python)
+                held[signum] = handler
+                signal.signal(signum, lambda number, frame: caught.append(number))
     old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for signum, handler in held.items():
+            signal.signal(signum, handler)
+        if caught:
+            signal.raise_signal(caught[0])
 
 
 def stop_children(timeout_s: float = 1.0, at_once: bool = False) -> None:

@@ -27,8 +27,8 @@ import shutil
 import sys
 import time
 
-from dq_fk_ros.bag.child_processes import (run_with_sigint_blocked, signals_blocked,
-                                           stop_children)
+from dq_fk_ros.bag.child_processes import (prepare_children, run_with_sigint_blocked,
+                                           signals_blocked, stop_children)
 from dq_fk_ros.bag.discover import find_bags
 from dq_fk_ros.bag.fleet_units import RobotSpec, run_unit, Unit, UnitResult
 from dq_fk_ros.bag.join import join_bags
@@ -268,6 +268,7 @@ class _Runner:
                 cluster.close(timeout=timeout)
 
     def _run_pool(self):
+        prepare_children()  # before the counter's lock starts the resource tracker unquiet
         ctx = multiprocessing.get_context('spawn')
         counter = ctx.Value('q', 0)
         todo = list(self.units)
@@ -275,7 +276,7 @@ class _Runner:
         while todo:
             pool = None
             try:
-                with signals_blocked():  # the workers never see the terminal's Ctrl-C
+                with signals_blocked():  # no Ctrl-C for the workers; no signal mid-spawn
                     pool = ProcessPoolExecutor(max_workers=min(self.jobs, len(todo)),
                                                mp_context=ctx, initializer=set_progress_counter,
                                                initargs=(counter,))

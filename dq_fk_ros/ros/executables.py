@@ -1,7 +1,9 @@
 """This package's programs: where they are installed, and the main loop their nodes share."""
 
 import gc
+import importlib
 import os
+import signal
 import sys
 
 # After a publisher counts its matched subscriptions, the subscribers' side of the match may
@@ -26,6 +28,59 @@ def executable(name):
     if os.access(path, os.X_OK):
         return [path]
     return [sys.executable, '-m', MODULES[name]]
+
+
+def take_sigint() -> None:
+    """
+    Let SIGINT (Ctrl-C) raise ``KeyboardInterrupt`` and let SIGINT and SIGTERM through.
+
+    What Python does in a terminal's foreground, also where it would not: a script's
+    ``prog &`` starts with SIGINT ignored (bash does so for background jobs), and a parent may
+    hand its children SIGINT blocked; either way a ``kill -INT`` before rclpy takes the signal
+    would be lost and the program would run on.
+    """
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def run_main(main) -> int:
+    """Return ``main()``'s exit code, 0 after a Ctrl-C that comes before it takes the signal."""
+    take_sigint()
+    try:
+        code = main()
+    except KeyboardInterrupt:  # while starting: rclpy not yet up, nothing to clean up
+        return 0
+    return 0 if code is None else code
+
+
+def run_program(module: str) -> int:
+    """Import ``module`` (a Ctrl-C meanwhile stops it quietly) and return its ``main()``'s code."""
+    take_sigint()
+    try:
+        main = importlib.import_module(module).main
+    except KeyboardInterrupt:
+        return 0
+    return run_main(main)
+
+
+def run_dq_fk_node() -> int:
+    """Run the ``dq_fk_node`` console script."""
+    return run_program('dq_fk_ros.ros.node')
+
+
+def run_fake_joint_publisher() -> int:
+    """Run the ``fake_joint_publisher`` console script."""
+    return run_program('dq_fk_ros.ros.fake_joint_publisher')
+
+
+def run_dq_fk_view() -> int:
+    """Run the ``dq_fk_view`` console script."""
+    return run_program('dq_fk_ros.ros.view')
+
+
+def run_dq_fk_foxglove() -> int:
+    """Run the ``dq_fk_foxglove`` console script."""
+    return run_program('dq_fk_ros.ros.foxglove_live')
 
 
 def spin_until_shutdown(program, make_node, user_errors, args=None, usage=None):

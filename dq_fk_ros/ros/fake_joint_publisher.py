@@ -13,7 +13,7 @@ import sys
 from dq_fk_ros.description.errors import DqFkError
 from dq_fk_ros.description.from_urdf import NODE_OPTIONS
 from dq_fk_ros.description.loading import load_robot
-from dq_fk_ros.ros.executables import MATCH_SETTLE_S, spin_until_shutdown
+from dq_fk_ros.ros.executables import MATCH_SETTLE_S, run_main, spin_until_shutdown
 from dq_fk_ros.ros.package_paths import declare_package_paths
 from dq_fk_ros.ros.parameters import declare, help_text, Param
 import numpy as np
@@ -190,4 +190,4 @@ def main(args=None):
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    sys.exit(run_main(main))

@@ -26,7 +26,7 @@ import argparse
 import sys
 import threading
 
-from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options
+from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options, run_main
 
 DEFAULT_PORT = 8765
 DEFAULT_RATE_HZ = 30.0
@@ -257,4 +257,4 @@ def main(argv=None):
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    sys.exit(run_main(main))

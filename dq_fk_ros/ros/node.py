@@ -25,7 +25,7 @@ from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
     JointStateMerger, PUBLISH, SequenceGaps)
 from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S
-from dq_fk_ros.ros.executables import spin_until_shutdown
+from dq_fk_ros.ros.executables import run_main, spin_until_shutdown
 from dq_fk_ros.ros.node_diagnostics import (
     joint_state_status, log_merge_result, WARN_EVERY_S)
 from dq_fk_ros.ros.node_parameters import NODE_PARAMETERS, NodeParameters, ROBOT_PARAMETERS
@@ -497,4 +497,4 @@ def main(args=None):
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    sys.exit(run_main(main))

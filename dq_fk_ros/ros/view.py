@@ -27,7 +27,7 @@ import sys
 import threading
 
 from dq_fk_ros.description.packages import PackageResolver
-from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options
+from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options, run_main
 from dq_fk_ros.ros.view_state import STALE_AFTER_S, ViewState
 from dq_fk_ros.ros.view_web import DEFAULT_RATE_HZ, make_app, web_root
 
@@ -273,4 +273,4 @@ def main(argv=None):
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    sys.exit(run_main(main))
