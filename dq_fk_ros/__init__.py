@@ -36,11 +36,11 @@ _SURFACE = {
     'process_fleet': 'dq_fk_ros.bag.fleet',
     'FleetSummary': 'dq_fk_ros.bag.fleet',
     'kernel_info': 'dq_fk_ros.kinematics.kernel',
-    'DqFkError': 'dq_fk_ros.description.errors',
-    'RobotDescriptionError': 'dq_fk_ros.description.errors',
-    'ParameterError': 'dq_fk_ros.description.errors',
-    'BagError': 'dq_fk_ros.bag.reading',
-    'CdrError': 'dq_fk_ros.messages.cdr',
+    'DqFkError': 'dq_fk_ros.errors',
+    'RobotDescriptionError': 'dq_fk_ros.errors',
+    'ParameterError': 'dq_fk_ros.errors',
+    'BagError': 'dq_fk_ros.errors',
+    'CdrError': 'dq_fk_ros.errors',
 }
 __all__ = sorted(_SURFACE)
 

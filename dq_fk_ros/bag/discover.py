@@ -12,7 +12,8 @@ link loop or a link out of the archive cannot make the walk endless or leave it)
 from dataclasses import dataclass
 import os
 
-from dq_fk_ros.bag.reading import BagError
+from dq_fk_ros.errors import BagError
+
 
 BAG_FILES = ('.mcap', '.db3', '.bag')
 MAX_BAGS = 1_000_000  # a walk that finds more is refused (a wrong folder, say)

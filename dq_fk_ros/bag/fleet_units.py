@@ -13,8 +13,8 @@ import time
 
 from dq_fk_ros.bag.process import process_bag, process_window, ProcessOptions, ProcessSummary
 from dq_fk_ros.bag.text import one_line
-from dq_fk_ros.description.errors import DqFkError
 from dq_fk_ros.description.loading import load_robot
+from dq_fk_ros.errors import DqFkError
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ reads as the one-bag command's output, message for message.
 
 import os
 
-from dq_fk_ros.bag.reading import BagError
+from dq_fk_ros.errors import BagError
 import yaml
 
 INFO = 'rosbag2_bagfile_information'

@@ -26,7 +26,7 @@ import struct
 import time
 
 from dq_fk_ros.bag.join import topic_counts
-from dq_fk_ros.bag.reading import BagError
+from dq_fk_ros.errors import BagError
 
 STATE = '.dq_fk_fleet'
 VERSION = 1

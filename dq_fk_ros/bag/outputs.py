@@ -8,8 +8,8 @@ messages, as the node publishes them: both lay their messages out from one
 frames, order, and a transform only where the message's state has named its joints).
 """
 
-from dq_fk_ros.bag.reading import BagError
 from dq_fk_ros.description.to_urdf import description_urdf
+from dq_fk_ros.errors import BagError
 from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
 from dq_fk_ros.messages.output_plan import OutputPlan
 import numpy as np

@@ -15,9 +15,10 @@ import shutil
 
 from dq_fk_ros.bag.outputs import BagOutputs
 from dq_fk_ros.bag.progress import Progress
-from dq_fk_ros.bag.reading import BagError, joint_state_connections, open_reader, Ros1Bag
+from dq_fk_ros.bag.reading import joint_state_connections, open_reader, Ros1Bag
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.description.loading import load_robot
+from dq_fk_ros.errors import BagError
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
 from dq_fk_ros.messages.cdr import JointStateNames, JointStateRun, parse_joint_states
 from dq_fk_ros.messages.joint_states import JointStateMerger

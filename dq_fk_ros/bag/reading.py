@@ -11,17 +11,9 @@ import re
 import struct
 
 from dq_fk_ros.bag.text import one_line, printable
-from dq_fk_ros.description.errors import DqFkError
+from dq_fk_ros.errors import BagDamaged, BagError
 
 JOINT_STATE = 'sensor_msgs/msg/JointState'
-
-
-class BagError(DqFkError):
-    """A bag problem for the user; the message is one line."""
-
-
-class BagDamaged(BagError):
-    """The bag is damaged so badly that nothing in it can be used; the message is one line."""
 
 
 def open_reader(path):

@@ -1,6 +1,6 @@
 """Text read from a bag, made safe for a one-line message (names, an exception's reason)."""
 
-from dq_fk_ros.description.errors import first_line
+from dq_fk_ros.errors import first_line
 
 
 def printable(text, limit=80):

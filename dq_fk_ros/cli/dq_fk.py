@@ -13,13 +13,13 @@ import math
 import os
 import sys
 
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.from_urdf import load_urdf_description
 from dq_fk_ros.description.loading import load_robot, resolve_robot
 from dq_fk_ros.description.packages import parse_package_option
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.description.to_urdf import matrix_to_rpy, robot_to_urdf
+from dq_fk_ros.errors import RobotDescriptionError
 from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
 from dq_fk_ros.messages.output_plan import OutputPlan
 import numpy as np

@@ -19,12 +19,11 @@ import os
 import sys
 
 from dq_fk_ros.bag.process import process_bag, ProcessOptions
-from dq_fk_ros.bag.reading import BagDamaged, BagError
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.cli.dq_fk import add_package_option, add_urdf_chain_options
 from dq_fk_ros.cli.interrupts import interrupted_code, take_signals
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.loading import load_robot
+from dq_fk_ros.errors import BagDamaged, BagError, RobotDescriptionError
 
 
 def summary_line(path, s):

@@ -43,12 +43,13 @@ from dataclasses import dataclass, replace
 import os
 
 from dq_fk_ros.description.dh_fit import dh_row, frames_on_axes, normal_feet
-from dq_fk_ros.description.errors import listing, RobotDescriptionError
-from dq_fk_ros.description.robot_model import JOINT_NAME, MAX_NAME_CHARS, MAX_ROWS, TF_FRAME_ID
+from dq_fk_ros.description.robot_model import (
+    JOINT_NAME, MAX_NAME_CHARS, MAX_ROWS, RobotModel, TF_FRAME_ID)
 from dq_fk_ros.description.schema import parse_robot_description
 from dq_fk_ros.description.to_yaml import ChainText, comment, description_yaml
 from dq_fk_ros.description.urdf_reader import (
     MOVING, parse_urdf, read_urdf_text, tf_name, UrdfTree)
+from dq_fk_ros.errors import listing, RobotDescriptionError
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
 import numpy as np
 
@@ -145,13 +146,14 @@ def _default_tip(tree, base, tip_option=OPTIONS[1]):
 # -- the robot description ---------------------------------------------------------------
 @dataclass(frozen=True)
 class Conversion:
-    """What :func:`urdf_to_description` made: the YAML text and what it left out."""
+    """What :func:`urdf_to_description` made: the YAML text, its model, what it left out."""
 
     text: str
     base: str
     tip: str
     skipped: tuple          # side-branch joints not published (one line each)
     warnings: tuple = ()    # what a user should know (one line each): names changed
+    model: RobotModel | None = None  # ``text`` parsed (once: the loaders take this one)
 
 
 def urdf_to_description(text: str, source: str = '<string>', base: str | None = None,
@@ -218,14 +220,14 @@ def urdf_to_description(text: str, source: str = '<string>', base: str | None = 
         end_effector = links[-1][0]['frame'] if links else chains[0]['names'][1]
     text = _description_text(tree, source, base, tip, convention, chains, links, skipped,
                              end_effector)
-    parse_robot_description(text, f'{source} (converted)')  # the output must load: fail here
+    model = parse_robot_description(text, f'{source} (converted)')  # it must load: fail here
     warnings = _joint_kind_warnings(tree, source, base, published, orphans)
     if tree.slashed:
         shown = ', '.join(comment(n)[:80] for n in tree.slashed[:5])
         more = f' and {len(tree.slashed) - 5} more' if len(tree.slashed) > 5 else ''
         warnings += (f'{source}: link names with a leading slash are published without it, '
                      f'as tf2 strips it: {shown}{more}',)
-    return Conversion(text, base, tip, tuple(skipped), warnings)
+    return Conversion(text, base, tip, tuple(skipped), warnings, model)
 
 
 @dataclass(frozen=True)

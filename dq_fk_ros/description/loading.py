@@ -10,12 +10,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 import os
 
-from dq_fk_ros.description.errors import listing, printable_line, RobotDescriptionError
 from dq_fk_ros.description.from_urdf import load_urdf_description, OPTIONS, urdf_to_description
-from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
+from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.description.urdf_reader import read_urdf_text
 from dq_fk_ros.description.xacro_sandbox import ros_package_roots, TIME_LIMIT_S
+from dq_fk_ros.errors import listing, printable_line, RobotDescriptionError
 
 URDF_SUFFIXES = ('.urdf', '.xacro')
 
@@ -156,8 +156,7 @@ def load_robot(spec: str | os.PathLike, base: str | None = None, tip: str | None
         text = read_urdf_text(path, roots, access.time_limit_s, access.should_stop, packages,
                               within=access.dirs)
         conversion = urdf_to_description(text, path, base, tip, convention, options)
-    return LoadedRobot(replace(parse_robot_description(conversion.text, path), urdf=text),
-                       conversion)
+    return LoadedRobot(replace(conversion.model, source=path, urdf=text), conversion)
 
 
 def robot_from_urdf_text(text: str, source: str = 'robot_description', base: str | None = None,
@@ -167,8 +166,7 @@ def robot_from_urdf_text(text: str, source: str = 'robot_description', base: str
     if not isinstance(text, str) or not text.strip():
         raise RobotDescriptionError(f'{source}: empty; give URDF XML')
     conversion = urdf_to_description(text, source, base, tip, convention, options)
-    return LoadedRobot(replace(parse_robot_description(conversion.text, source), urdf=text),
-                       conversion)
+    return LoadedRobot(replace(conversion.model, source=source, urdf=text), conversion)
 
 
 __all__ = ['FileAccess', 'is_urdf', 'load_robot', 'LoadedRobot', 'resolve_robot',

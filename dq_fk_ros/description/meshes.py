@@ -19,9 +19,9 @@ import threading
 from urllib.parse import quote, unquote
 import xml.etree.ElementTree as ElementTree
 
-from dq_fk_ros.description.errors import printable_line
 from dq_fk_ros.description.packages import PackageNotFound, PackageResolver
 from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
+from dq_fk_ros.errors import printable_line
 
 MESH_EXTENSIONS = ('.stl', '.dae', '.obj')
 MAX_MESH_BYTES = 64 << 20     # a vendor's visual mesh is a few MiB at most

@@ -3,7 +3,7 @@ The YAML robot description file, read: text in, a validated :class:`RobotModel` 
 
 The format is documented in ``docs/robot_description.md``. Every length and angle in the
 file is in the file's ``units``; the model holds metres and radians only (REP 103). Any
-mistake raises :class:`~dq_fk_ros.description.errors.RobotDescriptionError` with a single
+mistake raises :class:`~dq_fk_ros.errors.RobotDescriptionError` with a single
 line naming the file, the place (row index and frame), the field, what was found and what
 is allowed. Plain Python (PyYAML + numpy), no ROS.
 
@@ -15,10 +15,10 @@ import math
 import os
 import re
 
-from dq_fk_ros.description.errors import describe, listing, RobotDescriptionError, short
 from dq_fk_ros.description.robot_model import (
     Branch, global_joint_names, JOINT_NAME, LinkFrame, MAX_DESCRIPTION_CHARS, MAX_FILE_BYTES,
     MAX_LENGTH_M, MAX_NAME_CHARS, MAX_ROWS, pose_topic_name, RobotModel, rpy_matrix, TF_FRAME_ID)
+from dq_fk_ros.errors import describe, listing, RobotDescriptionError, short
 from dq_fk_ros.kinematics.dh import CONVENTIONS, DHJoint, JOINT_TYPES, KinematicChain
 from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion, quat_from_matrix
 import numpy as np

@@ -10,8 +10,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import json
 
-from dq_fk_ros.description.errors import printable_line
 from dq_fk_ros.description.schema import yaml_number
+from dq_fk_ros.errors import printable_line
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
 import numpy as np
 

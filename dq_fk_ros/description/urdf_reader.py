@@ -3,7 +3,7 @@ A URDF read: ``.urdf`` or ``.xacro`` text in (xacro run confined), a :class:`Urd
 
 Plain Python (xml.etree; ``xacro`` from PyPI for ``.xacro`` files), no ROS. Linear in the
 size of the URDF (at most :data:`MAX_URDF_ELEMENTS` links and joints); every problem is one
-:class:`~dq_fk_ros.description.errors.RobotDescriptionError` line.
+:class:`~dq_fk_ros.errors.RobotDescriptionError` line.
 """
 
 from collections.abc import Callable, Mapping, Sequence
@@ -13,10 +13,10 @@ import math
 import os
 import xml.etree.ElementTree as ElementTree
 
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.robot_model import MAX_FILE_BYTES, MAX_LENGTH_M, rpy_matrix
 from dq_fk_ros.description.xacro_sandbox import (
     default_read_roots, expand_xacro, TIME_LIMIT_S, XacroRefused)
+from dq_fk_ros.errors import RobotDescriptionError
 import numpy as np
 
 MOVING = ('revolute', 'continuous', 'prismatic')

@@ -21,7 +21,7 @@ import operator
 import struct
 from typing import NamedTuple
 
-from dq_fk_ros.description.errors import DqFkError
+from dq_fk_ros.errors import CdrError
 from dq_fk_ros.kinematics.kernel import load_compiled
 import numpy as np
 
@@ -36,10 +36,6 @@ _STAMP = struct.Struct('<iI')
 # fewer, and what a message names is cached and listed (see docs/security.md)
 MAX_JOINT_STATE_NAMES = 1024
 MAX_JOINT_STATE_BYTES = 64 * 1024
-
-
-class CdrError(DqFkError, ValueError):
-    """A serialized message that cannot be read."""
 
 
 class _Cursor:

@@ -152,7 +152,7 @@ def _missing_params_files(argv):
 
 def _one_line(exc):
     """Return the first line of an exception's message, without rcl's source locations."""
-    from dq_fk_ros.description.errors import first_line
+    from dq_fk_ros.errors import first_line
     return first_line(exc).split(', at /')[0]
 
 

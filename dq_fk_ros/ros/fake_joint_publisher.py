@@ -10,9 +10,9 @@ stream, for robustness tests. The motion itself is plain Python (:class:`JointMo
 import math
 import sys
 
-from dq_fk_ros.description.errors import DqFkError
 from dq_fk_ros.description.from_urdf import NODE_OPTIONS
 from dq_fk_ros.description.loading import load_robot
+from dq_fk_ros.errors import DqFkError
 from dq_fk_ros.ros.executables import MATCH_SETTLE_S, run_main, spin_until_shutdown
 from dq_fk_ros.ros.package_paths import declare_package_paths
 from dq_fk_ros.ros.parameters import declare, help_text, Param

@@ -18,7 +18,8 @@ module is imported only by the program that needs it.
 import json
 import threading
 
-from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state, TfLatest
+from dq_fk_ros.errors import CdrError
+from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state, TfLatest
 
 MAX_POSE_TOPICS = 1024       # pose channels advertised at most (one per ~/pose/<frame>)
 MAX_STATIC_FRAMES = 100_000  # static transforms kept (every child frame once)

@@ -16,12 +16,12 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from dq_fk_ros.description.errors import (
-    DqFkError, first_line, listing, printable_line, RobotDescriptionError)
 from dq_fk_ros.description.from_urdf import NODE_OPTIONS
 from dq_fk_ros.description.loading import load_robot, robot_from_urdf_text
 from dq_fk_ros.description.to_urdf import description_urdf
-from dq_fk_ros.messages.cdr import CdrError, JointStateNames, parse_joint_state
+from dq_fk_ros.errors import (
+    CdrError, DqFkError, first_line, listing, printable_line)
+from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
     JointStateMerger, PUBLISH, SequenceGaps)
 from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S
@@ -166,7 +166,7 @@ class DqFkNode(Node):
         :param quote: whether an unexpected exception's text may be shown (not while a file
             is read: it may hold the file's text).
         """
-        if isinstance(exc, RobotDescriptionError):
+        if isinstance(exc, DqFkError):  # a robot file's error, a parameter's
             reason = printable_line(exc.public)
         elif quote and str(exc).strip():
             reason = f'{type(exc).__name__}: {printable_line(first_line(exc))}'

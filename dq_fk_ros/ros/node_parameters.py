@@ -12,11 +12,11 @@ from dataclasses import dataclass, fields, replace
 import math
 import os
 
-from dq_fk_ros.description.errors import ParameterError, printable_line
 from dq_fk_ros.description.loading import FileAccess, resolve_robot
 from dq_fk_ros.description.robot_model import FRAME_ID, MAX_NAME_CHARS, TF_FRAME_ID
 from dq_fk_ros.description.shipped import shipped_robots_dir
 from dq_fk_ros.description.urdf_reader import tf_name
+from dq_fk_ros.errors import ParameterError, printable_line
 from dq_fk_ros.messages.joint_states import OUT_OF_LIMITS_POLICIES
 from dq_fk_ros.ros.parameters import Param
 

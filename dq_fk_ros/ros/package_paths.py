@@ -1,7 +1,7 @@
 """The ``package_paths`` parameter the package's nodes share: where ``$(find NAME)`` is."""
 
-from dq_fk_ros.description.errors import ParameterError
 from dq_fk_ros.description.packages import parse_package_option
+from dq_fk_ros.errors import ParameterError
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
@@ -15,7 +15,7 @@ def declare_package_paths(node):
     Declare ``package_paths`` (read only) on ``node``; return ``{name: folder}``.
 
     Not given: no explicit packages. A malformed entry or a missing folder raises
-    :class:`~dq_fk_ros.description.errors.ParameterError` with one line.
+    :class:`~dq_fk_ros.errors.ParameterError` with one line.
     """
     node.declare_parameter('package_paths', Parameter.Type.STRING_ARRAY,
                            ParameterDescriptor(description=DESCRIPTION, read_only=True))

@@ -14,8 +14,9 @@ import time
 from dq_fk_ros.description.meshes import check_mesh_file, mesh_allow_list
 from dq_fk_ros.description.packages import PackageResolver
 from dq_fk_ros.description.to_urdf import is_helper_frame
+from dq_fk_ros.errors import CdrError
 from dq_fk_ros.kinematics.tree import compose_tree, depths, roots
-from dq_fk_ros.messages.cdr import CdrError, TfLatest
+from dq_fk_ros.messages.cdr import TfLatest
 
 STALE_AFTER_S = 1.0
 

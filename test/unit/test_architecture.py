@@ -13,10 +13,12 @@ import pytest
 
 PACKAGE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
     os.path.abspath(__file__)))), 'dq_fk_ros')
-# bottom up: a layer may import its own modules and those of the layers before it
-LAYERS = ('kinematics', 'description', 'messages', 'bag', 'ros', 'cli')
+# bottom up: a layer may import its own modules and those of the layers before it; at the
+# bottom the package's errors (one module, dq_fk_ros/errors.py, that every layer imports)
+LAYERS = ('errors', 'kinematics', 'description', 'messages', 'bag', 'ros', 'cli')
 # what each layer may import from outside the standard library and the package
 THIRD_PARTY = {
+    'errors': set(),
     'kinematics': {'numpy'},
     'description': {'numpy', 'yaml', 'ament_index_python', 'matplotlib', 'xacro'},
     'messages': {'numpy'},
@@ -38,7 +40,8 @@ def modules():
             if name.endswith('.py'):
                 rel = os.path.relpath(os.path.join(folder, name), PACKAGE)
                 parts = rel.split(os.sep)
-                yield (parts[0] if len(parts) > 1 else None), rel
+                layer = parts[0] if len(parts) > 1 else 'errors' if rel == 'errors.py' else None
+                yield layer, rel
 
 
 def imported(path, at_run_time_only=False):
@@ -102,6 +105,9 @@ def test_the_surface_imports_what_it_names_and_the_errors_have_one_base():
         assert getattr(dq_fk_ros, name).__name__ == name
     for error in ('RobotDescriptionError', 'ParameterError', 'BagError', 'CdrError'):
         assert issubclass(getattr(dq_fk_ros, error), dq_fk_ros.DqFkError), error
+        assert getattr(dq_fk_ros, error).__module__ == 'dq_fk_ros.errors', error
+    # a parameter is not a robot description
+    assert not issubclass(dq_fk_ros.ParameterError, dq_fk_ros.RobotDescriptionError)
     # importing the package loads neither ROS nor rosbags
     code = ('import sys, dq_fk_ros; dq_fk_ros.load_robot; print(sorted(m for m in sys.modules '
             "if m.split('.')[0] in ('rclpy', 'rosbags', 'matplotlib')))")

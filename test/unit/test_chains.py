@@ -4,11 +4,11 @@ import math
 import os
 import sys
 
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.from_urdf import urdf_to_description
 from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.description.to_urdf import robot_to_urdf
+from dq_fk_ros.errors import RobotDescriptionError
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 from dq_fk_ros.ros.conversions import FrameMessages
 import homogeneous as hm

@@ -13,7 +13,7 @@ where any memory error or undefined behaviour aborts the run (docs/security.md).
 
 import math
 
-from dq_fk_ros.description.loading import parse_robot_description
+from dq_fk_ros.description.schema import parse_robot_description
 from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
 from dq_fk_ros.kinematics.kernel import kernel_info
 from dq_fk_ros.messages.cdr import COMPILED, pose_stamped_template, tf_message_template

@@ -16,7 +16,6 @@ import sys
 import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.cli import dq_fk
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.from_urdf import load_urdf_description, urdf_to_description
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.description.robot_model import MAX_FILE_BYTES
@@ -24,6 +23,7 @@ from dq_fk_ros.description.schema import load_robot_description, parse_robot_des
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.description.to_urdf import robot_to_urdf
 from dq_fk_ros.description.urdf_reader import parse_urdf, read_urdf_text
+from dq_fk_ros.errors import RobotDescriptionError
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
 from hypothesis import given, strategies as st

@@ -9,10 +9,10 @@ give :class:`RobotDescriptionError` or a valid :class:`RobotModel`, never anothe
 import copy
 import math
 
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.robot_model import FRAME_ID, JOINT_NAME, pose_topic_name, TF_FRAME_ID
 from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
+from dq_fk_ros.errors import RobotDescriptionError
 from hypothesis import given, strategies as st
 import numpy as np
 import pytest

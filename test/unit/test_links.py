@@ -5,9 +5,9 @@ import os
 import sys
 
 from builtin_interfaces.msg import Time
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.schema import parse_robot_description
 from dq_fk_ros.description.to_urdf import link_poses, urdf_joints
+from dq_fk_ros.errors import RobotDescriptionError
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 from dq_fk_ros.ros.conversions import FrameMessages
 import homogeneous as hm

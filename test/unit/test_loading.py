@@ -3,10 +3,10 @@
 import dataclasses
 import os
 
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.loading import (
     FileAccess, is_urdf, load_robot, LoadedRobot, resolve_robot, robot_from_urdf_text)
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
+from dq_fk_ros.errors import RobotDescriptionError
 import pytest
 
 URDF = ('<robot name="two"><link name="b"/><link name="l1"/><link name="l2"/>'

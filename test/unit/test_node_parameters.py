@@ -3,8 +3,8 @@
 from dataclasses import fields
 import os
 
-from dq_fk_ros.description.errors import ParameterError
 from dq_fk_ros.description.shipped import shipped_robots_dir
+from dq_fk_ros.errors import ParameterError
 from dq_fk_ros.ros.node_parameters import (
     check_values, NODE_PARAMETERS, NodeParameters, ROBOT_PARAMETERS)
 import pytest

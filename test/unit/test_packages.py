@@ -3,10 +3,10 @@
 import os
 
 from dq_fk_ros.cli import dq_fk
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.loading import FileAccess, load_robot
 from dq_fk_ros.description.packages import PackageNotFound, PackageResolver, parse_package_option
 from dq_fk_ros.description.urdf_reader import read_urdf_text
+from dq_fk_ros.errors import RobotDescriptionError
 import pytest
 
 SEGMENT = ('<?xml version="1.0"?><robot xmlns:xacro="http://www.ros.org/wiki/xacro">'

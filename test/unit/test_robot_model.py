@@ -3,11 +3,11 @@
 import dataclasses
 import math
 
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.robot_model import MAX_ROWS
 from dq_fk_ros.description.schema import (
     load_robot_description, parse_robot_description, yaml_number)
 from dq_fk_ros.description.shipped import shipped_robot_path
+from dq_fk_ros.errors import RobotDescriptionError
 import homogeneous as hm
 from hypothesis import given, strategies as st
 import numpy as np
@@ -284,7 +284,7 @@ def test_an_unknown_end_effector_lists_every_frame_but_the_fixed_one():
 
 
 def test_listings_say_how_many_more_only_when_there_are_more():
-    from dq_fk_ros.description.errors import listing
+    from dq_fk_ros.errors import listing
     assert listing(['a', 'b', 'c'], at_most=3) == 'a, b, c'
     assert listing(['a', 'b', 'c', 'd'], at_most=3) == 'a, b, c ... (1 more)'
 

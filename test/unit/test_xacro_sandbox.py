@@ -8,11 +8,11 @@ test shows one does); expanded through the package, none does, and each is one l
 import os
 import time
 
-from dq_fk_ros.description.errors import RobotDescriptionError
 from dq_fk_ros.description.from_urdf import load_urdf_description
 from dq_fk_ros.description.urdf_reader import read_urdf_text
 from dq_fk_ros.description.xacro_sandbox import (
     check_expression, expand_xacro, TIME_LIMIT_S, XacroRefused)
+from dq_fk_ros.errors import RobotDescriptionError
 import pytest
 
 HEAD = '<?xml version="1.0"?>\n<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'

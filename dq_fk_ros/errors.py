@@ -1,42 +1,56 @@
 """
 The package's errors, one base whose message is one line, and the helpers for that line.
 
-:class:`DqFkError`; under it :class:`RobotDescriptionError` (a robot file, URDF or xacro),
-:class:`ParameterError` (a node parameter), and in their layers ``BagError`` (a bag) and
-``CdrError`` (a serialized message). :func:`first_line`, :func:`printable_line`,
-:func:`listing`, :func:`short` and :func:`describe` make an exception, any text, a list of
-names or a value fit one line.
+Every error a user may see, in one module every layer imports (the bottom of the layers):
+
+* :class:`DqFkError`: something a user gave that the package cannot use; one line;
+
+  * :class:`RobotDescriptionError`: a robot file, URDF or xacro (also a ``ValueError``);
+  * :class:`ParameterError`: a node parameter (also a ``ValueError``);
+  * :class:`BagError`: a bag, and under it :class:`BagDamaged`: nothing in it usable;
+  * :class:`CdrError`: a serialized message (also a ``ValueError``).
+
+:func:`first_line`, :func:`printable_line`, :func:`listing`, :func:`short` and
+:func:`describe` make an exception, any text, a list of names or a value fit one line.
 """
 
 from collections.abc import Iterable
 
 
 class DqFkError(Exception):
-    """Something a user gave that the package cannot use; the message is one line."""
-
-
-class RobotDescriptionError(DqFkError, ValueError):
     """
-    A robot description file that cannot be used; the message is one line for the user.
+    Something a user gave that the package cannot use; the message is one line.
 
-    ``public`` is the same without any text of the file: what may be told to someone who
-    only named the file (a remote parameter client). It differs from the message only where
-    the file did not parse as a robot description (it may be any file, a secret one).
+    ``public`` is the same without any text of a file the user named: what may be told to
+    someone who only named the file (a remote parameter client). It differs from the
+    message only where a file did not parse as what it should be (it may be any file, a
+    secret one).
     """
 
-    def __init__(self, message: str, public: str | None = None):
+    def __init__(self, message: str = '', public: str | None = None):
         """Take the message for the user, and the one without file text if it differs."""
         super().__init__(message)
         self.public = message if public is None else public
 
 
-class ParameterError(RobotDescriptionError):
-    """
-    A node parameter that cannot be used (a rate out of range, an unknown choice): one line.
+class RobotDescriptionError(DqFkError, ValueError):
+    """A robot description file (DH YAML, URDF, xacro) that cannot be used; one line."""
 
-    A kind of :class:`RobotDescriptionError` for the code that catches both (a parameter
-    change names the robot or how to publish it).
-    """
+
+class ParameterError(DqFkError, ValueError):
+    """A node parameter that cannot be used (a rate out of range, an unknown choice): one line."""
+
+
+class BagError(DqFkError):
+    """A bag problem for the user; the message is one line."""
+
+
+class BagDamaged(BagError):
+    """The bag is damaged so badly that nothing in it can be used; the message is one line."""
+
+
+class CdrError(DqFkError, ValueError):
+    """A serialized message that cannot be read."""
 
 
 def describe(value: object) -> str:
@@ -82,5 +96,5 @@ def first_line(exc: BaseException, limit: int | None = None) -> str:
     return text if limit is None else text[:limit]
 
 
-__all__ = ['describe', 'DqFkError', 'first_line', 'listing', 'ParameterError',
-           'printable_line', 'RobotDescriptionError', 'short']
+__all__ = ['BagDamaged', 'BagError', 'CdrError', 'describe', 'DqFkError', 'first_line',
+           'listing', 'ParameterError', 'printable_line', 'RobotDescriptionError', 'short']
