@@ -3,13 +3,16 @@ What dq_fk_foxglove sends to Foxglove: the newest of each input, at most ``rate`
 
 :class:`FoxgloveFeed` takes what the ROS side receives (serialized /tf, decoded /tf_static,
 the URDF, serialized joint states and poses) and, at each :meth:`FoxgloveFeed.flush`, logs
-the newest of each on the Foxglove SDK's channels: ``/tf`` and ``/tf_static`` as
-``foxglove.FrameTransforms``, ``/robot_description`` as JSON ``{"data": urdf}`` (what the
-3D panel's URDF layer reads from a topic), ``/joint_states`` as JSON (the fields of
-``sensor_msgs/JointState``), each pose topic as ``foxglove.PoseInFrame``. Static
-transforms and the URDF are kept and logged again when a client subscribes to them (what
-transient local does for a late ROS subscriber). The URDF's meshes are served by
-:class:`~dq_fk_ros.description.meshes.MeshAssets`, replaced with each new description.
+the newest of each on the Foxglove SDK's channels. ``/tf`` (``tf2_msgs/msg/TFMessage``),
+``/joint_states`` (``sensor_msgs/msg/JointState``) and each pose topic
+(``geometry_msgs/msg/PoseStamped``) pass through as the CDR bytes they came in (schema
+``ros2msg``, as foxglove_bridge and a ROS 2 MCAP file carry them), once read as that type
+(anything else is counted and dropped: no byte is sent that does not parse); ``/tf_static``
+is the transforms of every ``/tf_static`` message so far, as one ``foxglove.FrameTransforms``;
+``/robot_description`` JSON ``{"data": urdf}`` (what the 3D panel's URDF layer reads from a
+topic). Static transforms and the URDF are kept and logged again when a client subscribes
+to them (what transient local does for a late ROS subscriber). The URDF's meshes are served
+by :class:`~dq_fk_ros.description.meshes.MeshAssets`, replaced with each new description.
 
 No ROS here; the channels come from the ``foxglove`` module given at construction, so the
 module is imported only by the program that needs it.
@@ -18,21 +21,24 @@ module is imported only by the program that needs it.
 import json
 import threading
 
+from dq_fk_ros.bag.msgdefs import ros2msg_definition
 from dq_fk_ros.errors import CdrError
-from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state, TfLatest
+from dq_fk_ros.messages.cdr import (
+    JointStateNames, parse_joint_state, parse_pose_stamped, TfLatest)
 
 MAX_POSE_TOPICS = 1024       # pose channels advertised at most (one per ~/pose/<frame>)
 MAX_STATIC_FRAMES = 100_000  # static transforms kept (every child frame once)
 DESCRIPTION_SCHEMA = {'type': 'object', 'properties': {'data': {'type': 'string'}}}
-JOINT_STATE_SCHEMA = {
-    'type': 'object', 'properties': {
-        'header': {'type': 'object', 'properties': {
-            'stamp': {'type': 'object', 'properties': {
-                'sec': {'type': 'integer'}, 'nanosec': {'type': 'integer'}}},
-            'frame_id': {'type': 'string'}}},
-        'name': {'type': 'array', 'items': {'type': 'string'}},
-        'position': {'type': 'array', 'items': {'type': 'number'}},
-        'velocity': {'type': 'array', 'items': {'type': 'number'}}}}
+TF = 'tf2_msgs/msg/TFMessage'
+JOINT_STATE = 'sensor_msgs/msg/JointState'
+POSE_STAMPED = 'geometry_msgs/msg/PoseStamped'
+
+
+def cdr_channel(foxglove, topic, msgtype):
+    """Return a channel of serialized ROS 2 messages (``cdr``) of ``msgtype`` on ``topic``."""
+    schema = foxglove.Schema(name=msgtype, encoding='ros2msg',
+                             data=ros2msg_definition(msgtype).encode())
+    return foxglove.Channel(topic, schema=schema, message_encoding='cdr')
 
 
 class FoxgloveFeed:
@@ -52,16 +58,14 @@ class FoxgloveFeed:
         self.assets = assets
         self.log = log
         self.lock = threading.Lock()
-        self.tf = FrameTransformsChannel('/tf')
+        self.tf = cdr_channel(foxglove, '/tf', TF)
         self.tf_static = FrameTransformsChannel('/tf_static')
-        # named as the ROS types: the 3D panel's URDF layer lists std_msgs/msg/String topics
+        # named as the ROS type: the 3D panel's URDF layer lists std_msgs/msg/String topics
         self.description = Channel('/robot_description', schema=foxglove.Schema(
             name='std_msgs/msg/String', encoding='jsonschema',
             data=json.dumps(DESCRIPTION_SCHEMA).encode()), message_encoding='json')
-        self.joint_states = Channel('/joint_states', schema=foxglove.Schema(
-            name='sensor_msgs/msg/JointState', encoding='jsonschema',
-            data=json.dumps(JOINT_STATE_SCHEMA).encode()), message_encoding='json')
-        self.pose_channels = {}    # ROS topic -> PoseInFrameChannel
+        self.joint_states = cdr_channel(foxglove, '/joint_states', JOINT_STATE)
+        self.pose_channels = {}    # ROS topic -> its channel (PoseStamped, CDR)
         self.tf_latest = TfLatest()
         self.static = {}           # child -> (parent, pose, stamp_ns)
         self.urdf = None
@@ -112,11 +116,10 @@ class FoxgloveFeed:
 
     def add_pose_topic(self, topic):
         """Advertise a pose topic's channel (at most MAX_POSE_TOPICS); say whether it is new."""
-        from foxglove.channels import PoseInFrameChannel
         with self.lock:
             if topic in self.pose_channels or len(self.pose_channels) >= MAX_POSE_TOPICS:
                 return False
-            self.pose_channels[topic] = PoseInFrameChannel(topic)
+            self.pose_channels[topic] = cdr_channel(self.fox, topic, POSE_STAMPED)
             return True
 
     def subscribed(self, topic):
@@ -125,16 +128,11 @@ class FoxgloveFeed:
             self.resend.add(topic)
 
     # -- out, at most rate times a second ------------------------------------------------
-    def flush(self, poses_from=None):
-        """
-        Log the newest of every input on its channel (and what new subscribers need).
-
-        :param poses_from: called as ``poses_from(raw)`` to read a PoseStamped: returns
-            ``(stamp_ns, frame_id, (x, y, z, qx, qy, qz, qw))`` (the ROS side's reader).
-        """
+    def flush(self):
+        """Log the newest of every input on its channel (and what new subscribers need)."""
         m = self.fox.messages
         with self.lock:
-            newest = self.tf_latest.pop()
+            newest = self.tf_latest.pop_raw()
             resend, self.resend = self.resend, set()
             static = None
             if self.static_changed or '/tf_static' in resend:
@@ -145,45 +143,30 @@ class FoxgloveFeed:
                 urdf = self.urdf
                 self.description_changed = False
             self.counts['flushes'] += 1
-        for transforms, stamp_ns in newest:
-            self.tf.log(frame_transforms(m, [(p, c, pose, stamp_ns) for p, c, pose in
-                                             transforms]))
+        for raw in newest:  # each read as a TFMessage when taken (its layout)
+            self.tf.log(raw)
         if static:
             self.tf_static.log(frame_transforms(m, static))
         if urdf is not None:
             self.description.log(json.dumps({'data': urdf}))
         raw, self.joint_state_raw = self.joint_state_raw, None
         if raw is not None:
-            self._log_joint_state(raw)
-        if poses_from is not None:
-            pending, self.pose_raw = self.pose_raw, {}
-            for topic, raw in pending.items():
-                channel = self.pose_channels.get(topic)
-                try:
-                    stamp_ns, frame_id, pose = poses_from(raw)
-                except Exception:  # not a PoseStamped after all: counted, never fatal
-                    self.counts['bad_input'] += 1
-                    continue
-                if channel is not None:
-                    channel.log(pose_in_frame(m, stamp_ns, frame_id, pose))
-
-    def _log_joint_state(self, raw):
-        try:
-            stamp_ns, names, positions, velocities = parse_joint_state(raw, self._names)
-        except CdrError:
-            self.counts['bad_input'] += 1
-            return
-        sec, nanosec = divmod(stamp_ns, 1_000_000_000)
-        self.joint_states.log(json.dumps({
-            'header': {'stamp': {'sec': sec, 'nanosec': nanosec}, 'frame_id': ''},
-            'name': list(names), 'position': [_finite(v) for v in positions],
-            'velocity': [_finite(v) for v in velocities]}))
-
-
-def _finite(value):
-    """JSON has no NaN or infinity: such a value is sent as null."""
-    value = float(value)
-    return value if value - value == 0.0 else None
+            try:
+                parse_joint_state(raw, self._names)
+            except CdrError:
+                self.counts['bad_input'] += 1
+            else:
+                self.joint_states.log(raw)
+        pending, self.pose_raw = self.pose_raw, {}
+        for topic, raw in pending.items():
+            channel = self.pose_channels.get(topic)
+            try:
+                parse_pose_stamped(raw)
+            except CdrError:  # not a PoseStamped after all: counted, never sent
+                self.counts['bad_input'] += 1
+                continue
+            if channel is not None:
+                channel.log(raw)
 
 
 def frame_transforms(m, transforms):
@@ -197,12 +180,4 @@ def frame_transforms(m, transforms):
     return m.FrameTransforms(transforms=out)
 
 
-def pose_in_frame(m, stamp_ns, frame_id, pose):
-    """Return a ``foxglove.PoseInFrame`` of a pose ``(x, y, z, qx, qy, qz, qw)``."""
-    x, y, z, qx, qy, qz, qw = pose
-    sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
-    return m.PoseInFrame(timestamp=m.Timestamp(sec, nsec), frame_id=frame_id, pose=m.Pose(
-        position=m.Vector3(x=x, y=y, z=z), orientation=m.Quaternion(x=qx, y=qy, z=qz, w=qw)))
-
-
-__all__ = ['FoxgloveFeed', 'frame_transforms', 'MAX_POSE_TOPICS', 'pose_in_frame']
+__all__ = ['cdr_channel', 'FoxgloveFeed', 'frame_transforms', 'MAX_POSE_TOPICS']

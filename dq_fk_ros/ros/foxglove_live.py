@@ -107,6 +107,8 @@ class RosInput:
 
     def _flush_loop(self):
         import time
+        from dq_fk_ros.ros.raw_input import name_os_thread
+        name_os_thread(b'dq_fk fox flush')  # in top -H and /proc: apart from the executor
         next_at = time.monotonic()
         while not self.stopped.is_set():
             try:
@@ -170,7 +172,7 @@ class RosInput:
                 take_queued(subscription, lambda raw, t=topic: self.feed.take_pose(t, raw))
         except Exception:  # a subscription destroyed meanwhile (shutting down)
             return
-        self.feed.flush(read_pose_stamped)
+        self.feed.flush()
 
     def destroy(self):
         """Stop the flushes, then destroy both nodes."""
@@ -178,16 +180,6 @@ class RosInput:
         self.thread.join(timeout=2.0)
         self.raw.destroy_node()
         self.node.destroy_node()
-
-
-def read_pose_stamped(raw):
-    """Return ``(stamp_ns, frame_id, (x, y, z, qx, qy, qz, qw))`` of a serialized PoseStamped."""
-    from geometry_msgs.msg import PoseStamped
-    from rclpy.serialization import deserialize_message
-    msg = deserialize_message(raw, PoseStamped)
-    p, o = msg.pose.position, msg.pose.orientation
-    return (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
-            msg.header.frame_id, (p.x, p.y, p.z, o.x, o.y, o.z, o.w))
 
 
 def make_listener(foxglove, ros, feed):

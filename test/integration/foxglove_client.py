@@ -9,7 +9,9 @@ schema, schemaEncoding) and binary ones whose first byte is the opcode: 1 ``mess
 request id, uint8 status 0 success / 1 error, uint32 error length, error text, data),
 all little-endian. The client sends ``subscribe`` and ``fetchAsset`` as JSON. A payload
 whose encoding is ``protobuf`` is decoded with the FileDescriptorSet the channel advertises
-(google.protobuf), ``json`` with json. Runs on aiohttp in a thread of its own.
+(google.protobuf), ``cdr`` with the ``ros2msg`` definition it advertises (read by rosbags
+into a type store of its own: nothing but that text says what the bytes are), ``json`` with
+json. Runs on aiohttp in a thread of its own.
 """
 
 import asyncio
@@ -89,6 +91,8 @@ class FoxgloveClient:
     def _decode(self, channel, payload):
         if channel['encoding'] == 'json':
             return json.loads(payload)
+        if channel['encoding'] == 'cdr':
+            return self._cdr_decoder(channel)(payload)
         if channel['encoding'] != 'protobuf':
             return payload
         decode = self._decoders.get(channel['id'])
@@ -103,6 +107,24 @@ class FoxgloveClient:
                 pool.FindMessageTypeByName(channel['schemaName'])).FromString
             self._decoders[channel['id']] = decode
         return decode(payload)
+
+    def _cdr_decoder(self, channel):
+        decode = self._decoders.get(channel['id'])
+        if decode is None:
+            from rosbags.typesys import get_types_from_msg, get_typestore, Stores
+            assert channel['schemaEncoding'] == 'ros2msg', channel
+            store = get_typestore(Stores.EMPTY)
+            store.register(get_types_from_msg(channel['schema'], channel['schemaName']))
+
+            msgdef = store.get_msgdef(channel['schemaName'])
+
+            def decode(payload):
+                # read as Foxglove reads it: fields in order, trailing bytes ignored (rclpy
+                # may send a few more than the fields take; rosbags' own check refuses them)
+                assert bytes(payload[:4]) == b'\x00\x01\x00\x00', payload[:4]
+                return msgdef.deserialize_cdr_le(payload[4:], 0, msgdef.cls, store)[0]
+            self._decoders[channel['id']] = decode
+        return decode
 
     # -- requests ------------------------------------------------------------------------
     def send(self, frame):

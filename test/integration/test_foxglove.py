@@ -15,8 +15,9 @@ import xml.etree.ElementTree as ElementTree
 from dq_fk_ros.description.meshes import visual_mesh_uris
 from dq_fk_ros.ros.executables import executable
 from foxglove_client import FoxgloveClient, wait
+from geometry_msgs.msg import PoseStamped
 import pytest
-from ros_harness import start, TF_STATIC_QOS
+from ros_harness import node_topic, start, TF_STATIC_QOS
 from tf2_msgs.msg import TFMessage
 from vendor_urdfs import robots_dir, UR5, vendor_path
 
@@ -70,7 +71,7 @@ def assert_same_as_the_node(client, tf, static):
         by_stamp[next(iter(got.values()))[0]] = got
     matched = 0
     for _, message in client.messages['/tf']:
-        got = transforms_of_proto(message)
+        got = transforms_of_ros(message)  # CDR, decoded by the schema the channel advertised
         expected = by_stamp.get(next(iter(got.values()))[0])
         if expected is not None:
             assert got.keys() == expected.keys()
@@ -88,7 +89,7 @@ def assert_same_as_the_node(client, tf, static):
 
 
 def test_rl15_frames_reach_foxglove_as_the_node_computed_them(processes, listener):
-    start(processes, 'dq_fk_node', 'publish_frequency:=0.0')
+    node = start(processes, 'dq_fk_node', 'publish_frequency:=0.0')
     start(processes, 'fake_joint_publisher', 'mode:=sine', 'rate_hz:=200.0')
     tf = listener.listen(TFMessage, '/tf', 1000)
     static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
@@ -98,20 +99,40 @@ def test_rl15_frames_reach_foxglove_as_the_node_computed_them(processes, listene
         assert client.subprotocol in ('foxglove.sdk.v1', 'foxglove.websocket.v1')
         assert client.server_info['op'] == 'serverInfo'
         tf_channel = client.channel('/tf')
-        assert tf_channel['schemaName'] == 'foxglove.FrameTransforms'
+        assert (tf_channel['schemaName'], tf_channel['encoding'],
+                tf_channel['schemaEncoding']) == ('tf2_msgs/msg/TFMessage', 'cdr', 'ros2msg')
+        assert client.channel('/tf_static')['schemaName'] == 'foxglove.FrameTransforms'
         # the 3D panel's URDF layer lists topics of std_msgs String schemas
         assert client.channel('/robot_description')['schemaName'] == 'std_msgs/msg/String'
         assert client.channel('/joint_states')['schemaName'] == 'sensor_msgs/msg/JointState'
-        client.subscribe('/tf', '/tf_static', '/joint_states')
+        pose_topic = node_topic(node, 'pose/eeCarry_seg6')
+        poses = listener.listen(PoseStamped, pose_topic, 1000)
+        assert wait(lambda: any(c['topic'] == pose_topic
+                                for c in list(client.channels.values())), 30)
+        assert client.channel(pose_topic)['schemaName'] == 'geometry_msgs/msg/PoseStamped'
+        client.subscribe('/tf', '/tf_static', '/joint_states', pose_topic)
         listener.spin_until(lambda: len(tf) >= 50 and static, timeout_s=30)
         sent_before = len(client.messages.get('/tf', []))
         listener.spin_until(lambda: len(client.messages.get('/tf', [])) >= sent_before + 8,
                             timeout_s=30)
         assert_same_as_the_node(client, tf, static)
-        edges = transforms_of_proto(client.messages['/tf'][-1][1])
+        edges = transforms_of_ros(client.messages['/tf'][-1][1])
         assert ('wrist_seg5', 'eeCarry_seg6') in edges
         joints = client.messages['/joint_states'][-1][1]
-        assert joints['name'][:6] == [f'joint_{k}' for k in range(1, 7)]
+        assert list(joints.name[:6]) == [f'joint_{k}' for k in range(1, 7)]
+        assert len(joints.position) == 6
+        # the end effector's pose as the node published it (same stamp, same values)
+        listener.spin_until(lambda: client.messages.get(pose_topic), timeout_s=30)
+        published = {(p.header.stamp.sec, p.header.stamp.nanosec): p for p in list(poses)}
+        matched = 0
+        for _, got in client.messages[pose_topic]:
+            assert got.header.frame_id == 'world'
+            mine = published.get((got.header.stamp.sec, got.header.stamp.nanosec))
+            if mine is not None:
+                assert (got.pose.position.x, got.pose.orientation.w) == (
+                    mine.pose.position.x, mine.pose.orientation.w)
+                matched += 1
+        assert matched >= 1
         # 200 Hz in, at most --rate (30) a second out, the newest
         count = len(client.messages['/tf'])
         listener.spin_until(lambda: False, timeout_s=2.0)
@@ -160,7 +181,7 @@ def test_ur5_meshes_come_back_byte_for_byte_and_nothing_else(processes, listener
         listener.spin_until(lambda: len(client.messages.get('/tf', [])) >= sent_before + 8,
                             timeout_s=30)
         assert_same_as_the_node(client, tf, static)
-        links = {c for _, c in transforms_of_proto(client.messages['/tf'][-1][1])} | \
+        links = {c for _, c in transforms_of_ros(client.messages['/tf'][-1][1])} | \
             {c for _, c in transforms_of_proto(client.messages['/tf_static'][-1][1])}
         joints = ElementTree.fromstring(urdf).findall('joint')
         assert links == {j.find('child').get('link') for j in joints}  # the URDF's tree
@@ -188,6 +209,41 @@ def test_a_static_robot_reaches_a_client_that_connects_late(processes, listener,
             assert wait(lambda: second.messages.get('/tf_static'), 20)
         finally:
             second.close()
+    finally:
+        client.close()
+
+
+def test_bytes_that_do_not_parse_are_never_passed_through(processes, listener):
+    """A JointState or PoseStamped of garbage is dropped; the next good one goes through."""
+    from rclpy.serialization import serialize_message
+    _, url = start_foxglove(processes)
+    pose_pub = listener.probe.create_publisher(PoseStamped, '/hostile/pose/tool', 10)
+    client = FoxgloveClient(url)
+    try:
+        assert wait(lambda: any(c['topic'] == '/hostile/pose/tool'
+                                for c in list(client.channels.values())), 30)
+        client.subscribe('/joint_states', '/hostile/pose/tool')
+        good_joints = serialize_message(listener.joint_state(['a', 'b'], [0.5, -0.5]))
+        good_pose = serialize_message(PoseStamped())
+        for bad_joints, bad_pose in ((good_joints[:-20], good_pose[:-8]),  # cut short
+                                     (b'\x00\x01\x00\x00' + b'\xff' * 60, good_pose + b'\x00' * 8),
+                                     (good_joints[:1] + b'\x00' + good_joints[2:],
+                                      good_pose[:1] + b'\x00' + good_pose[2:])):
+            for _ in range(5):
+                listener.joint_pub.publish(bad_joints)
+                pose_pub.publish(bad_pose)
+                listener.spin_until(lambda: False, timeout_s=0.1)
+        assert client.messages.get('/joint_states') is None
+        assert client.messages.get('/hostile/pose/tool') is None
+
+        def good_ones_arrived():
+            pose_pub.publish(good_pose)
+            return client.messages.get('/joint_states') and \
+                client.messages.get('/hostile/pose/tool')
+        listener.spin_until(good_ones_arrived, timeout_s=20,
+                            publish=listener.joint_state(['a', 'b'], [0.5, -0.5]))
+        assert list(client.messages['/joint_states'][-1][1].position) == [0.5, -0.5]
+        assert client.messages['/hostile/pose/tool'][-1][1].header.frame_id == ''
     finally:
         client.close()
 

@@ -1,12 +1,13 @@
 """The fast CDR reader and templates against rosbags' own (independent) CDR implementation."""
 
+import random
 import struct
 
 from dq_fk_ros.messages.cdr import (
     CDR_LE_HEADER, CdrError, JointStateNames, JointStateRun, MalformedJointState,
     parse_joint_state, parse_joint_states, pose_stamped_template, tf_layout,
     tf_message_template, twist_stamped_template)
-from hypothesis import given, strategies as st
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 from rosbags.typesys import get_typestore, Stores
@@ -424,3 +425,70 @@ def test_a_batch_with_undefined_padding_is_one_run():
     renamed = raws[:5] + [raws[5].replace(b'bb\x00', b'xy\x00')] + raws[6:]
     runs = parse_joint_states(renamed)
     assert [r.names for r in runs] == [tuple(names), ('a', 'xy', 'ccc'), tuple(names)]
+
+
+@settings(max_examples=40)
+@given(st.integers(17, 60), st.data())
+def test_tf_latest_tells_layouts_apart(count, data):
+    """A big robot's layout (one numpy gather) and run by run decide alike, padding aside."""
+    from dq_fk_ros.messages.cdr import (
+        _is_layout, _layout_check, TfLatest, tf_layout, tf_values)
+    pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    edges = [(f'p{k % 5}', f'child_{k}', pose) for k in range(count)]
+    raw = tf_message_bytes(edges, stamp=(1, 0))
+    layout = tf_layout(raw)
+    runs, gather = _layout_check(layout)
+    assert gather is not None and len(runs) > 16
+    k = data.draw(st.integers(0, count - 1))
+    renamed = list(edges)
+    renamed[k] = (edges[k][0], f'child_{k}'[:-1] + '#', pose)  # same size, one byte off
+    other = tf_message_bytes(renamed, stamp=(2, 0))
+    dirty = bytearray(tf_message_bytes(edges, stamp=(3, 0)))
+    noise = random.Random(data.draw(st.integers(0, 2**32)))
+    for (_, end), (start, _) in zip(layout.strings, layout.strings[1:]):
+        dirty[end:start] = noise.randbytes(start - end)  # stamps, padding, values
+    for message, same in ((raw, True), (other, False), (bytes(dirty), True)):
+        assert len(message) == len(raw)
+        assert _is_layout(message, (runs, gather)) is same
+        assert _is_layout(message, (runs, None)) is same
+    latest = TfLatest()
+    for message in (raw, other, bytes(dirty)):
+        latest.take(message)
+    got = latest.pop()  # the newest of each: the dirty one stands for the first layout
+    shown = [repr(values) for values in got]  # (the noise may hold NaN: compared as text)
+    assert len(got) == 2 and repr(tf_values(bytes(dirty), layout)) in shown
+    assert repr(tf_values(other, tf_layout(other))) in shown
+
+
+@given(st.text(max_size=40), st.integers(-2**31, 2**31 - 1), st.integers(0, 2**32 - 1),
+       st.lists(st.floats(allow_nan=False), min_size=7, max_size=7))
+def test_pose_stamped_reads_as_rosbags_reads_it(frame_id, sec, nanosec, values):
+    from dq_fk_ros.messages.cdr import parse_pose_stamped
+    msgs = TS.types
+    pose = msgs['geometry_msgs/msg/Pose'](
+        position=msgs['geometry_msgs/msg/Point'](*values[:3]),
+        orientation=msgs['geometry_msgs/msg/Quaternion'](*values[3:]))
+    header = msgs['std_msgs/msg/Header'](
+        stamp=msgs['builtin_interfaces/msg/Time'](sec, nanosec), frame_id=frame_id)
+    raw = bytes(TS.serialize_cdr(msgs['geometry_msgs/msg/PoseStamped'](header, pose),
+                                 'geometry_msgs/msg/PoseStamped'))
+    assert parse_pose_stamped(raw) == (sec * 1_000_000_000 + nanosec, frame_id, tuple(values))
+    for cut in (3, 15, len(raw) - 1):
+        with pytest.raises(CdrError):
+            parse_pose_stamped(raw[:cut])
+    with pytest.raises(CdrError):
+        parse_pose_stamped(raw + b'\x00' * 8)  # not a PoseStamped of this size
+    with pytest.raises(CdrError):
+        parse_pose_stamped(raw[:1] + b'\x00' + raw[2:])  # big-endian
+
+
+def test_a_pose_stamped_of_no_sense_is_refused_in_one_line():
+    from dq_fk_ros.messages.cdr import parse_pose_stamped
+    header = CDR_LE_HEADER + b'\x00' * 8
+    for raw in (header + b'\xff\xff\xff\xff' + b'\x00' * 60,   # a frame id past the end
+                header + b'\x02\x00\x00\x00\xff\x00' + b'\x00' * 58,  # not UTF-8
+                header + b'\x00' * 4 + b'\x00' * 60,             # a string of length 0
+                b'\x00' * 5000):
+        with pytest.raises(CdrError) as error:
+            parse_pose_stamped(raw)
+        assert '\n' not in str(error.value)
