@@ -12,6 +12,7 @@ from dq_fk_ros.description.to_urdf import description_urdf
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
 from dq_fk_ros.messages.output_plan import OutputPlan
+from dq_fk_ros.messages.outputs import POSE, ROBOT_DESCRIPTION, TF, TF_STATIC
 import numpy as np
 
 
@@ -29,27 +30,28 @@ class BagOutputs:
         from rosbags.interfaces import (
             Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime)
 
-        def qos(depth, durability):
+        def add(output, frame=''):
+            """Add the connection of an output (its topic, type and the node's QoS)."""
             never = QosTime(sec=0, nsec=0)
-            return [Qos(QosHistory.KEEP_LAST, depth, QosReliability.RELIABLE, durability,
-                        never, never, QosLiveliness.AUTOMATIC, never, False)]
-        volatile, latched = QosDurability.VOLATILE, QosDurability.TRANSIENT_LOCAL
+            durability = QosDurability.TRANSIENT_LOCAL if output.latched else \
+                QosDurability.VOLATILE
+            offered = [Qos(QosHistory.KEEP_LAST, output.depth, QosReliability.RELIABLE,
+                           durability, never, never, QosLiveliness.AUTOMATIC, never, False)]
+            return writer.add_connection(output.topic_for(frame, pose_namespace),
+                                         output.msgtype, typestore=typestore,
+                                         offered_qos_profiles=offered)
         self.model = model
         self.writer = writer
         self.typestore = typestore
         # frame ids, TF parents, static and moving transforms, helpers: as the node's
         self.plan = plan = OutputPlan(model, frame_prefix, dh_frames)
-        add = writer.add_connection
-        self.tf = add('/tf', 'tf2_msgs/msg/TFMessage', typestore=typestore,
-                      offered_qos_profiles=qos(100, volatile))
-        self.tf_static = add('/tf_static', 'tf2_msgs/msg/TFMessage', typestore=typestore,
-                             offered_qos_profiles=qos(1, latched))
+        # topics, types and QoS: the node's table (messages/outputs.py)
+        self.tf = add(TF)
+        self.tf_static = add(TF_STATIC)
         self.end = model.end_effector_index
         self.pose_frames = {'all': list(plan.pose_frames), 'end': [self.end],
                             'none': []}[poses]
-        self.poses = [add(f'{pose_namespace}/pose/{model.topic_names[k]}',
-                          'geometry_msgs/msg/PoseStamped', typestore=typestore,
-                          offered_qos_profiles=qos(10, volatile)) for k in self.pose_frames]
+        self.poses = [add(POSE, model.topic_names[k]) for k in self.pose_frames]
         # transforms and poses that depend on optional joints (side branches, every joint of
         # a tree) are written where the message's state has named those joints, as the node
         # does: each message's /tf holds the transforms whose joints are known
@@ -77,9 +79,7 @@ class BagOutputs:
             self.urdf = description_urdf(model)
         except ValueError:  # a robot URDF cannot express: no /robot_description
             self.urdf = None
-        self.description = add('/robot_description', 'std_msgs/msg/String',
-                               typestore=typestore, offered_qos_profiles=qos(1, latched)) \
-            if self.urdf is not None else None
+        self.description = add(ROBOT_DESCRIPTION) if self.urdf is not None else None
         self.copied = {}
         for conn in copy_from:
             self.copied[conn.id] = _copy_connection(writer, conn, typestore)

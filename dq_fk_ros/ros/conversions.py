@@ -21,6 +21,15 @@ from tf2_msgs.msg import TFMessage
 NS_PER_S = 1_000_000_000
 
 
+def qos_profile(output):
+    """Return the rclpy ``QoSProfile`` of a :class:`~dq_fk_ros.messages.outputs.Output`."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    durability = DurabilityPolicy.TRANSIENT_LOCAL if output.latched else \
+        DurabilityPolicy.VOLATILE
+    return QoSProfile(depth=output.depth, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=durability)
+
+
 def stamp_to_ns(stamp):
     """Return the nanoseconds of a ``builtin_interfaces/Time``."""
     return stamp.sec * NS_PER_S + stamp.nanosec

@@ -26,6 +26,7 @@ import argparse
 import sys
 import threading
 
+from dq_fk_ros.messages.outputs import ROBOT_DESCRIPTION, TF, TF_STATIC
 from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options, run_main
 
 DEFAULT_PORT = 8765
@@ -83,14 +84,14 @@ class RosInput:
         # only the newest of each read (nothing wakes per message)
         self.raw = rclpy.create_node('_dq_fk_foxglove_input', context=node.context,
                                      start_parameter_services=False, enable_rosout=False)
-        self.tf = self.raw.create_subscription(TFMessage, '/tf', lambda _: None, self.queued,
+        self.tf = self.raw.create_subscription(TFMessage, TF.topic, lambda _: None, self.queued,
                                                raw=True)
         self.joint_state_type = JointState
         self.joint_states = None   # while a client wants /joint_states
-        node.create_subscription(TFMessage, '/tf_static', self._on_static,
+        node.create_subscription(TFMessage, TF_STATIC.topic, self._on_static,
                                  QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                                             durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        node.create_subscription(String, 'robot_description',
+        node.create_subscription(String, ROBOT_DESCRIPTION.topic,
                                  lambda m: feed.take_description(m.data), latched)
         self.poses = {}            # topic -> raw subscription, while a client wants it
         self.wanted = {}           # topic -> clients subscribed to its channel

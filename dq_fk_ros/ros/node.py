@@ -24,7 +24,9 @@ from dq_fk_ros.errors import (
 from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
 from dq_fk_ros.messages.joint_states import (
     JointStateMerger, PUBLISH, SequenceGaps)
-from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S
+from dq_fk_ros.messages.outputs import (
+    DIAGNOSTICS, POSE, ROBOT_DESCRIPTION, TF, TF_STATIC, TWIST)
+from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S, qos_profile
 from dq_fk_ros.ros.executables import run_main, spin_until_shutdown
 from dq_fk_ros.ros.node_diagnostics import (
     joint_state_status, log_merge_result, WARN_EVERY_S)
@@ -36,7 +38,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
@@ -65,19 +67,16 @@ class DqFkNode(Node):
         model = self._load_robot(p.robot_inputs)
         self._last_stamp_ns = None
 
-        self._tf_pub = self.create_publisher(
-            TFMessage, '/tf', QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
-        self._tf_static_pub = self.create_publisher(
-            TFMessage, '/tf_static',
-            QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        # the outputs' topics and QoS: one table (messages/outputs.py), the bag's too
+        self._tf_pub = self.create_publisher(TFMessage, TF.topic, qos_profile(TF))
+        self._tf_static_pub = self.create_publisher(TFMessage, TF_STATIC.topic,
+                                                    qos_profile(TF_STATIC))
         self._send_tf = raw_publisher(self._tf_pub)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS.topic,
+                                               qos_profile(DIAGNOSTICS))
         # as robot_state_publisher: the URDF for RViz's RobotModel and Foxglove's 3D panel
-        self._description_pub = self.create_publisher(
-            String, 'robot_description',
-            QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self._description_pub = self.create_publisher(String, ROBOT_DESCRIPTION.topic,
+                                                      qos_profile(ROBOT_DESCRIPTION))
         self._pose_pubs = []
         self._twist_pubs = []
         self._merger = None
@@ -227,10 +226,10 @@ class DqFkNode(Node):
         try:
             for k in messages.plan.pose_frames:
                 made.append(self.create_publisher(
-                    PoseStamped, f'~/pose/{model.topic_names[k]}', 10))
+                    PoseStamped, POSE.topic_for(model.topic_names[k]), qos_profile(POSE)))
             for k in messages.twist_frames:
                 made.append(self.create_publisher(
-                    TwistStamped, f'~/twist/{model.topic_names[k]}', 10))
+                    TwistStamped, TWIST.topic_for(model.topic_names[k]), qos_profile(TWIST)))
         except Exception:
             for pub in made:
                 self.destroy_publisher(pub)

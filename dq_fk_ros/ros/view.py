@@ -27,6 +27,7 @@ import sys
 import threading
 
 from dq_fk_ros.description.packages import PackageResolver
+from dq_fk_ros.messages.outputs import ROBOT_DESCRIPTION, TF, TF_STATIC
 from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options, run_main
 from dq_fk_ros.ros.view_state import STALE_AFTER_S, ViewState
 from dq_fk_ros.ros.view_web import DEFAULT_RATE_HZ, make_app, web_root
@@ -63,14 +64,14 @@ def make_node(state, context=None):
     node.tf_input = rclpy.create_node('_dq_fk_view_tf', context=node.context,
                                       start_parameter_services=False, enable_rosout=False)
     subscription = node.tf_input.create_subscription(
-        TFMessage, '/tf', lambda _: None,
+        TFMessage, TF.topic, lambda _: None,
         QoSProfile(depth=TF_QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT), raw=True)
     state.poll_tf = lambda: take_queued(subscription, state.take_raw_tf)
-    node.create_subscription(TFMessage, '/tf_static',
+    node.create_subscription(TFMessage, TF_STATIC.topic,
                              lambda m: state.take_transforms(transforms_of(m), True),
                              QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                                         durability=DurabilityPolicy.TRANSIENT_LOCAL))
-    node.create_subscription(String, 'robot_description',
+    node.create_subscription(String, ROBOT_DESCRIPTION.topic,
                              lambda m: state.take_description(m.data), latched)
     return node
 

@@ -38,6 +38,7 @@ class FoxgloveClient:
         self.subscriptions = {}   # subscription id -> channel
         self.raw_frames = []      # extra frames to send (hostile tests), text or bytes
         self._decoders = {}
+        self._cdr_seen = {}  # (channel id, payload) -> decoded: each payload read once
         self._loop = asyncio.new_event_loop()
         self._ws = None
         self._ready = threading.Event()
@@ -92,7 +93,14 @@ class FoxgloveClient:
         if channel['encoding'] == 'json':
             return json.loads(payload)
         if channel['encoding'] == 'cdr':
-            return self._cdr_decoder(channel)(payload)
+            # one message comes once per subscription (a bad client makes thousands): read
+            # each payload once (rosbags' reader is Python; protobuf's is C)
+            key = (channel['id'], payload)
+            if key not in self._cdr_seen:
+                if len(self._cdr_seen) > 256:
+                    self._cdr_seen.clear()
+                self._cdr_seen[key] = self._cdr_decoder(channel)(payload)
+            return self._cdr_seen[key]
         if channel['encoding'] != 'protobuf':
             return payload
         decode = self._decoders.get(channel['id'])

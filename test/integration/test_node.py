@@ -342,3 +342,26 @@ def test_qos_depth_is_the_joint_state_subscriptions_depth(ros, input_thread, dep
     params = {'input_thread': input_thread, **({} if depth is None else {'qos_depth': depth})}
     node = ros.start_node(**params)
     assert node._joint_state_sub.qos_profile.depth == (1000 if depth is None else depth)
+
+
+def test_the_node_publishes_the_output_table_as_written(ros):
+    """Every row of messages/outputs.py: the node's publisher has its name, type and QoS."""
+    from dq_fk_ros.messages.outputs import OUTPUTS
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+    node = ros.start_node()
+    names = {'pose': ros.topic('pose/eeCarry_seg6'), 'twist': ros.topic('twist/eeCarry_seg6')}
+    for output in OUTPUTS:
+        if output.topic.startswith('~/'):
+            topic = names[output.topic.split('/')[1]]
+        else:
+            topic = output.topic if output.topic.startswith('/') else '/' + output.topic
+        ros.spin_until(lambda: ros.probe.get_publishers_info_by_topic(topic), timeout_s=10)
+        infos = [i for i in ros.probe.get_publishers_info_by_topic(topic)
+                 if i.node_name == node.get_name()]
+        assert len(infos) == 1, (topic, infos)
+        qos = infos[0].qos_profile
+        assert infos[0].topic_type == output.msgtype, topic
+        assert qos.reliability == ReliabilityPolicy.RELIABLE, topic
+        assert qos.durability == (DurabilityPolicy.TRANSIENT_LOCAL if output.latched
+                                  else DurabilityPolicy.VOLATILE), topic
+        assert qos.history in (HistoryPolicy.KEEP_LAST, HistoryPolicy.UNKNOWN), topic
