@@ -35,7 +35,7 @@ from dq_fk_ros.bag.join import join_bags
 from dq_fk_ros.bag.manifest import check_bag_name, FleetState
 from dq_fk_ros.bag.process import ProcessOptions, set_progress_counter
 from dq_fk_ros.bag.progress import Progress
-from dq_fk_ros.bag.reading import joint_state_connections, open_reader, Ros1Bag
+from dq_fk_ros.bag.reading import joint_state_connections, open_reader
 from dq_fk_ros.bag.text import one_line, printable
 from dq_fk_ros.bag.windows import chunk_counts, plan_windows
 from dq_fk_ros.errors import BagError
@@ -169,7 +169,7 @@ def _plan(bag, work, spec, options):
     except BagError:
         return [whole]  # the worker reports why, as the one-bag command does
     try:
-        if isinstance(reader, Ros1Bag) or reader.note is not None or options.copy_input:
+        if not reader.windowable or options.copy_input:
             return [whole]
         conns = joint_state_connections(reader, bag.path, options.topic)
         messages = sum(c.msgcount for c in conns)

@@ -13,9 +13,8 @@ reads such files itself, with Foxglove's ``mcap`` record classes, in file order:
   so one damaged byte costs one chunk, not the rest of the file;
 * channels and schemas come from the data section and, where its CRC holds, the summary.
 
-It offers the part of rosbags' ``Reader`` that :mod:`dq_fk_ros.bag` uses (``connections``,
-``messages``, ``start_time``, ``close``), and says in :attr:`McapStreamBag.damage` what was
-skipped.
+It is a :class:`~dq_fk_ros.bag.reader_interface.BagReader` (:func:`open_stream_bag`), and says in
+:attr:`McapStreamBag.damage` what was skipped.
 """
 
 from collections import Counter
@@ -24,6 +23,7 @@ import mmap
 import os
 import re
 import struct
+from typing import Iterator
 import zlib
 
 from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
@@ -31,6 +31,7 @@ from dq_fk_ros.bag.mcap_format import (
     KNOWN_OPCODES, MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER,
     OP_HEADER, OP_MESSAGE, OP_MESSAGE_INDEX, OP_METADATA, OP_SCHEMA)
 from dq_fk_ros.bag.text import printable
+from dq_fk_ros.errors import BagError
 from rosbags.interfaces import (
     Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat)
 from rosbags.rosbag2.metadata import parse_qos
@@ -72,6 +73,22 @@ def summary_intact(path):
         return zlib.crc32(f.read(size - 8 - 4 - summary_start)) == crc
 
 
+def open_stream_bag(files, path, why) -> 'McapStreamBag':
+    """
+    Open MCAP ``files`` (of the bag ``path``) record by record; ``why``: rosbags could not.
+
+    ``why`` None: a bare ``.mcap`` file, read this way by choice (no note). Raises
+    :class:`~dq_fk_ros.errors.BagError` if a file cannot be opened.
+    """
+    listing = ', '.join(os.path.basename(f) for f in files)
+    note = None if why is None else \
+        f'{path}: not a complete rosbag2 ({why}); read {listing} record by record'
+    try:
+        return McapStreamBag(files, note)
+    except OSError as exc:
+        raise BagError(f'{path}: cannot be read ({exc})') from None
+
+
 class McapStreamBag:
     """
     The messages of one or more MCAP files, read in file order (no index needed).
@@ -80,35 +97,44 @@ class McapStreamBag:
     :meth:`messages` reads them again, skipping the same damaged parts.
 
     :param paths: MCAP files, read in this order (the splits of one recording).
+    :param note: one line for the user on why the bag is read this way, or None.
     """
 
-    def __init__(self, paths):
+    copies_messages = True
+    windowable = False
+
+    def __init__(self, paths, note=None):
         """Scan ``paths``; raises ``OSError`` if a file cannot be opened."""
         self.paths = [os.fspath(p) for p in paths]
+        self.note = note            # one line for the user about how the bag is read
         for path in self.paths:
             with open(path, 'rb'):
                 pass
         self.connections = []
         self._by_channel = {}       # (file index, channel id) -> Connection
         self.damage = None          # one line: what was damaged and skipped, or None
-        self.note = None            # one line for the user about how the bag is read
         counts = Counter()
         self.start_time = None      # earliest log time (ns), as rosbags' Reader.start_time
-        self.end_time = 0           # latest log time (ns), as rosbags' Reader.end_time
+        self.end_time = 0           # past the latest log time (ns), as rosbags' end_time
         for conn_id, _, log_time in self._records(scanning=True):
             counts[conn_id] += 1
             if self.start_time is None or log_time < self.start_time:
                 self.start_time = log_time
-            self.end_time = max(self.end_time, log_time)
+            self.end_time = max(self.end_time, log_time + 1)
         self.start_time = self.start_time or 0
         self.connections = [c._replace(msgcount=counts[c.id]) for c in self.connections]
         self._by_id = {c.id: c for c in self.connections}
         self._by_channel = {key: self._by_id[c.id] for key, c in self._by_channel.items()}
+        self.all_topics = [(c.topic, c.msgtype) for c in self.connections]
 
-    def close(self):
+    def fallback(self) -> None:
+        """Nothing to fall back to: this reader already skips damage."""
+        return None
+
+    def close(self) -> None:
         """Do nothing: every pass closes its file."""
 
-    def messages(self, connections=None, start=None, stop=None):
+    def messages(self, connections=None, start=None, stop=None) -> Iterator[tuple]:
         """
         Yield ``(connection, log_time_ns, raw)`` in file order, skipping damaged chunks.
 

@@ -15,7 +15,7 @@ import shutil
 
 from dq_fk_ros.bag.outputs import BagOutputs
 from dq_fk_ros.bag.progress import Progress
-from dq_fk_ros.bag.reading import joint_state_connections, open_reader, Ros1Bag
+from dq_fk_ros.bag.reading import joint_state_connections, open_reader
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.errors import BagError
@@ -214,7 +214,7 @@ def process_bag(in_path, out_path, robot, options=None, **changes):
         raise BagError('--csv-only needs --csv FILE')
     check_output_paths(in_path, out_path, o.csv_path, o.overwrite, o.csv_only)
     reader = open_reader(in_path)
-    if o.copy_input and isinstance(reader, Ros1Bag):
+    if o.copy_input and not reader.copies_messages:
         reader.close()
         raise BagError(f'{in_path}: --copy-input cannot copy ROS 1 messages; convert the bag '
                        f'first (rosbags-convert --src {in_path} --dst NEW_BAG)')

@@ -77,7 +77,7 @@ class Ros1ChunkScan:
     """
     The JointState messages of a ROS 1 bag, read chunk by chunk (no index needed).
 
-    Offers what :class:`~dq_fk_ros.bag.reading.Ros1Bag` offers; messages are yielded as ROS 1
+    Offers what :class:`~dq_fk_ros.bag.ros1_bag.Ros1Bag` offers; messages are yielded as ROS 1
     bytes and converted by the caller (``convert``). Opening scans the file once.
     """
 

@@ -42,7 +42,7 @@ class Window:
 
 def mcap_files(path):
     """Return the MCAP files of a bag (a rosbag2 folder's, split order; or the file)."""
-    from dq_fk_ros.bag.reading import mcap_folder_files
+    from dq_fk_ros.bag.reader_interface import mcap_folder_files
     if os.path.isfile(path):
         return [path] if path.endswith('.mcap') else []
     return mcap_folder_files(path)

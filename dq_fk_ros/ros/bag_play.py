@@ -93,7 +93,7 @@ def play_bag(path, options=None, node=None, **changes):
         t_begin = reader.start_time + int(start_s * 1e9)
         t_end = None if duration_s is None else t_begin + int(duration_s * 1e9)
         total = sum(c.msgcount for c in conns)
-        sent = 0
+        sent, stopped = 0, None
         deadline = time.monotonic() + wait_timeout_s
         while pub.get_subscription_count() < wait_for:
             if time.monotonic() > deadline:
@@ -117,6 +117,7 @@ def play_bag(path, options=None, node=None, **changes):
                     sent += 1
                     meter.update(sent)
                 reader = stream.reader  # the fallback reader, if the first one stopped
+                stopped = stopped or stream.stopped
                 if not loop:
                     break
             # leaving at once would destroy the publishers before reliable subscribers
@@ -130,7 +131,7 @@ def play_bag(path, options=None, node=None, **changes):
                 rclpy.try_shutdown()
     finally:
         reader.close()
-    return PlaySummary(sent, reader.note, reader.damage)
+    return PlaySummary(sent, reader.note, reader.damage or stopped)
 
 
 class _tolerant:
@@ -143,6 +144,7 @@ class _tolerant:
 
     def __init__(self, reader, conns, start, stop):
         self.reader, self.conns, self.start, self.stop = reader, conns, start, stop
+        self.stopped = None  # one line, if reading stopped in damage with no fallback
 
     def __iter__(self):
         last, at_last = None, 0  # the last log time given, and how many had it
@@ -156,7 +158,7 @@ class _tolerant:
         except Exception:
             retry = self.reader.fallback()
             if retry is None:
-                self.reader.damage = self.reader.damage or 'reading stopped in a damaged part'
+                self.stopped = 'reading stopped in a damaged part'
                 return
         self.reader.close()
         self.reader = retry

@@ -209,3 +209,53 @@ def test_a_missing_hint_would_be_found(tmp_path, monkeypatch):
         'def forward(q):\n    return q\n\n\ndef _private(q):\n    return q\n')
     monkeypatch.setattr(sys.modules[__name__], 'PACKAGE', str(tmp_path))
     assert list(unannotated('kinematics/bare.py')) == ['kinematics/bare.py:1 forward (q, return)']
+
+
+# the bag reader interface (bag/reader_interface.py's BagReader): only the adapters know the
+# classes
+READER_ADAPTERS = ('bag/reading.py', 'bag/reader_interface.py', 'bag/rosbag2_reader.py',
+                   'bag/mcap_stream.py', 'bag/ros1_bag.py', 'bag/ros1_scan.py')
+READER_CLASSES = {'Reader', 'Rosbag2Reader', 'McapStreamBag', 'Ros1Bag', 'Ros1ChunkScan'}
+READER_MEMBERS = {'connections', 'all_topics', 'start_time', 'end_time', 'note', 'damage',
+                  'copies_messages', 'windowable', 'messages', 'fallback', 'close'}
+
+
+def reader_breaches(rel):
+    """Yield where a module outside the adapters tests a reader's class or patches a reader."""
+    with open(os.path.join(PACKAGE, rel), encoding='utf-8') as stream:
+        tree = ast.parse(stream.read())
+    for node in sorted((n for n in ast.walk(tree) if hasattr(n, 'lineno')),
+                       key=lambda n: n.lineno):
+        if isinstance(node, ast.Call) and getattr(node.func, 'id', None) == 'isinstance' \
+                and len(node.args) == 2:
+            kinds = node.args[1].elts if isinstance(node.args[1], ast.Tuple) \
+                else [node.args[1]]
+            named = {getattr(k, 'id', getattr(k, 'attr', None)) for k in kinds}
+            if named & READER_CLASSES:
+                yield f'{rel}:{node.lineno} isinstance on a reader class'
+        targets = node.targets if isinstance(node, ast.Assign) else \
+            [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else []
+        for target in targets:
+            if isinstance(target, ast.Attribute) and target.attr in READER_MEMBERS and \
+                    ast.unparse(target.value).split('.')[-1].endswith('reader'):
+                yield f'{rel}:{node.lineno} {ast.unparse(target)} patched on a reader'
+
+
+def test_no_module_outside_the_bag_adapters_tests_or_patches_a_reader():
+    breaches = [line for _, rel in modules() if rel not in READER_ADAPTERS
+                for line in reader_breaches(rel)]
+    assert breaches == []
+
+
+def test_a_reader_breach_would_be_found(tmp_path, monkeypatch):
+    (tmp_path / 'bag').mkdir()
+    (tmp_path / 'bag' / 'user.py').write_text(
+        'def use(reader, Ros1Bag):\n'
+        '    if isinstance(reader, (int, Ros1Bag)):\n'
+        '        reader.note = None\n'
+        '    self.reader.damage = "x"\n')
+    monkeypatch.setattr(sys.modules[__name__], 'PACKAGE', str(tmp_path))
+    assert list(reader_breaches('bag/user.py')) == [
+        'bag/user.py:2 isinstance on a reader class',
+        'bag/user.py:3 reader.note patched on a reader',
+        'bag/user.py:4 self.reader.damage patched on a reader']

@@ -1,0 +1,98 @@
+"""A ROS 1 bag as a :class:`~dq_fk_ros.bag.reader_interface.BagReader`: JointStates to ROS 2."""
+
+import struct
+from typing import Iterator, Optional
+
+from dq_fk_ros.bag.reader_interface import JOINT_STATE
+from dq_fk_ros.bag.text import one_line
+from dq_fk_ros.errors import BagError
+
+
+class Ros1Bag:
+    """
+    A ROS 1 bag, with its JointState messages converted to ROS 2 CDR as they are read.
+
+    A :class:`~dq_fk_ros.bag.reader_interface.BagReader`. Only JointState topics are offered:
+    other ROS 1 types would need a conversion of their own (``rosbags-convert``, installed
+    with rosbags, converts a whole ROS 1 bag to rosbag2).
+    """
+
+    copies_messages = False   # its messages are ROS 1 bytes: only JointStates are converted
+    windowable = False
+
+    def __init__(self, path, scan=False):
+        """
+        Open the bag; raises :class:`BagError` if it cannot be read at all.
+
+        Through its index with rosbags; if that fails (a damaged, cut-off or misplaced
+        index), or with ``scan``, chunk by chunk from the start
+        (:class:`~dq_fk_ros.bag.ros1_scan.Ros1ChunkScan`).
+        """
+        from dq_fk_ros.bag.decompress import bound_rosbags
+        from dq_fk_ros.bag.ros1_scan import Ros1ChunkScan
+        from rosbags.rosbag1 import Reader, ReaderError
+        from rosbags.typesys import get_typestore, Stores
+        bound_rosbags()
+        self.path = path
+        self.note = f'{path}: a ROS 1 bag; its JointState messages are converted to ROS 2'
+        self._ros1 = get_typestore(Stores.ROS1_NOETIC)
+        self._ros2 = get_typestore(Stores.ROS2_JAZZY)
+        self._reader = None if scan else Reader(path)
+        try:
+            if self._reader is not None:
+                self._reader.open()
+        except (ReaderError, OSError, ValueError, KeyError, AssertionError, struct.error,
+                MemoryError, OverflowError) as exc:
+            self._reader = None
+            self.note = (f'{path}: a ROS 1 bag whose index cannot be read '
+                         f'({one_line(exc)}); read chunk by chunk, its JointState messages '
+                         f'converted to ROS 2')
+        if self._reader is None:
+            try:
+                self._scan = Ros1ChunkScan(path, JOINT_STATE)
+            except Exception as exc:  # not a bag after all, or unreadable
+                raise BagError(f'{path}: not a readable ROS 1 bag ({one_line(exc)})') \
+                    from None
+            source = self._scan
+            self.all_topics = self._scan.all_topics
+            self.damage = self._scan.damage
+        else:
+            self._scan = None
+            source = self._reader
+            self.all_topics = [(c.topic, c.msgtype) for c in self._reader.connections]
+            self.damage = None
+        self.connections = [c for c in source.connections if c.msgtype == JOINT_STATE]
+        self.start_time = source.start_time if self.connections else 0
+        self.end_time = source.end_time if self.connections else 0
+
+    def fallback(self) -> Optional['Ros1Bag']:
+        """Return the chunk-by-chunk reader of the same bag (rosbags stopped inside it)."""
+        return Ros1Bag(self.path, scan=True) if self._scan is None else None
+
+    def close(self) -> None:
+        """Close the bag file."""
+        (self._reader or self._scan).close()
+
+    def messages(self, connections=None, start=None, stop=None) -> Iterator[tuple]:
+        """Yield ``(connection, log_time_ns, cdr)`` of the JointState topics."""
+        conns = self.connections if connections is None else connections
+        types = self._ros2.types
+        js, header, stamp = (types['sensor_msgs/msg/JointState'], types['std_msgs/msg/Header'],
+                             types['builtin_interfaces/msg/Time'])
+        if self._scan is not None:
+            raws = ((c, t, raw) for c, t, raw in self._scan.raw_messages(conns)
+                    if (start is None or t >= start) and (stop is None or t < stop))
+        else:
+            raws = self._reader.messages(connections=conns, start=start, stop=stop)
+        for conn, log_time, raw in raws:
+            try:
+                old = self._ros1.deserialize_ros1(raw, JOINT_STATE)
+                msg = js(header=header(stamp=stamp(sec=old.header.stamp.sec,
+                                                   nanosec=old.header.stamp.nanosec),
+                                       frame_id=old.header.frame_id),
+                         name=old.name, position=old.position, velocity=old.velocity,
+                         effort=old.effort)
+                data = self._ros2.serialize_cdr(msg, JOINT_STATE)
+            except Exception:  # a damaged message: let the CDR reader count it malformed
+                data = b''
+            yield conn, log_time, memoryview(data)

@@ -1,0 +1,82 @@
+"""
+A rosbag2 folder (MCAP or sqlite3) read with rosbags: the reference reader.
+
+:func:`open_rosbag2` opens it as a :class:`~dq_fk_ros.bag.reader_interface.BagReader`; a folder
+rosbags cannot open, or whose MCAP summary fails its CRC, is read record by record instead
+(:class:`~dq_fk_ros.bag.mcap_stream.McapStreamBag`), with a note saying so.
+"""
+
+import os
+from typing import Iterator, Optional
+
+from dq_fk_ros.bag.mcap_stream import open_stream_bag, summary_intact
+from dq_fk_ros.bag.reader_interface import BagReader, mcap_folder_files
+from dq_fk_ros.bag.text import one_line
+from dq_fk_ros.errors import BagError
+
+
+def open_rosbag2(path: str) -> BagReader:
+    """Open a rosbag2 folder with rosbags, or record by record where rosbags cannot."""
+    from rosbags.rosbag2 import Reader
+    try:
+        reader = Reader(path)
+        reader.open()
+    except Exception as exc:  # rosbags cannot open it (ReaderError, or damage it trips on)
+        mcaps = mcap_folder_files(path)
+        if not mcaps:
+            hint = ' (a ROS 1 bag is a single .bag file)' if os.path.isdir(path) else ''
+            raise BagError(f'{path}: not a readable rosbag2{hint} ({one_line(exc)})') \
+                from None
+        if not os.path.exists(os.path.join(path, 'metadata.yaml')):
+            exc = 'no metadata.yaml'
+        return open_stream_bag(mcaps, path, one_line(exc))
+    mcaps = mcap_folder_files(path)
+    damaged = [f for f in mcaps if not _summary_intact(f)]
+    if damaged:
+        reader.close()
+        return open_stream_bag(mcaps, path, f'the summary of {os.path.basename(damaged[0])} '
+                                            f'fails its CRC')
+    return Rosbag2Reader(reader, path, mcaps)
+
+
+def _summary_intact(path):
+    """Whether an MCAP file's summary passes its CRC (a file without one passes)."""
+    try:
+        return summary_intact(path)
+    except OSError:
+        return False
+
+
+class Rosbag2Reader:
+    """
+    rosbags' ``Reader`` of an intact rosbag2 folder, as a ``BagReader``.
+
+    Its ``fallback`` reads the same MCAP files record by record, for when rosbags stops
+    inside a damaged chunk (a sqlite3 bag has none).
+    """
+
+    note = None
+    damage = None
+    copies_messages = True
+    windowable = True
+
+    def __init__(self, reader, path: str, mcaps: list):
+        """Adopt an open rosbags ``Reader`` of ``path``, whose MCAP files are ``mcaps``."""
+        self._reader, self._path, self._mcaps = reader, path, mcaps
+        self.connections = list(reader.connections)
+        self.all_topics = [(c.topic, c.msgtype) for c in self.connections]
+        self.start_time, self.end_time = reader.start_time, reader.end_time
+
+    def messages(self, connections=None, start=None, stop=None) -> Iterator[tuple]:
+        """Yield ``(connection, log_time_ns, raw CDR bytes)`` in log-time order."""
+        conns = self.connections if connections is None else connections
+        return self._reader.messages(connections=conns, start=start, stop=stop)
+
+    def fallback(self) -> Optional[BagReader]:
+        """Return the record-by-record reader of the same MCAP files (None for sqlite3)."""
+        return open_stream_bag(self._mcaps, self._path, 'a damaged chunk') \
+            if self._mcaps else None
+
+    def close(self) -> None:
+        """Close rosbags' reader."""
+        self._reader.close()
