@@ -13,6 +13,7 @@ import signal
 import sys
 import threading
 import time
+from typing import Iterator
 
 # workers stopped at once leave semaphores the resource tracker then removes: it need not
 # warn of each (a warning filter for the tracker, which takes the -W options of its parent)
@@ -33,7 +34,7 @@ def prepare_children() -> None:
     resource_tracker.ensure_running()
 
 
-def run_with_sigint_blocked(make):
+def run_with_sigint_blocked(make) -> object:
     """
     Return ``make()`` run in a thread that blocks SIGINT (its threads and processes too).
 
@@ -59,7 +60,7 @@ def run_with_sigint_blocked(make):
 
 
 @contextlib.contextmanager
-def signals_blocked():
+def signals_blocked() -> Iterator[None]:
     """
     Block SIGINT in this thread, and hold SIGINT and SIGTERM back, while it starts processes.
 

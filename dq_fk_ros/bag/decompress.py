@@ -43,7 +43,7 @@ def _at_most(data, compression, limit):
     raise ChunkRefused(f'unsupported compression {compression[:20]!r}')
 
 
-def decompress_chunk(data, compression, size):
+def decompress_chunk(data, compression, size) -> bytes:
     """
     Return a chunk's records: ``data`` decompressed to exactly ``size`` bytes (as declared).
 
@@ -72,7 +72,7 @@ def _within_limit(data, compression):
     return raw
 
 
-def bound_rosbags():
+def bound_rosbags() -> None:
     """
     Make rosbags' MCAP and ROS 1 readers decompress through this module.
 

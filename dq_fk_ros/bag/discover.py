@@ -27,7 +27,7 @@ class FoundBag:
     name: str
 
 
-def is_bag_folder(folder):
+def is_bag_folder(folder) -> bool:
     """Say whether ``folder`` is a rosbag2 bag (metadata.yaml, or storage files in it)."""
     try:
         names = os.listdir(folder)
@@ -38,7 +38,7 @@ def is_bag_folder(folder):
         for n in names)
 
 
-def find_bags(paths):
+def find_bags(paths) -> list:
     """
     Return every bag under ``paths`` as :class:`FoundBag`, in a stable (sorted) order.
 

@@ -11,7 +11,7 @@ JOINT_STATE = 'sensor_msgs/msg/JointState'
 START_NS = 1_700_000_000_000_000_000  # the first message's stamp (2023-11-14)
 
 
-def write_example_bag(path, joint_names, sample, seconds=10.0, rate_hz=100.0):
+def write_example_bag(path, joint_names, sample, seconds=10.0, rate_hz=100.0) -> int:
     """
     Write ``seconds`` of joint states at ``rate_hz`` to a new bag at ``path``; return the count.
 

@@ -75,16 +75,16 @@ class FleetSummary:
     notes: list = field(default_factory=list)  # one line each (a manifest set aside)
 
     @property
-    def failed(self):
+    def failed(self) -> int:
         """Count the bags that failed."""
         return sum(b.status == 'failed' for b in self.bags)
 
     @property
-    def messages_in(self):
+    def messages_in(self) -> int:
         """Count the JointStates read this run (skipped bags not counted)."""
         return sum(b.messages_in for b in self.bags if b.status == 'done')
 
-    def as_dict(self):
+    def as_dict(self) -> dict:
         """Return the summary as plain data (the ``--report`` JSON)."""
         return {'bags': [asdict(b) for b in self.bags], 'seconds': self.seconds,
                 'workers': self.workers, 'failed': self.failed,
@@ -95,7 +95,7 @@ class FleetSummary:
 
 def process_fleet(inputs, output_dir, robot, options=None, jobs=None, scheduler=None,
                   force=False, progress=True, window_messages=None, base=None, tip=None,
-                  packages=None, say=None):
+                  packages=None, say=None) -> FleetSummary:
     """
     Process every bag under ``inputs`` into ``output_dir``; return a :class:`FleetSummary`.
 
@@ -438,7 +438,7 @@ def _dask_client(scheduler, jobs):
                        ) from None
 
 
-def report_table(summary):
+def report_table(summary) -> str:
     """Return the closing table: bag, messages in, /tf out, problems, seconds."""
     rows = [('bag', 'messages in', '/tf out', 'problems', 'seconds')]
     for b in summary.bags:

@@ -26,7 +26,7 @@ class RobotSpec:
     tip: str = None
     packages: tuple = ()
 
-    def load(self):
+    def load(self) -> object:
         """Return the :class:`RobotModel` (cached per process)."""
         key = (self.robot, self.base, self.tip, self.packages)
         model = _ROBOTS.get(key)
@@ -67,7 +67,7 @@ class UnitResult:
     seconds: float = 0.0
 
 
-def run_unit(unit):
+def run_unit(unit) -> UnitResult:
     """
     Process one unit of work in this process; never raises (a problem is reported).
 

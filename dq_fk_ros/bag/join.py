@@ -16,13 +16,13 @@ import yaml
 INFO = 'rosbag2_bagfile_information'
 
 
-def read_metadata(folder):
+def read_metadata(folder) -> dict:
     """Return the ``rosbag2_bagfile_information`` of a bag folder's metadata.yaml."""
     with open(os.path.join(folder, 'metadata.yaml'), encoding='utf-8') as stream:
         return yaml.safe_load(stream)[INFO]
 
 
-def join_bags(parts, out_dir):
+def join_bags(parts, out_dir) -> dict:
     """
     Move the storage files of the bag folders ``parts`` into a new bag ``out_dir``, in order.
 
@@ -67,7 +67,7 @@ def join_bags(parts, out_dir):
     return joined
 
 
-def topic_counts(folder):
+def topic_counts(folder) -> dict:
     """Return ``{topic: messages}`` of a bag folder (from its metadata.yaml)."""
     return {e['topic_metadata']['name']: e['message_count']
             for e in read_metadata(folder)['topics_with_message_count']}

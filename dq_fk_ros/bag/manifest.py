@@ -73,7 +73,7 @@ def manifest_bags(text: bytes) -> dict | None:
     return data['bags']
 
 
-def input_fingerprint(path):
+def input_fingerprint(path) -> dict:
     """Return the files (name, size, mtime in ns) of a bag and a hash of their summaries."""
     path = os.fspath(path)
     if os.path.isdir(path):
@@ -105,7 +105,7 @@ def _summary_bytes(name, size):
         return head + stream.read(EDGE_BYTES)
 
 
-def options_fingerprint(spec, options):
+def options_fingerprint(spec, options) -> str:
     """Return a hash of the robot (its file's bytes too) and the options of a run."""
     from dq_fk_ros.description.loading import resolve_robot
     digest = hashlib.sha256(json.dumps(
@@ -178,7 +178,7 @@ class FleetState:
         shutil.rmtree(self.work, ignore_errors=True)
         self._lock.close()
 
-    def complete(self, name, input_path, output):
+    def complete(self, name, input_path, output) -> bool:
         """Say whether ``name``'s output is complete for this input, robot and options."""
         entry = self.bags.get(name)
         if not entry or entry.get('options') != self.options:
@@ -190,13 +190,13 @@ class FleetState:
         except (OSError, ValueError, KeyError, TypeError):
             return False
 
-    def work_folder(self, name):
+    def work_folder(self, name) -> str:
         """Return a new empty work folder for bag ``name``."""
         folder = os.path.join(self.work, hashlib.sha256(name.encode()).hexdigest()[:16])
         os.makedirs(folder)
         return folder
 
-    def place(self, name, input_path, built, final):
+    def place(self, name, input_path, built, final) -> dict:
         """
         Move the finished output ``built`` to ``final`` (replacing it); record it.
 
@@ -218,7 +218,7 @@ class FleetState:
         self._save()
         return counts
 
-    def forget(self, name):
+    def forget(self, name) -> None:
         """Drop ``name`` from the manifest (its output is no longer known complete)."""
         if self.bags.pop(name, None) is not None:
             self._save()

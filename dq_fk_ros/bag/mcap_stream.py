@@ -49,7 +49,7 @@ _U64 = struct.Struct('<Q')
 _CHUNK_HEAD = struct.Struct('<QQQII')  # start, end, uncompressed size, crc, compression len
 
 
-def summary_intact(path):
+def summary_intact(path) -> bool:
     """
     Whether an MCAP file's summary can be trusted: its CRC holds, or it has none to check.
 

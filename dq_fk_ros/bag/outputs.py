@@ -85,7 +85,7 @@ class BagOutputs:
             self.copied[conn.id] = _copy_connection(writer, conn, typestore)
         self.static_written = False
 
-    def write_static(self, time_ns):
+    def write_static(self, time_ns) -> None:
         """Write /tf_static once: base, fixed rows, tool and links, stamped ``time_ns``."""
         row = self.static_template.fill([time_ns], self.plan.static_poses()[None, :])[0]
         self.writer.write(self.tf_static, time_ns, memoryview(row))
@@ -95,12 +95,13 @@ class BagOutputs:
                               self.typestore.serialize_cdr(text, 'std_msgs/msg/String'))
         self.static_written = True
 
-    def write_chunk(self, q, stamps_ns, log_times_ns, seen=None):
+    def write_chunk(self, q, stamps_ns, log_times_ns, seen=None) -> np.ndarray:
         """
         FK of a chunk of configurations, serialized and written as arrays.
 
         ``seen``: ``(N, dof)`` mask of the joints each message's state had (the merger's
         ``last_seen``); side-branch links are written where their joints were seen.
+        Returns the end effector's ``(N, 7)`` poses, ``(x, y, z, qx, qy, qz, qw)``.
         """
         model = self.model
         # (N, frames, 7) and (N, transforms, 7): the compiled kernel, as the node's
@@ -169,7 +170,7 @@ class BagOutputs:
                 values = np.concatenate([values, moving[picked]], axis=1)
             yield rows, template.fill(stamps_ns[picked], values)
 
-    def copy(self, conn, time_ns, raw):
+    def copy(self, conn, time_ns, raw) -> None:
         """Copy an input message through unchanged."""
         out = self.copied.get(conn.id)
         if out is not None:

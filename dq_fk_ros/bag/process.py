@@ -29,7 +29,7 @@ CHUNK = 4096
 _progress_counter = None
 
 
-def set_progress_counter(counter):
+def set_progress_counter(counter) -> None:
     """
     Count the JointStates every processing in this process reads into ``counter``.
 
@@ -40,7 +40,7 @@ def set_progress_counter(counter):
     _progress_counter = counter
 
 
-def check_output_paths(in_path, out_path, csv_path, overwrite, csv_only):
+def check_output_paths(in_path, out_path, csv_path, overwrite, csv_only) -> None:
     """
     Refuse output paths that would destroy the input or write somewhere unexpected.
 
@@ -195,7 +195,7 @@ class ProcessOptions:
     dh_frames: bool = None
 
 
-def process_bag(in_path, out_path, robot, options=None, **changes):
+def process_bag(in_path, out_path, robot, options=None, **changes) -> ProcessSummary:
     """
     Compute every frame for every JointState of ``in_path``; return a :class:`ProcessSummary`.
 
@@ -246,7 +246,7 @@ def process_bag(in_path, out_path, robot, options=None, **changes):
     return summary
 
 
-def process_window(in_path, out_path, model, options, window):
+def process_window(in_path, out_path, model, options, window) -> ProcessSummary:
     """
     Process one window of a bag (see :mod:`dq_fk_ros.bag.windows`) into its own bag.
 
@@ -269,7 +269,7 @@ def process_window(in_path, out_path, model, options, window):
     return summary
 
 
-def nothing_usable(in_path, summary, model, robot):
+def nothing_usable(in_path, summary, model, robot) -> str:
     """One line: no message could be used, what the bag has and what the robot needs."""
     names = [printable(n, 40) for n in summary.joint_names_seen]
     has = ('names joints ' + ', '.join(names[:12]) + (' ...' if len(names) > 12 else '')

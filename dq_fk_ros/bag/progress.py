@@ -33,7 +33,7 @@ class Progress:
         self.start = self.last = clock()
         self.shown = 0  # length of the line on screen, to blank a longer one
 
-    def line(self, done, now):
+    def line(self, done, now) -> str:
         """Return the progress line for ``done`` messages at time ``now``."""
         rate = done / max(now - self.start, 1e-9)
         text = f'{self.label}: {done:,}'
@@ -46,7 +46,7 @@ class Progress:
             return f'{text}, {rate:,.0f} msg/s, {max(left, 0.0):.0f} s left'
         return f'{text}, {rate:,.0f} msg/s'
 
-    def update(self, done, force=False):
+    def update(self, done, force=False) -> None:
         """Show ``done`` messages if the interval has passed (or ``force``: final line)."""
         now = self.clock()
         if not self.enabled or (not force and now - self.last < self.interval):

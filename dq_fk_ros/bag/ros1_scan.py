@@ -15,6 +15,7 @@ import mmap
 import os
 import re
 import struct
+from typing import Iterator
 
 from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
 
@@ -108,17 +109,17 @@ class Ros1ChunkScan:
             self.damage = f'{self.path}: {len(self._problems)} damaged part(s) skipped: ' + \
                 '; '.join(self._problems[:3]) + (' ...' if len(self._problems) > 3 else '')
 
-    def fallback(self):
+    def fallback(self) -> None:
         """Nothing else to fall back to."""
         return None
 
-    def close(self):
+    def close(self) -> None:
         """Unmap the file."""
         if isinstance(self._data, mmap.mmap):
             self._data.close()
         self._data = b''
 
-    def raw_messages(self, connections=None):
+    def raw_messages(self, connections=None) -> Iterator[tuple]:
         """Yield ``(connection, log_time_ns, ROS 1 bytes)`` of the given JointState topics."""
         wanted = {c.id: c for c in (self.connections if connections is None else connections)}
         for conn, time_ns, raw in self._messages(scanning=False):

@@ -3,7 +3,7 @@
 from dq_fk_ros.errors import first_line
 
 
-def printable(text, limit=80):
+def printable(text, limit=80) -> str:
     """Return a name read from a bag safe for a one-line message (escaped, shortened)."""
     text = str(text)
     if not text.isprintable():
@@ -11,7 +11,7 @@ def printable(text, limit=80):
     return text if len(text) <= limit else text[:limit - 15] + '...' + text[-12:]
 
 
-def one_line(exc):
+def one_line(exc) -> str:
     """Return an exception's first line, escaped and at most 200 characters."""
     text = first_line(exc)
     return printable(text, 200) if str(exc).strip() else text

@@ -16,6 +16,7 @@ unit of work, processed as the one-bag command does.
 from dataclasses import dataclass
 import os
 import struct
+from typing import Optional
 
 import numpy as np
 
@@ -40,7 +41,7 @@ class Window:
     lookback_ns: tuple = (None,)
 
 
-def mcap_files(path):
+def mcap_files(path) -> list:
     """Return the MCAP files of a bag (a rosbag2 folder's, split order; or the file)."""
     from dq_fk_ros.bag.reader_interface import mcap_folder_files
     if os.path.isfile(path):
@@ -61,14 +62,14 @@ class ChunkCounts:
     before: np.ndarray
     total: int
 
-    def count_before(self, time_ns):
+    def count_before(self, time_ns) -> int:
         """Return the messages before ``time_ns`` (a chunk start, or None: the bag's end)."""
         if time_ns is None:
             return self.total
         return int(self.before[np.searchsorted(self.starts, time_ns)])
 
 
-def chunk_counts(path, topic):
+def chunk_counts(path, topic) -> Optional[ChunkCounts]:
     """
     Return the :class:`ChunkCounts` of ``topic`` in an MCAP bag, or None if it cannot be cut.
 
@@ -120,7 +121,7 @@ def _index_times(stream, offset):
     return np.frombuffer(stream.read(size), dtype='<u8')[0::2].astype(np.int64)
 
 
-def plan_windows(counts, windows):
+def plan_windows(counts, windows) -> list:
     """
     Cut a bag into at most ``windows`` windows of about equal message counts.
 

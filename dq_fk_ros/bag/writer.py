@@ -87,7 +87,7 @@ class McapChunkStorage:
         self.file.write(data)
         self.data_crc = zlib.crc32(data, self.data_crc)
 
-    def add_msgtype(self, connection):
+    def add_msgtype(self, connection) -> None:
         """Write the schema record of a message type (``ros2msg`` or ``ros2idl``)."""
         schema_id = len(self.schemas) + 1
         idl = connection.msgdef.format == MessageDefinitionFormat.IDL
@@ -99,7 +99,7 @@ class McapChunkStorage:
         self.schemas.append(body)
         self._emit(_record(OP_SCHEMA, body))
 
-    def add_connection(self, connection, offered_qos_profiles):
+    def add_connection(self, connection, offered_qos_profiles) -> None:
         """Write the channel record: topic, ``cdr``, QoS profiles and type hash metadata."""
         metadata = [('offered_qos_profiles', offered_qos_profiles)]
         if connection.digest:
@@ -111,7 +111,7 @@ class McapChunkStorage:
         self.channel_counts[connection.id] = 0
         self._emit(_record(OP_CHANNEL, body))
 
-    def write(self, connection, timestamp, data):
+    def write(self, connection, timestamp, data) -> None:
         """Add one serialized message (log and publish time ``timestamp``) to the chunk."""
         offset = len(self._pending)
         self._pending += (bytes((OP_MESSAGE,)) + _U64.pack(22 + len(data))
@@ -122,7 +122,7 @@ class McapChunkStorage:
         if len(self._pending) > CHUNK_BYTES:
             self._close_pending()
 
-    def write_rows(self, channel_ids, log_times_ns, payloads):
+    def write_rows(self, channel_ids, log_times_ns, payloads) -> None:
         """
         Write message i of every channel for every i, interleaved, in chunks.
 
@@ -196,7 +196,7 @@ class McapChunkStorage:
         self.start_ns = start_ns if self.start_ns is None else min(self.start_ns, start_ns)
         self.end_ns = end_ns if self.end_ns is None else max(self.end_ns, end_ns)
 
-    def close(self, version, metadata):
+    def close(self, version, metadata) -> None:
         """Write the last chunk, the ``rosbag2`` metadata, the summary and the footer."""
         del version  # in the metadata text already
         self._close_pending()
@@ -239,7 +239,7 @@ class McapChunkStorage:
         self.file.write(bytes(summary) + offsets + footer + _U32.pack(crc) + MAGIC)
         self.file.close()
 
-    def abort(self):
+    def abort(self) -> None:
         """Close the file without a summary (an unfinished bag)."""
         self.file.close()
 
@@ -247,7 +247,7 @@ class McapChunkStorage:
 class Sqlite3BulkStorage(Sqlite3Writer):
     """rosbags' sqlite3 storage, plus :meth:`write_rows` with one ``executemany``."""
 
-    def write_rows(self, channel_ids, log_times_ns, payloads):
+    def write_rows(self, channel_ids, log_times_ns, payloads) -> None:
         """Insert message i of every channel for every i, in that order."""
         times = [int(t) for t in log_times_ns]
         rows = ((cid, t, payload[i].tobytes()) for i, t in enumerate(times)
@@ -272,7 +272,7 @@ class BagWriter(Writer):
         plugins = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
         super().__init__(path, version=9, storage_plugin=plugins[storage])
 
-    def write_rows(self, connections, log_times_ns, payloads):
+    def write_rows(self, connections, log_times_ns, payloads) -> None:
         """
         Write N messages on each of K connections: message i of each has log time i.
 

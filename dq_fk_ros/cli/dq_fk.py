@@ -29,7 +29,7 @@ class UsageError(Exception):
     """A command-line mistake; the message is one line for the user."""
 
 
-def parse_joint_values(model, tokens, degrees):
+def parse_joint_values(model, tokens, degrees) -> np.ndarray:
     """
     Joint values from ``q1 q2 ...`` (all, in chain order) or ``name=value ...`` (others 0).
 
@@ -76,7 +76,7 @@ def _number(text, name):
     return value
 
 
-def frames_table(model, q, dh_frames=None):
+def frames_table(model, q, dh_frames=None) -> list:
     """
     One dict per frame: name, TF parent, on TF, pose in the fixed frame (m; quaternion x y z w).
 
@@ -106,7 +106,7 @@ def _robot(args):
                       getattr(args, 'urdf_tip', None), packages=dict(args.package)).model
 
 
-def package_option(text):
+def package_option(text) -> tuple:
     """Check one ``--package NAME=DIR``; return ``(name, folder)`` (argparse's type)."""
     try:
         return parse_package_option(text)
@@ -114,7 +114,7 @@ def package_option(text):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def add_package_option(parser):
+def add_package_option(parser) -> None:
     """Add ``--package NAME=DIR`` (repeatable): where a xacro's ``$(find NAME)`` is."""
     parser.add_argument('--package', metavar='NAME=DIR', action='append', default=[],
                         type=package_option,
@@ -122,7 +122,7 @@ def add_package_option(parser):
                         'ament index, ROS_PACKAGE_PATH and the folders above the file)')
 
 
-def add_urdf_chain_options(parser):
+def add_urdf_chain_options(parser) -> None:
     """Add ``--base``/``--tip`` (once ``--urdf-base``/``--urdf-tip``): a URDF's chain's ends."""
     parser.add_argument('--base', '--urdf-base', dest='urdf_base', metavar='LINK',
                         help='for a URDF: the link the DH chain starts at (default: the root)')
@@ -131,7 +131,7 @@ def add_urdf_chain_options(parser):
                         'the last moving joint of the longest chain)')
 
 
-def cmd_validate(args):
+def cmd_validate(args) -> int:
     failed = 0
     for name in args.files:
         path = resolve_robot(name)
@@ -153,7 +153,7 @@ def cmd_validate(args):
     return 1 if failed else 0
 
 
-def cmd_fk(args):
+def cmd_fk(args) -> int:
     model = _robot(args)
     if args.code:  # the straight-line FK code the node runs for this robot
         print(model.frame_poses_code(), end='')
@@ -205,7 +205,7 @@ def _tidy(value):
     return round(value, 9) + 0.0
 
 
-def cmd_urdf(args):
+def cmd_urdf(args) -> int:
     model = _robot(args)
     text = robot_to_urdf(model)
     if args.output in (None, '-'):
@@ -218,7 +218,7 @@ def cmd_urdf(args):
     return 0
 
 
-def cmd_plot(args):
+def cmd_plot(args) -> int:
     from dq_fk_ros.description.plot import DEFAULT_VIEW, save_robot_plot
     extension = os.path.splitext(args.output)[1].lower()
     if extension not in ('.png', '.svg'):
@@ -240,7 +240,7 @@ def cmd_plot(args):
     return 0
 
 
-def cmd_from_urdf(args):
+def cmd_from_urdf(args) -> int:
     conversion, _ = load_urdf_description(args.file, args.base, args.tip, args.convention,
                                           dict(args.package))
     if args.output in (None, '-'):
@@ -261,7 +261,7 @@ def cmd_from_urdf(args):
     return 0
 
 
-def cmd_list(args):
+def cmd_list(args) -> int:
     for name in shipped_robots():
         model = load_robot_description(shipped_robot_path(name))
         print(f'{name:20s} {model.dof} joints  {shipped_robot_path(name)}')
@@ -273,7 +273,7 @@ def cmd_list(args):
     return 0
 
 
-def build_parser():
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='dq_fk', description='Forward kinematics from a YAML DH robot description '
         '(dual quaternions). FILE is a path or a shipped robot name (see "dq_fk list").')
@@ -339,7 +339,7 @@ def build_parser():
     return parser
 
 
-def main(argv=None):
+def main(argv=None) -> int:
     """
     Run the ``dq_fk`` command; return the exit code.
 

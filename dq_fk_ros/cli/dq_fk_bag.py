@@ -26,7 +26,7 @@ from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.errors import BagDamaged, BagError, RobotDescriptionError
 
 
-def summary_line(path, s):
+def summary_line(path, s) -> str:
     """One line saying what ``process`` read, wrote and skipped (a :class:`ProcessSummary`)."""
     parts = [f'{path}: {s.read} JointState messages, {s.written} written'
              + (f' to {s.output}' if s.output else '')]
@@ -41,7 +41,7 @@ def summary_line(path, s):
     return ', '.join(parts)
 
 
-def build_parser():
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='dq_fk_bag', description='Joint-state bags: offline FK into a new bag, or replay.')
     sub = parser.add_subparsers(dest='command', required=True)
@@ -110,7 +110,7 @@ def build_parser():
     return parser
 
 
-def check_one_bag_arguments(args):
+def check_one_bag_arguments(args) -> None:
     """Refuse fleet options without --output-dir, and anything but IN_BAG OUT_BAG."""
     if len(args.paths) != 2:
         raise BagError(f'process takes IN_BAG OUT_BAG ({len(args.paths)} paths given); '
@@ -123,7 +123,7 @@ def check_one_bag_arguments(args):
         raise BagError(f'{fleet[0]} is for a fleet of bags: give --output-dir OUT')
 
 
-def process_many(args):
+def process_many(args) -> int:
     """Run ``process IN [IN ...] --output-dir OUT``: the fleet; print the closing table."""
     import json
     from dq_fk_ros.bag.fleet import process_fleet, report_table
@@ -155,7 +155,7 @@ def process_many(args):
     return 1 if summary.failed else 0
 
 
-def write_example(args):
+def write_example(args) -> int:
     """Write ``dq_fk_bag example``'s bag: the robot's joints sweeping as fake_joint_publisher."""
     from dq_fk_ros.bag.example import write_example_bag
     from dq_fk_ros.ros.fake_joint_publisher import JointMotion
@@ -172,7 +172,7 @@ def write_example(args):
     return 0
 
 
-def finite(text):
+def finite(text) -> float:
     """Parse a finite float for argparse (``nan`` and ``inf`` are refused)."""
     try:
         value = float(text)
@@ -183,7 +183,7 @@ def finite(text):
     return value
 
 
-def main(argv=None):
+def main(argv=None) -> int:
     """
     Run ``dq_fk_bag``; return the exit code.
 

@@ -128,7 +128,7 @@ def _joint_state_spans(raw, with_counts=False):
     return (names, *arrays)
 
 
-def parse_joint_state(raw, cache=None, as_tuples=False):
+def parse_joint_state(raw, cache=None, as_tuples=False) -> tuple:
     """
     Read a serialized ``sensor_msgs/JointState``: ``(stamp_ns, names, positions, velocities)``.
 
@@ -319,7 +319,7 @@ class _Layout:
         return sec * 1_000_000_000 + nanosec, floats(self.positions), floats(self.velocities)
 
 
-def parse_joint_states(raws, cache=None, max_layouts=8):
+def parse_joint_states(raws, cache=None, max_layouts=8) -> list:
     """
     Read a batch of serialized JointStates: runs of one layout, as arrays, in batch order.
 
@@ -398,30 +398,30 @@ class CdrTemplate:
         self.padding.extend(range(len(self.buf), len(self.buf) + pad))
         self.buf += bytes(pad)
 
-    def u32(self, value):
+    def u32(self, value) -> None:
         """Append a uint32 (a sequence length, say)."""
         self._align(4)
         self.buf += _U32.pack(value)
 
-    def string(self, text):
+    def string(self, text) -> None:
         """Append a fixed string."""
         data = text.encode('utf-8') + b'\x00'
         self.u32(len(data))
         self.buf += data
 
-    def stamp(self):
+    def stamp(self) -> None:
         """Append a ``builtin_interfaces/Time`` to be filled per message."""
         self._align(4)
         self.stamps.append(len(self.buf))
         self.buf += bytes(8)
 
-    def f64s(self, count):
+    def f64s(self, count) -> None:
         """Append ``count`` float64 fields to be filled per message."""
         self._align(8)
         self.floats.append((len(self.buf), count))
         self.buf += bytes(8 * count)
 
-    def fill(self, stamps_ns, values):
+    def fill(self, stamps_ns, values) -> np.ndarray:
         """
         Serialize N messages: ``(N, size)`` uint8, one row per message.
 
@@ -441,11 +441,11 @@ class CdrTemplate:
             column += count
         return rows
 
-    def packer(self):
+    def packer(self) -> 'CdrPacker':
         """Return a :class:`CdrPacker`: one message of this layout at a time, as ``bytes``."""
         return CdrPacker(self)
 
-    def compiled(self, width):
+    def compiled(self, width) -> object:
         """
         Return this layout's C writer, a ``_cdr.Template`` (or None: see below).
 
@@ -527,7 +527,7 @@ class CdrPacker:
         pack_stamped.__doc__ = CdrPacker.pack.__doc__
         return pack_stamped
 
-    def pack(self, sec, nanosec, runs):
+    def pack(self, sec, nanosec, runs) -> bytes:
         """
         Return the serialized message: every stamp ``(sec, nanosec)``, the float64 runs.
 
@@ -544,12 +544,12 @@ class CdrPacker:
         return self._struct.pack(*self._order(values))
 
 
-def pose_stamped_template(frame_id):
+def pose_stamped_template(frame_id) -> CdrTemplate:
     """Template of ``geometry_msgs/PoseStamped``: 7 floats, position then x y z w."""
     return _stamped_template(frame_id, 7)
 
 
-def twist_stamped_template(frame_id):
+def twist_stamped_template(frame_id) -> CdrTemplate:
     """Template of ``geometry_msgs/TwistStamped``: 6 floats, linear then angular x y z."""
     return _stamped_template(frame_id, 6)
 
@@ -563,7 +563,7 @@ def _stamped_template(frame_id, count):
     return t
 
 
-def tf_message_template(edges):
+def tf_message_template(edges) -> CdrTemplate:
     """Template of ``tf2_msgs/TFMessage`` with one transform per ``(parent, child)``."""
     t = CdrTemplate()
     t.u32(len(edges))
@@ -589,7 +589,7 @@ class TfLayout(NamedTuple):
     raw: bytes          # the message the layout was read from
 
 
-def tf_layout(raw):
+def tf_layout(raw) -> TfLayout:
     """
     Read where the values of a serialized ``TFMessage`` are: a :class:`TfLayout`.
 
@@ -628,7 +628,7 @@ def tf_layout(raw):
                     bytes(raw))
 
 
-def tf_values(raw, layout):
+def tf_values(raw, layout) -> tuple:
     """Return ``([(parent, child, (x, y, z, qx, qy, qz, qw)), ...], first stamp ns)``."""
     transforms = [(parent, child, _POSE7.unpack_from(raw, at))
                   for (parent, child), at in zip(layout.edges, layout.values)]
@@ -694,7 +694,7 @@ class TfLatest:
         self._checks = {}      # layout -> ((start, bytes), ...): its count and frame ids
         self._order = []
 
-    def take(self, raw):
+    def take(self, raw) -> None:
         """Note ``raw`` as its layout's newest message (CdrError: unreadable)."""
         raw = raw if isinstance(raw, bytes) else bytes(raw)
         for layout in self._by_size.get(len(raw), ()):
@@ -712,12 +712,12 @@ class TfLatest:
             self._checks.pop(old, None)
         self._latest[layout] = raw
 
-    def pop(self):
+    def pop(self) -> list:
         """Return ``[(transforms, stamp_ns), ...]`` of each layout's newest message; forget it."""
         latest, self._latest = self._latest, {}
         return [tf_values(raw, layout) for layout, raw in latest.items()]
 
-    def pop_raw(self):
+    def pop_raw(self) -> list:
         """Return each layout's newest message, serialized as it came; forget them."""
         latest, self._latest = self._latest, {}
         return list(latest.values())
@@ -726,7 +726,7 @@ class TfLatest:
 MAX_POSE_STAMPED_BYTES = 4096  # a frame id longer than some 4000 bytes is refused
 
 
-def parse_pose_stamped(raw):
+def parse_pose_stamped(raw) -> tuple:
     """
     Read a serialized ``geometry_msgs/PoseStamped``: ``(stamp_ns, frame_id, pose)``.
 

@@ -16,6 +16,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 import math
 import operator
+from typing import Optional
 
 from dq_fk_ros.messages.cdr import COMPILED
 import numpy as np
@@ -122,7 +123,7 @@ class JointStateMerger:
             self.counts['unknown_names_unlisted'] += unlisted * times
         return listed, overflow
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget all joint values and the last stamp (after a time jump)."""
         n = len(self.joint_names)
         self._q = [0.0] * n
@@ -132,7 +133,7 @@ class JointStateMerger:
         self.raw_reader = None  # learnt again from the next complete message
         self._q_out, self._qdot_out = np.empty(n), np.empty(n)
 
-    def learn_layout(self, layout):
+    def learn_layout(self, layout) -> None:
         """
         Take messages of ``layout`` by the compiled short path from now on (:meth:`merge_raw`).
 
@@ -150,7 +151,7 @@ class JointStateMerger:
         self.raw_reader = layout.compiled_reader(order, lower, upper, TIME_JUMP_BACK_NS)
         self._raw_velocities = layout.velocities[1] > 0
 
-    def merge_raw(self, raw):
+    def merge_raw(self, raw) -> Optional[tuple]:
         """
         Merge a serialized JointState of the learnt layout: ``(stamp_ns, q, qdot)`` or None.
 
@@ -177,22 +178,22 @@ class JointStateMerger:
         return stamp_ns, self._q_out, self._qdot_out if self._raw_velocities else None
 
     @property
-    def never_seen(self):
+    def never_seen(self) -> tuple:
         """Name the required joints that no accepted message has given a value yet."""
         return tuple(n for n, s in zip(self.joint_names[:self.required], self._seen) if not s)
 
     @property
-    def never_seen_any(self):
+    def never_seen_any(self) -> tuple:
         """Name every joint, required or optional, that no accepted message has given yet."""
         return tuple(n for n, s in zip(self.joint_names, self._seen) if not s)
 
     @property
-    def seen_optional(self):
+    def seen_optional(self) -> tuple:
         """Name the optional joints an accepted message gave a value (since the last reset)."""
         n = self.required
         return tuple(name for name, s in zip(self.joint_names[n:], self._seen[n:]) if s)
 
-    def merge(self, names, positions, velocities=(), stamp_ns=0):
+    def merge(self, names, positions, velocities=(), stamp_ns=0) -> 'MergeResult':
         """
         Merge one message's content; returns a :class:`MergeResult` (never raises).
 
@@ -214,7 +215,7 @@ class JointStateMerger:
             self.counts[result.status] += 1
         return result
 
-    def merge_many(self, runs):
+    def merge_many(self, runs) -> tuple:
         """
         Merge runs of messages, in order: the same outcome as one :meth:`merge` per message.
 
@@ -319,7 +320,7 @@ class JointStateMerger:
             return None, None
         return columns, [self._index[names[c]] for c in columns]
 
-    def count_rejected(self, reason, count=1):
+    def count_rejected(self, reason, count=1) -> None:
         """Count ``count`` messages rejected for ``reason`` (also ones rejected elsewhere)."""
         if count:
             self.counts['rejected'] += count
@@ -538,13 +539,13 @@ class SequenceGaps:
         self._last = None
         self._counting = False
 
-    def single_publisher(self, single):
+    def single_publisher(self, single) -> None:
         """Say whether exactly one publisher is matched now (from a periodic check)."""
         if not (single and self._counting):
             self._last = None  # (re)start: the next message is the stream's first
         self._counting = single
 
-    def note(self, sequence):
+    def note(self, sequence) -> int:
         """Note a taken message's sequence number (None: not known); return the count lost."""
         if sequence is None or not self._counting:
             return 0

@@ -71,7 +71,7 @@ class OutputPlan:
             twist.append(model.end_effector_index)
         self.twist_frames = [k for k in twist if k in on_tf and roots[k] < 0]
 
-    def summary(self):
+    def summary(self) -> str:
         """Say in one line what TF carries: the URDF's tree or every frame, and its roots."""
         urdf = self.model.urdf is not None
         what = ('every frame (the DH frames too)' if self.dh_frames and urdf
@@ -82,12 +82,12 @@ class OutputPlan:
         return (f'TF: {len(self.tf_frames)} transforms of {what} ({len(self.moving_edges)} '
                 f'on /tf, {len(self.static_edges)} on /tf_static); tree roots: {shown}')
 
-    def shown_edges(self, shown_optional=()):
+    def shown_edges(self, shown_optional=()) -> tuple:
         """Return the moving edges whose joints are known, given the optional ones named."""
         hidden = self.hidden(shown_optional, self.model.edge_needs)
         return tuple(e for e in self.moving_edges if e[0] not in hidden)
 
-    def hidden(self, shown_optional=(), needs=None):
+    def hidden(self, shown_optional=(), needs=None) -> frozenset:
         """
         Return the indices of the frames that need an optional joint not in ``shown_optional``.
 
@@ -101,18 +101,18 @@ class OutputPlan:
         needs = model.frame_needs if needs is None else needs
         return frozenset(k for k, need in enumerate(needs) if not need <= shown)
 
-    def tf_edges(self, edges):
+    def tf_edges(self, edges) -> list:
         """Return ``[(parent id, child id)]`` of a /tf message: ``edges``, then moving helpers."""
         return ([(self.parent_ids[k], self.frame_ids[k]) for k, _ in edges]
                 + [(self.frame_ids[k], self.prefix + name) for name, k in self.helpers.moving])
 
-    def static_poses(self):
+    def static_poses(self) -> np.ndarray:
         """Return the poses of :attr:`static_edges`, in order, as one flat float64 array."""
         values = [np.asarray(pose, float) for _, pose in self.static]
         values += [offset.to_pose_xyzw() for _, _, offset in self.helpers.static]
         return np.concatenate(values) if values else np.zeros(0)
 
-    def rooted_poses(self, absolute):
+    def rooted_poses(self, absolute) -> np.ndarray:
         """
         Return ``absolute`` (``(..., n_frames, 7)``, fixed frame) with rooted poses re-expressed.
 

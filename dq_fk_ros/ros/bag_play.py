@@ -48,7 +48,7 @@ class PlaySummary:
     error: str = None
 
 
-def play_bag(path, options=None, node=None, **changes):
+def play_bag(path, options=None, node=None, **changes) -> PlaySummary:
     """
     Publish the bag's JointState messages with their recorded timing; a :class:`PlaySummary`.
 

@@ -10,6 +10,8 @@ Poses arrive as tuples ``(x, y, z, qx, qy, qz, qw)`` (metres, the ROS quaternion
 byte).
 """
 
+from typing import TYPE_CHECKING
+
 from builtin_interfaces.msg import Time
 from dq_fk_ros.messages.cdr import (
     pose_stamped_template, tf_message_template, twist_stamped_template)
@@ -18,10 +20,13 @@ from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
 import numpy as np
 from tf2_msgs.msg import TFMessage
 
+if TYPE_CHECKING:  # imported where used: rclpy need not load with the messages
+    from rclpy.qos import QoSProfile
+
 NS_PER_S = 1_000_000_000
 
 
-def qos_profile(output):
+def qos_profile(output) -> 'QoSProfile':
     """Return the rclpy ``QoSProfile`` of a :class:`~dq_fk_ros.messages.outputs.Output`."""
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     durability = DurabilityPolicy.TRANSIENT_LOCAL if output.latched else \
@@ -30,28 +35,28 @@ def qos_profile(output):
                       durability=durability)
 
 
-def stamp_to_ns(stamp):
+def stamp_to_ns(stamp) -> int:
     """Return the nanoseconds of a ``builtin_interfaces/Time``."""
     return stamp.sec * NS_PER_S + stamp.nanosec
 
 
-def ns_to_stamp(ns):
+def ns_to_stamp(ns) -> Time:
     """Return a ``builtin_interfaces/Time`` of ``ns`` nanoseconds."""
     return Time(sec=ns // NS_PER_S, nanosec=ns % NS_PER_S)
 
 
-def joint_state_fields(msg):
+def joint_state_fields(msg) -> tuple:
     """Return names, positions, velocities and stamp (ns) of a ``sensor_msgs/JointState``."""
     return msg.name, msg.position, msg.velocity, stamp_to_ns(msg.header.stamp)
 
 
-def set_transform(transform, pose):
+def set_transform(transform, pose) -> None:
     """Fill a ``geometry_msgs/Transform`` from ``(x, y, z, qx, qy, qz, qw)``."""
     t, r = transform.translation, transform.rotation
     t.x, t.y, t.z, r.x, r.y, r.z, r.w = pose
 
 
-def set_pose(msg_pose, pose):
+def set_pose(msg_pose, pose) -> None:
     """Fill a ``geometry_msgs/Pose`` from ``(x, y, z, qx, qy, qz, qw)``."""
     p, r = msg_pose.position, msg_pose.orientation
     p.x, p.y, p.z, r.x, r.y, r.z, r.w = pose
@@ -104,7 +109,7 @@ class FrameMessages:
             msg.header.frame_id = fixed
             self.twists.append(msg)
 
-    def fill(self, stamp, absolute, relative, q=None):
+    def fill(self, stamp, absolute, relative, q=None) -> tuple:
         """Refill /tf and pose messages for one update at joints ``q``; ``(tf, poses)``."""
         for transform, (_, k) in zip(self.tf.transforms, self.moving_edges):
             transform.header.stamp = stamp
@@ -120,7 +125,7 @@ class FrameMessages:
             set_pose(msg.pose, pose)
         return self.tf, self.poses
 
-    def fill_twists(self, stamp, twists):
+    def fill_twists(self, stamp, twists) -> list:
         """Refill the twist messages from ``[(v, omega), ...]`` in fixed-frame axes."""
         for msg, (v, w) in zip(self.twists, twists):
             msg.header.stamp = stamp
@@ -129,7 +134,7 @@ class FrameMessages:
             ang.x, ang.y, ang.z = (float(c) for c in w)
         return self.twists
 
-    def static_tf(self, stamp):
+    def static_tf(self, stamp) -> TFMessage:
         """Return one TFMessage with every static transform: base, fixed rows, tool, links."""
         values = self.plan.static_poses().reshape(-1, 7)
         return TFMessage(transforms=[
@@ -187,7 +192,7 @@ class FrameBytes:
             template = pose_stamped_template(self.plan.pose_frame_ids[k])
             self._rooted[k] = (template.packer(), template.compiled(7))
 
-    def tf(self, sec, nanosec, relative, q=None):
+    def tf(self, sec, nanosec, relative, q=None) -> bytes:
         """
         Return the serialized /tf message: every moving row's (and helper's) transform.
 
@@ -209,11 +214,11 @@ class FrameBytes:
             poses += self.helpers.moving_poses(q)
         return self._tf.pack(sec, nanosec, poses)
 
-    def pose(self, sec, nanosec, pose):
+    def pose(self, sec, nanosec, pose) -> bytes:
         """Return a serialized PoseStamped of ``pose`` in the fixed frame."""
         return self._pose.pack(sec, nanosec, (pose,))
 
-    def poses(self, sec, nanosec, absolute, frames):
+    def poses(self, sec, nanosec, absolute, frames) -> list:
         """
         Return serialized PoseStampeds of the poses ``absolute[k]`` for k in ``frames``.
 
@@ -241,6 +246,6 @@ class FrameBytes:
                 out.append(packer.pack(sec, nanosec, (array[k].tolist(),)))
         return out
 
-    def twist(self, sec, nanosec, v, w):
+    def twist(self, sec, nanosec, v, w) -> bytes:
         """Return a serialized TwistStamped: linear ``v``, angular ``w`` (fixed-frame axes)."""
         return self._twist.pack(sec, nanosec, (v, w))

@@ -59,7 +59,7 @@ class PoseWatcher:
             self.parents[t.child_frame_id] = t.header.frame_id
 
 
-def format_pose(frame, parent, msg):
+def format_pose(frame, parent, msg) -> str:
     """Format one line: frame, TF parent, x y z, qx qy qz qw (the pose as published)."""
     p, o = msg.pose.position, msg.pose.orientation
     values = [p.x, p.y, p.z, o.x, o.y, o.z, o.w]
@@ -67,7 +67,7 @@ def format_pose(frame, parent, msg):
             + ' '.join(f'{round(v, 9) + 0.0:9.6f}' for v in values))
 
 
-def main(argv=None):
+def main(argv=None) -> int:
     """Run the demo; exit code 0 once the poses were shown, 1 if they never came."""
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--live', action='store_true',

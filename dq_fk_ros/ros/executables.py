@@ -17,7 +17,7 @@ MODULES = {'dq_fk_node': 'dq_fk_ros.ros.node',
            'dq_fk_bag': 'dq_fk_ros.cli.dq_fk_bag'}
 
 
-def executable(name):
+def executable(name) -> list:
     """
     Return the argv prefix that runs program ``name``.
 
@@ -83,7 +83,7 @@ def run_dq_fk_foxglove() -> int:
     return run_program('dq_fk_ros.ros.foxglove_live')
 
 
-def spin_until_shutdown(program, make_node, user_errors, args=None, usage=None):
+def spin_until_shutdown(program, make_node, user_errors, args=None, usage=None) -> int:
     """
     Create a node with ``make_node()`` and spin it until SIGINT/SIGTERM; return the exit code.
 
@@ -156,7 +156,7 @@ def _one_line(exc):
     return first_line(exc).split(', at /')[0]
 
 
-def add_mesh_options(parser):
+def add_mesh_options(parser) -> None:
     """Add ``--package NAME=DIR`` and ``--mesh-dir DIR``: where a URDF's meshes may come from."""
     parser.add_argument('--package', action='append', default=[], metavar='NAME=DIR',
                         help="where package NAME is, for the URDF's package:// meshes "
@@ -166,7 +166,7 @@ def add_mesh_options(parser):
                         'none by default)')
 
 
-def check_mesh_options(parser, args):
+def check_mesh_options(parser, args) -> None:
     """Check the options of :func:`add_mesh_options`; set ``args.packages`` ({name: dir})."""
     from dq_fk_ros.description.packages import parse_package_option
     try:

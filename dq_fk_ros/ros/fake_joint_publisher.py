@@ -81,7 +81,7 @@ class JointMotion:
         self._walk = self.center.copy()
         self._walk_t = None
 
-    def sample(self, t_s):
+    def sample(self, t_s) -> tuple:
         """Return positions and velocities at ``t_s`` (seconds since the start)."""
         if self.mode == 'zeros':
             return np.zeros_like(self.center), np.zeros_like(self.center)
@@ -100,7 +100,7 @@ class JointMotion:
         return self._walk.copy(), velocity
 
 
-def malformed(names, positions, kind):
+def malformed(names, positions, kind) -> tuple:
     """Return a broken copy ``(names, positions)`` of a joint state, fault ``kind``."""
     names, positions = list(names), list(positions)
     if kind == 'wrong_length':
@@ -180,7 +180,7 @@ class FakeJointPublisher(Node):
         self._pub.publish(msg)
 
 
-def main(args=None):
+def main(args=None) -> int:
     """Run fake_joint_publisher until SIGINT/SIGTERM."""
     usage = help_text('fake_joint_publisher', "sensor_msgs/JointState of a robot's joints on "
                       'joint_states, for demos and tests (zeros, fixed, sine, random_walk; '

@@ -34,7 +34,7 @@ JOINT_STATE = 'sensor_msgs/msg/JointState'
 POSE_STAMPED = 'geometry_msgs/msg/PoseStamped'
 
 
-def cdr_channel(foxglove, topic, msgtype):
+def cdr_channel(foxglove, topic, msgtype) -> object:
     """Return a channel of serialized ROS 2 messages (``cdr``) of ``msgtype`` on ``topic``."""
     schema = foxglove.Schema(name=msgtype, encoding='ros2msg',
                              data=ros2msg_definition(msgtype).encode())
@@ -78,7 +78,7 @@ class FoxgloveFeed:
         self._names = JointStateNames()
 
     # -- in, from the ROS callbacks ------------------------------------------------------
-    def take_raw_tf(self, raw):
+    def take_raw_tf(self, raw) -> None:
         """Keep a serialized /tf if it is its layout's newest (unreadable bytes: counted)."""
         with self.lock:
             self.counts['tf_messages'] += 1
@@ -87,7 +87,7 @@ class FoxgloveFeed:
             except CdrError:
                 self.counts['bad_input'] += 1
 
-    def take_static(self, transforms):
+    def take_static(self, transforms) -> None:
         """Keep ``[(parent, child, pose, stamp_ns), ...]`` of a /tf_static message."""
         with self.lock:
             for parent, child, pose, stamp_ns in transforms:
@@ -95,7 +95,7 @@ class FoxgloveFeed:
                     self.static[child] = (parent, pose, stamp_ns)
             self.static_changed = True
 
-    def take_description(self, text):
+    def take_description(self, text) -> None:
         """Keep a new URDF; its meshes, and no other file, become fetchable."""
         with self.lock:
             if text == self.urdf:
@@ -106,15 +106,15 @@ class FoxgloveFeed:
             self.urdf = text
             self.description_changed = True
 
-    def take_joint_state(self, raw):
+    def take_joint_state(self, raw) -> None:
         """Keep the newest serialized JointState."""
         self.joint_state_raw = raw
 
-    def take_pose(self, topic, raw):
+    def take_pose(self, topic, raw) -> None:
         """Keep the newest serialized PoseStamped of ``topic``."""
         self.pose_raw[topic] = raw
 
-    def add_pose_topic(self, topic):
+    def add_pose_topic(self, topic) -> bool:
         """Advertise a pose topic's channel (at most MAX_POSE_TOPICS); say whether it is new."""
         with self.lock:
             if topic in self.pose_channels or len(self.pose_channels) >= MAX_POSE_TOPICS:
@@ -122,13 +122,13 @@ class FoxgloveFeed:
             self.pose_channels[topic] = cdr_channel(self.fox, topic, POSE_STAMPED)
             return True
 
-    def subscribed(self, topic):
+    def subscribed(self, topic) -> None:
         """Note that a client subscribed to ``topic``: a kept message is sent again."""
         with self.lock:
             self.resend.add(topic)
 
     # -- out, at most rate times a second ------------------------------------------------
-    def flush(self):
+    def flush(self) -> None:
         """Log the newest of every input on its channel (and what new subscribers need)."""
         m = self.fox.messages
         with self.lock:
@@ -169,7 +169,7 @@ class FoxgloveFeed:
                 channel.log(raw)
 
 
-def frame_transforms(m, transforms):
+def frame_transforms(m, transforms) -> object:
     """Return a ``foxglove.FrameTransforms`` of ``[(parent, child, pose, stamp_ns), ...]``."""
     out = []
     for parent, child, (x, y, z, qx, qy, qz, qw), stamp_ns in transforms:

@@ -38,7 +38,7 @@ MISSING = ('dq_fk_foxglove needs the Foxglove SDK: pip install "dq_fk_ros[foxglo
            '(or pip install foxglove-sdk; make setup installs it)')
 
 
-def parse_args(argv):
+def parse_args(argv) -> argparse.Namespace:
     """Return the command line's options (ROS arguments already removed)."""
     parser = argparse.ArgumentParser(
         prog='dq_fk_foxglove',
@@ -130,13 +130,13 @@ class RosInput:
              t.header.stamp.sec * 1_000_000_000 + t.header.stamp.nanosec)
             for t in msg.transforms])
 
-    def discover(self):
+    def discover(self) -> None:
         """Advertise a channel for every pose topic on the graph (dq_fk_node's ~/pose/...)."""
         for topic, types in self.node.get_topic_names_and_types():
             if '/pose/' in topic and 'geometry_msgs/msg/PoseStamped' in types:
                 self.feed.add_pose_topic(topic)
 
-    def want(self, topic, delta):
+    def want(self, topic, delta) -> None:
         """Count a client (un)subscribing to ``topic``'s channel (from the server's thread)."""
         with self.lock:
             self.wanted[topic] = max(0, self.wanted.get(topic, 0) + delta)
@@ -161,7 +161,7 @@ class RosInput:
                 self.raw.destroy_subscription(self.joint_states)
                 self.joint_states = None
 
-    def flush(self):
+    def flush(self) -> None:
         """Take what is queued (the newest of each kept) and send it to Foxglove."""
         from dq_fk_ros.ros.raw_input import take_queued
         try:
@@ -175,7 +175,7 @@ class RosInput:
             return
         self.feed.flush()
 
-    def destroy(self):
+    def destroy(self) -> None:
         """Stop the flushes, then destroy both nodes."""
         self.stopped.set()
         self.thread.join(timeout=2.0)
@@ -183,7 +183,7 @@ class RosInput:
         self.node.destroy_node()
 
 
-def make_listener(foxglove, ros, feed):
+def make_listener(foxglove, ros, feed) -> object:
     """Return the server's listener: subscriptions to pose channels follow the clients."""
     class Listener(foxglove.ServerListener):
         def on_subscribe(self, client, channel):
@@ -195,7 +195,7 @@ def make_listener(foxglove, ros, feed):
     return Listener()
 
 
-def main(argv=None):
+def main(argv=None) -> int:
     """Run dq_fk_foxglove until SIGINT/SIGTERM; return the exit code."""
     from rclpy.utilities import remove_ros_args
     argv = sys.argv if argv is None else argv

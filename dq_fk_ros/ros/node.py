@@ -15,7 +15,7 @@ import sys
 import threading
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from dq_fk_ros.description.from_urdf import NODE_OPTIONS
 from dq_fk_ros.description.loading import load_robot, robot_from_urdf_text
 from dq_fk_ros.description.to_urdf import description_urdf
@@ -462,7 +462,7 @@ class DqFkNode(Node):
         self._send_read_poses = [self._send_pose[i] for i in read]
 
     # -- diagnostics ---------------------------------------------------------------------
-    def diagnostics(self):
+    def diagnostics(self) -> DiagnosticStatus:
         """Return the node's counters as one DiagnosticStatus."""
         age_s = None if self._last_update_ns is None else \
             (self.get_clock().now().nanoseconds - self._last_update_ns) / 1e9
@@ -471,7 +471,7 @@ class DqFkNode(Node):
             self._gaps.lost - self._lost_reported,
             self._input.errors if self._input is not None else 0, age_s)
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
         """Stop the input thread first, then destroy the node."""
         if getattr(self, '_input', None) is not None:
             self._input.close()
@@ -487,7 +487,7 @@ class DqFkNode(Node):
         self._diag_pub.publish(msg)
 
 
-def main(args=None):
+def main(args=None) -> int:
     """Run dq_fk_node until SIGINT/SIGTERM (as ``ros2 run dq_fk_ros dq_fk_node``)."""
     usage = help_text('dq_fk_node', 'sensor_msgs/JointState in (joint_states), every link '
                       'frame out: /tf, /tf_static, ~/pose/<frame>, ~/twist/<frame>, the '

@@ -11,7 +11,8 @@ from dq_fk_ros.messages.joint_states import INCOMPLETE, MAX_UNKNOWN_LISTED, REJE
 WARN_EVERY_S = 5.0  # a warning repeated per message is logged at most this often
 
 
-def joint_state_status(name, model, merger, lost, lost_now, input_errors, age_s):
+def joint_state_status(name, model, merger, lost, lost_now, input_errors,
+                       age_s) -> DiagnosticStatus:
     """
     Return the ``DiagnosticStatus`` of the joint-state input.
 
@@ -60,7 +61,7 @@ def joint_state_status(name, model, merger, lost, lost_now, input_errors, age_s)
 __all__ = ['joint_state_status']
 
 
-def log_merge_result(log, result, robot, out_of_limits):
+def log_merge_result(log, result, robot, out_of_limits) -> bool:
     """
     Log what a merge result says; return whether the update is to be published.
 

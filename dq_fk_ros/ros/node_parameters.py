@@ -133,7 +133,7 @@ class NodeParameters:
     joint_states_reliability: str = 'best_effort'
 
     @classmethod
-    def from_values(cls, values):
+    def from_values(cls, values) -> 'NodeParameters':
         """
         Return the parameters ``{name: value}`` (names not given keep their defaults).
 
@@ -143,7 +143,7 @@ class NodeParameters:
         check_values({k: v for k, v in values.items() if k in known})
         return cls(**{k: v for k, v in values.items() if k in known})
 
-    def changed(self, new):
+    def changed(self, new) -> 'NodeParameters':
         """
         Return these parameters with the changes ``{name: value}`` (others are ignored).
 
@@ -155,11 +155,11 @@ class NodeParameters:
         return replace(self, **changes)
 
     @property
-    def robot_inputs(self):
+    def robot_inputs(self) -> dict:
         """Return the parameters that say which robot, ``{name: value}`` (ROBOT_PARAMETERS)."""
         return {name: getattr(self, name) for name in ROBOT_PARAMETERS}
 
-    def file_access(self, xacro_limit_s, cancelled):
+    def file_access(self, xacro_limit_s, cancelled) -> FileAccess:
         """
         Return what a robot file set at run time may be (a :class:`FileAccess`).
 
@@ -188,7 +188,7 @@ def _check_choice(name, value, allowed):
         raise ParameterError(f'parameter {name} is {value!r}; allowed: {", ".join(allowed)}')
 
 
-def check_values(new):
+def check_values(new) -> None:
     """Raise ParameterError (one line) for a value in ``{name: value}`` the node cannot use."""
     dh_frames = new.get('publish_dh_frames')
     if dh_frames is not None and not isinstance(dh_frames, bool):

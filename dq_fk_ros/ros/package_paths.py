@@ -10,7 +10,7 @@ DESCRIPTION = ('for a xacro: packages as NAME=DIR (string array), found before t
                'index, ROS_PACKAGE_PATH and the folders above the file')
 
 
-def declare_package_paths(node):
+def declare_package_paths(node) -> dict:
     """
     Declare ``package_paths`` (read only) on ``node``; return ``{name: folder}``.
 

@@ -29,7 +29,7 @@ class Param:
     unset_type: type = None
 
 
-def declare(node, params):
+def declare(node, params) -> dict:
     """Declare every parameter of ``params`` on ``node``; return ``{name: value}``."""
     from rcl_interfaces.msg import ParameterDescriptor
     from rclpy.parameter import Parameter
@@ -43,7 +43,7 @@ def declare(node, params):
     return {p.name: node.get_parameter_or(p.name, None).value for p in params}
 
 
-def help_text(program, summary, params, package_paths=True):
+def help_text(program, summary, params, package_paths=True) -> str:
     """Return the ``--help`` text of ``program``: how to run it and every parameter."""
     lines = [f'usage: {program} [--ros-args -p NAME:=VALUE ... | --params-file FILE]', '']
     lines += textwrap.wrap(summary, 92)
@@ -60,7 +60,7 @@ def help_text(program, summary, params, package_paths=True):
     return '\n'.join(lines) + '\n'
 
 
-def wants_help(argv):
+def wants_help(argv) -> bool:
     """Say whether ``-h`` or ``--help`` comes before any ``--ros-args`` in ``argv``."""
     args = list(argv[1:])
     if '--ros-args' in args:

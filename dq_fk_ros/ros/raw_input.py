@@ -12,6 +12,7 @@ changes stay with the executor, and the owner serialises the two with a lock.
 import ctypes
 import threading
 import time
+from typing import Callable
 
 import rclpy
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -21,7 +22,7 @@ OS_THREAD_NAME = b'dq_fk input'  # what top -H and /proc/<pid>/task/*/comm show
 _PR_SET_NAME = 15
 
 
-def name_os_thread(name):
+def name_os_thread(name) -> bool:
     """
     Give the calling thread ``name`` (bytes, at most 15) where the OS shows thread names.
 
@@ -35,7 +36,7 @@ def name_os_thread(name):
         return False
 
 
-def take_queued(subscription, callback, limit=None, with_info=False):
+def take_queued(subscription, callback, limit=None, with_info=False) -> int:
     """
     Hand every message already queued on a raw subscription to ``callback``, in order.
 
@@ -58,7 +59,7 @@ def take_queued(subscription, callback, limit=None, with_info=False):
     return count
 
 
-def raw_publisher(publisher):
+def raw_publisher(publisher) -> Callable[[bytes], None]:
     """
     Return a function that publishes serialized messages (``bytes``) on ``publisher``.
 
@@ -139,7 +140,7 @@ class RawSubscriptionThread:
         except Exception:  # waiting or taking failed: shut down or destroyed under us
             return
 
-    def close(self):
+    def close(self) -> None:
         """Stop the thread and destroy the helper node."""
         self._stop = True
         if self._thread is not threading.current_thread():

@@ -25,12 +25,16 @@ import asyncio
 import signal
 import sys
 import threading
+from typing import Optional, TYPE_CHECKING
 
 from dq_fk_ros.description.packages import PackageResolver
 from dq_fk_ros.messages.outputs import ROBOT_DESCRIPTION, TF, TF_STATIC
 from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options, run_main
 from dq_fk_ros.ros.view_state import STALE_AFTER_S, ViewState
 from dq_fk_ros.ros.view_web import DEFAULT_RATE_HZ, make_app, web_root
+
+if TYPE_CHECKING:  # rclpy is imported where used: --help answers without it
+    from rclpy.node import Node
 
 DEFAULT_PORT = 8765
 MAX_CONNECTIONS = 256        # open at once; one more is closed as it comes (fds stay free)
@@ -39,7 +43,7 @@ KEEPALIVE_TIMEOUT_S = 15.0   # an idle connection between requests is closed aft
 TF_QUEUE_DEPTH = 1000  # /tf messages DDS keeps for the view between two takes
 
 
-def make_node(state, context=None):
+def make_node(state, context=None) -> 'Node':
     """Return the rclpy node that feeds ``state`` from /tf, /tf_static, /robot_description."""
     from dq_fk_ros.ros.raw_input import take_queued
     import rclpy
@@ -76,7 +80,7 @@ def make_node(state, context=None):
     return node
 
 
-def parse_args(argv):
+def parse_args(argv) -> argparse.Namespace:
     """Return the command line's options (ROS arguments already removed)."""
     parser = argparse.ArgumentParser(
         prog='dq_fk_view', description='The robot and every TF frame, live in a browser.')
@@ -115,7 +119,7 @@ class Connections:
         """Count what is dropped in ``counts`` (the view's /status)."""
         self.counts, self.cap, self.open = counts, cap, {}
 
-    def make_room(self):
+    def make_room(self) -> bool:
         """Say whether a new connection may come in, dropping an old one if need be."""
         if len(self.open) < self.cap:
             return True
@@ -146,7 +150,7 @@ class GuardedProtocol(asyncio.Protocol):
         self.inner, self.loop, self.connections = inner, loop, connections
         self.timer, self.transport, self.head, self.counted = None, None, b'', False
 
-    def connection_made(self, transport):
+    def connection_made(self, transport) -> None:
         """Take the connection if there is room, and start the header clock."""
         self.transport = transport
         if not self.connections.make_room():
@@ -157,14 +161,14 @@ class GuardedProtocol(asyncio.Protocol):
         self.timer = self.loop.call_later(HEADER_TIMEOUT_S, self.drop, 'slow_requests')
         self.inner.connection_made(transport)
 
-    def drop(self, why):
+    def drop(self, why) -> None:
         """Close the connection now, counted under ``why``; its place is free at once."""
         counts = self.connections.counts
         counts[why] = counts.get(why, 0) + 1
         self.transport.abort()
         self.connection_lost(None)  # (abort's own call later finds it gone)
 
-    def data_received(self, data):
+    def data_received(self, data) -> None:
         """Pass data on; the header clock stops at the first request's blank line."""
         if not self.counted:
             return
@@ -177,21 +181,21 @@ class GuardedProtocol(asyncio.Protocol):
                 self.timer, self.head = None, b''
         self.inner.data_received(data)
 
-    def eof_received(self):
+    def eof_received(self) -> Optional[bool]:
         """Pass the end of the stream on."""
         return self.inner.eof_received() if self.counted else None
 
-    def pause_writing(self):
+    def pause_writing(self) -> None:
         """Pass flow control on."""
         if self.counted:
             self.inner.pause_writing()
 
-    def resume_writing(self):
+    def resume_writing(self) -> None:
         """Pass flow control on."""
         if self.counted:
             self.inner.resume_writing()
 
-    def connection_lost(self, exc):
+    def connection_lost(self, exc) -> None:
         """Free the connection's place."""
         if self.timer is not None:
             self.timer.cancel()
@@ -230,7 +234,7 @@ async def serve(args, state, ready=None):
         await runner.cleanup()
 
 
-def main(argv=None):
+def main(argv=None) -> int:
     """Run dq_fk_view (as ``ros2 run dq_fk_ros dq_fk_view``); return the exit code."""
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor

@@ -10,6 +10,7 @@ import os
 import sys
 import threading
 import time
+from typing import Optional
 
 from dq_fk_ros.description.meshes import check_mesh_file, mesh_allow_list
 from dq_fk_ros.description.packages import PackageResolver
@@ -55,7 +56,7 @@ class ViewState:
                        'clients': 0, 'clients_total': 0, 'refused_hosts': 0,
                        'refused_origins': 0}
 
-    def take_transforms(self, transforms, static, stamp_ns=0):
+    def take_transforms(self, transforms, static, stamp_ns=0) -> None:
         """Record ``[(parent, child, (x, y, z, qx, qy, qz, qw)), ...]`` as received now."""
         now = time.monotonic()
         with self.lock:
@@ -65,7 +66,7 @@ class ViewState:
                 if parent and child and parent != child:
                     self.edges[child] = (parent, pose, static, now)
 
-    def take_raw_tf(self, raw):
+    def take_raw_tf(self, raw) -> None:
         """Keep a serialized /tf message if it is its layout's newest (bad bytes: counted)."""
         with self.lock:
             try:
@@ -73,7 +74,7 @@ class ViewState:
             except CdrError:  # not a TFMessage after all: counted, never fatal
                 self.counts['bad_tf'] = self.counts.get('bad_tf', 0) + 1
 
-    def take_description(self, text):
+    def take_description(self, text) -> None:
         """Record a new robot description (URDF XML) and the meshes it allows to be served."""
         with self.lock:
             if text == self.urdf:
@@ -87,14 +88,14 @@ class ViewState:
             self.meshes = meshes
             self.urdf_version += 1
 
-    def robot_message(self):
+    def robot_message(self) -> str:
         """Return the JSON text of the robot: its URDF and where the page gets each mesh."""
         with self.lock:
             urdf, meshes = self.urdf, self.meshes
         return json.dumps({'type': 'robot', 'urdf': urdf,
                            'meshes': {m.uri: m.url or None for m in meshes}})
 
-    def mesh_path(self, index, name):
+    def mesh_path(self, index, name) -> Optional[str]:
         """Return the file served as ``/mesh/<index>/<name>``, or None (not on the list)."""
         from urllib.parse import quote
         with self.lock:
@@ -111,7 +112,7 @@ class ViewState:
             return None
         return path
 
-    def frames_message(self):
+    def frames_message(self) -> Optional[str]:
         """Return the JSON text of every frame's pose in the fixed frame (None: no frames)."""
         if self.poll_tf is not None:
             try:

@@ -14,9 +14,13 @@ import asyncio
 import ipaddress
 import json
 import os
+from typing import TYPE_CHECKING
 
 from dq_fk_ros.description.meshes import read_mesh_file
 from dq_fk_ros.description.shipped import share_folders
+
+if TYPE_CHECKING:  # aiohttp is imported where used
+    from aiohttp import web
 
 DEFAULT_RATE_HZ = 30.0
 MAX_CLIENT_MESSAGE_BYTES = 64 * 1024
@@ -24,7 +28,7 @@ LOOPBACK_NAMES = ('localhost', 'localhost.localdomain', 'ip6-localhost')
 VENDOR_PACKAGES = ('three', 'urdf-loader')
 
 
-def web_root():
+def web_root() -> str:
     """Return the folder of the page (``web/``: installed share directory, or source tree)."""
     candidates = share_folders('web')
     pages = [f for f in candidates if os.path.isfile(os.path.join(f, 'index.html'))]
@@ -36,7 +40,7 @@ def web_root():
     raise FileNotFoundError(f'the page of dq_fk_view is not in {" or ".join(candidates)}')
 
 
-def host_allowed(host, allowed=()):
+def host_allowed(host, allowed=()) -> bool:
     """
     Whether a ``Host`` or ``Origin`` host name may reach the view.
 
@@ -60,7 +64,7 @@ def _split_host(value):
     return value.rsplit(':', 1)[0] if value.count(':') == 1 else value
 
 
-def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()):
+def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()) -> 'web.Application':
     """
     Return the aiohttp application: the page, its scripts, /ws and /status.
 

@@ -203,6 +203,12 @@ def test_the_public_functions_of_kinematics_and_description_have_type_hints():
     assert missing == []
 
 
+def test_every_public_function_of_every_layer_says_what_it_returns():
+    missing = [line for _, rel in modules() for line in unannotated(rel)
+               if line.endswith(('(return)', ', return)'))]
+    assert missing == []
+
+
 def test_a_missing_hint_would_be_found(tmp_path, monkeypatch):
     (tmp_path / 'kinematics').mkdir()
     (tmp_path / 'kinematics' / 'bare.py').write_text(
