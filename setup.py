@@ -5,6 +5,9 @@ from glob import glob
 from setuptools import Extension, find_packages, setup
 
 package_name = 'dq_fk_ros'
+# the compiled kernel, one file per surface (the module, Chain, Model; kernel_*.h shared)
+KERNEL_SOURCES = ['dq_fk_ros/kinematics/_kernel.c', 'dq_fk_ros/kinematics/_kernel_chain.c',
+                  'dq_fk_ros/kinematics/_kernel_model.c']
 
 setup(
     name=package_name,
@@ -21,7 +24,8 @@ setup(
     # vectorises its batch loops; no contraction into fused multiply-adds, so it computes
     # what the reference computes
     # the CDR writer of the node's messages: optional too (the struct packer runs without)
-    ext_modules=[Extension('dq_fk_ros.kinematics._kernel', ['dq_fk_ros/kinematics/_kernel.c'],
+    ext_modules=[Extension('dq_fk_ros.kinematics._kernel', KERNEL_SOURCES,
+                           depends=glob('dq_fk_ros/kinematics/kernel_*.h'),
                            extra_compile_args=['-O3', '-ffp-contract=off', '-fno-fast-math'],
                            optional=True),
                  Extension('dq_fk_ros.messages._cdr', ['dq_fk_ros/messages/_cdr.c'],

@@ -22,6 +22,7 @@ import statistics
 import sys
 import time
 
+from dq_fk_ros.kinematics.chain_batches import forward_all_batch_reference, forward_batch_reference
 from dq_fk_ros.kinematics.dh import DHJoint, homogeneous_from_dq, KinematicChain
 from dq_fk_ros.kinematics.kernel import kernel_info
 import numpy as np
@@ -107,8 +108,8 @@ def make_dq_fk_ros_reference(rows):
         'name': 'dq_fk_ros (numpy reference path)',
         'end': lambda q: chain._forward_all_reference(q)[-1],
         'all': chain._forward_all_reference,
-        'batch_end': chain._forward_batch_reference,
-        'batch_all': chain._forward_all_batch_reference,
+        'batch_end': functools.partial(forward_batch_reference, chain),
+        'batch_all': functools.partial(forward_all_batch_reference, chain),
         'end_matrix': lambda q: homogeneous_from_dq(chain._forward_all_reference(q)[-1]),
     }
 

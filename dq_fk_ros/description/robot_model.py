@@ -25,18 +25,16 @@ Why this file is long: the model's evaluation paths (straight-line code, the gen
 reference, batches) for a tree of chains stay together: they must agree to the bit.
 """
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 import math
 import re
 
-from dq_fk_ros.kinematics.dh import joint_value_list, joint_value_vector, KinematicChain
-from dq_fk_ros.kinematics.dh_code import run_chain_program, unrolled_frame_poses
-from dq_fk_ros.kinematics.dual_quaternion import (
-    dq_inverse_coeffs, dq_multiply_array, dq_multiply_coeffs, dq_to_pose_xyzw, DualQuaternion,
-    Pose, pose_xyzw_from_coeffs)
-from dq_fk_ros.kinematics.kernel import KERNEL
+from dq_fk_ros.description.joint_needs import edge_needs_of, frame_needs_of
+from dq_fk_ros.kinematics.dh import KinematicChain
+from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion, Pose
+from dq_fk_ros.kinematics.tree_kinematics import TreeKinematics
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -213,58 +211,14 @@ class RobotModel:
         return mask
 
     @cached_property
-    def _paths(self):
-        """
-        ``(paths, reads)``: per frame name, the moving rows and links its pose depends on.
-
-        ``paths[frame]`` is a frozenset of moving elements (``(chain, row)`` or ``('link',
-        k)``) between the fixed frame and it; ``reads[element]`` the joints that one reads.
-        """
-        paths = {self.fixed_frame: frozenset()}
-        reads = {}
-        for c, (parent, chain, start) in enumerate(self.chains):
-            here = paths[parent]
-            paths[self.frame_names[start]] = here
-            for i, joint in enumerate(chain.joints):
-                if joint.joint_type != 'fixed':
-                    reads[(c, i)] = frozenset(
-                        chain.joint_names[int(k)] for k in
-                        (chain._theta_index[i], chain._d_index[i]) if k >= 0)
-                    here = here | {(c, i)}
-                paths[self.frame_names[start + i + 1]] = here
-            if chain.tool is not None:
-                paths[self.frame_names[start + chain.n_frames - 1]] = here
-        for k, link in enumerate(self.links):
-            here = paths[link.parent]
-            if link.motion is not None:
-                reads[('link', k)] = frozenset((link.motion[2],))
-                here = here | {('link', k)}
-            paths[link.frame] = here
-        return paths, reads
-
-    def _needs(self, elements):
-        paths, reads = self._paths
-        optional = set(self.optional_joints)
-        return frozenset().union(*(reads[e] for e in elements)) & optional
-
-    @cached_property
     def frame_needs(self) -> tuple[frozenset, ...]:
         """Per frame: the optional joints its pose in the fixed frame depends on (frozensets)."""
-        paths, _ = self._paths
-        return tuple(self._needs(paths[name]) for name in self.frame_names)
+        return frame_needs_of(self)
 
     @cached_property
     def edge_needs(self) -> tuple[frozenset, ...]:
-        """
-        Per frame: the optional joints its TF transform (from its TF parent) depends on.
-
-        Those on the way between the two frames only, as robot_state_publisher sends a
-        joint's transform once a message names that joint: a gripper's links need the
-        gripper's joints, not the arm's.
-        """
-        paths, _ = self._paths
-        return tuple(self._needs(paths[name] ^ paths[parent])
-                     for name, parent in zip(self.frame_names, self.parent_frames))
+        """Per frame: the optional joints its TF transform depends on (:mod:`.joint_needs`)."""
+        return edge_needs_of(self)
 
     def tf_frame_id(self, name: str, prefix: str = '') -> str:
         """
@@ -359,211 +313,59 @@ class RobotModel:
         return tuple((chain, index[parent], q_map) for (parent, chain, _), q_map in
                      zip(self.chains[1:], self._q_maps[1:]))
 
+    # -- forward kinematics: the tree's engine (kinematics/tree_kinematics.py) ------------
+    @cached_property
+    def kinematics(self) -> TreeKinematics:
+        """Return the FK engine of this tree of chains and links (fast and reference paths)."""
+        return TreeKinematics(self.chain, self._branch_plan, self._link_plan, self.joint_names)
+
     def frame_poses(self, q: ArrayLike) -> tuple[list[Pose], list[Pose]]:
         """
-        Poses for publishing, tuples ``(x, y, z, qx, qy, qz, qw)`` (``qw >= 0``), at ``q``.
+        Return every frame of ``frame_names`` in the fixed frame and the TF transforms.
 
-        Returns ``(absolute, relative)``: every frame of ``frame_names`` in the fixed frame,
-        and the TF transforms: every DH row's (frame i-1 -> frame i, chain by chain), then
-        every link's (``tf_parent`` -> link). Straight-line code (``unrolled_frame_poses``);
-        the reference is :meth:`frame_poses_general`, held equal to the bit by
-        ``test_links.py`` and ``test_chains.py``.
+        ``(absolute, relative)``, tuples ``(x, y, z, qx, qy, qz, qw)``: see
+        :meth:`TreeKinematics.frame_poses` (DH rows chain by chain, then the links).
         """
-        if not self.links and not self.branches:
-            return self.chain.frame_poses(q)
-        return self._unrolled(joint_value_list(q, self.joint_names))
+        return self.kinematics.frame_poses(q)
 
-    def frame_poses_code(self) -> Callable:
+    def frame_poses_code(self) -> str:
         """Return the Python source of :meth:`frame_poses`' straight-line code (generated)."""
-        if not self.links and not self.branches:
-            return self.chain._unrolled.source
-        return self._unrolled.source
-
-    @cached_property
-    def _unrolled(self):
-        """:meth:`frame_poses` as straight-line code (``unrolled_frame_poses``)."""
-        return unrolled_frame_poses(self.chain, self._link_plan, _motion, self._branch_plan)
+        return self.kinematics.frame_poses_code()
 
     def frame_poses_general(self, q: ArrayLike) -> tuple[list[Pose], list[Pose]]:
-        """
-        :meth:`frame_poses` by the general (looping) path: the reference.
-
-        The fast path is :meth:`frame_poses` (straight-line code); test_links.py and
-        test_chains.py hold them equal to the bit.
-        """
-        if not self.links and not self.branches:
-            return self.chain.frame_poses_general(q)
-        q = joint_value_list(q, self.joint_names)
-        q_chain = q[:self.chain.dof]
-        coeffs = self.chain.frame_coeffs(q_chain)
-        relative = self.chain.row_poses(q_chain)
-        for chain, parent, q_map in self._branch_plan:
-            q_branch = [q[k] for k in q_map]
-            base = dq_multiply_coeffs(coeffs[parent], chain._base_t) if parent >= 0 \
-                else chain._base_t
-            frames = run_chain_program(chain, base, q_branch, math.cos, math.sin)
-            coeffs += frames
-            relative += chain.row_poses(q_branch)
-        absolute = [pose_xyzw_from_coeffs(h) for h in coeffs]
-        for attach, tf_parent, offset, motion in self._link_plan:
-            parent = coeffs[attach] if attach >= 0 else _IDENTITY
-            if motion is not None:
-                offset = dq_multiply_coeffs(offset, _motion(motion, q, math.cos, math.sin))
-            pose = dq_multiply_coeffs(parent, offset)
-            coeffs.append(pose)
-            absolute.append(pose_xyzw_from_coeffs(pose))
-            if tf_parent == attach:
-                relative.append(pose_xyzw_from_coeffs(offset))
-            else:
-                above = coeffs[tf_parent] if tf_parent >= 0 else _IDENTITY
-                relative.append(pose_xyzw_from_coeffs(
-                    dq_multiply_coeffs(dq_inverse_coeffs(above), pose)))
-        return absolute, relative
+        """Return :meth:`frame_poses` by the reference path (``TreeKinematics``'s)."""
+        return self.kinematics.frame_poses_general(q)
 
     def frame_pose_arrays(self, q: ArrayLike, absolute: np.ndarray | None = None,
                           relative: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """
-        :meth:`frame_poses` as float64 arrays ``(n_frames, 7)`` and ``(n_transforms, 7)``.
-
-        Fast path: the C kernel's ``Model`` writes into ``absolute`` and ``relative``
-        (C-contiguous float64 arrays the caller owns: no allocation; made when None);
-        reference: :meth:`frame_poses_general`, held equal by test_kernel.py's
-        ``test_the_model_kernel_equals_the_general_path``. Without the kernel, the
-        straight-line code of :meth:`frame_poses` fills them.
-        """
-        if absolute is None:
-            absolute = np.empty((len(self.frame_names), 7))
-        if relative is None:
-            relative = np.empty((self.n_transforms, 7))
-        kernel = self._kernel_model
-        if kernel is None:
-            poses, transforms = self.frame_poses(q)
-            absolute[...] = poses
-            relative[...] = np.array(transforms).reshape(-1, 7)
-            return absolute, relative
-        try:  # a float64 vector of the right length goes straight in
-            kernel.poses(q, absolute, relative)
-        except (ValueError, TypeError):  # a list, another dtype... or a wrong q: its error
-            kernel.poses(joint_value_vector(q, self.joint_names), absolute, relative)
-        return absolute, relative
+        """Return :meth:`frame_poses` as float64 arrays (``TreeKinematics``'s)."""
+        return self.kinematics.frame_pose_arrays(q, absolute, relative)
 
     def transform_pose_array(self, q: ArrayLike,
                              relative: np.ndarray | None = None) -> np.ndarray:
-        """
-        :meth:`transform_poses` as one float64 array ``(n_transforms, 7)``.
-
-        Fast path and reference as :meth:`frame_pose_arrays` (the kernel skips the absolute
-        poses' conversion).
-        """
-        if relative is None:
-            relative = np.empty((self.n_transforms, 7))
-        kernel = self._kernel_model
-        if kernel is None:
-            relative[...] = np.array(self.transform_poses(q)).reshape(-1, 7)
-            return relative
-        try:
-            kernel.poses(q, None, relative)
-        except (ValueError, TypeError):
-            kernel.poses(joint_value_vector(q, self.joint_names), None, relative)
-        return relative
+        """Return the TF transforms alone as one array (``TreeKinematics``'s)."""
+        return self.kinematics.transform_pose_array(q, relative)
 
     def frame_pose_arrays_batch(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-        """
-        :meth:`frame_pose_arrays` for N configurations: ``(N, n_frames, 7)``, ``(N, n, 7)``.
-
-        Fast path: the C kernel's ``Model``, configuration by configuration; reference: the
-        numpy batch (:meth:`forward_all_batch`, :meth:`relative_batch`), held equal by
-        test_kernel_tree.py's ``test_batches_equal_the_numpy_batch``.
-        """
-        kernel = self._kernel_model
-        if kernel is None:
-            return self._frame_pose_arrays_batch_reference(q)
-        q = np.ascontiguousarray(q, dtype=float)
-        if q.ndim != 2 or q.shape[1] != self.dof:
-            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
-                             f'got shape {q.shape}')
-        absolute = np.empty((len(q), len(self.frame_names), 7))
-        relative = np.empty((len(q), self.n_transforms, 7))
-        kernel.poses_batch(q, absolute, relative)
-        return absolute, relative
-
-    def _frame_pose_arrays_batch_reference(self, q):
-        """:meth:`frame_pose_arrays_batch` on numpy: the reference."""
-        absolute, relative = self._batch(q, relative=True)
-        return dq_to_pose_xyzw(absolute), dq_to_pose_xyzw(relative)
+        """Return :meth:`frame_pose_arrays` for N configurations (``TreeKinematics``'s)."""
+        return self.kinematics.frame_pose_arrays_batch(q)
 
     @property
     def n_transforms(self) -> int:
         """Count the TF transforms of :meth:`frame_poses`' relative: DH rows, then links."""
-        return sum(len(chain.joints) for _, chain, _ in self.chains) + len(self.links)
-
-    @cached_property
-    def _kernel_model(self):
-        """Copy the tree and its links into the C kernel once (None: the numpy path)."""
-        if KERNEL is None:
-            return None
-        index = {name: k for k, name in enumerate(self.frame_names)}
-        index[self.fixed_frame] = -1
-        chains = [(chain._kernel_chain, index[parent], np.array(q_map, dtype=float),
-                   np.array(chain._pose_rows, dtype=float).reshape(-1, 10),
-                   chain.convention == 'standard')
-                  for (parent, chain, _), q_map in zip(self.chains, self._q_maps)]
-        links = []
-        for attach, tf_parent, offset, motion in self._link_plan:
-            row = [float(attach), float(tf_parent), *offset]
-            if motion is None:
-                row += [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-            else:
-                prismatic, axis, k, multiplier, value = motion
-                row += [float(prismatic), *axis, float(k), multiplier, value]
-            links.append(row)
-        return KERNEL.Model(chains, np.array(links, dtype=float).reshape(-1, 17), self.dof)
-
-    def __getstate__(self):
-        """Pickle without the kernel's copy and the generated code (made again on use)."""
-        state = dict(self.__dict__)
-        for made in ('_kernel_model', '_unrolled', '_unrolled_transforms'):
-            state.pop(made, None)
-        return state
+        return self.kinematics.n_transforms
 
     def transform_poses(self, q: ArrayLike) -> list[Pose]:
-        """
-        Return the TF transforms of :meth:`frame_poses` alone (``relative``), at ``q``.
-
-        Computed without converting the absolute poses (for one chain without links, without
-        them at all: about half the work); the same values as :meth:`frame_poses`' to the
-        bit (``test_chains.py``).
-        """
-        if self.links or self.branches:
-            return self._unrolled_transforms(joint_value_list(q, self.joint_names))[1]
-        return self.chain.row_poses(q)
-
-    @cached_property
-    def _unrolled_transforms(self):
-        """:meth:`transform_poses` of a tree or links: ``frame_poses`` without the poses."""
-        return unrolled_frame_poses(self.chain, self._link_plan, _motion, self._branch_plan,
-                                    absolute=False)
+        """Return the TF transforms of :meth:`frame_poses` alone (``TreeKinematics``'s)."""
+        return self.kinematics.transform_poses(q)
 
     def forward_all(self, q: ArrayLike) -> np.ndarray:
-        """
-        Every frame of ``frame_names`` in the fixed frame: ``(n, 8)``, ``w >= 0``.
-
-        Fast path: the C kernel (a chain's, or the tree's ``Model``); reference: the numpy
-        batch of one configuration (:meth:`forward_all_batch`), test_kernel.py.
-        """
-        if self.links or self.branches:
-            kernel = self._kernel_model
-            if kernel is None:
-                return self.forward_all_batch(np.asarray(q, dtype=float)[None, :])[0]
-            out = np.empty((len(self.frame_names), 8))
-            kernel.frames(joint_value_vector(q, self.joint_names), out)
-            return out
-        return self.chain.forward_all(q)
+        """Every frame of ``frame_names`` in the fixed frame: ``(n, 8)``, ``w >= 0``."""
+        return self.kinematics.forward_all(q)
 
     def forward_all_batch(self, q: ArrayLike) -> np.ndarray:
         """Every frame of ``frame_names`` for N configurations: ``(N, n, 8)``, ``w >= 0``."""
-        absolute, _ = self._batch(q, relative=False)
-        return absolute
+        return self.kinematics.forward_all_batch(q)
 
     def end_effector_batch(self, q: ArrayLike) -> np.ndarray:
         """Return the end effector's pose for N configurations: ``(N, 8)``, ``w >= 0``."""
@@ -574,54 +376,13 @@ class RobotModel:
 
     def relative_batch(self, q: ArrayLike) -> np.ndarray:
         """``frame_poses``' relative transforms for N configurations: ``(N, rows + links, 8)``."""
-        _, relative = self._batch(q, relative=True)
-        return relative
+        return self.kinematics.relative_batch(q)
 
-    def _batch(self, q, relative):
-        chain = self.chain
-        q = np.asarray(q, dtype=float)
-        if q.ndim != 2 or q.shape[1] != self.dof:
-            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
-                             f'got shape {q.shape}')
-        absolute = chain.forward_all_batch(q[:, :chain.dof])
-        rel = chain.relative_all_batch(q[:, :chain.dof]) if relative else None
-        if not self.links and not self.branches:
-            return absolute, rel
-        n = absolute.shape[0]
-        frames = [absolute[:, k] for k in range(absolute.shape[1])]
-        rels = [rel] if relative else []
-        identity = np.broadcast_to(np.array(_IDENTITY), (n, 8))
-        for branch, parent, q_map in self._branch_plan:
-            q_branch = q[:, list(q_map)]
-            base = dq_multiply_array(frames[parent], np.array(branch._base_t)) if parent >= 0 \
-                else np.broadcast_to(np.array(branch._base_t), (n, 8))
-            columns = np.ascontiguousarray(q_branch.T)
-            out = run_chain_program(branch, tuple(base.T), columns, np.cos, np.sin)
-            frames += [np.stack(np.broadcast_arrays(*f), axis=-1) for f in out]
-            if relative:
-                rels.append(branch.relative_all_batch(q_branch))
-        extra = []
-        columns = q.T
-        for attach, tf_parent, offset, motion in self._link_plan:
-            offset = np.broadcast_to(np.array(offset), (n, 8))
-            if motion is not None:
-                offset = dq_multiply_array(offset, np.stack(
-                    np.broadcast_arrays(*_motion(motion, columns, np.cos, np.sin)), axis=-1))
-            pose = dq_multiply_array(frames[attach] if attach >= 0 else identity, offset)
-            frames.append(pose)
-            if relative:
-                if tf_parent == attach:
-                    extra.append(offset)
-                else:
-                    above = frames[tf_parent] if tf_parent >= 0 else identity
-                    extra.append(dq_multiply_array(above * _CONJUGATE, pose))
-        absolute = np.stack(frames, axis=1)
-        absolute[absolute[..., 0] < 0.0] *= -1.0
-        if relative:
-            if extra:
-                rels.append(np.stack(extra, axis=1))
-            rel = np.concatenate(rels, axis=1)
-        return absolute, rel
+    def __getstate__(self) -> dict:
+        """Pickle without the engine (made again on use, with its kernel copy)."""
+        state = dict(self.__dict__)
+        state.pop('kinematics', None)
+        return state
 
     def static_transforms(self) -> list[tuple[int, Pose]]:
         """``[(frame index, (x, y, z, qx, qy, qz, qw)), ...]``: every static TF transform."""
@@ -639,9 +400,6 @@ class RobotModel:
         return out
 
 
-_IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-
-
 def global_joint_names(chain: KinematicChain, branches: Sequence = (),
                        links: Sequence = ()) -> tuple[str, ...]:
     """Name the joints of ``q``: ``chain``'s, each branch's own, then the links' own."""
@@ -649,21 +407,6 @@ def global_joint_names(chain: KinematicChain, branches: Sequence = (),
     for branch in branches:
         names += [n for n in branch.chain.joint_names if n not in branch.external]
     return tuple(names) + tuple(link.joint for link in links if link.joint)
-
-
-def _motion(motion, q, cos, sin):
-    """Return the coefficients of a link's mimic motion at ``q`` (floats, or arrays)."""
-    prismatic, (ax, ay, az), k, multiplier, offset = motion
-    value = multiplier * q[k] + offset
-    zero = 0.0 * value
-    if prismatic:  # 1 + eps t/2
-        half = 0.5 * value
-        return (1.0 + zero, zero, zero, zero, zero, half * ax, half * ay, half * az)
-    c, s = cos(0.5 * value), sin(0.5 * value)
-    return (c, s * ax, s * ay, s * az, zero, zero, zero, zero)
-
-
-_CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 
 def pose_topic_name(frame: str) -> str:

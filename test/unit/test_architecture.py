@@ -160,6 +160,25 @@ def test_docs_architecture_names_every_module():
 
 
 MAX_MODULE_LINES = 500
+MAX_C_LINES = 800
+
+
+def c_sources():
+    """Yield the package's C files (sources and headers), relative to the package."""
+    for folder, _, names in os.walk(PACKAGE):
+        for name in sorted(names):
+            if name.endswith(('.c', '.h')):
+                yield os.path.relpath(os.path.join(folder, name), PACKAGE)
+
+
+def test_every_c_file_is_short_and_in_docs_architecture():
+    text = open(os.path.join(os.path.dirname(PACKAGE), 'docs', 'architecture.md'),
+                encoding='utf-8').read()
+    sizes = {rel: open(os.path.join(PACKAGE, rel), encoding='utf-8').read().count('\n')
+             for rel in c_sources()}
+    assert len(sizes) >= 2
+    assert [f'{rel} ({n} lines)' for rel, n in sizes.items() if n > MAX_C_LINES] == []
+    assert [rel for rel in sizes if f'`{rel}`' not in text] == []
 
 
 def test_a_long_module_says_why_in_its_docstring():

@@ -196,7 +196,7 @@ DUAL_ARM = parse_robot_description(open('config/dual_arm.yaml', encoding='utf-8'
 
 def model_parts(model):
     """Return the arguments RobotModel gives _kernel.Model, as lists one can break."""
-    kernel = model._kernel_model
+    kernel = model.kinematics._kernel_model
     assert kernel is not None
     index = {name: k for k, name in enumerate(model.frame_names)}
     index[model.fixed_frame] = -1
@@ -249,7 +249,7 @@ def test_a_model_survives_any_arguments(data):
     relative = np.empty((kernel.n_relative, 7))
     kernel.poses(np.zeros(model.dof), None, relative)  # the robot's own model is unchanged
     expected = np.empty_like(relative)
-    model._kernel_model.poses(np.zeros(model.dof), None, expected)
+    model.kinematics._kernel_model.poses(np.zeros(model.dof), None, expected)
     np.testing.assert_array_equal(relative, expected)
 
 

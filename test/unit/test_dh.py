@@ -342,7 +342,7 @@ def test_rows_without_names_get_numbered_joint_names():
 
 
 def test_batches_longer_than_one_chunk_equal_single_configurations():
-    from dq_fk_ros.kinematics.dh import BATCH_CHUNK
+    from dq_fk_ros.kinematics.chain_batches import BATCH_CHUNK
     chain = KinematicChain([DHJoint(a=0.3, alpha=0.5, name='j1'),
                             DHJoint(d=0.2, alpha=-0.4, name='j2', joint_type='prismatic')])
     q = np.random.default_rng(3).uniform(-1, 1, size=(BATCH_CHUNK + 3, 2))

@@ -167,7 +167,7 @@ def test_bad_input_is_refused_as_the_numpy_path_refuses_it():
 def test_the_kernel_model_refuses_what_it_cannot_use():
     from dq_fk_ros.kinematics import _kernel
     model = parse_robot_description(open('config/dual_arm.yaml', encoding='utf-8').read())
-    kernel = model._kernel_model
+    kernel = model.kinematics._kernel_model
     assert (kernel.n_frames, kernel.n_relative) == (len(model.frame_names), model.n_transforms)
     chain = model.chain
     good = (chain._kernel_chain, -1, np.array([0.0]),
@@ -230,7 +230,7 @@ def test_batches_equal_the_numpy_batch(text, data):
                               max_size=6))
     q = np.array(rows, dtype=float).reshape(len(rows), model.dof)
     absolute, relative = model.frame_pose_arrays_batch(q)
-    ref_absolute, ref_relative = model._frame_pose_arrays_batch_reference(q)
+    ref_absolute, ref_relative = model.kinematics.frame_pose_arrays_batch_reference(q)
     assert absolute.shape == (len(q), len(model.frame_names), 7)
     assert relative.shape == (len(q), model.n_transforms, 7)
     np.testing.assert_allclose(absolute, same_rotations(absolute, ref_absolute), rtol=0,
@@ -248,7 +248,8 @@ def test_batches_equal_the_numpy_batch(text, data):
 def test_a_batch_refuses_what_the_numpy_batch_refuses():
     model = parse_robot_description(open('config/dual_arm.yaml', encoding='utf-8').read())
     for bad in (np.zeros(model.dof), np.zeros((2, model.dof + 1)), np.zeros((2, 2, 2))):
-        for path in (model.frame_pose_arrays_batch, model._frame_pose_arrays_batch_reference):
+        for path in (model.frame_pose_arrays_batch,
+                     model.kinematics.frame_pose_arrays_batch_reference):
             with pytest.raises(ValueError, match=rf'expected an \(N, {model.dof}\) array'):
                 path(bad)
     empty = model.frame_pose_arrays_batch(np.zeros((0, model.dof)))
