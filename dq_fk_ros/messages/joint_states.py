@@ -7,9 +7,10 @@ in nanoseconds) and decides whether it is valid, keeps the last value of each jo
 never raises on bad input: it returns a :class:`MergeResult` saying what happened, and
 counts every outcome for diagnostics.
 
-Why this file is long: the merge rules in their three forms (a message, the short path for a
-repeated layout, arrays of messages) stay side by side: a change to one is a change to all
-three.
+The merge's three forms: a message (:meth:`JointStateMerger.merge`, the reference, with its
+short path for a repeated complete layout beside it), the compiled short path
+(:mod:`.joint_state_raw`) and arrays of messages (:mod:`.joint_state_batches`); their rules
+as constants in :mod:`.joint_state_rules`.
 """
 
 from collections import Counter
@@ -18,22 +19,12 @@ import math
 import operator
 from typing import Optional
 
-from dq_fk_ros.messages.cdr import COMPILED
+from dq_fk_ros.messages.joint_state_batches import merge_many
+from dq_fk_ros.messages.joint_state_raw import learn_layout, merge_raw
+from dq_fk_ros.messages.joint_state_rules import (  # noqa: F401 (the module's surface too)
+    INCOMPLETE, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH, REJECT_REASONS, REJECTED,
+    TIME_JUMP_BACK_NS)
 import numpy as np
-
-OUT_OF_LIMITS_POLICIES = ('warn', 'clamp', 'reject')
-# A stamp this far before the last accepted one is a time jump (a looping bag, a restarted
-# simulation): the merger resets. Smaller steps back are out-of-order messages and merge.
-TIME_JUMP_BACK_NS = 1_000_000_000
-# Unknown joint names are remembered (and reported) up to this many; later new names are
-# only counted (counts['unknown_names_unlisted']), so a flood of made-up names cannot grow
-# memory, logs or /diagnostics.
-MAX_UNKNOWN_LISTED = 20
-
-# Outcomes of a message, as counted in MergeResult.status / JointStateMerger.counts
-PUBLISH = 'publish'          # complete joint vector, to be published
-INCOMPLETE = 'incomplete'    # valid, but some joints were never seen yet
-REJECTED = 'rejected'        # malformed or refused; nothing of it was kept
 
 
 @dataclass
@@ -51,16 +42,6 @@ class MergeResult:
     missing: tuple = ()                  # joints never seen (status INCOMPLETE)
     out_of_limits: tuple = ()            # joints outside their limits (warn/clamp)
     time_jump: bool = False              # the stamp jumped back; state was reset first
-
-
-REJECT_REASONS = {
-    'empty': 'the message names no joints',
-    'length_mismatch': 'name, position and velocity arrays differ in length',
-    'duplicate_name': 'a joint is named twice',
-    'non_finite': 'a position is NaN or infinite',
-    'no_known_joint': 'none of its joints belong to this robot',
-    'out_of_limits': 'a joint is outside its limits (out_of_limits: reject)',
-}
 
 
 @dataclass
@@ -134,48 +115,17 @@ class JointStateMerger:
         self._q_out, self._qdot_out = np.empty(n), np.empty(n)
 
     def learn_layout(self, layout) -> None:
-        """
-        Take messages of ``layout`` by the compiled short path from now on (:meth:`merge_raw`).
-
-        :param layout: the parse cache's layout of the message just merged
-            (``JointStateNames.layout``); nothing happens unless it names the complete set
-            of joints :meth:`merge` takes its own short path for.
-        """
-        complete = self._complete_names
-        if COMPILED is None or layout is None or complete is None or layout.names != complete:
-            return  # (without the C reader every message takes merge())
-        order = self._complete_order
-        lower, upper = self._complete_bounds
-        if lower is None:
-            lower, upper = [-math.inf] * len(order), [math.inf] * len(order)
-        self.raw_reader = layout.compiled_reader(order, lower, upper, TIME_JUMP_BACK_NS)
-        self._raw_velocities = layout.velocities[1] > 0
+        """Take messages of ``layout`` by the compiled short path (``joint_state_raw``)."""
+        learn_layout(self, layout)
 
     def merge_raw(self, raw) -> Optional[tuple]:
         """
         Merge a serialized JointState of the learnt layout: ``(stamp_ns, q, qdot)`` or None.
 
-        The compiled short path of :meth:`merge` (the reference; test_joint_states.py's
-        ``test_the_compiled_path_merges_as_merge_does``): it takes a message only when
-        :meth:`merge` would publish it with nothing to report (the same frame id, names and
-        array lengths as the learnt layout; every position finite and within its limits,
-        every velocity finite; no jump back in time). None: nothing was done, call
-        :meth:`merge`. ``q`` and ``qdot`` (None without velocities) are the merger's
-        buffers, valid until the next merge.
+        The compiled short path of :meth:`merge` (:func:`.joint_state_raw.merge_raw`; None:
+        nothing was done, call :meth:`merge`).
         """
-        reader = self.raw_reader
-        if reader is None:
-            return None
-        last = self._last_stamp_ns
-        stamp_ns = reader.read(raw, last, self._q, self._qdot, self._q_out, self._qdot_out)
-        if stamp_ns is None:
-            return None
-        if stamp_ns:
-            self._last_stamp_ns = stamp_ns if last is None else max(stamp_ns, last)
-        counts = self.counts
-        counts['received'] += 1
-        counts[PUBLISH] += 1
-        return stamp_ns, self._q_out, self._qdot_out if self._raw_velocities else None
+        return merge_raw(self, raw)
 
     @property
     def never_seen(self) -> tuple:
@@ -219,154 +169,18 @@ class JointStateMerger:
         """
         Merge runs of messages, in order: the same outcome as one :meth:`merge` per message.
 
-        A run is ``(names, positions, velocities, stamps_ns)`` for k messages that share
-        ``names``: ``(k, len(names))`` positions, ``(k, len(names))`` or ``(k, 0)``
-        velocities, ``(k,)`` stamps (0: none). Runs may name different joints (several
-        publishers): each joint keeps its last accepted value, carried forward with numpy.
-        Returns ``(published, q, qdot)``: indices (into all the runs' messages, in order) of
-        the messages that completed the joint vector, their ``(p, dof)`` joint values and
-        ``(p, dof)`` velocities (a NaN row where :meth:`merge` gives no ``qdot``). Counts and
-        the merged state are updated as :meth:`merge` would; ``last_seen`` is then the
-        ``(p, dof)`` mask of joints that had a value at each published message.
+        The array version of :meth:`merge` (:func:`.joint_state_batches.merge_many`, held
+        equal by test_joint_states.py's ``test_merge_many_equals_merging_one_by_one``).
+        Returns ``(published, q, qdot)``; ``last_seen`` is then the ``(p, dof)`` mask of
+        joints that had a value at each published message.
         """
-        n = len(self.joint_names)
-        total = sum(len(run[3]) for run in runs)
-        given = np.zeros((total, n), bool)      # joint values an accepted message sets
-        values = np.zeros((total, n))
-        rates = np.full((total, n), math.nan)
-        accepted = np.zeros(total, bool)
-        stamps = np.zeros(total, np.int64)
-        # runs of one layout (several publishers interleave) are checked together
-        layouts = {}
-        at = 0
-        for names, positions, velocities, run_stamps in runs:
-            k = len(run_stamps)
-            key = (tuple(names), np.shape(positions)[1], np.shape(velocities)[1])
-            layouts.setdefault(key, []).append((at, positions, velocities))
-            stamps[at:at + k] = run_stamps
-            at += k
-        self.counts['received'] += total
-        for (names, _, n_vel), members in layouts.items():
-            rows = np.concatenate([np.arange(a, a + len(p)) for a, p, _ in members])
-            columns, joints = self._run_columns(names, members[0][1], members[0][2], len(rows))
-            if columns is None:
-                continue
-            q = np.concatenate([np.asarray(p, dtype=float) for _, p, _ in members])[:, columns]
-            ok = np.isfinite(q).all(axis=1)
-            self.count_rejected('non_finite', len(rows) - int(ok.sum()))
-            lower, upper = self.limits[joints, 0], self.limits[joints, 1]
-            if self.out_of_limits == 'reject':
-                inside = ((q >= lower) & (q <= upper)).all(axis=1)
-                self.count_rejected('out_of_limits', int((ok & ~inside).sum()))
-                ok &= inside
-            elif self.out_of_limits == 'clamp':
-                q = np.clip(q, lower, upper)
-            accepted[rows] = ok
-            taken = rows[ok][:, None]
-            given[taken, joints] = True
-            values[taken, joints] = q[ok]
-            if n_vel:
-                qdot = np.concatenate([np.asarray(v, dtype=float) for _, _, v in members])
-                qdot = qdot[:, columns]
-                bad_rate = ~np.isfinite(qdot).all(axis=1)  # dropped for the whole message
-                self.counts['velocities_non_finite'] += int((ok & bad_rate).sum())
-                rates[taken, joints] = np.where(bad_rate[:, None], math.nan, qdot)[ok]
-        stamped = np.flatnonzero(accepted & (stamps != 0))
-        jumps, last_stamp = self._track_stamps(stamps[stamped])
-        resets = stamped[jumps]
-        q_out, qdot_out = np.empty((total, n)), np.empty((total, n))
-        complete = np.zeros(total, bool)
-        self._seen_rows = []
-        bounds = zip(np.concatenate([[0], resets]), np.concatenate([resets, [total]]))
-        for segment, (a, b) in enumerate(bounds):
-            if segment:
-                self.reset()  # a time jump: merge() forgets everything first
-            self._carry_forward(given[a:b], values[a:b], rates[a:b], q_out[a:b],
-                                qdot_out[a:b], complete[a:b])
-        self._last_stamp_ns = last_stamp
-        published = np.flatnonzero(accepted & complete)
-        self.counts[PUBLISH] += len(published)
-        self.counts[INCOMPLETE] += int((accepted & ~complete).sum())
-        qdot = qdot_out[published]
-        # as merge: every required joint's velocity, or none
-        qdot[~np.isfinite(qdot[:, :self.required]).all(axis=1)] = math.nan
-        seen_rows = np.concatenate(self._seen_rows) if self._seen_rows else \
-            np.zeros((0, n), bool)
-        self.last_seen = seen_rows[published]
-        return published, q_out[published], qdot
-
-    def _run_columns(self, names, positions, velocities, k):
-        """
-        Columns of the chain's joints in k messages' arrays, and their chain indices.
-
-        Returns ``(None, None)`` (and counts the k rejections) when :meth:`merge` rejects
-        every message of this layout whatever its values; registers unknown joint names.
-        """
-        n_msg = len(names)
-        reason = None
-        if n_msg == 0:
-            reason = 'empty'
-        elif np.shape(positions)[1] != n_msg or np.shape(velocities)[1] not in (0, n_msg):
-            reason = 'length_mismatch'
-        elif len(set(names)) != n_msg:
-            reason = 'duplicate_name'
-        else:
-            self._note_unknown(names, times=k)
-            columns = [c for c, name in enumerate(names) if name in self._index]
-            if not columns and self._index:  # (a robot without joints takes any message)
-                reason = 'no_known_joint'
-        if reason is not None:
-            self.count_rejected(reason, k)
-            return None, None
-        return columns, [self._index[names[c]] for c in columns]
+        return merge_many(self, runs)
 
     def count_rejected(self, reason, count=1) -> None:
         """Count ``count`` messages rejected for ``reason`` (also ones rejected elsewhere)."""
         if count:
             self.counts['rejected'] += count
             self.counts['rejected_' + reason] += count
-
-    def _track_stamps(self, stamps):
-        """
-        Follow the last stamp through non-zero ``stamps`` as :meth:`merge` does.
-
-        Returns the positions in ``stamps`` of time jumps back (where merge resets) and
-        the last stamp after them all.
-        """
-        last = self._last_stamp_ns
-        jumps = []
-        at = 0
-        while at < len(stamps):
-            rest = stamps[at:]
-            before = np.concatenate([[rest[0] if last is None else last],
-                                     np.maximum.accumulate(rest)[:-1]])
-            if last is not None:
-                before = np.maximum(before, last)
-            back = np.flatnonzero(rest < before - TIME_JUMP_BACK_NS)
-            if not len(back):
-                last = int(max(before[-1], rest[-1]))
-                break
-            self.counts['time_jumps'] += 1
-            at += int(back[0])
-            jumps.append(at)
-            last = None
-        return np.array(jumps, dtype=np.int64), last
-
-    def _carry_forward(self, given, values, rates, q_out, qdot_out, complete):
-        """Fill each message's joint vector with the last given values, from the state."""
-        if not len(given):
-            return
-        steps = np.arange(len(given))[:, None]
-        last = np.maximum.accumulate(np.where(given, steps, -1), axis=0)
-        has = last >= 0
-        pick = (np.where(has, last, 0), np.arange(given.shape[1]))
-        q_out[:] = np.where(has, values[pick], self._q)
-        qdot_out[:] = np.where(has, rates[pick], self._qdot)
-        seen = has | np.array(self._seen, dtype=bool)
-        complete[:] = seen[:, :self.required].all(axis=1)
-        self._seen_rows.append(seen)
-        self._q, self._qdot, self._seen = q_out[-1].tolist(), qdot_out[-1].tolist(), \
-            seen[-1].tolist()
 
     def _reject(self, reason, detail=''):
         return MergeResult(REJECTED, reason=reason,

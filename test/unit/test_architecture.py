@@ -284,3 +284,21 @@ def test_a_reader_breach_would_be_found(tmp_path, monkeypatch):
         'bag/user.py:2 isinstance on a reader class',
         'bag/user.py:3 reader.note patched on a reader',
         'bag/user.py:4 self.reader.damage patched on a reader']
+
+
+# the domain classes a newcomer reads first hold data and rules; their engines live beside
+DOMAIN_CLASSES = {'description/robot_model.py': 'RobotModel',
+                  'kinematics/dh.py': 'KinematicChain',
+                  'messages/joint_states.py': 'JointStateMerger',
+                  'kinematics/tree_kinematics.py': 'TreeKinematics'}
+MAX_DOMAIN_CLASS_LINES = 300
+
+
+def test_the_domain_classes_stay_short():
+    sizes = {}
+    for rel, name in DOMAIN_CLASSES.items():
+        with open(os.path.join(PACKAGE, rel), encoding='utf-8') as stream:
+            tree = ast.parse(stream.read())
+        node = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == name)
+        sizes[name] = node.end_lineno - node.lineno + 1
+    assert {n: s for n, s in sizes.items() if s > MAX_DOMAIN_CLASS_LINES} == {}

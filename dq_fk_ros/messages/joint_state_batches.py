@@ -1,0 +1,169 @@
+"""
+Merging arrays of JointState messages at once: ``JointStateMerger.merge_many``'s engine.
+
+The same outcome as one ``JointStateMerger.merge`` per message (the reference;
+test_joint_states.py's ``test_merge_many_equals_merging_one_by_one``), for the bag tool's
+chunks: runs of one layout checked together, each joint's last accepted value carried
+forward with numpy, time jumps found in the stamps and the state reset there.
+"""
+
+from collections.abc import Sequence
+import math
+from typing import TYPE_CHECKING
+
+from dq_fk_ros.messages.joint_state_rules import INCOMPLETE, PUBLISH, TIME_JUMP_BACK_NS
+import numpy as np
+
+if TYPE_CHECKING:  # (joint_states.py imports this module)
+    from dq_fk_ros.messages.joint_states import JointStateMerger
+
+
+def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
+    """
+    Merge runs of messages, in order: the outcome of one ``merge`` per message.
+
+    A run is ``(names, positions, velocities, stamps_ns)`` for k messages that share
+    ``names``: ``(k, len(names))`` positions, ``(k, len(names))`` or ``(k, 0)``
+    velocities, ``(k,)`` stamps (0: none). Runs may name different joints (several
+    publishers): each joint keeps its last accepted value, carried forward with numpy.
+    Returns ``(published, q, qdot)``: indices (into all the runs' messages, in order) of
+    the messages that completed the joint vector, their ``(p, dof)`` joint values and
+    ``(p, dof)`` velocities (a NaN row where ``merge`` gives no ``qdot``). Counts and
+    the merged state are updated as ``merge`` would; ``last_seen`` is then the
+    ``(p, dof)`` mask of joints that had a value at each published message.
+    """
+    n = len(merger.joint_names)
+    total = sum(len(run[3]) for run in runs)
+    given = np.zeros((total, n), bool)      # joint values an accepted message sets
+    values = np.zeros((total, n))
+    rates = np.full((total, n), math.nan)
+    accepted = np.zeros(total, bool)
+    stamps = np.zeros(total, np.int64)
+    # runs of one layout (several publishers interleave) are checked together
+    layouts = {}
+    at = 0
+    for names, positions, velocities, run_stamps in runs:
+        k = len(run_stamps)
+        key = (tuple(names), np.shape(positions)[1], np.shape(velocities)[1])
+        layouts.setdefault(key, []).append((at, positions, velocities))
+        stamps[at:at + k] = run_stamps
+        at += k
+    merger.counts['received'] += total
+    for (names, _, n_vel), members in layouts.items():
+        rows = np.concatenate([np.arange(a, a + len(p)) for a, p, _ in members])
+        columns, joints = _run_columns(merger, names, members[0][1], members[0][2], len(rows))
+        if columns is None:
+            continue
+        q = np.concatenate([np.asarray(p, dtype=float) for _, p, _ in members])[:, columns]
+        ok = np.isfinite(q).all(axis=1)
+        merger.count_rejected('non_finite', len(rows) - int(ok.sum()))
+        lower, upper = merger.limits[joints, 0], merger.limits[joints, 1]
+        if merger.out_of_limits == 'reject':
+            inside = ((q >= lower) & (q <= upper)).all(axis=1)
+            merger.count_rejected('out_of_limits', int((ok & ~inside).sum()))
+            ok &= inside
+        elif merger.out_of_limits == 'clamp':
+            q = np.clip(q, lower, upper)
+        accepted[rows] = ok
+        taken = rows[ok][:, None]
+        given[taken, joints] = True
+        values[taken, joints] = q[ok]
+        if n_vel:
+            qdot = np.concatenate([np.asarray(v, dtype=float) for _, _, v in members])
+            qdot = qdot[:, columns]
+            bad_rate = ~np.isfinite(qdot).all(axis=1)  # dropped for the whole message
+            merger.counts['velocities_non_finite'] += int((ok & bad_rate).sum())
+            rates[taken, joints] = np.where(bad_rate[:, None], math.nan, qdot)[ok]
+    stamped = np.flatnonzero(accepted & (stamps != 0))
+    jumps, last_stamp = _track_stamps(merger, stamps[stamped])
+    resets = stamped[jumps]
+    q_out, qdot_out = np.empty((total, n)), np.empty((total, n))
+    complete = np.zeros(total, bool)
+    seen_rows = []
+    bounds = zip(np.concatenate([[0], resets]), np.concatenate([resets, [total]]))
+    for segment, (a, b) in enumerate(bounds):
+        if segment:
+            merger.reset()  # a time jump: merge() forgets everything first
+        _carry_forward(merger, given[a:b], values[a:b], rates[a:b], q_out[a:b],
+                       qdot_out[a:b], complete[a:b], seen_rows)
+    merger._last_stamp_ns = last_stamp
+    published = np.flatnonzero(accepted & complete)
+    merger.counts[PUBLISH] += len(published)
+    merger.counts[INCOMPLETE] += int((accepted & ~complete).sum())
+    qdot = qdot_out[published]
+    # as merge: every required joint's velocity, or none
+    qdot[~np.isfinite(qdot[:, :merger.required]).all(axis=1)] = math.nan
+    seen_rows = np.concatenate(seen_rows) if seen_rows else \
+        np.zeros((0, n), bool)
+    merger.last_seen = seen_rows[published]
+    return published, q_out[published], qdot
+
+
+def _run_columns(merger, names, positions, velocities, k):
+    """
+    Columns of the chain's joints in k messages' arrays, and their chain indices.
+
+    Returns ``(None, None)`` (and counts the k rejections) when ``JointStateMerger.merge`` rejects
+    every message of this layout whatever its values; registers unknown joint names.
+    """
+    n_msg = len(names)
+    reason = None
+    if n_msg == 0:
+        reason = 'empty'
+    elif np.shape(positions)[1] != n_msg or np.shape(velocities)[1] not in (0, n_msg):
+        reason = 'length_mismatch'
+    elif len(set(names)) != n_msg:
+        reason = 'duplicate_name'
+    else:
+        merger._note_unknown(names, times=k)
+        columns = [c for c, name in enumerate(names) if name in merger._index]
+        if not columns and merger._index:  # (a robot without joints takes any message)
+            reason = 'no_known_joint'
+    if reason is not None:
+        merger.count_rejected(reason, k)
+        return None, None
+    return columns, [merger._index[names[c]] for c in columns]
+
+
+def _track_stamps(merger, stamps):
+    """
+    Follow the last stamp through non-zero ``stamps`` as ``JointStateMerger.merge`` does.
+
+    Returns the positions in ``stamps`` of time jumps back (where merge resets) and
+    the last stamp after them all.
+    """
+    last = merger._last_stamp_ns
+    jumps = []
+    at = 0
+    while at < len(stamps):
+        rest = stamps[at:]
+        before = np.concatenate([[rest[0] if last is None else last],
+                                 np.maximum.accumulate(rest)[:-1]])
+        if last is not None:
+            before = np.maximum(before, last)
+        back = np.flatnonzero(rest < before - TIME_JUMP_BACK_NS)
+        if not len(back):
+            last = int(max(before[-1], rest[-1]))
+            break
+        merger.counts['time_jumps'] += 1
+        at += int(back[0])
+        jumps.append(at)
+        last = None
+    return np.array(jumps, dtype=np.int64), last
+
+
+def _carry_forward(merger, given, values, rates, q_out, qdot_out, complete, seen_rows):
+    """Fill each message's joint vector with the last given values, from the state."""
+    if not len(given):
+        return
+    steps = np.arange(len(given))[:, None]
+    last = np.maximum.accumulate(np.where(given, steps, -1), axis=0)
+    has = last >= 0
+    pick = (np.where(has, last, 0), np.arange(given.shape[1]))
+    q_out[:] = np.where(has, values[pick], merger._q)
+    qdot_out[:] = np.where(has, rates[pick], merger._qdot)
+    seen = has | np.array(merger._seen, dtype=bool)
+    complete[:] = seen[:, :merger.required].all(axis=1)
+    seen_rows.append(seen)
+    merger._q, merger._qdot, merger._seen = q_out[-1].tolist(), qdot_out[-1].tolist(), \
+        seen[-1].tolist()
