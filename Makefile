@@ -124,7 +124,11 @@ $(BENCH_VENV)/.stamp: requirements/bench.txt setup.py
 	  $(BENCH_VENV)/bin/python -m pip install --disable-pip-version-check --no-deps -e .
 	@touch $@
 
+# every benchmark records its figures (benchmarks/bench_results.py) for docs/performance.md
+BENCH_RESULTS = build/bench/results.jsonl
+bench: export DQ_FK_BENCH_JSON = $(abspath $(BENCH_RESULTS))
 bench: setup $(BENCH_VENV)/.stamp
+	@mkdir -p $(dir $(BENCH_RESULTS)) && rm -f $(BENCH_RESULTS)
 	@$(BENCH_VENV)/bin/python benchmarks/bench_core.py
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_node.py
@@ -152,6 +156,7 @@ bench: setup $(BENCH_VENV)/.stamp
 	@echo
 	@$(PY) benchmarks/bench_bag.py
 	@$(PY) benchmarks/bench_fleet.py
+	@$(PY) scripts/performance_doc.py $(BENCH_RESULTS) docs/performance.md
 
 mutate: setup
 	@$(PY) scripts/mutate.py

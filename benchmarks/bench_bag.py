@@ -22,6 +22,7 @@ import sys
 import tempfile
 import time
 
+from bench_results import figure
 from dq_fk_ros.ros.executables import executable
 import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
@@ -108,6 +109,8 @@ def main(argv=None):
           '| joint vectors written | output messages |')
     print('|---|---|---|---|---|---|---|---|---|')
     for n, storage, poses, shape, elapsed, rss, written in rows:
+        figure(f'{n:,} messages, {storage}, poses {poses}, {shape} input', round(n / elapsed),
+               'JointStates/s', group='dq_fk_bag process', show=False)
         per_input = 1 + {'all': 7, 'end': 1, 'none': 0}[poses]
         print(f'| {n:,} | {storage} | {poses} | {shape} | {elapsed:.1f} | {n / elapsed:,.0f} '
               f'| {rss:.0f} | {written:,} | {per_input} per vector + 1 /tf_static |')
@@ -116,8 +119,8 @@ def main(argv=None):
     for n, storage, poses, shape, elapsed, _, _ in rows:
         if (storage, poses, shape) == ('mcap', 'all', 'full'):
             rate = n / elapsed
-            print(f'- {n:,} messages, every topic to MCAP, one core: {rate:,.0f} JointStates/s '
-                  f"(target >= 400,000: {'met' if rate >= 400_000 else 'NOT met'})")
+            figure(f'{n:,} messages, every topic to MCAP, one core', round(rate),
+                   'JointStates/s', '>= 400,000', rate >= 400_000, group='dq_fk_bag process')
     return 0
 
 

@@ -22,6 +22,7 @@ import statistics
 import sys
 import time
 
+from bench_results import figure
 from dq_fk_ros.kinematics.chain_batches import forward_all_batch_reference, forward_batch_reference
 from dq_fk_ros.kinematics.dh import DHJoint, homogeneous_from_dq, KinematicChain
 from dq_fk_ros.kinematics.kernel import kernel_info
@@ -327,18 +328,18 @@ def print_targets(label, results, n_batch):
                 print(f'- single call, {what}, faster than {peer}: not measured (not installed)')
                 continue
             ratio = theirs[key] / ours[key]
-            print(f'- single call, {what}, faster than {peer}: {ratio:.2f}x '
-                  f"({'met' if ratio > 1 else 'NOT met'})")
+            figure(f'{label}: single call, {what}, faster than {peer}', round(ratio, 2), 'x',
+                   '> 1x', ratio > 1, group='the compiled kernel')
     for row, how in ((ours, 'a new array'), (results[1], "the caller's buffer")):
         all_us = row['all'] * 1e6
-        print(f'- single call, all frames, {how}, <= 0.5 us (aim): {all_us:.2f} us '
-              f"({'met' if all_us <= 0.5 else 'NOT met'})")
+        figure(f'{label}: single call, all frames, {how}', round(all_us, 2), 'us',
+               '<= 0.5 us (aim)', all_us <= 0.5, group='the compiled kernel')
     goals = (('batch_end', 'end effector', 20e6), ('batch_all', 'all frames', 5e6))
     for row, how in ((ours, 'new arrays'), (results[1], "caller's buffers")):
         for key, what, goal in goals:
             rate = n_batch / row[key]
-            print(f'- batch, {what}, {how}: {rate / 1e6:.1f} M cfg/s (target >= '
-                  f"{goal / 1e6:.0f} M: {'met' if rate >= goal else 'NOT met'})")
+            figure(f'{label}: batch, {what}, {how}', round(rate / 1e6, 1), 'M cfg/s',
+                   f'>= {goal / 1e6:.0f} M', rate >= goal, group='the compiled kernel')
 
 
 def main(argv=None):

@@ -33,6 +33,7 @@ import subprocess
 import sys
 import time
 
+from bench_results import figure
 from diagnostic_msgs.msg import DiagnosticArray
 from dq_fk_ros.ros.executables import executable
 from dq_fk_ros.ros.raw_input import OS_THREAD_NAME
@@ -367,35 +368,46 @@ def main(argv=None):
               'output published, node pinned to one core')
         print(f'sustained updates published: {rate:,.0f} per second, node CPU {cpu:.0f} % '
               f'of a core')
-    print_targets(rows, rate, args.robot == 'rl15', 'tiago_dual' in args.robot)
+    label = os.path.basename(str(args.robot)).replace('.urdf', '') + (
+        ', large shared-memory segment' if args.fastdds_profile else '')
+    print_targets(rows, rate, args.robot == 'rl15', 'tiago_dual' in args.robot, label)
     return 0
 
 
-def print_targets(rows, capacity_rate, rl15=True, tiago_dual=False):
+def print_targets(rows, capacity_rate, rl15=True, tiago_dual=False, label='rl15'):
     """Print the issues' targets beside the worst repetition measured (not asserted)."""
-    def verdict(ok):
-        return 'met' if ok else 'NOT met'
     print('\n# targets (issues "A node with headroom" for the RL15, "Every robot" for a tree: '
           'the 1 kHz row), worst repetition')
+    group = 'end to end'
+    for r in rows:  # every run, for the latency-against-rate plot (recorded, not printed)
+        for key in ('p50', 'p99'):
+            figure(f"{label}: {key} latency at {r['rate']:g} Hz", round(float(r[key]), 3), 'ms',
+                   group=group, show=False)
     at_1k = [r for r in rows if r['rate'] == 1000]
     if at_1k:
         lost = max(r['lost'] for r in at_1k)
         p99 = max(r['p99'] for r in at_1k)
         cpu = max(r['cpu'] for r in at_1k)
+        figure(f'{label}: 1 kHz, lost in the worst repetition', lost, 'messages', '0',
+               lost == 0, group=group, show=False)
+        figure(f'{label}: 1 kHz, p99 in the worst repetition', round(float(p99), 2), 'ms',
+               '< 5 ms', p99 < 5.0, group=group, show=False)
         print(f'- 1 kHz: 0 lost and p99 < 5 ms in every repetition: lost {lost}, p99 '
-              f'{p99:.2f} ms: {verdict(lost == 0 and p99 < 5.0)}')
+              f"{p99:.2f} ms: {'met' if lost == 0 and p99 < 5.0 else 'NOT met'}")
         if rl15:
-            print(f'- node CPU at 1 kHz <= 15 % of a core: {cpu:.1f} %: {verdict(cpu <= 15)}')
+            figure(f'{label}: node CPU at 1 kHz', round(cpu, 1), '% of a core', '<= 15 %',
+                   cpu <= 15, group=group)
         if tiago_dual:  # issue "Exactly robot_state_publisher's TF tree"
-            print(f'- tiago_dual, node CPU at 1 kHz <= 25 % of a core: {cpu:.1f} %: '
-                  f'{verdict(cpu <= 25)}')
+            figure(f'{label}: node CPU at 1 kHz', round(cpu, 1), '% of a core', '<= 25 %',
+                   cpu <= 25, group=group)
     at_5k = [r for r in rows if r['rate'] == 5000 and r['reliable']]
     if at_5k:
         lost = max(r['lost'] for r in at_5k)
-        print(f'- 5 kHz, reliable input: 0 lost: lost {lost}: {verdict(lost == 0)}')
+        figure(f'{label}: 5 kHz, reliable input, lost', lost, 'messages', '0', lost == 0,
+               group=group)
     if capacity_rate is not None:
-        print(f'- capacity >= 10 000 updates/s, every output: {capacity_rate:,.0f}/s: '
-              f'{verdict(capacity_rate >= 10000)}')
+        figure(f'{label}: capacity, every output', round(capacity_rate), 'updates/s',
+               '>= 10,000/s', capacity_rate >= 10000, group=group)
 
 
 if __name__ == '__main__':

@@ -19,6 +19,7 @@ import sys
 import tempfile
 import time
 
+from bench_results import figure
 from dq_fk_ros.bag.writer import BagWriter
 from dq_fk_ros.ros.executables import executable
 import numpy as np
@@ -131,31 +132,37 @@ def main(argv=None):
     s_many = rows['many, --jobs 1'][0] / rows['many, --jobs 2'][0]
     s_large = rows['large, --jobs 1'][0] / rows['large, --jobs 2'][0]
     print()
-    print(f'- {args.bags} bags, --jobs 2 over --jobs 1: {s_many:.2f}x (target >= 1.8x: '
-          f'{verdict(s_many >= 1.8)})')
-    print(f'- one {args.large:,}-message MCAP in windows, --jobs 2 over --jobs 1: '
-          f'{s_large:.2f}x (target >= 1.7x: {verdict(s_large >= 1.7)})')
+    for name, (seconds, _, messages, _) in rows.items():  # for the throughput plot
+        figure(f'{name}: throughput', round(messages / seconds), 'JointStates/s',
+               group='the fleet', show=False)
+    figure(f'{args.bags} bags, --jobs 2 over --jobs 1', round(s_many, 2), 'x', '>= 1.8x',
+           s_many >= 1.8, group='the fleet')
+    figure(f'one {args.large:,}-message MCAP in windows, --jobs 2 over --jobs 1',
+           round(s_large, 2), 'x', '>= 1.7x', s_large >= 1.7, group='the fleet')
     if 'many, --scheduler local' in rows:
         gap = rows['many, --scheduler local'][0] / rows['many, --jobs 2'][0] - 1.0
-        print(f'- --scheduler local against --jobs 2: {100 * gap:+.0f} % time (target within '
-              f'15 %: {verdict(gap <= 0.15)})')
+        figure('--scheduler local against --jobs 2', round(100 * gap), '% time',
+               'within 15 %', gap <= 0.15, group='the fleet')
     for label, names in (('process pool (--jobs)', [n for n in rows if '--jobs' in n]),
                          ('Dask LocalCluster', [n for n in rows if 'scheduler' in n])):
         if not names:
             continue
         peak = max(rows[n][1] for n in names)
         ratio = peak / one_bag[1]
-        print(f'- peak memory of any process, {label}: {peak:.0f} MiB, {ratio:.2f}x the '
-              f"one-bag command's {one_bag[1]:.0f} MiB (target <= 1.5x: "
-              f'{verdict(ratio <= 1.5)})')
+        figure(f"peak memory of any process, {label}, over the one-bag command's",
+               round(ratio, 2), 'x', '<= 1.5x', ratio <= 1.5, group='the fleet',
+               text=f'- peak memory of any process, {label}: {peak:.0f} MiB, {ratio:.2f}x the '
+                    f"one-bag command's {one_bag[1]:.0f} MiB (target <= 1.5x: "
+                    f'{verdict(ratio <= 1.5)})')
     # sizing a cluster: time(W) ~ startup + ceil(units / W) * (messages per unit / r + o)
     t1, t2 = rows['many, --jobs 1'][0], rows['many, --jobs 2'][0]
     startup = max(one_bag[0] - args.messages / (m_many / t1), 0.0)
     rate = args.messages / max(one_bag[0] - startup, 1e-9)
     per_unit = max((2 * t2 - t1) / args.bags, 0.0)
-    print(f'- per worker: {rate:,.0f} JointStates/s; coordination per unit (bag or window): '
-          f'{per_unit:.2f} s ((2 x time(--jobs 2) - time(--jobs 1)) / units); start-up '
-          f'{startup:.1f} s')
+    figure('per worker', round(rate), 'JointStates/s', group='the fleet',
+           text=f'- per worker: {rate:,.0f} JointStates/s; coordination per unit (bag or '
+                f'window): {per_unit:.2f} s ((2 x time(--jobs 2) - time(--jobs 1)) / units); '
+                f'start-up {startup:.1f} s')
     print('- predicted for 1000 bags of this size (time ~ start-up + ceil(bags / W) x '
           '(messages / rate + coordination)):')
     for workers in (2, 8, 32, 128):

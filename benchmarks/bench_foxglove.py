@@ -31,6 +31,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(HERE), 'test', 'integration'))
 sys.path.insert(0, HERE)
 from bench_e2e import cpu_seconds, start_node, start_publisher, stop  # noqa: E402
 from bench_node import example_robot_data  # noqa: E402
+from bench_results import figure  # noqa: E402
 from dq_fk_ros.ros.executables import executable  # noqa: E402, I100
 from foxglove_client import FoxgloveClient  # noqa: E402 (the tests' spec-written client)
 
@@ -175,6 +176,11 @@ def main(argv=None):
             what = 'every channel' if everything else "a 3D panel's"
             print(f'| {name} | {what} | {tf:.1f} | {joints:.1f} | {pose:.1f} | {cpu:.1f} '
                   f'| <= {TARGET_CPU:g} %: {verdict} | {floor:.1f} |', flush=True)
+            figure(f'{name}, {what}: dq_fk_foxglove CPU at 1 kHz', round(cpu, 1),
+                   '% of a core', f'<= {TARGET_CPU:g} %', cpu <= TARGET_CPU,
+                   group='dq_fk_foxglove', show=False)
+            figure(f'{name}, {what}: the floor (a bare rclpy subscriber)', round(floor, 1),
+                   '% of a core', group='dq_fk_foxglove', show=False)
     return 0
 
 

@@ -32,6 +32,7 @@ import subprocess
 import sys
 import time
 
+from bench_results import figure
 from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
 from dq_fk_ros.ros.conversions import joint_state_fields
 from dq_fk_ros.ros.node import DqFkNode
@@ -259,15 +260,26 @@ def main(argv=None):
     # issue "A compiled kernel": every output, no subscriber (RL15 <= 5 us, tiago_dual <= 20)
     kernel_goal = {'rl15': 5.0}.get(args.robot) or (
         20.0 if 'tiago_dual' in str(args.robot) or 'tiago_dual' in model.name else None)
+    print()
+    for key, label in rows:
+        best = sorted(results[key])[0][0]
+        if key in limits:
+            figure(f'{model.name}: {label.strip()}', round(best, 1), 'us per update',
+                   f'<= {limits[key]:g} us', best <= limits[key], group='the node')
+        else:
+            figure(f'{model.name}: {label.strip()}', round(best, 2), 'us', group='the node',
+                   show=False)
     if kernel_goal is not None:
         best = sorted(results['all'])[0][0]
-        verdict = 'met' if best <= kernel_goal else 'NOT met'
-        print(f'\n- every output, no subscriber, {model.name}: {best:.1f} us (issue "A '
-              f'compiled kernel" target <= {kernel_goal:g} us: {verdict})')
+        figure(f'{model.name}: every output, no subscriber (issue "A compiled kernel")',
+               round(best, 1), 'us per update', f'<= {kernel_goal:g} us', best <= kernel_goal,
+               group='the node')
     floor = sorted(results['publish_one'])[0][0]
-    print(f'\n- the floor: rclpy publishes one message (bytes) in {floor:.2f} us here; every '
-          f'output ({1 + len(every_frame)} messages) costs at least '
-          f'{floor * (1 + len(every_frame)):.1f} us in publish calls alone')
+    figure(f'{model.name}: rclpy publishes one message (bytes), the floor', round(floor, 2),
+           'us', group='the node',
+           text=f'- the floor: rclpy publishes one message (bytes) in {floor:.2f} us here; '
+                f'every output ({1 + len(every_frame)} messages) costs at least '
+                f'{floor * (1 + len(every_frame)):.1f} us in publish calls alone')
     return 0
 
 

@@ -201,10 +201,9 @@ class RobotModel:
         mask = np.zeros(len(index), dtype=bool)
         for branch, (_, chain, _) in zip((None,) + self.branches, self.chains):
             external = branch.external if branch is not None else ()
-            for j in chain.joints:
-                if j.joint_type in ('revolute', 'cylindrical') and not j.follows and \
-                        j.name not in external:
-                    mask[index[j.name]] = True
+            for name, angle in zip(chain.joint_names, chain._angular):
+                if angle and name not in external:
+                    mask[index[name]] = True
         for link in self.links:
             if link.joint and link.motion[0] == 'revolute':
                 mask[index[link.joint]] = True

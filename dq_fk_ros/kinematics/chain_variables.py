@@ -20,6 +20,7 @@ class ChainVariables(NamedTuple):
     limits: np.ndarray      # (dof, 2), rad or m; +-inf: none given
     theta_index: np.ndarray  # per row: the variable its theta reads, -1: constant
     d_index: np.ndarray      # per row: the variable its d reads, -1: constant
+    angular: np.ndarray      # per variable: True for an angle (a theta, rad), else m
 
 
 def chain_variables(joints: Sequence) -> ChainVariables:
@@ -28,7 +29,7 @@ def chain_variables(joints: Sequence) -> ChainVariables:
 
     Raises ``ValueError`` for a name used twice or a row following an unknown joint.
     """
-    names, limits = [], []
+    names, limits, angles = [], [], set()
     theta_map, d_map = {}, {}
 
     def add(name, lim):
@@ -52,6 +53,8 @@ def chain_variables(joints: Sequence) -> ChainVariables:
             t_i = add(default, lim[0])
             d_i = add(j.d_name or default + '_d', lim[1])
         theta_map[i], d_map[i] = t_i, d_i
+        if t_i >= 0:
+            angles.add(t_i)
     # rows that follow another joint read that joint's variable
     for i, j in enumerate(joints):
         if not j.follows:
@@ -65,4 +68,5 @@ def chain_variables(joints: Sequence) -> ChainVariables:
     n = len(joints)
     return ChainVariables(tuple(names), np.array(limits, dtype=float).reshape(-1, 2),
                           np.array([theta_map[i] for i in range(n)], dtype=int),
-                          np.array([d_map[i] for i in range(n)], dtype=int))
+                          np.array([d_map[i] for i in range(n)], dtype=int),
+                          np.array([k in angles for k in range(len(names))], dtype=bool))

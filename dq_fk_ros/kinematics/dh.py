@@ -169,6 +169,7 @@ class KinematicChain:
         variables = chain_variables(self.joints)
         self.joint_names, self.limits = variables.names, variables.limits
         self._theta_index, self._d_index = variables.theta_index, variables.d_index
+        self._angular = variables.angular
         self._a = np.array([j.a for j in self.joints])
         self._alpha = np.array([j.alpha for j in self.joints])
         self._d0 = np.array([j.d for j in self.joints])

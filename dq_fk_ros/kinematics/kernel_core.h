@@ -1,8 +1,8 @@
 /*
  * What both of the kernel's types use: sizes checked for overflow, float64 buffers taken
  * from Python, state set once, the dual-quaternion product and a chain's program run for one
- * configuration (dh_code.run_program, the reference). Static inline: each translation unit
- * inlines them, as the single file did.
+ * configuration (dh_code.run_program, the reference). Each translation unit gets its own copy
+ * (KERNEL_SHARED).
  */
 #ifndef DQ_FK_KERNEL_CORE_H
 #define DQ_FK_KERNEL_CORE_H
@@ -13,8 +13,13 @@
 
 #include "kernel_layout.h"
 
+/* static, as in one file: each translation unit gets its copy and the compiler decides what
+ * to inline, as it did when the kernel was one file (an inline hint on run() made the Model
+ * 9 % slower: it was inlined into model_run); unused: not every file calls every one */
+#define KERNEL_SHARED static __attribute__((unused))
+
 /* a * b into *r, unless negative or past PY_SSIZE_T_MAX: 0, else -1 */
-static inline int mul_size(Py_ssize_t a, Py_ssize_t b, Py_ssize_t *r)
+KERNEL_SHARED int mul_size(Py_ssize_t a, Py_ssize_t b, Py_ssize_t *r)
 {
     if (a < 0 || b < 0 || (b != 0 && a > PY_SSIZE_T_MAX / b))
         return -1;
@@ -23,7 +28,7 @@ static inline int mul_size(Py_ssize_t a, Py_ssize_t b, Py_ssize_t *r)
 }
 
 /* a + b into *r, likewise */
-static inline int add_size(Py_ssize_t a, Py_ssize_t b, Py_ssize_t *r)
+KERNEL_SHARED int add_size(Py_ssize_t a, Py_ssize_t b, Py_ssize_t *r)
 {
     if (a < 0 || b < 0 || a > PY_SSIZE_T_MAX - b)
         return -1;
@@ -32,7 +37,7 @@ static inline int add_size(Py_ssize_t a, Py_ssize_t b, Py_ssize_t *r)
 }
 
 /* A C-contiguous float64 buffer (writable if asked); else a Python error, view->obj NULL. */
-static inline int take(PyObject *obj, Py_buffer *view, int writable, const char *what)
+KERNEL_SHARED int take(PyObject *obj, Py_buffer *view, int writable, const char *what)
 {
     int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
     if (PyObject_GetBuffer(obj, view, flags) < 0) {
@@ -51,16 +56,16 @@ static inline int take(PyObject *obj, Py_buffer *view, int writable, const char 
     return 0;
 }
 
-static inline void let_go(Py_buffer *view)
+KERNEL_SHARED void let_go(Py_buffer *view)
 {
     if (view->obj)
         PyBuffer_Release(view);
 }
 
-static inline Py_ssize_t count(Py_buffer *v) { return v->len / 8; }
+KERNEL_SHARED Py_ssize_t count(Py_buffer *v) { return v->len / 8; }
 
 /* refuse a second __init__: the state of these types is set once, in __new__ */
-static inline int set_once(PyObject *self, int *initialised)
+KERNEL_SHARED int set_once(PyObject *self, int *initialised)
 {
     if (*initialised) {
         PyErr_Format(PyExc_TypeError, "a %s is set once, when it is made; make a new one",
@@ -72,7 +77,7 @@ static inline int set_once(PyObject *self, int *initialised)
 }
 
 /* Check the program against the number of joint values: every index in range. */
-static inline int check_program(const double *p, Py_ssize_t n_ops, Py_ssize_t dof)
+KERNEL_SHARED int check_program(const double *p, Py_ssize_t n_ops, Py_ssize_t dof)
 {
     for (Py_ssize_t i = 0; i < n_ops; i++) {
         const double *op = p + i * OP_FIELDS;
@@ -90,7 +95,7 @@ static inline int check_program(const double *p, Py_ssize_t n_ops, Py_ssize_t do
     return 0;
 }
 
-static inline Py_ssize_t marks(const double *p, Py_ssize_t n_ops)
+KERNEL_SHARED Py_ssize_t marks(const double *p, Py_ssize_t n_ops)
 {
     Py_ssize_t m = 0;
     for (Py_ssize_t i = 0; i < n_ops; i++)
@@ -99,7 +104,7 @@ static inline Py_ssize_t marks(const double *p, Py_ssize_t n_ops)
 }
 
 /* a * b, [Zivkovic2023] eq. (12), in dq_multiply_coeffs' order of terms */
-static inline void multiply(const double *a, const double *b, double *o)
+KERNEL_SHARED void multiply(const double *a, const double *b, double *o)
 {
     double r0 = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
     double r1 = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
@@ -116,7 +121,7 @@ static inline void multiply(const double *a, const double *b, double *o)
     o[0] = r0; o[1] = r1; o[2] = r2; o[3] = r3; o[4] = d0; o[5] = d1; o[6] = d2; o[7] = d3;
 }
 
-static inline void canonical(double *h)
+KERNEL_SHARED void canonical(double *h)
 {
     if (h[0] < 0.0)
         for (int k = 0; k < 8; k++) h[k] = -h[k];
@@ -126,7 +131,7 @@ static inline void canonical(double *h)
  * Run the program from base at q; write frame 0, every marked frame, then base*tool, into
  * out (8 doubles each); only the last one if end_only. As run_program, step by step.
  */
-static inline void run(const double *prog, Py_ssize_t n_ops, const double *base, const double *tool,
+KERNEL_SHARED void run(const double *prog, Py_ssize_t n_ops, const double *base, const double *tool,
                 const double *q, double *out, int end_only, int canon)
 {
     double aw = base[0], ax = base[1], ay = base[2], az = base[3];

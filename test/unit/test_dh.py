@@ -357,3 +357,15 @@ def test_a_row_following_an_unknown_joint_is_named_by_its_number():
     with pytest.raises(ValueError, match=re.escape(
             "row 2 follows unknown joint 'ghost'; joints are ['j1']")):
         KinematicChain([DHJoint(name='j1'), DHJoint(follows='ghost')])
+
+
+def test_the_variables_read_as_angles_are_the_revolute_and_cylindrical_thetas():
+    from dq_fk_ros.kinematics.chain_variables import chain_variables
+    rows = [DHJoint(name='a'), DHJoint(joint_type='prismatic', name='b'),
+            DHJoint(joint_type='cylindrical', name='c'),
+            DHJoint(joint_type='revolute', follows='b'), DHJoint(joint_type='fixed')]
+    variables = chain_variables(rows)
+    assert variables.names == ('a', 'b', 'c', 'c_d')
+    assert variables.angular.tolist() == [True, False, True, False]  # b stays a length
+    assert variables.theta_index.tolist() == [0, -1, 2, 1, -1]
+    assert variables.d_index.tolist() == [-1, 1, 3, -1, -1]
