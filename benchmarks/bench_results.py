@@ -36,6 +36,8 @@ def figure(what, value, unit, target=None, met=None, text=None, group='', show=T
     :param group: a heading the figure belongs under (a robot, a table), '' for none.
     :param show: print the line (False: a figure already printed in a table, recorded only).
     """
+    value = value.item() if hasattr(value, 'item') else value  # a numpy scalar
+    met = None if met is None else bool(met)
     if text is None:
         shown = f'{value:,.2f}'.rstrip('0').rstrip('.') if isinstance(value, float) \
             else f'{value:,}'

@@ -42,6 +42,24 @@ def shown(value):
     return f'{value:,}'
 
 
+def with_unit(record):
+    """Return a figure with its unit (``2.09x``, ``4.12 ms``)."""
+    unit = record['unit']
+    return f"{shown(record['value'])}{unit}" if unit == 'x' else \
+        f"{shown(record['value'])} {unit}".rstrip()
+
+
+def plotted(record):
+    """Say whether a figure is drawn in one of the plots (and so left out of the tables)."""
+    return bool(re.search(r': p(50|99) latency at [0-9.]+ Hz$', record['what'])) or \
+        record['what'].endswith(': throughput')
+
+
+def heading(group):
+    """Return a group's heading: capitalised, except a program's name."""
+    return group if group.startswith('dq_fk') else group[0].upper() + group[1:]
+
+
 def verdict(record):
     """Return the met column: met, NOT met, or a dash for a figure without a target."""
     if record.get('target') is None:
@@ -58,27 +76,29 @@ def group_tables(records):
     for group, members in groups.items():
         if not members:
             continue
-        out.append(f'## {group[0].upper()}{group[1:]}\n')
+        out.append(f'## {heading(group)}\n')
         commands = list(OrderedDict.fromkeys(r['command'] for r in members))
         out.append('Printed by ' + ', '.join(f'`{c}`' for c in commands) + '.\n')
         targeted = [r for r in members if r.get('target') is not None]
-        measured = [r for r in members if r.get('target') is None]
+        measured = [r for r in members if r.get('target') is None and not plotted(r)]
+        drawn = sum(plotted(r) for r in members)
         if targeted:
             out.append('| figure | measured | target | |')
             out.append('|---|---|---|---|')
             for r in targeted:
-                out.append(f"| {r['what']} | {shown(r['value'])} {r['unit']} | {r['target']} "
-                           f'| {verdict(r)} |')
+                out.append(f"| {r['what']} | {with_unit(r)} | {r['target']} | {verdict(r)} |")
             out.append('')
         if measured and len(measured) <= 40:
             out.append('| also measured (no target) | |')
             out.append('|---|---|')
             for r in measured:
-                out.append(f"| {r['what']} | {shown(r['value'])} {r['unit']} |")
+                out.append(f"| {r['what']} | {with_unit(r)} |")
             out.append('')
         elif measured:
-            out.append(f'({len(measured)} more figures without a target are in the plots and '
-                       f'in the results file.)\n')
+            out.append(f'({len(measured)} more figures without a target are in the results '
+                       f'file.)\n')
+        if drawn:
+            out.append(f'({drawn} figures of every run are drawn in the plots above.)\n')
     return '\n'.join(out)
 
 
@@ -110,14 +130,16 @@ def write_plots(records, folder):
     series = latency_series(records)
     if series:
         fig, ax = plt.subplots(figsize=(6, 3.6), dpi=100)
-        for label, by_rate in series.items():
+        for k, (label, by_rate) in enumerate(series.items()):
+            color = f'C{k}'
             rates = sorted(by_rate)
-            for k in range(max(len(v) for v in by_rate.values())):
-                points = [(rate, by_rate[rate][k]) for rate in rates if k < len(by_rate[rate])]
-                ax.plot(*zip(*points), marker='o', alpha=0.8,
-                        label=label if k == 0 else None)
+            for rate in rates:  # every repetition a point, the median joined by a line
+                ax.scatter([rate] * len(by_rate[rate]), by_rate[rate], color=color, s=14,
+                           alpha=0.7)
+            medians = [sorted(by_rate[r])[len(by_rate[r]) // 2] for r in rates]
+            ax.plot(rates, medians, color=color, marker='o', label=f'{label} (median)')
         ax.axhline(5.0, color='grey', linestyle='--', linewidth=1, label='target p99 5 ms')
-        ax.set(xscale='log', yscale='log', xlabel='JointState rate (Hz)',
+        ax.set(xscale='log', ylim=(0, None), xlabel='JointState rate (Hz)',
                ylabel='p99 latency (ms)', title='end to end: p99 latency against rate')
         ax.legend(fontsize=7)
         fig.tight_layout()

@@ -48,6 +48,16 @@ def test_a_figure_prints_its_line_and_records_it(tmp_path, monkeypatch, capsys):
     assert records[2]['target'] is None and records[0]['command'].startswith('.venv/bin/python')
 
 
+def test_numpy_figures_are_recorded_as_plain_numbers(tmp_path, monkeypatch, capsys):
+    import numpy as np
+    path = tmp_path / 'results.jsonl'
+    monkeypatch.setenv(bench_results.RESULTS_VARIABLE, str(path))
+    bench_results.figure('lost', np.int64(0), 'messages', '0', np.bool_(True))
+    bench_results.figure('p99', np.float64(2.5), 'ms', '< 5 ms', np.float64(2.5) < 5.0)
+    records = [json.loads(line) for line in path.read_text().splitlines()]
+    assert [(r['value'], r['met']) for r in records] == [(0, True), (2.5, True)]
+
+
 def test_without_a_results_file_nothing_is_written(tmp_path, monkeypatch, capsys):
     monkeypatch.delenv(bench_results.RESULTS_VARIABLE, raising=False)
     bench_results.figure('x', 1, 'us', '<= 2 us', True)
