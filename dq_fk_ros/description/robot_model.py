@@ -21,8 +21,8 @@ or, for a tree, ``chains: [{parent, base, chain, tool}, ...]`` instead of base/c
 The model holds metres and radians only (REP 103), and the rules of names and sizes every
 robot follows (frame ids as tf2 takes them, joint names, limits).
 
-Why this file is long: the model's evaluation paths (straight-line code, the general
-reference, batches) for a tree of chains stay together: they must agree to the bit.
+Its forward kinematics are those of :class:`~dq_fk_ros.kinematics.tree_kinematics.
+TreeKinematics` (``RobotModel.kinematics``), which holds the fast paths and their references.
 """
 
 from collections.abc import Sequence

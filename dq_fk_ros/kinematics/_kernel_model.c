@@ -278,7 +278,7 @@ static void row_pose(const double *r, const double *q, int standard, double *p)
 }
 
 /* Every frame's coefficients into self->coeffs (not made w >= 0); the TF transforms into
- * relative (7 per transform) unless NULL. As RobotModel.frame_poses_general. */
+ * relative (7 per transform) unless NULL. As TreeKinematics.frame_poses_general. */
 static void model_run(ModelObject *self, const double *q, double *relative)
 {
     double *coeffs = self->coeffs, *qc = self->q_chain;
