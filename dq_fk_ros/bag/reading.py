@@ -40,8 +40,11 @@ def _is_mcap_file(path: str) -> bool:
 def _is_ros1_file(path: str) -> bool:
     if not os.path.isfile(path):
         return False
-    with open(path, 'rb') as f:
-        return f.read(13) == b'#ROSBAG V2.0\n'
+    try:
+        with open(path, 'rb') as f:
+            return f.read(13) == b'#ROSBAG V2.0\n'
+    except OSError as exc:  # a file that cannot be read (a device, /proc): say which
+        raise BagError(f'{path}: cannot be read ({exc.strerror or exc})') from None
 
 
 def _open_mcap_file(path: str) -> BagReader:

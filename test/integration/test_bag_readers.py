@@ -74,6 +74,9 @@ def test_the_registry_ends_with_rosbag2_and_refuses_what_no_format_reads(tmp_pat
         open_reader(tmp_path / 'notes.txt')
     with pytest.raises(BagError, match='no such bag'):
         open_reader(tmp_path / 'missing')
+    # a file whose read fails (this process's memory at offset 0): one line naming it
+    with pytest.raises(BagError, match=r'^/proc/self/mem: cannot be read \(Input/output error\)$'):
+        open_reader('/proc/self/mem')
 
 
 def test_a_time_span_is_read_alike_by_every_adapter(tmp_path):
