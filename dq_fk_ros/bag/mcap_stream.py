@@ -30,6 +30,7 @@ from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
 from dq_fk_ros.bag.mcap_format import (
     KNOWN_OPCODES, MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER,
     OP_HEADER, OP_MESSAGE, OP_MESSAGE_INDEX, OP_METADATA, OP_SCHEMA)
+from dq_fk_ros.bag.reader_interface import BatchesFromMessages
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.errors import BagError
 from rosbags.interfaces import (
@@ -89,7 +90,7 @@ def open_stream_bag(files, path, why) -> 'McapStreamBag':
         raise BagError(f'{path}: cannot be read ({exc})') from None
 
 
-class McapStreamBag:
+class McapStreamBag(BatchesFromMessages):
     """
     The messages of one or more MCAP files, read in file order (no index needed).
 

@@ -115,36 +115,37 @@ class BagOutputs:
             moving = np.array([np.concatenate(helpers.moving_poses(row)) for row in q])
         stamps_ns, log_times_ns = np.asarray(stamps_ns), np.asarray(log_times_ns)
         channels = [self.poses[i] for i in self.base_poses]
-        payloads = [self.pose_templates[i].fill(stamps_ns, absolute[:, self.pose_frames[i]])
-                    for i in self.base_poses]
-        tf = list(self._tf_payloads(relative, moving, stamps_ns, seen))
+        templates = [self.pose_templates[i] for i in self.base_poses]
+        values = [absolute[:, self.pose_frames[i]] for i in self.base_poses]
+        tf = list(self._tf_values(relative, moving, seen))
         if len(tf) == 1 and tf[0][0] is None:  # every message the same transforms
             channels.insert(0, self.tf)  # interleaved: each message's /tf, then its poses
-            payloads.insert(0, tf[0][1])
+            templates.insert(0, tf[0][1])
+            values.insert(0, tf[0][2])
         else:
-            for rows, payload in tf:
-                self.writer.write_rows([self.tf], log_times_ns[rows], [payload])
+            for rows, template, tf_values in tf:
+                self.writer.write_templates([self.tf], log_times_ns[rows], stamps_ns[rows],
+                                            [template], [tf_values])
         if channels:
-            self.writer.write_rows(channels, log_times_ns, payloads)
+            self.writer.write_templates(channels, log_times_ns, stamps_ns, templates, values)
         for columns, poses in self.pose_groups:
             rows = np.ones(n, bool) if seen is None else seen[:, columns].all(axis=1)
             if rows.any():
-                self.writer.write_rows(
-                    [self.poses[i] for i in poses], log_times_ns[rows],
-                    [self.pose_templates[i].fill(stamps_ns[rows],
-                                                 absolute[rows, self.pose_frames[i]])
-                     for i in poses])
+                self.writer.write_templates(
+                    [self.poses[i] for i in poses], log_times_ns[rows], stamps_ns[rows],
+                    [self.pose_templates[i] for i in poses],
+                    [absolute[rows, self.pose_frames[i]] for i in poses])
         return end
 
-    def _tf_payloads(self, relative, moving, stamps_ns, seen):
+    def _tf_values(self, relative, moving, seen):
         """
-        Yield ``(rows, serialized /tf rows)``: the moving transforms whose joints are known.
+        Yield ``(rows, template, values)``: the moving transforms whose joints are known.
 
         The node's rule and order (:meth:`OutputPlan.shown_edges`, :meth:`OutputPlan.tf_edges`):
         messages whose states know the same joints share one template; ``rows`` is None
         when that is every message of the chunk.
         """
-        plan, n = self.plan, len(stamps_ns)
+        plan, n = self.plan, len(relative)
         if not self._gated or seen is None:
             patterns, inverse = [np.ones(len(self._gated), bool)], None
         else:
@@ -168,7 +169,7 @@ class BagOutputs:
             values = relative[picked][:, [r for _, r in edges]].reshape(count, -1)
             if moving is not None:
                 values = np.concatenate([values, moving[picked]], axis=1)
-            yield rows, template.fill(stamps_ns[picked], values)
+            yield rows, template, values
 
     def copy(self, conn, time_ns, raw) -> None:
         """Copy an input message through unchanged."""

@@ -20,7 +20,7 @@ from dq_fk_ros.bag.text import printable
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
-from dq_fk_ros.messages.cdr import JointStateNames, JointStateRun, parse_joint_states
+from dq_fk_ros.messages.cdr import JointStateNames, JointStateRun, parse_joint_state_spans
 from dq_fk_ros.messages.joint_states import JointStateMerger
 import numpy as np
 
@@ -322,15 +322,43 @@ def _process_with(reader, model, in_path, out_path, o, window=None):
     return summary
 
 
-def _merge_raws(merger, cache, raws):
+def _merge_spans(merger, cache, data, starts, lengths):
     """Parse and merge serialized JointStates (the node's rules); return the runs and merge."""
-    items = parse_joint_states(raws, cache)
+    items = parse_joint_state_spans(data, starts, lengths, cache)
     runs = [item for item in items if isinstance(item, JointStateRun)]
     malformed = len(items) - len(runs)
     merger.counts['received'] += malformed
     merger.count_rejected('malformed_cdr', malformed)
     return runs, merger.merge_many(
         [(r.names, r.positions, r.velocities, r.stamps_ns) for r in runs])
+
+
+class _Pending:
+    """JointStates read and not yet computed: pieces of batches, joined when flushed."""
+
+    def __init__(self):
+        self.pieces, self.count = [], 0
+
+    def add(self, batch, rows) -> None:
+        """Add the messages ``rows`` (a mask or None: all) of a :class:`MessageBatch`."""
+        if rows is None:
+            self.pieces.append((batch.data, batch.starts, batch.lengths, batch.log_times))
+            self.count += len(batch)
+            return
+        self.pieces.append((batch.data, batch.starts[rows], batch.lengths[rows],
+                            batch.log_times[rows]))
+        self.count += int(np.count_nonzero(rows))
+
+    def take(self) -> tuple:
+        """Return ``(data, starts, lengths, log_times)`` of everything pending, and forget it."""
+        pieces, self.pieces, self.count = self.pieces, [], 0
+        if len(pieces) == 1:
+            return pieces[0]
+        data = b''.join(bytes(d) for d, _, _, _ in pieces)
+        shift = np.cumsum([0] + [len(d) for d, _, _, _ in pieces[:-1]])
+        return (data, np.concatenate([s + k for (_, s, _, _), k in zip(pieces, shift)]),
+                np.concatenate([n for _, _, n, _ in pieces]),
+                np.concatenate([t for _, _, _, t in pieces]))
 
 
 def _look_back(reader, conns, model, out_of_limits, chunk, window):
@@ -344,15 +372,10 @@ def _look_back(reader, conns, model, out_of_limits, chunk, window):
     for start in window.lookback_ns:
         merger = JointStateMerger(model.joint_names, model.limits, out_of_limits,
                                   required=len(model.required_joints))
-        cache, raws = JointStateNames(), []
-        for _, _, raw in reader.messages(connections=conns, start=start,
-                                         stop=window.start_ns):
-            raws.append(raw)
-            if len(raws) == chunk:
-                _merge_raws(merger, cache, raws)
-                raws = []
-        if raws:
-            _merge_raws(merger, cache, raws)
+        cache = JointStateNames()
+        for batch in reader.message_batches(connections=conns, start=start,
+                                            stop=window.start_ns, size=chunk):
+            _merge_spans(merger, cache, batch.data, batch.starts, batch.lengths)
         if not merger.never_seen_any:
             break
     jumps = merger.counts['time_jumps']
@@ -370,13 +393,13 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
         merger = JointStateMerger(model.joint_names, model.limits, out_of_limits,
                                   required=len(model.required_joints))
     cache = JointStateNames()
-    ids = {c.id for c in conns}
+    ids = np.array(sorted(c.id for c in conns), np.int64)
     meter = Progress(sum(c.msgcount for c in conns), 'dq_fk_bag process', enabled=progress)
     # the CSV file is closed whatever happens (an exception from a damaged bag included)
     with open(csv_path, 'w', encoding='utf-8') if csv_path else nullcontext() as csv:
         if csv:
             csv.write('stamp_ns,x,y,z,qx,qy,qz,qw\n')
-        raws, log_times = [], []
+        pending = _Pending()
         seen = written = 0
         error = None
         stopped = False
@@ -385,22 +408,21 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
         def flush():
             """Parse, merge (the node's rules), compute and write the collected messages."""
             nonlocal written
-            if not raws:
+            if not pending.count:
                 return
-            counted = len(raws)
-            runs, (published, q, _) = _merge_raws(merger, cache, raws)
+            counted = pending.count
+            data, starts, lengths, log_times = pending.take()
+            runs, (published, q, _) = _merge_spans(merger, cache, data, starts, lengths)
             for run in runs:
                 if len(names_seen) < 50:
                     names_seen.extend(n for n in run.names if n not in names_seen)
             # message index in this batch of every run message, in merge order
             where = np.concatenate([r.first + np.arange(len(r.stamps_ns)) for r in runs] or [[]])
             where = where.astype(np.int64)[published]
-            out_times = np.array(log_times, dtype=np.int64)[where]
+            out_times = np.asarray(log_times, dtype=np.int64)[where]
             stamps = np.concatenate([r.stamps_ns for r in runs] or [[]])
             stamps = stamps.astype(np.int64)[published]
             stamps = np.where(stamps != 0, stamps, out_times)  # output stamps are input stamps
-            raws.clear()
-            log_times.clear()
             if _progress_counter is not None:
                 with _progress_counter.get_lock():
                     _progress_counter.value += counted
@@ -418,25 +440,26 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
             written += len(q)
 
         span = {} if window is None else {'start': window.start_ns, 'stop': window.stop_ns}
-        messages = iter(reader.messages(
-            connections=list(reader.connections) if copy_input else conns, **span))
+        batches = iter(reader.message_batches(
+            connections=list(reader.connections) if copy_input else conns, size=chunk, **span))
         while True:
             try:
-                conn, log_time, raw = next(messages)
+                batch = next(batches)
             except StopIteration:
                 break
             except Exception as exc:  # a truncated or corrupt bag: keep everything read so far
                 error = f'{in_path}: reading stopped after {seen} JointState messages: {exc}'
                 stopped = True
                 break
+            rows = None
             if copy_input:
-                outputs.copy(conn, log_time, raw)
-            if conn.id not in ids:
-                continue
-            seen += 1
-            raws.append(raw)
-            log_times.append(log_time)
-            if len(raws) == chunk:
+                by_id = {c.id: c for c in reader.connections}
+                for i, cid in enumerate(batch.connection_ids.tolist()):
+                    outputs.copy(by_id[cid], int(batch.log_times[i]), batch.raw(i))
+                rows = np.isin(batch.connection_ids, ids)
+            pending.add(batch, rows)
+            seen += len(batch) if rows is None else int(np.count_nonzero(rows))
+            if pending.count >= chunk:
                 flush()
                 meter.update(seen)
         flush()

@@ -5,11 +5,40 @@ The adapters (``rosbag2_reader``, ``mcap_stream``, ``ros1_bag``) import this mod
 registry of formats that picks one (:mod:`dq_fk_ros.bag.reading`) imports them.
 """
 
+from dataclasses import dataclass
 import os
 import re
 from typing import Iterator, Optional, Protocol, runtime_checkable, Sequence
 
+import numpy as np
+
 JOINT_STATE = 'sensor_msgs/msg/JointState'
+BATCH = 4096    # messages a batch
+
+
+@dataclass
+class MessageBatch:
+    """
+    Messages in reading order, their bytes back to back in ``data`` (no object per message).
+
+    ``connection_ids``, ``log_times``, ``starts``, ``lengths``: ``(n,)`` int64: the id of
+    each message's connection, its log time (ns), where its bytes start in ``data``, how many.
+    """
+
+    connection_ids: np.ndarray
+    log_times: np.ndarray
+    data: bytes
+    starts: np.ndarray
+    lengths: np.ndarray
+
+    def __len__(self) -> int:
+        """Return the number of messages."""
+        return len(self.log_times)
+
+    def raw(self, i: int) -> memoryview:
+        """Return message ``i``'s bytes."""
+        start = int(self.starts[i])
+        return memoryview(self.data)[start:start + int(self.lengths[i])]
 
 
 @runtime_checkable
@@ -35,11 +64,56 @@ class BagReader(Protocol):
                  stop: Optional[int] = None) -> Iterator[tuple]:
         """Yield ``(connection, log_time_ns, raw CDR bytes)``, ``start <= t < stop``."""
 
+    def message_batches(self, connections: Optional[Sequence] = None,
+                        start: Optional[int] = None, stop: Optional[int] = None,
+                        size: int = BATCH) -> Iterator[MessageBatch]:
+        """Yield the same messages as :meth:`messages`, ``size`` a batch (the last fewer)."""
+
     def fallback(self) -> Optional['BagReader']:
         """Return a reader of the same bag that skips damage (rosbags stopped), or None."""
 
     def close(self) -> None:
         """Release the bag's files."""
+
+
+class BatchesFromMessages:
+    """
+    ``message_batches`` made from ``messages``: for the adapters that read a message at a time.
+
+    The reference of a reader's own batches (:class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`).
+    """
+
+    def message_batches(self, connections=None, start=None, stop=None,
+                        size=BATCH) -> Iterator[MessageBatch]:
+        """
+        Yield :meth:`messages` ``size`` at a time as :class:`MessageBatch` es.
+
+        A reading that fails hands on the messages read before it, then raises.
+        """
+        ids, times, raws = [], [], []
+        try:
+            for conn, log_time, raw in self.messages(connections, start, stop):
+                ids.append(conn.id)
+                times.append(log_time)
+                raws.append(raw)
+                if len(raws) == size:
+                    yield batch_of(ids, times, raws)
+                    ids, times, raws = [], [], []
+        except Exception:
+            if raws:
+                yield batch_of(ids, times, raws)
+            raise
+        if raws:
+            yield batch_of(ids, times, raws)
+
+
+def batch_of(ids, log_times, raws) -> MessageBatch:
+    """Return the :class:`MessageBatch` of messages given one by one."""
+    lengths = np.fromiter(map(len, raws), np.int64, len(raws))
+    starts = np.zeros(len(raws), np.int64)
+    np.cumsum(lengths[:-1], out=starts[1:])
+    return MessageBatch(np.array(ids, np.int64), np.array(log_times, np.int64),
+                        b''.join(raws), starts, lengths)
 
 
 def mcap_folder_files(folder) -> list:

@@ -13,7 +13,7 @@ whose message is one line.
 
 from dataclasses import dataclass
 import os
-from typing import Callable
+from typing import Callable, Optional
 
 from dq_fk_ros.bag.reader_interface import BagReader, JOINT_STATE, mcap_folder_files
 from dq_fk_ros.bag.text import printable
@@ -25,12 +25,18 @@ __all__ = ['BagFormat', 'BagReader', 'FORMATS', 'JOINT_STATE', 'bag_format',
 
 @dataclass(frozen=True)
 class BagFormat:
-    """One input format: its name, whether a path is one, and its adapter's opener."""
+    """
+    One input format: its name, whether a path is one, and its adapter's opener.
+
+    ``reference``: the opener of the reference reader of the format, where it has a faster
+    one (None: ``opener`` is the reference).
+    """
 
     name: str
     what: str
     matches: Callable[[str], bool]
     opener: Callable[[str], BagReader]
+    reference: Optional[Callable[[str], BagReader]] = None
 
 
 def _is_mcap_file(path: str) -> bool:
@@ -62,11 +68,16 @@ def _open_rosbag2(path: str) -> BagReader:
     return open_rosbag2(path)
 
 
+def _open_rosbag2_reference(path: str) -> BagReader:
+    from dq_fk_ros.bag.rosbag2_reader import open_rosbag2
+    return open_rosbag2(path, reference=True)
+
+
 FORMATS = (
     BagFormat('mcap', 'a bare .mcap file', _is_mcap_file, _open_mcap_file),
     BagFormat('ros1', 'a ROS 1 .bag file', _is_ros1_file, _open_ros1),
     BagFormat('rosbag2', 'a rosbag2 folder (MCAP or sqlite3)', lambda path: True,
-              _open_rosbag2),
+              _open_rosbag2, _open_rosbag2_reference),
 )
 
 
@@ -76,9 +87,13 @@ def bag_format(path) -> BagFormat:
     return next(f for f in FORMATS if f.matches(path))
 
 
-def open_reader(path) -> BagReader:
+def open_reader(path, reference=False) -> BagReader:
     """
     Open a bag for reading with its format's adapter (:data:`FORMATS`).
+
+    An intact rosbag2 MCAP folder is read a chunk at a time
+    (:class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`); ``reference``: with rosbags'
+    reader instead, the reference it is held equal to.
 
     A rosbag2 folder rosbags cannot open (no ``metadata.yaml``, no MCAP summary: a
     recording that did not stop cleanly), one whose MCAP summary fails its CRC, and a bare
@@ -91,7 +106,8 @@ def open_reader(path) -> BagReader:
     path = os.fspath(path)
     if not os.path.lexists(path):
         raise BagError(f'{path}: no such bag')
-    return bag_format(path).opener(path)
+    fmt = bag_format(path)
+    return (fmt.reference if reference and fmt.reference else fmt.opener)(path)
 
 
 def joint_state_connections(reader: BagReader, path, topic=None) -> list:

@@ -3,12 +3,12 @@
 import struct
 from typing import Iterator, Optional
 
-from dq_fk_ros.bag.reader_interface import JOINT_STATE
+from dq_fk_ros.bag.reader_interface import BatchesFromMessages, JOINT_STATE
 from dq_fk_ros.bag.text import one_line
 from dq_fk_ros.errors import BagError
 
 
-class Ros1Bag:
+class Ros1Bag(BatchesFromMessages):
     """
     A ROS 1 bag, with its JointState messages converted to ROS 2 CDR as they are read.
 

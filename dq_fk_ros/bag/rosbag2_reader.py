@@ -3,20 +3,27 @@ A rosbag2 folder (MCAP or sqlite3) read with rosbags: the reference reader.
 
 :func:`open_rosbag2` opens it as a :class:`~dq_fk_ros.bag.reader_interface.BagReader`; a folder
 rosbags cannot open, or whose MCAP summary fails its CRC, is read record by record instead
-(:class:`~dq_fk_ros.bag.mcap_stream.McapStreamBag`), with a note saying so.
+(:class:`~dq_fk_ros.bag.mcap_stream.McapStreamBag`), with a note saying so. An intact MCAP
+folder is read a chunk at a time (:class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`) unless
+the reference is asked for.
 """
 
 import os
 from typing import Iterator, Optional
 
 from dq_fk_ros.bag.mcap_stream import open_stream_bag, summary_intact
-from dq_fk_ros.bag.reader_interface import BagReader, mcap_folder_files
+from dq_fk_ros.bag.reader_interface import BagReader, BatchesFromMessages, mcap_folder_files
 from dq_fk_ros.bag.text import one_line
 from dq_fk_ros.errors import BagError
 
 
-def open_rosbag2(path: str) -> BagReader:
-    """Open a rosbag2 folder with rosbags, or record by record where rosbags cannot."""
+def open_rosbag2(path: str, reference: bool = False) -> BagReader:
+    """
+    Open a rosbag2 folder with rosbags, or record by record where rosbags cannot.
+
+    :param reference: read an intact MCAP folder with rosbags' reader itself (else a chunk
+        at a time, :class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`, in rosbags' order).
+    """
     from rosbags.rosbag2 import Reader
     try:
         reader = Reader(path)
@@ -36,7 +43,26 @@ def open_rosbag2(path: str) -> BagReader:
         reader.close()
         return open_stream_bag(mcaps, path, f'the summary of {os.path.basename(damaged[0])} '
                                             f'fails its CRC')
-    return Rosbag2Reader(reader, path, mcaps)
+    rosbags = Rosbag2Reader(reader, path, mcaps)
+    files = None if reference else _chunked_files(reader)
+    if not files:
+        return rosbags
+    from dq_fk_ros.bag.mcap_chunks import ChunkDamaged, McapChunkReader
+    try:
+        return McapChunkReader(rosbags, files)
+    except (ChunkDamaged, OSError, ValueError):  # left to rosbags, which says what it finds
+        return open_rosbag2(path, reference=True)
+
+
+def _chunked_files(reader):
+    """Return the MCAP files rosbags reads, in its order, if chunks may be read whole."""
+    storages = getattr(getattr(reader, 'storage', None), 'storages', None)
+    if not storages or reader.compression_mode in ('message', 'file'):
+        return None  # per-message or whole-file compression: rosbags' own path
+    paths = [getattr(s, 'path', None) for s in storages]
+    if not all(p is not None and str(p).endswith('.mcap') for p in paths):
+        return None
+    return [str(p) for p in paths]
 
 
 def _summary_intact(path):
@@ -47,7 +73,7 @@ def _summary_intact(path):
         return False
 
 
-class Rosbag2Reader:
+class Rosbag2Reader(BatchesFromMessages):
     """
     rosbags' ``Reader`` of an intact rosbag2 folder, as a ``BagReader``.
 

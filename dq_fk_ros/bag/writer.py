@@ -8,15 +8,22 @@ one Python call per message: ``dq_fk_bag process`` writes eight messages per joi
 given as K ``(N, size)`` uint8 arrays of serialized messages (fixed size per connection, as
 :class:`~dq_fk_ros.messages.cdr.CdrTemplate` makes them), written interleaved in time order.
 
-* :class:`McapChunkStorage` encodes MCAP (https://mcap.dev/spec, ``ros2`` profile) itself:
-  the message records of a chunk, and their message indexes, are built with numpy. Chunks
-  are uncompressed with CRC-32s, the summary has schemas, channels, chunk indexes,
+* :class:`McapChunkStorage` encodes MCAP (https://mcap.dev/spec, ``ros2`` profile) itself.
+  :meth:`BagWriter.write_templates` serializes a batch of fixed-layout messages straight
+  into whole chunks in C (``_mcap.Rows``: message records from the templates and the
+  values); its reference is the numpy path of :meth:`McapChunkStorage.write_rows`
+  (``CdrTemplate.fill`` and numpy records; test_mcap_chunks.py holds the two files equal
+  byte for byte). Every chunk has zlib's CRC-32 of its records and is uncompressed, or
+  ``zstd``/``lz4`` when asked; the data section's CRC is left 0 (optional in the spec, and
+  what rosbag2's own MCAP writer leaves). The summary has schemas, channels, chunk indexes,
   statistics and the ``rosbag2`` metadata record, as rosbag2's MCAP storage writes them.
   Channels carry ``offered_qos_profiles`` and ``topic_type_hash``, which rosbag2 reads back.
 * :class:`Sqlite3BulkStorage` is rosbags' sqlite3 storage with ``executemany``.
 """
 
+from functools import partial
 from importlib.metadata import PackageNotFoundError, version
+import os
 import struct
 import zlib
 
@@ -29,7 +36,15 @@ from rosbags.interfaces import MessageDefinitionFormat
 from rosbags.rosbag2 import CompressionMode, StoragePlugin, Writer, WriterError
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
+try:
+    from dq_fk_ros.bag import _mcap as COMPILED
+except ImportError:  # no C compiler at install: the numpy path runs
+    COMPILED = None
+if os.environ.get('DQ_FK_PURE_PYTHON'):
+    COMPILED = None
+
 CHUNK_BYTES = 1 << 20          # close a chunk once its records exceed this (rosbags: 1 MiB)
+COMPRESSIONS = ('none', 'zstd', 'lz4')   # dq_fk_bag process --compression
 
 MESSAGE_HEADER_BYTES = 31      # opcode u8, length u64, channel u16, sequence u32, 2 x time u64
 _U16, _U32, _U64 = struct.Struct('<H'), struct.Struct('<I'), struct.Struct('<Q')
@@ -65,13 +80,22 @@ class McapChunkStorage:
     a chunk closes at :data:`CHUNK_BYTES`, before rows are written, and at the end.
     """
 
-    def __init__(self, path, compression):
-        """Create ``<path>/<name>.mcap`` and write the magic and the header record."""
-        if compression != CompressionMode.NONE:
-            raise WriterError('the MCAP chunk storage writes uncompressed chunks only')
+    def __init__(self, path, compression, chunk_compression='none'):
+        """
+        Create ``<path>/<name>.mcap`` and write the magic and the header record.
+
+        :param chunk_compression: ``none``, ``zstd`` or ``lz4``: how chunks are compressed
+            (rosbags' ``compression`` mode is NONE, or STORAGE with one of the two).
+        """
+        if chunk_compression not in COMPRESSIONS:
+            raise WriterError(f'chunk compression {chunk_compression!r}: one of '
+                              f'{", ".join(COMPRESSIONS)}')
+        if compression not in (CompressionMode.NONE, CompressionMode.STORAGE):
+            raise WriterError('the MCAP chunk storage compresses chunks, not files or messages')
+        self.compression = '' if chunk_compression == 'none' else chunk_compression
         self.path = path / f'{path.name}.mcap'
         self.file = self.path.open('xb')
-        self.data_crc = 0
+        self._rows_made = {}         # (channel ids, template ids) -> (_mcap.Rows, templates)
         self.schemas = []            # record bodies, for the summary
         self.schema_ids = {}         # msgtype -> schema id
         self.channels = []           # record bodies, for the summary
@@ -85,7 +109,6 @@ class McapChunkStorage:
 
     def _emit(self, data):
         self.file.write(data)
-        self.data_crc = zlib.crc32(data, self.data_crc)
 
     def add_msgtype(self, connection) -> None:
         """Write the schema record of a message type (``ros2msg`` or ``ros2idl``)."""
@@ -157,6 +180,54 @@ class McapChunkStorage:
                 index[cid] = (t, np.arange(m, dtype='<u8') * row_bytes + start)
             self._write_chunk(block, int(t.min()), int(t.max()), index)
 
+    def write_templates(self, channel_ids, log_times_ns, stamps_ns, templates, values) -> None:
+        """
+        Write message i of every channel for every i from templates, in whole chunks.
+
+        As :meth:`write_rows` of ``template.fill(stamps_ns, value)`` per channel; in C
+        (``_mcap.Rows``) where it is built and every template's float runs have one width,
+        no ``(N, size)`` array made per channel.
+
+        :param templates: K :class:`~dq_fk_ros.messages.cdr.CdrTemplate` s.
+        :param values: K ``(N, floats of template k)`` float64 arrays (rows at any stride).
+        """
+        rows = self._rows(channel_ids, templates)
+        if rows is None:
+            self.write_rows(channel_ids, log_times_ns, [
+                t.fill(stamps_ns, v) for t, v in zip(templates, values)])
+            return
+        self._close_pending()
+        times = np.ascontiguousarray(log_times_ns, dtype=np.int64)
+        stamps = np.ascontiguousarray(stamps_ns, dtype=np.int64)
+        values = [np.asarray(v, dtype=np.float64) for v in values]
+        row_bytes = rows.row_bytes
+        per_chunk = max(1, CHUNK_BYTES // row_bytes)
+        for lo in range(0, len(times), per_chunk):
+            t = times[lo:lo + per_chunk]
+            m = len(t)
+            block = np.empty(m * row_bytes, np.uint8)
+            rows.fill(block, stamps[lo:lo + m], t, [v[lo:lo + m] for v in values])
+            steps = np.arange(m, dtype=np.int64) * row_bytes
+            index = {cid: (t, steps + at) for cid, at in zip(channel_ids, rows.offsets)}
+            self._write_chunk(block, int(t.min()), int(t.max()), index)
+
+    def _rows(self, channel_ids, templates):
+        """Return the compiled writer of these channels' templates (made once), or None."""
+        if COMPILED is None:
+            return None
+        key = (tuple(channel_ids), tuple(map(id, templates)))
+        made = self._rows_made.get(key)
+        if made is None:
+            widths = [{count for _, count in t.floats} for t in templates]
+            rows = None
+            if all(len(w) == 1 for w in widths):
+                rows = COMPILED.Rows(channel_ids, [bytes(t.buf) for t in templates],
+                                     [t.stamps for t in templates],
+                                     [[at for at, _ in t.floats] for t in templates],
+                                     [w.pop() for w in widths])
+            made = self._rows_made[key] = (rows, templates)   # (the templates kept alive)
+        return made[0]
+
     def _close_pending(self):
         if not self._pending:
             return
@@ -174,10 +245,12 @@ class McapChunkStorage:
         records = memoryview(records).cast('B')
         size = len(records)
         chunk_start = self.file.tell()
+        crc = zlib.crc32(records)
+        stored = _compress(records, self.compression)
         head = (_U64.pack(start_ns) + _U64.pack(end_ns) + _U64.pack(size)
-                + _U32.pack(zlib.crc32(records)) + _string('') + _U64.pack(size))
-        self._emit(bytes((OP_CHUNK,)) + _U64.pack(len(head) + size) + head)
-        self._emit(records)
+                + _U32.pack(crc) + _string(self.compression) + _U64.pack(len(stored)))
+        self._emit(bytes((OP_CHUNK,)) + _U64.pack(len(head) + len(stored)) + head)
+        self._emit(stored)
         index_start = self.file.tell()
         offsets = []
         for cid, (times, positions) in index.items():
@@ -191,8 +264,8 @@ class McapChunkStorage:
         self.chunk_indexes.append(
             _U64.pack(start_ns) + _U64.pack(end_ns) + _U64.pack(chunk_start)
             + _U64.pack(index_start - chunk_start) + _U32.pack(len(offsets_map)) + offsets_map
-            + _U64.pack(self.file.tell() - index_start) + _string('') + _U64.pack(size)
-            + _U64.pack(size))
+            + _U64.pack(self.file.tell() - index_start) + _string(self.compression)
+            + _U64.pack(len(stored)) + _U64.pack(size))
         self.start_ns = start_ns if self.start_ns is None else min(self.start_ns, start_ns)
         self.end_ns = end_ns if self.end_ns is None else max(self.end_ns, end_ns)
 
@@ -204,7 +277,7 @@ class McapChunkStorage:
         self._emit(_record(OP_METADATA, _string('rosbag2')
                            + _string_map([('serialized_metadata', metadata)])))
         metadata_length = self.file.tell() - metadata_start
-        self._emit(_record(OP_DATA_END, _U32.pack(self.data_crc)))
+        self._emit(_record(OP_DATA_END, _U32.pack(0)))   # no data section CRC (optional)
 
         summary = bytearray()
         groups = []
@@ -244,6 +317,20 @@ class McapChunkStorage:
         self.file.close()
 
 
+def _compress(records, compression):
+    """Return a chunk's records as stored: as they are, or compressed whole."""
+    if not compression:
+        return records
+    if compression == 'zstd':
+        try:
+            from compression import zstd
+        except ImportError:  # before Python 3.14: the backport (a dependency of rosbags)
+            from backports import zstd
+        return zstd.compress(records)
+    import lz4.frame
+    return lz4.frame.compress(records)
+
+
 class Sqlite3BulkStorage(Sqlite3Writer):
     """rosbags' sqlite3 storage, plus :meth:`write_rows` with one ``executemany``."""
 
@@ -255,6 +342,11 @@ class Sqlite3BulkStorage(Sqlite3Writer):
         self.cursor.executemany(
             'INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)', rows)
 
+    def write_templates(self, channel_ids, log_times_ns, stamps_ns, templates, values) -> None:
+        """:meth:`write_rows` of ``template.fill(stamps_ns, value)`` per channel."""
+        self.write_rows(channel_ids, log_times_ns,
+                        [t.fill(stamps_ns, v) for t, v in zip(templates, values)])
+
 
 class BagWriter(Writer):
     """
@@ -262,15 +354,27 @@ class BagWriter(Writer):
 
     :param path: the bag folder to create.
     :param storage: ``'mcap'`` or ``'sqlite3'``.
+    :param compression: MCAP chunks ``'none'``, ``'zstd'`` or ``'lz4'`` (as rosbag2's MCAP
+        storage compresses: chunk by chunk, ``metadata.yaml`` naming no compression).
     """
 
     STORAGE_PLUGINS = {StoragePlugin.MCAP: McapChunkStorage,
                        StoragePlugin.SQLITE3: Sqlite3BulkStorage}
 
-    def __init__(self, path, storage='mcap'):
+    def __init__(self, path, storage='mcap', compression='none'):
         """Prepare a version 9 bag of the given storage; :meth:`open` creates it."""
         plugins = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
+        if compression not in COMPRESSIONS:
+            raise WriterError(f'compression {compression!r}: one of {", ".join(COMPRESSIONS)}')
+        if compression != 'none' and storage != 'mcap':
+            raise WriterError(f'{storage} bags are written uncompressed; compression is for '
+                              f'MCAP chunks')
         super().__init__(path, version=9, storage_plugin=plugins[storage])
+        if compression != 'none':
+            self.STORAGE_PLUGINS = dict(self.STORAGE_PLUGINS)
+            self.STORAGE_PLUGINS[StoragePlugin.MCAP] = partial(
+                McapChunkStorage, chunk_compression=compression)
+            self.compression_mode = CompressionMode.STORAGE
 
     def write_rows(self, connections, log_times_ns, payloads) -> None:
         """
@@ -283,16 +387,49 @@ class BagWriter(Writer):
         if self.storage is None:
             raise WriterError('Bag was not opened.')
         n = len(log_times_ns)
-        for conn, rows in zip(connections, payloads):
-            if conn not in self.connections:
-                raise WriterError(f'Tried to write to unknown connection {conn!r}.')
-            if rows.dtype != np.uint8 or rows.ndim != 2 or len(rows) != n:
-                raise ValueError(f'payload of {conn.topic} must be ({n}, size) uint8, got '
-                                 f'{rows.shape} {rows.dtype}')
+        _check_rows(self, connections, n, payloads)
         if not n or not connections:
             return
         self.storage.write_rows([c.id for c in connections], log_times_ns, payloads)
+        self._count(connections, log_times_ns)
+
+    def write_templates(self, connections, log_times_ns, stamps_ns, templates, values) -> None:
+        """
+        Write N messages on each of K connections, serialized from their templates.
+
+        As :meth:`write_rows` of ``templates[k].fill(stamps_ns, values[k])``; an MCAP bag
+        writes them into its chunks in C, without those arrays.
+
+        :param templates: K :class:`~dq_fk_ros.messages.cdr.CdrTemplate` s.
+        :param values: K ``(N, floats)`` float64 arrays.
+        """
+        if self.storage is None:
+            raise WriterError('Bag was not opened.')
+        n = len(log_times_ns)
+        _check_rows(self, connections, n)
+        if len(stamps_ns) != n or any(len(v) != n for v in values) or \
+                len(templates) != len(connections) or len(values) != len(connections):
+            raise ValueError(f'one template and one (N, floats) array a connection, N = {n}')
+        if not n or not connections:
+            return
+        self.storage.write_templates([c.id for c in connections], log_times_ns, stamps_ns,
+                                     templates, values)
+        self._count(connections, log_times_ns)
+
+    def _count(self, connections, log_times_ns):
+        n = len(log_times_ns)
         for conn in connections:
             self.counts[conn.id] += n
         self.min_timestamp = min(self.min_timestamp, int(np.min(log_times_ns)))
         self.max_timestamp = max(self.max_timestamp, int(np.max(log_times_ns)))
+
+
+def _check_rows(writer, connections, n, payloads=None):
+    """Refuse connections the writer does not have, and payloads not ``(n, size)`` uint8."""
+    for i, conn in enumerate(connections):
+        if conn not in writer.connections:
+            raise WriterError(f'Tried to write to unknown connection {conn!r}.')
+        rows = None if payloads is None else payloads[i]
+        if rows is not None and (rows.dtype != np.uint8 or rows.ndim != 2 or len(rows) != n):
+            raise ValueError(f'payload of {conn.topic} must be ({n}, size) uint8, got '
+                             f'{rows.shape} {rows.dtype}')

@@ -338,9 +338,27 @@ def parse_joint_states(raws, cache=None, max_layouts=8) -> list:
     if not m:
         return []
     lengths = np.fromiter(map(len, raws), np.int64, m)
-    joined = np.frombuffer(b''.join(raws), np.uint8)
     starts = np.zeros(m, np.int64)
     np.cumsum(lengths[:-1], out=starts[1:])
+    return parse_joint_state_spans(b''.join(raws), starts, lengths, cache, max_layouts)
+
+
+def parse_joint_state_spans(joined, starts, lengths, cache=None, max_layouts=8) -> list:
+    """
+    As :func:`parse_joint_states`, for messages that lie in one buffer.
+
+    :param joined: a bytes-like object holding the messages.
+    :param starts: ``(m,)`` int64, where message i starts in ``joined``.
+    :param lengths: ``(m,)`` int64, its length (every span inside ``joined``).
+    """
+    m = len(starts)
+    if not m:
+        return []
+    joined = np.frombuffer(joined, np.uint8)
+    starts = np.asarray(starts, np.int64)
+    lengths = np.asarray(lengths, np.int64)
+    if starts.min() < 0 or lengths.min() < 0 or (starts + lengths).max() > len(joined):
+        raise ValueError('a message span lies outside the buffer')
     layout_of = np.full(m, -1)
     rank = np.zeros(m, np.int64)     # position of a message among its layout's messages
     layouts, values, malformed = [], [], {}
@@ -348,14 +366,15 @@ def parse_joint_states(raws, cache=None, max_layouts=8) -> list:
     while len(todo):
         first = int(todo[0])
         try:
-            layout = _Layout(raws[first], cache)
+            layout = _Layout(joined[starts[first]:starts[first] + lengths[first]].tobytes(),
+                             cache)
         except CdrError as exc:
             malformed[first] = str(exc)
             layout_of[first] = -2
             todo = todo[1:]
             continue
         same = todo[lengths[todo] == layout.size] if len(layouts) < max_layouts else todo[:1]
-        rows = joined[starts[same][:, None] + np.arange(layout.size)]
+        rows = _rows(joined, starts, same, layout.size)
         match = (rows[:, layout.fixed] == layout.template).all(axis=1)
         members = same[match]
         layout_of[members] = len(layouts)
@@ -376,6 +395,15 @@ def parse_joint_states(raws, cache=None, max_layouts=8) -> list:
         out.append(JointStateRun(a, layouts[lid].names, stamps[r:r + b - a],
                                  positions[r:r + b - a], velocities[r:r + b - a]))
     return out
+
+
+def _rows(joined, starts, which, size):
+    """Return the ``(len(which), size)`` bytes of messages ``which`` (a view if they abut)."""
+    first = starts[which[0]]
+    if len(which) == len(starts) and first + size * len(which) <= len(joined) and \
+            (starts == first + size * np.arange(len(starts))).all():
+        return joined[first:first + size * len(which)].reshape(len(which), size)
+    return joined[starts[which][:, None] + np.arange(size)]
 
 
 class CdrTemplate:

@@ -2,11 +2,13 @@
 The bag reader interface: every format opens into an adapter that is a ``BagReader``.
 
 The adapters are held equal to each other (rosbags' reader is the reference): the same
-JointState bytes at the same log times, the same connections, start and end times.
+JointState bytes at the same log times, the same connections, start and end times, and
+the same batches (``message_batches``) as messages.
 """
 
 import shutil
 
+from dq_fk_ros.bag.mcap_chunks import McapChunkReader
 from dq_fk_ros.bag.mcap_stream import McapStreamBag
 from dq_fk_ros.bag.reading import bag_format, BagReader, FORMATS, open_reader
 from dq_fk_ros.bag.ros1_bag import Ros1Bag
@@ -22,11 +24,25 @@ def messages_of(reader, **span):
     return [(c.topic, t, bytes(raw)) for c, t, raw in reader.messages(conns, **span)]
 
 
-def opened(path):
-    reader = open_reader(path)
+def batches_of(reader, size, **span):
+    """Return the messages of ``message_batches``, batch by batch, as ``messages_of``."""
+    by_id = {c.id: c for c in reader.connections}
+    conns = [c for c in reader.connections if c.msgtype == 'sensor_msgs/msg/JointState']
+    out = []
+    for batch in reader.message_batches(conns, size=size, **span):
+        assert 0 < len(batch) <= size
+        out += [(by_id[int(cid)].topic, int(t), bytes(batch.raw(i)))
+                for i, (cid, t) in enumerate(zip(batch.connection_ids, batch.log_times))]
+    return out
+
+
+def opened(path, reference=False):
+    reader = open_reader(path, reference=reference)
     try:
         assert isinstance(reader, BagReader)
-        return (type(reader), bag_format(path).name, messages_of(reader),
+        messages = messages_of(reader)
+        assert batches_of(reader, 7) == messages
+        return (type(reader), bag_format(path).name, messages,
                 [(c.topic, c.msgtype, c.msgcount) for c in reader.connections],
                 reader.start_time, reader.end_time, reader.note, reader.damage,
                 reader.copies_messages, reader.windowable)
@@ -37,13 +53,16 @@ def opened(path):
 def test_every_format_opens_into_its_adapter_and_they_read_the_same(tmp_path):
     _, stamps = valid_bag(tmp_path / 'mcap', n=500, extra_topic=True)
     valid_bag(tmp_path / 'sqlite3', n=500, storage='sqlite3', extra_topic=True)
-    reference = opened(tmp_path / 'mcap')
+    reference = opened(tmp_path / 'mcap', reference=True)
     assert reference[:2] == (Rosbag2Reader, 'rosbag2')
     assert [t for _, t, _ in reference[2]] == stamps
     assert reference[3] == [('/joint_states', 'sensor_msgs/msg/JointState', 500),
                             ('/chatter', 'std_msgs/msg/String', 500)]
     assert reference[4:] == (stamps[0], stamps[-1] + 1, None, None, True, True)
     assert opened(tmp_path / 'sqlite3')[1:] == reference[1:]
+    # an intact MCAP folder is read a chunk at a time, equal to rosbags' reading
+    chunked = opened(tmp_path / 'mcap')
+    assert chunked[0] == McapChunkReader and chunked[1:] == reference[1:]
     bare = next((tmp_path / 'mcap').glob('*.mcap'))
     shutil.copy(bare, tmp_path / 'bare.mcap')
     stream = opened(tmp_path / 'bare.mcap')
@@ -83,10 +102,12 @@ def test_a_time_span_is_read_alike_by_every_adapter(tmp_path):
     _, stamps = valid_bag(tmp_path / 'in', n=300)
     shutil.copy(next((tmp_path / 'in').glob('*.mcap')), tmp_path / 'bare.mcap')
     span = {'start': stamps[10], 'stop': stamps[20]}
-    readers = [open_reader(tmp_path / 'in'), open_reader(tmp_path / 'bare.mcap')]
+    readers = [open_reader(tmp_path / 'in', reference=True), open_reader(tmp_path / 'in'),
+               open_reader(tmp_path / 'bare.mcap')]
     try:
         got = [[t for _, t, _ in messages_of(r, **span)] for r in readers]
+        assert [[t for _, t, _ in batches_of(r, 3, **span)] for r in readers] == got
     finally:
         for r in readers:
             r.close()
-    assert got == [stamps[10:20]] * 2
+    assert got == [stamps[10:20]] * 3
