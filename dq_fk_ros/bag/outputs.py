@@ -166,7 +166,13 @@ class BagOutputs:
                 template = self._tf_templates[key] = tf_message_template(plan.tf_edges(edges))
             picked = slice(None) if rows is None else rows
             count = n if rows is None else int(rows.sum())
-            values = relative[picked][:, [r for _, r in edges]].reshape(count, -1)
+            columns = [r for _, r in edges]
+            if columns and columns == list(range(columns[0], columns[0] + len(columns))):
+                # a run of transforms: a view, rows at the array's stride (no copy)
+                values = relative[picked][:, columns[0]:columns[0] + len(columns)]
+                values = values.reshape(count, -1)
+            else:
+                values = relative[picked][:, columns].reshape(count, -1)
             if moving is not None:
                 values = np.concatenate([values, moving[picked]], axis=1)
             yield rows, template, values

@@ -177,7 +177,9 @@ class ProcessOptions:
     ``frame_prefix``, ``out_of_limits``: as the node's; ``poses``: ``all``, ``end`` or
     ``none``; ``chunk``: messages computed at once; ``dh_frames``: whether /tf and the pose
     topics carry the DH frames (None: the robot's default, as the node's
-    ``publish_dh_frames``).
+    ``publish_dh_frames``); ``compression``: MCAP chunks ``none``, ``zstd`` or ``lz4``;
+    ``reference_reader``: read with rosbags' reader, the reference (else an intact MCAP
+    folder a chunk at a time).
     """
 
     topic: str = None
@@ -193,6 +195,8 @@ class ProcessOptions:
     chunk: int = CHUNK
     poses: str = 'all'
     dh_frames: bool = None
+    compression: str = 'none'
+    reference_reader: bool = False
 
 
 def process_bag(in_path, out_path, robot, options=None, **changes) -> ProcessSummary:
@@ -212,8 +216,9 @@ def process_bag(in_path, out_path, robot, options=None, **changes) -> ProcessSum
     model = robot if not isinstance(robot, (str, os.PathLike)) else load_robot(robot).model
     if o.csv_only and not o.csv_path:
         raise BagError('--csv-only needs --csv FILE')
+    check_compression(o)
     check_output_paths(in_path, out_path, o.csv_path, o.overwrite, o.csv_only)
-    reader = open_reader(in_path)
+    reader = open_reader(in_path, reference=o.reference_reader)
     if o.copy_input and not reader.copies_messages:
         reader.close()
         raise BagError(f'{in_path}: --copy-input cannot copy ROS 1 messages; convert the bag '
@@ -258,7 +263,8 @@ def process_window(in_path, out_path, model, options, window) -> ProcessSummary:
     :class:`ProcessSummary` of the window's messages alone.
     """
     o = replace(options, csv_path=None, csv_only=False)
-    reader = open_reader(in_path)
+    check_compression(o)
+    reader = open_reader(in_path, reference=o.reference_reader)
     try:
         summary = _process_with(reader, model, in_path, out_path, o, window)
     except _ReadingStopped as stop:
@@ -267,6 +273,17 @@ def process_window(in_path, out_path, model, options, window) -> ProcessSummary:
         reader.close()
     summary.output = out_path
     return summary
+
+
+def check_compression(options) -> None:
+    """Refuse a compression that is not one, or one for a storage that has none."""
+    from dq_fk_ros.bag.writer import COMPRESSIONS
+    if options.compression not in COMPRESSIONS:
+        raise BagError(f'--compression {printable(str(options.compression), 20)}: one of '
+                       f'{", ".join(COMPRESSIONS)}')
+    if options.compression != 'none' and options.storage != 'mcap':
+        raise BagError(f'--compression {options.compression} is for MCAP output; '
+                       f'--storage {options.storage} is written uncompressed')
 
 
 def nothing_usable(in_path, summary, model, robot) -> str:
@@ -296,7 +313,7 @@ def _process_with(reader, model, in_path, out_path, o, window=None):
     if not csv_only:
         if os.path.lexists(out_path):  # checked: --overwrite given, or our own first try
             _remove(out_path)
-        writer = BagWriter(out_path, storage)
+        writer = BagWriter(out_path, storage, o.compression)
         writer.open()
     typestore = get_typestore(Stores.ROS2_JAZZY)
     copy_from = list(reader.connections) if copy_input else []

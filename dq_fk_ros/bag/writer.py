@@ -202,10 +202,13 @@ class McapChunkStorage:
         values = [np.asarray(v, dtype=np.float64) for v in values]
         row_bytes = rows.row_bytes
         per_chunk = max(1, CHUNK_BYTES // row_bytes)
+        # one block for every chunk (each is written out before the next is filled): its
+        # pages are touched once, not once a chunk
+        whole = np.empty(min(len(times), per_chunk) * row_bytes, np.uint8)
         for lo in range(0, len(times), per_chunk):
             t = times[lo:lo + per_chunk]
             m = len(t)
-            block = np.empty(m * row_bytes, np.uint8)
+            block = whole[:m * row_bytes]
             rows.fill(block, stamps[lo:lo + m], t, [v[lo:lo + m] for v in values])
             steps = np.arange(m, dtype=np.int64) * row_bytes
             index = {cid: (t, steps + at) for cid, at in zip(channel_ids, rows.offsets)}

@@ -18,7 +18,7 @@ import math
 import os
 import sys
 
-from dq_fk_ros.bag.process import process_bag, ProcessOptions
+from dq_fk_ros.bag.process import check_compression, process_bag, ProcessOptions
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.cli.dq_fk import add_package_option, add_urdf_chain_options
 from dq_fk_ros.cli.interrupts import interrupted_code, take_signals
@@ -59,6 +59,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_package_option(p)
     p.add_argument('--topic', help='JointState topic (default: the only one in the bag)')
     p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
+    p.add_argument('--compression', choices=('none', 'zstd', 'lz4'), default='none',
+                   help='MCAP chunks compressed (default none: the fastest; zstd: the '
+                   'smallest)')
+    p.add_argument('--reference-reader', action='store_true',
+                   help="read an MCAP bag with rosbags' reader (the reference; slower) "
+                   'instead of a chunk at a time')
     p.add_argument('--overwrite', action='store_true', help='replace OUT_BAG if it exists')
     p.add_argument('--csv', metavar='FILE', help='also write the end-effector pose per message')
     p.add_argument('--csv-only', action='store_true', help='write the CSV and no bag')
@@ -141,7 +147,9 @@ def process_many(args) -> int:
         topic=args.topic, storage=args.storage, copy_input=args.copy_input,
         pose_namespace=args.pose_namespace, frame_prefix=args.frame_prefix,
         out_of_limits=args.out_of_limits, progress=False, poses=args.poses,
-        dh_frames=args.dh_frames)
+        dh_frames=args.dh_frames, compression=args.compression,
+        reference_reader=args.reference_reader)
+    check_compression(options)
     summary = process_fleet(args.paths, args.output_dir, args.robot, options, jobs=args.jobs,
                             scheduler=args.scheduler, force=args.force,
                             progress=not args.quiet, window_messages=args.window_messages,
@@ -205,7 +213,8 @@ def main(argv=None) -> int:
                 csv_path=args.csv, csv_only=args.csv_only, copy_input=args.copy_input,
                 pose_namespace=args.pose_namespace, frame_prefix=args.frame_prefix,
                 out_of_limits=args.out_of_limits, progress=not args.quiet, poses=args.poses,
-                dh_frames=args.dh_frames)
+                dh_frames=args.dh_frames, compression=args.compression,
+                reference_reader=args.reference_reader)
             s = process_bag(args.paths[0], args.paths[1], robot, options)
             print(summary_line(args.paths[0], s))
         elif args.command == 'example':

@@ -8,15 +8,25 @@ the same batches (``message_batches``) as messages.
 
 import shutil
 
+from dq_fk_ros.bag import writer as bag_writer
 from dq_fk_ros.bag.mcap_chunks import McapChunkReader
 from dq_fk_ros.bag.mcap_stream import McapStreamBag
+from dq_fk_ros.bag.process import process_bag
 from dq_fk_ros.bag.reading import bag_format, BagReader, FORMATS, open_reader
 from dq_fk_ros.bag.ros1_bag import Ros1Bag
 from dq_fk_ros.bag.rosbag2_reader import Rosbag2Reader
+from dq_fk_ros.bag.writer import BagWriter
+from dq_fk_ros.cli.dq_fk_bag import main as bag_main
 from dq_fk_ros.errors import BagError
+from hypothesis import given, HealthCheck, settings, strategies as st
+import numpy as np
 import pytest
-from test_bag import valid_bag
+from rosbags.rosbag2 import Reader
+from test_bag import js_bytes, NAMES, String, T0, TS, valid_bag, write_bag
+import test_bag_hostile
 from test_bag_hostile import write_ros1_bag
+
+small_mcap = test_bag_hostile.small_mcap   # a fixture of 240 joint states in ~12 chunks
 
 
 def messages_of(reader, **span):
@@ -111,3 +121,104 @@ def test_a_time_span_is_read_alike_by_every_adapter(tmp_path):
         for r in readers:
             r.close()
     assert got == [stamps[10:20]] * 3
+
+
+def scrambled_bag(path, n, seed):
+    """
+    Write a rosbag2 MCAP whose chunks overlap in time, messages out of order, with ties.
+
+    Written through BagWriter's single writes with small chunks: log times go back and
+    forth, some repeat (within a chunk and across chunks), two topics interleave.
+    """
+    rng = np.random.default_rng(seed)
+    times = T0 + np.cumsum(rng.integers(-3, 6, n)) * 1_000_000
+    times[rng.integers(0, n, n // 10)] = times[0]    # ties across chunks
+    old = bag_writer.CHUNK_BYTES
+    bag_writer.CHUNK_BYTES = 3000
+    try:
+        writer = BagWriter(path, 'mcap')
+        writer.open()
+        joints = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState',
+                                       typestore=TS)
+        chatter = writer.add_connection('/chatter', 'std_msgs/msg/String', typestore=TS)
+        for k, t in enumerate(times.tolist()):
+            writer.write(joints, t, js_bytes(NAMES, [0.001 * k] * 6, T0 + k))
+            if k % 3 == 0:
+                writer.write(chatter, t, bytes(TS.serialize_cdr(
+                    String(data=f'm{k}'), 'std_msgs/msg/String')))
+        writer.close()
+    finally:
+        bag_writer.CHUNK_BYTES = old
+    return times
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_chunks_that_overlap_are_read_in_rosbags_order(tmp_path, seed):
+    times = scrambled_bag(tmp_path / 'in', 2000, seed)
+    readers = [open_reader(tmp_path / 'in', reference=True), open_reader(tmp_path / 'in')]
+    try:
+        assert type(readers[1]) is McapChunkReader
+        every = [[(c.topic, t, bytes(raw)) for c, t, raw in r.messages()] for r in readers]
+        assert len(every[0]) == 2000 + 667 and every[1] == every[0]
+        assert sorted(t for _, t, _ in every[0]) == [t for _, t, _ in every[0]]
+        for size in (1, 5, 4096):
+            assert batches_of(readers[1], size) == messages_of(readers[0])
+        middle = int(np.median(times))
+        span = {'start': middle - 5_000_000, 'stop': middle + 5_000_000}
+        assert messages_of(readers[1], **span) == messages_of(readers[0], **span) != []
+    finally:
+        for r in readers:
+            r.close()
+
+
+def output_messages(path):
+    with Reader(path) as reader:
+        return [(c.topic, t, bytes(raw)) for c, t, raw in reader.messages()]
+
+
+@pytest.mark.parametrize('case', ['scrambled', 'split_publishers', 'copy_input'])
+def test_processing_reads_alike_with_either_reader(tmp_path, case):
+    if case == 'scrambled':
+        scrambled_bag(tmp_path / 'in', 3000, 4)
+    elif case == 'split_publishers':   # each message names half the joints
+        stamps = [T0 + k * 10**7 for k in range(3000)]
+        write_bag(tmp_path / 'in', [(s, js_bytes(NAMES[3 * (k % 2):3 * (k % 2) + 3],
+                                                 [0.1 * (k % 7)] * 3, s))
+                                    for k, s in enumerate(stamps)])
+    else:
+        valid_bag(tmp_path / 'in', n=3000, extra_topic=True)
+    options = {'copy_input': case == 'copy_input', 'progress': False, 'chunk': 700}
+    summaries = [process_bag(tmp_path / 'in', tmp_path / name, 'rl15', reference_reader=ref,
+                             csv_path=tmp_path / f'{name}.csv', **options)
+                 for name, ref in (('ref', True), ('chunks', False))]
+    assert summaries[0].written > 0
+    for s in summaries:
+        s.output = None
+    assert summaries[1] == summaries[0]
+    assert output_messages(tmp_path / 'chunks') == output_messages(tmp_path / 'ref')
+    assert (tmp_path / 'chunks.csv').read_text() == (tmp_path / 'ref.csv').read_text()
+
+
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture], max_examples=40,
+          deadline=None)
+@given(flips=st.lists(st.tuples(st.floats(0, 1, exclude_max=True), st.integers(1, 255)),
+                      min_size=1, max_size=3))
+def test_a_damaged_bag_reads_alike_with_either_reader(small_mcap, tmp_path_factory, capsys,
+                                                      flips):
+    """The same exit, lines and CSV: damage found in a chunk is read record by record."""
+    folder, mcap, data, *_ = small_mcap
+    damaged = bytearray(data)
+    for where, xor in flips:
+        damaged[int(where * len(data))] ^= xor
+    work = tmp_path_factory.mktemp('case')
+    (work / 'in').mkdir()
+    (work / 'in' / 'metadata.yaml').write_bytes((folder / 'metadata.yaml').read_bytes())
+    (work / 'in' / mcap.name).write_bytes(bytes(damaged))
+    results = []
+    for name, extra in (('ref', ['--reference-reader']), ('chunks', [])):
+        rc = bag_main(['process', str(work / 'in'), str(work / name), '--robot', 'rl15',
+                       '--csv', str(work / f'{name}.csv'), '--csv-only', '--quiet', *extra])
+        out, err = capsys.readouterr()
+        csv = (work / f'{name}.csv').read_text() if (work / f'{name}.csv').exists() else None
+        results.append((rc, out.replace(str(work / name), 'OUT'), err, csv))
+    assert results[1] == results[0]

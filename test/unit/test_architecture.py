@@ -239,10 +239,13 @@ def test_a_missing_hint_would_be_found(tmp_path, monkeypatch):
 # the bag reader interface (bag/reader_interface.py's BagReader): only the adapters know the
 # classes
 READER_ADAPTERS = ('bag/reading.py', 'bag/reader_interface.py', 'bag/rosbag2_reader.py',
-                   'bag/mcap_stream.py', 'bag/ros1_bag.py', 'bag/ros1_scan.py')
-READER_CLASSES = {'Reader', 'Rosbag2Reader', 'McapStreamBag', 'Ros1Bag', 'Ros1ChunkScan'}
+                   'bag/mcap_chunks.py', 'bag/mcap_stream.py', 'bag/ros1_bag.py',
+                   'bag/ros1_scan.py')
+READER_CLASSES = {'Reader', 'Rosbag2Reader', 'McapChunkReader', 'McapStreamBag', 'Ros1Bag',
+                  'Ros1ChunkScan'}
 READER_MEMBERS = {'connections', 'all_topics', 'start_time', 'end_time', 'note', 'damage',
-                  'copies_messages', 'windowable', 'messages', 'fallback', 'close'}
+                  'copies_messages', 'windowable', 'messages', 'message_batches', 'fallback',
+                  'close'}
 
 
 def reader_breaches(rel):
