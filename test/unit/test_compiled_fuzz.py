@@ -3,7 +3,8 @@ No Python value crashes the C extensions: a hypothesis fuzz of every public comp
 
 ``_kernel.Chain`` (made, ``frames``, ``end``, ``frames_batch``, ``end_batch``, ``jacobian``),
 ``_kernel.Model`` (made, ``poses``, ``poses_batch``, ``frames``), ``_cdr.Template`` (made,
-``one``, ``each``) and ``_cdr.JointStateReader`` (made, ``read``) get random shapes (0, 1,
+``one``, ``each``), ``_cdr.JointStateReader`` (made, ``read``) and ``_mcap`` (``scan``,
+``gather``, ``Rows`` made and ``fill``) get random shapes (0, 1,
 huge, 2**62), dtypes, strides (negative, non-contiguous, overlapping input and output,
 read-only out), wrong types, and objects whose dunder methods mutate the callee or its other
 arguments while the arguments are read. Every call either works or raises one of ALLOWED;
@@ -338,3 +339,97 @@ def test_a_joint_state_reader_survives_any_arguments(data):
     out = np.empty(3)
     assert _cdr.JointStateReader(**good).read(raw, None, q, qdot, out, np.empty(3)) == 10
     assert q == [0.1, 0.2, 0.3]
+
+
+try:
+    from dq_fk_ros.bag import _mcap as MCAP
+except ImportError:  # not built: nothing of it to fuzz
+    MCAP = None
+needs_mcap = pytest.mark.skipif(MCAP is None, reason='the C extension _mcap is not built')
+
+
+def _records(data):
+    """Draw the records of a chunk: messages, other records, cut or with a byte changed."""
+    out = b''
+    for _ in range(data.draw(st.integers(0, 6))):
+        body = data.draw(st.binary(max_size=40))
+        if data.draw(st.booleans()):
+            body = bytes(data.draw(st.binary(min_size=22, max_size=22))) + body
+        length = data.draw(st.sampled_from([len(body), len(body), 2**63, 2**64 - 1, 21,
+                                            len(body) + 1]))
+        out += bytes([data.draw(st.sampled_from([5, 5, 6, 0, 255]))]) + \
+            (length % 2**64).to_bytes(8, 'little') + body
+    return out[:data.draw(st.integers(0, len(out)))] if data.draw(st.booleans()) else out
+
+
+@needs_mcap
+@given(st.data())
+def test_the_mcap_scan_and_gather_survive_any_arguments(data):
+    records = _records(data)
+    victim = bytearray(records)
+    args = [data.draw(st.sampled_from([records, victim, memoryview(records)[::2], None, 'x'])),
+            data.draw(st.sampled_from([b'\x01' * 65536, bytes(65536), bytes(10), None])),
+            data.draw(st.sampled_from([-2**63, 0, 5, 2**63 - 1, 2**64, 'x',
+                                       Mutator(0, victim.clear)])),
+            data.draw(st.sampled_from([2**63 - 1, 0, -1, None, Mutator(9, victim.clear)]))]
+    room = len(records) // 31 + 1
+    for _ in range(4):
+        args.append(data.draw(st.one_of(
+            st.just(np.zeros(room, np.int64)), st.just(np.zeros(0, np.int64)),
+            hostile_arrays(np.zeros(room)))))
+    n = attempt(MCAP.scan, *args)
+    if n is not None:
+        assert 0 <= n <= room
+    src = data.draw(st.sampled_from([records, victim, b'', None]))
+    offsets = data.draw(st.one_of(
+        st.lists(st.sampled_from([0, 1, 5, -1, 2**62, 2**63 - 1]), max_size=4).map(
+            lambda x: np.array(x, np.int64)), hostile_arrays(np.zeros(2))))
+    lengths = data.draw(st.one_of(
+        st.lists(st.sampled_from([0, 1, 3, -1, 2**62, 2**63 - 1]), max_size=4).map(
+            lambda x: np.array(x, np.int64)), hostile_arrays(np.zeros(2))))
+    dst = data.draw(st.sampled_from([bytearray(8), bytearray(0), victim, b'read only', None,
+                                     np.zeros(4, np.uint8)]))
+    total = attempt(MCAP.gather, src, offsets, lengths, dst)
+    if total is not None:
+        assert 0 <= total <= len(dst)
+
+
+@needs_mcap
+@given(st.data())
+def test_mcap_rows_survive_any_arguments(data):
+    templates = [_tf_template(), pose_stamped_template('world')]
+    good = ([1, 2], [bytes(t.buf) for t in templates], [t.stamps for t in templates],
+            [[at for at, _ in t.floats] for t in templates], [7, 7])
+    args = list(good)
+    victim = list(good[0])
+    args[0] = victim
+    for _ in range(data.draw(st.integers(0, 3))):
+        at = data.draw(st.integers(0, 4))
+        args[at] = data.draw(st.sampled_from([
+            [], [1], [1, 2, 3], [-1, 2], [2**16, 2], [b'', b'\x00\x01\x00\x00'], [None, None],
+            [[4], [2**62]], [[-1], [4]], [[0, 1], []], [0, 7], [7, 65], [Mutator(1, victim.clear),
+                                                                        2], None, 'xy', 3]))
+    made = attempt(MCAP.Rows, *args)
+    if made is None:
+        made = MCAP.Rows(*good)
+    for _ in range(data.draw(st.integers(1, 4))):
+        n = data.draw(st.sampled_from([0, 1, 3]))
+        out = data.draw(st.sampled_from([np.zeros(n * made.row_bytes, np.uint8),
+                                         bytearray(n * made.row_bytes), bytearray(3),
+                                         b'\x00' * (n * made.row_bytes), None]))
+        stamps = data.draw(st.one_of(st.just(np.full(n, -2**63, np.int64)),
+                                     st.just(np.arange(n, dtype=np.int64) * 10**9 - 1),
+                                     hostile_arrays(np.zeros(n))))
+        times = data.draw(st.one_of(st.just(np.zeros(n, np.int64)), hostile_arrays(np.zeros(n))))
+        values = [data.draw(hostile_arrays(np.zeros((n, 7 * k)))) for k in (2, 1)]
+        if data.draw(st.booleans()):
+            values = data.draw(st.sampled_from([values[:1], values + values, None, 'ab',
+                                                [np.zeros((2**52, 0))] * 2]))
+        attempt(made.fill, out, stamps, times, values)
+        if data.draw(st.booleans()):
+            attempt(made.__init__, *good)
+    fresh = MCAP.Rows(*good)
+    out = np.zeros(2 * fresh.row_bytes, np.uint8)
+    fresh.fill(out, np.zeros(2, np.int64), np.zeros(2, np.int64),
+               [np.zeros((2, 14)), np.zeros((2, 7))])
+    assert out[0] == 5
