@@ -1,17 +1,21 @@
 """Install dq_fk_ros as an ament_python package (colcon) or editable into a venv (pip)."""
 
 from glob import glob
+import re
 
 from setuptools import Extension, find_packages, setup
 
 package_name = 'dq_fk_ros'
+# the version is written once, in the package (an MCAP file's header names it)
+with open('dq_fk_ros/__init__.py', encoding='utf-8') as init:
+    version = re.search(r"^__version__ = '([^']+)'", init.read(), re.M)[1]
 # the compiled kernel, one file per surface (the module, Chain, Model; kernel_*.h shared)
 KERNEL_SOURCES = ['dq_fk_ros/kinematics/_kernel.c', 'dq_fk_ros/kinematics/_kernel_chain.c',
                   'dq_fk_ros/kinematics/_kernel_model.c']
 
 setup(
     name=package_name,
-    version='0.1.0',
+    version=version,
     packages=find_packages(exclude=['test', 'test.*']),
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),

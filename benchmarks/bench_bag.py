@@ -3,15 +3,24 @@ Offline bag processing speed and memory: ``dq_fk_bag process`` end to end (read,
 
 Writes a 6-DoF RL15 JointState bag of N messages (MCAP) into a temporary folder, then runs
 ``dq_fk_bag process`` on it in a child process for each case and prints messages per second
-and the child's peak resident memory. A case is ``STORAGE:POSES:INPUT``: the output storage
-(mcap, sqlite3), the pose topics written (all frames, the end effector only, none: /tf only)
-and the input (``full``: every message names all six joints; ``split``: two publishers
-alternate, three joints each, so every message merges with the one before). Two bag lengths
-show whether memory grows with the bag.
+and the child's peak resident memory. A case is ``STORAGE:POSES:INPUT[:COMPRESSION]``: the
+output storage (mcap, sqlite3), the pose topics written (all frames, the end effector only,
+none: /tf only), the input (``full``: every message names all six joints; ``split``: two
+publishers alternate, three joints each, so every message merges with the one before) and
+the output's chunk compression (none by default; zstd, lz4). Several bag lengths show whether
+memory grows with the bag.
 
-Each child runs on one CPU (its affinity set to the first this process may use).
+The floor, in the same run on the same input (issue "Bags at the reading floor"): rosbags'
+bare read (``AnyReader.messages()``, every message, nothing done with it) and the ``mcap``
+library's bare ``iter_messages``, each a whole command as ``dq_fk_bag process`` is. Each
+command runs ``--repeat`` times, its best time taken; the ratios of ``dq_fk_bag process`` (every
+pose topic, MCAP out) to both are printed with their targets (<= 0.7x and <= 0.3x), and
+the reference reader's (``--reference-reader``) beside it.
 
-Run: ``python benchmarks/bench_bag.py [--messages 100000 1000000] [--cases mcap:all:full]``.
+Each child runs on one CPU (its affinity set to the first this process may use); an output
+left by the previous case is removed before the clock starts.
+
+Run: ``python benchmarks/bench_bag.py [--messages 100000 300000 1000000] [--cases ...]``.
 """
 
 import argparse
@@ -29,7 +38,41 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
 CASES = ['mcap:all:full', 'mcap:end:full', 'mcap:none:full', 'sqlite3:all:full',
-         'mcap:all:split']
+         'mcap:all:split', 'mcap:all:full:zstd', 'mcap:all:full:lz4']
+RATIO_MESSAGES = 300_000     # the issue's figure: a bag of this many JointStates
+# the floor's commands: the same input read and nothing done with it
+ROSBAGS_READ = """
+import sys
+from pathlib import Path
+from rosbags.highlevel import AnyReader
+n = 0
+with AnyReader([Path(sys.argv[1])]) as reader:
+    for _ in reader.messages():
+        n += 1
+print(n)
+"""
+# what writing the output costs before anything is computed: its bytes, from one 1 MiB
+# block, written and CRC-32ed (zlib's) as the writer does a chunk
+WRITE_FLOOR = """
+import sys, zlib
+block, left = bytes(range(256)) * 4096, int(sys.argv[2])
+with open(sys.argv[1], 'wb') as f:
+    while left > 0:
+        part = block[:left]
+        zlib.crc32(part)
+        f.write(part)
+        left -= len(part)
+"""
+MCAP_READ = """
+import glob, sys
+from mcap.reader import make_reader
+n = 0
+for path in sorted(glob.glob(sys.argv[1] + '/*.mcap')):
+    with open(path, 'rb') as f:
+        for _ in make_reader(f).iter_messages():
+            n += 1
+print(n)
+"""
 
 
 def write_joint_state_bag(path, n, split=False):
@@ -61,30 +104,75 @@ def _one_cpu():
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
 
 
-def run_process(in_bag, out_bag, storage, poses):
-    """Run ``dq_fk_bag process`` as a child; return (seconds, peak RSS MiB, summary line)."""
-    argv = executable('dq_fk_bag') + ['process', in_bag, out_bag, '--robot', 'rl15',
-                                      '--poses', poses,
-                                      '--storage', storage, '--quiet', '--overwrite']
+def run_child(argv):
+    """Run a command as a child on one CPU; return (seconds, peak RSS MiB, its output)."""
     start = time.perf_counter()
-    # on one core, as the issue's target says (the command is single-threaded anyway)
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True,
-                            preexec_fn=_one_cpu)
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True, preexec_fn=_one_cpu)
     _, status, usage = os.wait4(proc.pid, 0)
     elapsed = time.perf_counter() - start
     out = proc.stdout.read().strip()
     proc.stdout.close()
     if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f'dq_fk_bag process failed: {out}')
+        raise SystemExit(f'{argv[0]} failed: {out}')
     return elapsed, usage.ru_maxrss / 1024.0, out
+
+
+def run_process(in_bag, out_bag, storage, poses, compression='none', extra=()):
+    """Run ``dq_fk_bag process`` as a child; return (seconds, peak RSS MiB, summary line)."""
+    shutil.rmtree(out_bag, ignore_errors=True)   # not part of the clock
+    argv = executable('dq_fk_bag') + ['process', in_bag, out_bag, '--robot', 'rl15',
+                                      '--poses', poses, '--storage', storage,
+                                      '--compression', compression, '--quiet', *extra]
+    return run_child(argv)
+
+
+def best(runs):
+    """The run with the least time of ``runs`` ((seconds, RSS, output) each)."""
+    return min(runs, key=lambda r: r[0])
+
+
+def floor_and_ratios(in_bag, out_bag, n, repeat):
+    """Time the floor's reads and dq_fk_bag process on one input; print and record ratios."""
+    reads = {}
+    for name, code in (('rosbags', ROSBAGS_READ), ('mcap', MCAP_READ)):
+        reads[name] = best([run_child([sys.executable, '-c', code, in_bag])
+                            for _ in range(repeat)])[0]
+    ours = best([run_process(in_bag, out_bag, 'mcap', 'all') for _ in range(repeat)])[0]
+    size = sum(os.path.getsize(os.path.join(out_bag, f)) for f in os.listdir(out_bag))
+    writing = best([run_child([sys.executable, '-c', WRITE_FLOOR, out_bag + '_floor',
+                               str(size)]) for _ in range(repeat)])[0]
+    os.remove(out_bag + '_floor')
+    reference = best([run_process(in_bag, out_bag, 'mcap', 'all', extra=['--reference-reader'])
+                      for _ in range(repeat)])[0]
+    group = f'dq_fk_bag process and the reading floor ({n:,} RL15 JointStates, one CPU)'
+    print(f'# {group}, best of {repeat}')
+    for what, seconds in (("rosbags' bare read (AnyReader.messages())", reads['rosbags']),
+                          ("the mcap library's bare iter_messages", reads['mcap']),
+                          ('dq_fk_bag process, every pose topic, MCAP out', ours),
+                          ('the same, --reference-reader (rosbags reads)', reference),
+                          (f'the writing floor: {size / 2**20:,.0f} MiB (its output) written '
+                           f'and CRC-32ed in 1 MiB blocks', writing)):
+        figure(f'{what}, seconds', round(seconds, 3), 's', group=group, show=False)
+        print(f'- {what}: {seconds:.3f} s, {n / seconds:,.0f} messages/s')
+    ratio_rosbags = ours / reads['rosbags']
+    ratio_mcap = ours / reads['mcap']
+    figure("process / rosbags' bare read", round(ratio_rosbags, 2), 'x', '<= 0.7x',
+           ratio_rosbags <= 0.7, group=group)
+    figure("process / the mcap library's bare read", round(ratio_mcap, 2), 'x', '<= 0.3x',
+           ratio_mcap <= 0.3, group=group)
+    figure('dq_fk_bag process, every topic to MCAP, one core', round(n / ours),
+           'JointStates/s', '>= 400,000', n / ours >= 400_000, group=group)
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
-    parser.add_argument('--messages', type=int, nargs='+', default=[100_000, 1_000_000])
-    parser.add_argument('--cases', nargs='+', default=CASES, metavar='STORAGE:POSES:INPUT')
+    parser.add_argument('--messages', type=int, nargs='+',
+                        default=[100_000, RATIO_MESSAGES, 1_000_000])
+    parser.add_argument('--cases', nargs='+', default=CASES,
+                        metavar='STORAGE:POSES:INPUT[:COMPRESSION]')
+    parser.add_argument('--repeat', type=int, default=3, help='runs of each timed command')
     args = parser.parse_args(argv)
-    cases = [tuple(c.split(':')) for c in args.cases]
+    cases = [tuple(c.split(':')) + (('none',) if c.count(':') == 2 else ()) for c in args.cases]
     rows = []
     work = tempfile.mkdtemp(prefix='dq_fk_bench_bag_')
     try:
@@ -95,32 +183,47 @@ def main(argv=None):
                 write_joint_state_bag(in_bag, n, split=shape == 'split')
                 print(f'wrote a {n}-message {shape} input bag in '
                       f'{time.perf_counter() - start:.1f} s', file=sys.stderr)
-                for storage, poses, _ in [c for c in cases if c[2] == shape]:
-                    out_bag = os.path.join(work, 'out')
-                    elapsed, rss, line = run_process(in_bag, out_bag, storage, poses)
+                out_bag = os.path.join(work, 'out')
+                if n == RATIO_MESSAGES and shape == 'full':
+                    floor_and_ratios(in_bag, out_bag, n, args.repeat)
+                for storage, poses, _, compression in [c for c in cases if c[2] == shape]:
+                    elapsed, rss, line = best([
+                        run_process(in_bag, out_bag, storage, poses, compression)
+                        for _ in range(args.repeat)])
                     written = int(line.split(', ')[1].split()[0])
-                    rows.append((n, storage, poses, shape, elapsed, rss, written))
+                    size = sum(os.path.getsize(os.path.join(out_bag, f))
+                               for f in os.listdir(out_bag))
+                    rows.append((n, storage, poses, shape, compression, elapsed, rss, written,
+                                 size))
                 shutil.rmtree(in_bag)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    print('# dq_fk_bag process, RL15 (6 joints, 7 frames), MCAP in, end to end '
-          '(process start, read, FK, write)')
-    print('| messages | storage | pose topics | input | seconds | messages/s | peak RSS MiB '
-          '| joint vectors written | output messages |')
-    print('|---|---|---|---|---|---|---|---|---|')
-    for n, storage, poses, shape, elapsed, rss, written in rows:
-        figure(f'{n:,} messages, {storage}, poses {poses}, {shape} input', round(n / elapsed),
-               'JointStates/s', group='dq_fk_bag process', show=False)
+    print(f'# dq_fk_bag process, RL15 (6 joints, 7 frames), MCAP in, end to end '
+          f'(process start, read, FK, write), best of {args.repeat}')
+    print('| messages | storage | pose topics | input | compression | seconds | messages/s '
+          '| peak RSS MiB | joint vectors written | output MiB | output messages |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|')
+    for n, storage, poses, shape, compression, elapsed, rss, written, size in rows:
+        figure(f'{n:,} messages, {storage}, poses {poses}, {shape} input, {compression}',
+               round(n / elapsed), 'JointStates/s', group='dq_fk_bag process', show=False)
         per_input = 1 + {'all': 7, 'end': 1, 'none': 0}[poses]
-        print(f'| {n:,} | {storage} | {poses} | {shape} | {elapsed:.1f} | {n / elapsed:,.0f} '
-              f'| {rss:.0f} | {written:,} | {per_input} per vector + 1 /tf_static |')
-    # issue "A compiled kernel": >= 400 000 JointStates a second on one core, every topic to
-    # MCAP (the process's start included, as above)
-    for n, storage, poses, shape, elapsed, _, _ in rows:
-        if (storage, poses, shape) == ('mcap', 'all', 'full'):
-            rate = n / elapsed
-            figure(f'{n:,} messages, every topic to MCAP, one core', round(rate),
-                   'JointStates/s', '>= 400,000', rate >= 400_000, group='dq_fk_bag process')
+        print(f'| {n:,} | {storage} | {poses} | {shape} | {compression} | {elapsed:.2f} '
+              f'| {n / elapsed:,.0f} | {rss:.0f} | {written:,} | {size / 2**20:,.0f} '
+              f'| {per_input} per vector + 1 /tf_static |')
+    # memory flat in the bag's length: the shortest and the longest bag, same case
+    by_case = {}
+    for n, storage, poses, shape, compression, _, rss, _, _ in rows:
+        by_case.setdefault((storage, poses, shape, compression), []).append((n, rss))
+    lengths = sorted(args.messages)
+    for (storage, poses, shape, compression), sizes in sorted(by_case.items()):
+        sizes = dict(sizes)
+        if len(lengths) < 2 or (storage, poses, shape, compression) != \
+                ('mcap', 'all', 'full', 'none'):
+            continue
+        grown = sizes[lengths[-1]] / sizes[lengths[0]] - 1
+        figure(f'peak RSS, {lengths[-1]:,} messages against {lengths[0]:,} (every topic, '
+               f'MCAP)', round(100 * grown, 1), '%', '<= 10 %', grown <= 0.10,
+               group='dq_fk_bag process')
     return 0
 
 

@@ -24,6 +24,8 @@ first use, so ``import dq_fk_ros`` stays light (no ROS, no rosbags until asked):
   :class:`ParameterError`, :class:`BagError`, :class:`CdrError`.
 """
 
+__version__ = '0.1.0'   # setup.py and package.xml read the same (test_package_xml.py)
+
 _SURFACE = {
     'load_robot': 'dq_fk_ros.description.loading',
     'RobotModel': 'dq_fk_ros.description.robot_model',

@@ -28,8 +28,8 @@ import mmap
 import os
 import struct
 from typing import Iterator, Optional
-import zlib
 
+from dq_fk_ros.bag.crc import crc32
 from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk, MAX_CHUNK_BYTES
 from dq_fk_ros.bag.mcap_format import OP_CHUNK
 from dq_fk_ros.bag.mcap_stream import _RecordReader
@@ -178,7 +178,7 @@ class _FileChunks:
                 decompress_chunk(raw, chunk.compression, size)
         except ChunkRefused as exc:
             raise ChunkDamaged(f'{self.path}: the chunk at byte {at}: {exc}') from None
-        if crc and zlib.crc32(records) != crc:
+        if crc and crc32(records) != crc:
             raise ChunkDamaged(f'{self.path}: the chunk at byte {at} fails its CRC')
         return records
 

@@ -8,6 +8,7 @@ messages, as the node publishes them: both lay their messages out from one
 frames, order, and a transform only where the message's state has named its joints).
 """
 
+from dq_fk_ros.bag.output_types import OUTPUT_TYPES, string_cdr
 from dq_fk_ros.description.to_urdf import description_urdf
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
@@ -19,10 +20,13 @@ import numpy as np
 class BagOutputs:
     """The output bag's connections and the chunked, vectorised writing of FK results."""
 
-    def __init__(self, writer, model, typestore, pose_namespace, frame_prefix, copy_from,
-                 poses='all', dh_frames=None):
+    def __init__(self, writer, model, pose_namespace, frame_prefix, copy_from, poses='all',
+                 dh_frames=None):
         """
         Register /tf, /tf_static, pose topics (all, end, none), copied input topics.
+
+        The outputs' definitions and hashes are :data:`~dq_fk_ros.bag.output_types.OUTPUT_TYPES`
+        (rosbags' Jazzy type store's, without building it).
 
         :param dh_frames: whether TF and the pose topics carry the DH frames (None: the
             model's default, as the node's ``publish_dh_frames``).
@@ -37,12 +41,12 @@ class BagOutputs:
                 QosDurability.VOLATILE
             offered = [Qos(QosHistory.KEEP_LAST, output.depth, QosReliability.RELIABLE,
                            durability, never, never, QosLiveliness.AUTOMATIC, never, False)]
+            definition, digest = OUTPUT_TYPES[output.msgtype]
             return writer.add_connection(output.topic_for(frame, pose_namespace),
-                                         output.msgtype, typestore=typestore,
+                                         output.msgtype, msgdef=definition, rihs01=digest,
                                          offered_qos_profiles=offered)
         self.model = model
         self.writer = writer
-        self.typestore = typestore
         # frame ids, TF parents, static and moving transforms, helpers: as the node's
         self.plan = plan = OutputPlan(model, frame_prefix, dh_frames)
         # topics, types and QoS: the node's table (messages/outputs.py)
@@ -82,7 +86,7 @@ class BagOutputs:
         self.description = add(ROBOT_DESCRIPTION) if self.urdf is not None else None
         self.copied = {}
         for conn in copy_from:
-            self.copied[conn.id] = _copy_connection(writer, conn, typestore)
+            self.copied[conn.id] = _copy_connection(writer, conn)
         self.static_written = False
 
     def write_static(self, time_ns) -> None:
@@ -90,9 +94,7 @@ class BagOutputs:
         row = self.static_template.fill([time_ns], self.plan.static_poses()[None, :])[0]
         self.writer.write(self.tf_static, time_ns, memoryview(row))
         if self.description is not None:
-            text = self.typestore.types['std_msgs/msg/String'](data=self.urdf)
-            self.writer.write(self.description, time_ns,
-                              self.typestore.serialize_cdr(text, 'std_msgs/msg/String'))
+            self.writer.write(self.description, time_ns, string_cdr(self.urdf))
         self.static_written = True
 
     def write_chunk(self, q, stamps_ns, log_times_ns, seen=None) -> np.ndarray:
@@ -184,9 +186,9 @@ class BagOutputs:
             self.writer.write(out, time_ns, raw)
 
 
-def _copy_connection(writer, conn, typestore):
+def _copy_connection(writer, conn):
     """Add an input connection to the output: its own type definition, else Jazzy's."""
-    from rosbags.typesys import TypesysError
+    from rosbags.typesys import get_typestore, Stores, TypesysError
     ext = getattr(conn, 'ext', None)
     qos = list(getattr(ext, 'offered_qos_profiles', None) or [])
     definition = getattr(getattr(conn, 'msgdef', None), 'data', '')
@@ -194,7 +196,8 @@ def _copy_connection(writer, conn, typestore):
         return writer.add_connection(conn.topic, conn.msgtype, msgdef=definition,
                                      rihs01=conn.digest, offered_qos_profiles=qos)
     try:
-        return writer.add_connection(conn.topic, conn.msgtype, typestore=typestore,
+        return writer.add_connection(conn.topic, conn.msgtype,
+                                     typestore=get_typestore(Stores.ROS2_JAZZY),
                                      offered_qos_profiles=qos)
     except TypesysError:
         raise BagError(f'cannot copy {conn.topic}: the bag carries no definition of '

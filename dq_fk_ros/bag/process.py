@@ -307,7 +307,6 @@ def _process_with(reader, model, in_path, out_path, o, window=None):
     copy_input, pose_namespace, frame_prefix = o.copy_input, o.pose_namespace, o.frame_prefix
     out_of_limits, progress, chunk, poses = o.out_of_limits, o.progress, o.chunk, o.poses
     from dq_fk_ros.bag.writer import BagWriter
-    from rosbags.typesys import get_typestore, Stores
     conns = joint_state_connections(reader, in_path, topic)
     writer = None
     if not csv_only:
@@ -315,10 +314,9 @@ def _process_with(reader, model, in_path, out_path, o, window=None):
             _remove(out_path)
         writer = BagWriter(out_path, storage, o.compression)
         writer.open()
-    typestore = get_typestore(Stores.ROS2_JAZZY)
     copy_from = list(reader.connections) if copy_input else []
     try:
-        outputs = BagOutputs(writer, model, typestore, pose_namespace, frame_prefix,
+        outputs = BagOutputs(writer, model, pose_namespace, frame_prefix,
                              copy_from, poses, o.dh_frames) if writer is not None else None
     except BagError:  # refused before anything was written: leave no output behind
         writer.abort()

@@ -22,11 +22,10 @@ given as K ``(N, size)`` uint8 arrays of serialized messages (fixed size per con
 """
 
 from functools import partial
-from importlib.metadata import PackageNotFoundError, version
 import os
 import struct
-import zlib
 
+from dq_fk_ros.bag.crc import crc32
 from dq_fk_ros.bag.mcap_format import (
     MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER, OP_HEADER, OP_MESSAGE,
     OP_MESSAGE_INDEX, OP_METADATA, OP_METADATA_INDEX, OP_SCHEMA, OP_STATISTICS,
@@ -51,10 +50,8 @@ _U16, _U32, _U64 = struct.Struct('<H'), struct.Struct('<I'), struct.Struct('<Q')
 
 
 def _library():
-    try:
-        return f'dq_fk_ros-{version("dq_fk_ros")}'
-    except PackageNotFoundError:  # imported from a source tree that was never installed
-        return 'dq_fk_ros'
+    from dq_fk_ros import __version__
+    return f'dq_fk_ros-{__version__}'
 
 
 def _string(text):
@@ -248,7 +245,7 @@ class McapChunkStorage:
         records = memoryview(records).cast('B')
         size = len(records)
         chunk_start = self.file.tell()
-        crc = zlib.crc32(records)
+        crc = crc32(records)
         stored = _compress(records, self.compression)
         head = (_U64.pack(start_ns) + _U64.pack(end_ns) + _U64.pack(size)
                 + _U32.pack(crc) + _string(self.compression) + _U64.pack(len(stored)))
@@ -311,7 +308,7 @@ class McapChunkStorage:
         offsets_start = summary_start + len(summary)
         footer = (bytes((OP_FOOTER,)) + _U64.pack(20) + _U64.pack(summary_start)
                   + _U64.pack(offsets_start))
-        crc = zlib.crc32(footer, zlib.crc32(offsets, zlib.crc32(summary)))
+        crc = crc32(footer, crc32(offsets, crc32(summary)))
         self.file.write(bytes(summary) + offsets + footer + _U32.pack(crc) + MAGIC)
         self.file.close()
 

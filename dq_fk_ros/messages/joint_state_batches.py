@@ -65,9 +65,14 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
         elif merger.out_of_limits == 'clamp':
             q = np.clip(q, lower, upper)
         accepted[rows] = ok
-        taken = rows[ok][:, None]
-        given[taken, joints] = True
-        values[taken, joints] = q[ok]
+        if len(rows) == total and ok.all():   # one layout, every message taken: slices
+            taken = slice(None)
+            given[:, joints] = True
+            values[:, joints] = q
+        else:
+            taken = rows[ok][:, None]
+            given[taken, joints] = True
+            values[taken, joints] = q[ok]
         if n_vel:
             qdot = np.concatenate([np.asarray(v, dtype=float) for _, _, v in members])
             qdot = qdot[:, columns]
@@ -155,6 +160,14 @@ def _track_stamps(merger, stamps):
 def _carry_forward(merger, given, values, rates, q_out, qdot_out, complete, seen_rows):
     """Fill each message's joint vector with the last given values, from the state."""
     if not len(given):
+        return
+    if given.all():   # every joint given by every message: nothing to carry forward
+        q_out[:], qdot_out[:] = values, rates
+        seen = np.ones(given.shape, bool)
+        complete[:] = True
+        seen_rows.append(seen)
+        merger._q, merger._qdot, merger._seen = q_out[-1].tolist(), qdot_out[-1].tolist(), \
+            seen[-1].tolist()
         return
     steps = np.arange(len(given))[:, None]
     last = np.maximum.accumulate(np.where(given, steps, -1), axis=0)

@@ -244,3 +244,14 @@ def test_rows_refuse_what_does_not_fit():
         COMPILED.Rows([1], [bytes(pose_stamped_template('a').buf)], [[4]], [[40]], [7])
     with pytest.raises(TypeError, match='set once'):
         rows.__init__([1], [b''], [[]], [[]], [1])
+
+
+def test_the_fast_crc_is_zlibs():
+    import zlib
+    from dq_fk_ros.bag.crc import crc32
+    rng = np.random.default_rng(5)
+    for size in (0, 1, 7, 64, 1000, 1 << 20):
+        data = rng.integers(0, 256, size, np.uint8).tobytes()
+        assert crc32(data) == zlib.crc32(data)
+        assert crc32(data, 12345) == zlib.crc32(data, 12345)
+        assert crc32(memoryview(data)[1:]) == zlib.crc32(data[1:])

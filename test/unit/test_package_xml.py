@@ -33,3 +33,11 @@ def test_every_runtime_import_is_declared():
     missing = [m for m in sorted(third_party_imports())
                if ROSDEP.get(m, m) not in declared and m not in pip_only]
     assert missing == []
+
+
+def test_one_version_for_the_package_its_metadata_and_package_xml():
+    from importlib.metadata import version
+    import dq_fk_ros
+    text = open(os.path.join(ROOT, 'package.xml'), encoding='utf-8').read()
+    assert ET.fromstring(text).find('version').text == dq_fk_ros.__version__
+    assert version('dq_fk_ros') == dq_fk_ros.__version__
