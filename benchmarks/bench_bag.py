@@ -128,7 +128,7 @@ def run_process(in_bag, out_bag, storage, poses, compression='none', extra=()):
 
 
 def best(runs):
-    """The run with the least time of ``runs`` ((seconds, RSS, output) each)."""
+    """Return the run with the least time of ``runs`` ((seconds, RSS, output) each)."""
     return min(runs, key=lambda r: r[0])
 
 
@@ -151,7 +151,7 @@ def floor_and_ratios(in_bag, out_bag, n, repeat):
     group = 'dq_fk_bag process'
     print(f'# dq_fk_bag process and the reading floor ({n:,} RL15 JointStates, one CPU), '
           f'best of {repeat}')
-    shown = {'all': 'every pose topic', 'end': 'the end effector\'s pose topic',
+    shown = {'all': 'every pose topic', 'end': "the end effector's pose topic",
              'none': '/tf only'}
     for what, seconds in (("rosbags' bare read (AnyReader.messages())", reads['rosbags']),
                           ("the mcap library's bare iter_messages", reads['mcap']),

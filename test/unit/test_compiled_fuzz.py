@@ -407,8 +407,8 @@ def test_mcap_rows_survive_any_arguments(data):
         at = data.draw(st.integers(0, 4))
         args[at] = data.draw(st.sampled_from([
             [], [1], [1, 2, 3], [-1, 2], [2**16, 2], [b'', b'\x00\x01\x00\x00'], [None, None],
-            [[4], [2**62]], [[-1], [4]], [[0, 1], []], [0, 7], [7, 65], [Mutator(1, victim.clear),
-                                                                        2], None, 'xy', 3]))
+            [[4], [2**62]], [[-1], [4]], [[0, 1], []], [0, 7], [7, 65],
+            [Mutator(1, victim.clear), 2], None, 'xy', 3]))
     made = attempt(MCAP.Rows, *args)
     if made is None:
         made = MCAP.Rows(*good)
