@@ -704,6 +704,15 @@ def _is_layout(raw, check):
     return True
 
 
+class _KnownLayout:
+    """A layout :class:`TfLatest` has seen, and its check; hashed by identity (cheaply)."""
+
+    __slots__ = ('layout', 'check')
+
+    def __init__(self, layout):
+        self.layout, self.check = layout, _layout_check(layout)
+
+
 class TfLatest:
     """
     Keep the newest serialized ``TFMessage`` of each layout (publisher), unread.
@@ -711,39 +720,38 @@ class TfLatest:
     :meth:`take` compares the frame-id bytes of a known layout (a startswith per run, or one
     numpy gather for a big robot's, alike: ``test_tf_latest_tells_layouts_apart``);
     :meth:`pop` reads the values of only the newest message of each layout. At most
-    ``max_layouts`` layouts are remembered (the oldest is forgotten beyond).
+    ``max_layouts`` layouts are remembered (the oldest is forgotten beyond). The layouts are
+    kept in objects hashed by identity: a ``TfLayout`` (a tuple of a whole robot's edges)
+    would be hashed anew at every message (15 us for tiago_dual's).
     """
 
     def __init__(self, max_layouts=64):
         """Start with no layouts."""
         self.max_layouts = max_layouts
-        self._by_size = {}     # size -> [layout, ...]
-        self._latest = {}      # layout -> newest raw since pop()
-        self._checks = {}      # layout -> ((start, bytes), ...): its count and frame ids
+        self._by_size = {}     # size -> [_KnownLayout, ...]
+        self._latest = {}      # _KnownLayout -> newest raw since pop()
         self._order = []
 
     def take(self, raw) -> None:
         """Note ``raw`` as its layout's newest message (CdrError: unreadable)."""
         raw = raw if isinstance(raw, bytes) else bytes(raw)
-        for layout in self._by_size.get(len(raw), ()):
-            if _is_layout(raw, self._checks[layout]):
-                self._latest[layout] = raw
+        for known in self._by_size.get(len(raw), ()):
+            if _is_layout(raw, known.check):
+                self._latest[known] = raw
                 return
-        layout = tf_layout(raw)
-        self._checks[layout] = _layout_check(layout)
-        self._by_size.setdefault(layout.size, []).append(layout)
-        self._order.append(layout)
+        known = _KnownLayout(tf_layout(raw))
+        self._by_size.setdefault(known.layout.size, []).append(known)
+        self._order.append(known)
         if len(self._order) > self.max_layouts:
             old = self._order.pop(0)
-            self._by_size[old.size].remove(old)
+            self._by_size[old.layout.size].remove(old)
             self._latest.pop(old, None)
-            self._checks.pop(old, None)
-        self._latest[layout] = raw
+        self._latest[known] = raw
 
     def pop(self) -> list:
         """Return ``[(transforms, stamp_ns), ...]`` of each layout's newest message; forget it."""
         latest, self._latest = self._latest, {}
-        return [tf_values(raw, layout) for layout, raw in latest.items()]
+        return [tf_values(raw, known.layout) for known, raw in latest.items()]
 
     def pop_raw(self) -> list:
         """Return each layout's newest message, serialized as it came; forget them."""
