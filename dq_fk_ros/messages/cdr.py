@@ -660,11 +660,15 @@ def tf_values(raw, layout) -> tuple:
     """Return ``([(parent, child, (x, y, z, qx, qy, qz, qw)), ...], first stamp ns)``."""
     transforms = [(parent, child, _POSE7.unpack_from(raw, at))
                   for (parent, child), at in zip(layout.edges, layout.values)]
-    stamp = 0
-    if layout.stamps:
-        sec, nanosec = _STAMP.unpack_from(raw, layout.stamps[0])
-        stamp = sec * 1_000_000_000 + nanosec
-    return transforms, stamp
+    return transforms, tf_stamp(raw, layout)
+
+
+def tf_stamp(raw, layout) -> int:
+    """Return the stamp (ns) of a ``TFMessage``'s first transform (0 without transforms)."""
+    if not layout.stamps:
+        return 0
+    sec, nanosec = _STAMP.unpack_from(raw, layout.stamps[0])
+    return sec * 1_000_000_000 + nanosec
 
 
 def _string_checks(layout):
@@ -754,9 +758,9 @@ class TfLatest:
         return [tf_values(raw, known.layout) for known, raw in latest.items()]
 
     def pop_raw(self) -> list:
-        """Return each layout's newest message, serialized as it came; forget them."""
+        """Return ``[(layout, raw), ...]``: each layout's newest message as it came; forget."""
         latest, self._latest = self._latest, {}
-        return list(latest.values())
+        return [(known.layout, raw) for known, raw in latest.items()]
 
 
 MAX_POSE_STAMPED_BYTES = 4096  # a frame id longer than some 4000 bytes is refused

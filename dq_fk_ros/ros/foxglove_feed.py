@@ -3,16 +3,17 @@ What dq_fk_foxglove sends to Foxglove: the newest of each input, at most ``rate`
 
 :class:`FoxgloveFeed` takes what the ROS side receives (serialized /tf, decoded /tf_static,
 the URDF, serialized joint states and poses) and, at each :meth:`FoxgloveFeed.flush`, logs
-the newest of each on the Foxglove SDK's channels. ``/tf`` (``tf2_msgs/msg/TFMessage``),
-``/joint_states`` (``sensor_msgs/msg/JointState``) and each pose topic
-(``geometry_msgs/msg/PoseStamped``) pass through as the CDR bytes they came in (schema
-``ros2msg``, as foxglove_bridge and a ROS 2 MCAP file carry them), once read as that type
-(anything else is counted and dropped: no byte is sent that does not parse); ``/tf_static``
-is the transforms of every ``/tf_static`` message so far, as one ``foxglove.FrameTransforms``;
-``/robot_description`` JSON ``{"data": urdf}`` (what the 3D panel's URDF layer reads from a
-topic). Static transforms and the URDF are kept and logged again when a client subscribes
-to them (what transient local does for a late ROS subscriber). The URDF's meshes are served
-by :class:`~dq_fk_ros.description.meshes.MeshAssets`, replaced with each new description.
+the newest of each on the Foxglove SDK's channels: ``/tf`` (each publisher's newest) and
+``/tf_static`` (every static transform so far) as ``foxglove.FrameTransforms``, each pose
+topic as ``foxglove.PoseInFrame``, ``/joint_states`` as JSON (the fields of
+``sensor_msgs/JointState``; a value that is not finite as null), ``/robot_description`` as
+JSON ``{"data": urdf}`` (what the 3D panel's URDF layer reads from a topic). Every input is
+read as its type first: bytes that do not parse are counted and dropped, never sent. Only
+the newest message of each input is read, so the conversion costs ``rate`` messages a
+second whatever the input rate. Static transforms and the URDF are kept and logged again
+when a client subscribes to them (what transient local does for a late ROS subscriber). The
+URDF's meshes are served by :class:`~dq_fk_ros.description.meshes.MeshAssets`, replaced
+with each new description.
 
 No ROS here; the channels come from the ``foxglove`` module given at construction, so the
 module is imported only by the program that needs it.
@@ -21,24 +22,23 @@ module is imported only by the program that needs it.
 import json
 import threading
 
-from dq_fk_ros.bag.msgdefs import ros2msg_definition
 from dq_fk_ros.errors import CdrError
 from dq_fk_ros.messages.cdr import (
-    JointStateNames, parse_joint_state, parse_pose_stamped, TfLatest)
+    JointStateNames, parse_joint_state, parse_pose_stamped, tf_stamp, TfLatest)
+from dq_fk_ros.ros.foxglove_encoding import FrameTransformsEncoder, joint_state_json
 
 MAX_POSE_TOPICS = 1024       # pose channels advertised at most (one per ~/pose/<frame>)
 MAX_STATIC_FRAMES = 100_000  # static transforms kept (every child frame once)
 DESCRIPTION_SCHEMA = {'type': 'object', 'properties': {'data': {'type': 'string'}}}
-TF = 'tf2_msgs/msg/TFMessage'
-JOINT_STATE = 'sensor_msgs/msg/JointState'
-POSE_STAMPED = 'geometry_msgs/msg/PoseStamped'
-
-
-def cdr_channel(foxglove, topic, msgtype) -> object:
-    """Return a channel of serialized ROS 2 messages (``cdr``) of ``msgtype`` on ``topic``."""
-    schema = foxglove.Schema(name=msgtype, encoding='ros2msg',
-                             data=ros2msg_definition(msgtype).encode())
-    return foxglove.Channel(topic, schema=schema, message_encoding='cdr')
+_NUMBERS = {'type': 'array', 'items': {'type': ['number', 'null']}}
+JOINT_STATE_SCHEMA = {
+    'type': 'object', 'properties': {
+        'header': {'type': 'object', 'properties': {
+            'stamp': {'type': 'object', 'properties': {
+                'sec': {'type': 'integer'}, 'nanosec': {'type': 'integer'}}},
+            'frame_id': {'type': 'string'}}},
+        'name': {'type': 'array', 'items': {'type': 'string'}},
+        'position': _NUMBERS, 'velocity': _NUMBERS}}
 
 
 class FoxgloveFeed:
@@ -58,14 +58,22 @@ class FoxgloveFeed:
         self.assets = assets
         self.log = log
         self.lock = threading.Lock()
-        self.tf = cdr_channel(foxglove, '/tf', TF)
+        # /tf's FrameTransforms are encoded here (FrameTransformsEncoder), /tf_static's by
+        # the SDK: one schema, the SDK's own
+        frames = foxglove.messages.FrameTransforms.get_schema()
+        self.tf = Channel('/tf', schema=frames, message_encoding='protobuf')
+        self._encoders = {}        # TfLayout -> its FrameTransformsEncoder
+        self._names_text = (None, None)   # (names, their JSON text), the last set seen
         self.tf_static = FrameTransformsChannel('/tf_static')
         # named as the ROS type: the 3D panel's URDF layer lists std_msgs/msg/String topics
         self.description = Channel('/robot_description', schema=foxglove.Schema(
             name='std_msgs/msg/String', encoding='jsonschema',
             data=json.dumps(DESCRIPTION_SCHEMA).encode()), message_encoding='json')
-        self.joint_states = cdr_channel(foxglove, '/joint_states', JOINT_STATE)
-        self.pose_channels = {}    # ROS topic -> its channel (PoseStamped, CDR)
+        # named as the ROS type, its fields as JSON
+        self.joint_states = Channel('/joint_states', schema=foxglove.Schema(
+            name='sensor_msgs/msg/JointState', encoding='jsonschema',
+            data=json.dumps(JOINT_STATE_SCHEMA).encode()), message_encoding='json')
+        self.pose_channels = {}    # ROS topic -> its PoseInFrameChannel
         self.tf_latest = TfLatest()
         self.static = {}           # child -> (parent, pose, stamp_ns)
         self.urdf = None
@@ -119,7 +127,8 @@ class FoxgloveFeed:
         with self.lock:
             if topic in self.pose_channels or len(self.pose_channels) >= MAX_POSE_TOPICS:
                 return False
-            self.pose_channels[topic] = cdr_channel(self.fox, topic, POSE_STAMPED)
+            from foxglove.channels import PoseInFrameChannel
+            self.pose_channels[topic] = PoseInFrameChannel(topic)
             return True
 
     def subscribed(self, topic) -> None:
@@ -143,30 +152,54 @@ class FoxgloveFeed:
                 urdf = self.urdf
                 self.description_changed = False
             self.counts['flushes'] += 1
-        for raw in newest:  # each read as a TFMessage when taken (its layout)
-            self.tf.log(raw)
+        for layout, raw in newest:  # each layout's (a publisher's) newest
+            self._log(self.tf, self._frame_transforms, layout, raw)
         if static:
-            self.tf_static.log(frame_transforms(m, static))
+            self._log(self.tf_static, frame_transforms, m, static)
         if urdf is not None:
             self.description.log(json.dumps({'data': urdf}))
         raw, self.joint_state_raw = self.joint_state_raw, None
         if raw is not None:
-            try:
-                parse_joint_state(raw, self._names)
-            except CdrError:
-                self.counts['bad_input'] += 1
-            else:
-                self.joint_states.log(raw)
+            self._log_joint_state(raw)
         pending, self.pose_raw = self.pose_raw, {}
         for topic, raw in pending.items():
             channel = self.pose_channels.get(topic)
             try:
-                parse_pose_stamped(raw)
+                stamp_ns, frame_id, pose = parse_pose_stamped(raw)
             except CdrError:  # not a PoseStamped after all: counted, never sent
                 self.counts['bad_input'] += 1
                 continue
             if channel is not None:
-                channel.log(raw)
+                self._log(channel, pose_in_frame, m, stamp_ns, frame_id, pose)
+
+    def _log(self, channel, make, *args):
+        """Log ``make(*args)``; a stamp Foxglove cannot carry (before 1970) is counted."""
+        try:
+            message = make(*args)
+        except (OverflowError, ValueError):  # foxglove.Timestamp: unsigned seconds
+            self.counts['bad_input'] += 1
+            return
+        channel.log(message)
+
+    def _log_joint_state(self, raw):
+        try:
+            stamp_ns, names, positions, velocities = parse_joint_state(raw, self._names)
+        except CdrError:  # not a JointState after all: counted, never sent
+            self.counts['bad_input'] += 1
+            return
+        if self._names_text[0] != names:
+            self._names_text = (names, json.dumps(list(names)))
+        self.joint_states.log(joint_state_json(stamp_ns, names, positions, velocities,
+                                               self._names_text[1]))
+
+    def _frame_transforms(self, layout, raw):
+        """Return the FrameTransforms (protobuf bytes) of a /tf message of ``layout``."""
+        encoder = self._encoders.get(id(layout))
+        if encoder is None or encoder.layout is not layout:
+            if len(self._encoders) >= 64:   # as many as TfLatest remembers
+                self._encoders.clear()
+            encoder = self._encoders[id(layout)] = FrameTransformsEncoder(layout)
+        return encoder.encode(raw, tf_stamp(raw, layout))
 
 
 def frame_transforms(m, transforms) -> object:
@@ -180,4 +213,12 @@ def frame_transforms(m, transforms) -> object:
     return m.FrameTransforms(transforms=out)
 
 
-__all__ = ['cdr_channel', 'FoxgloveFeed', 'frame_transforms', 'MAX_POSE_TOPICS']
+def pose_in_frame(m, stamp_ns, frame_id, pose) -> object:
+    """Return a ``foxglove.PoseInFrame`` of a pose ``(x, y, z, qx, qy, qz, qw)``."""
+    x, y, z, qx, qy, qz, qw = pose
+    sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
+    return m.PoseInFrame(timestamp=m.Timestamp(sec, nsec), frame_id=frame_id, pose=m.Pose(
+        position=m.Vector3(x=x, y=y, z=z), orientation=m.Quaternion(x=qx, y=qy, z=qz, w=qw)))
+
+
+__all__ = ['FoxgloveFeed', 'frame_transforms', 'MAX_POSE_TOPICS', 'pose_in_frame']

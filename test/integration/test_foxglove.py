@@ -71,7 +71,7 @@ def assert_same_as_the_node(client, tf, static):
         by_stamp[next(iter(got.values()))[0]] = got
     matched = 0
     for _, message in client.messages['/tf']:
-        got = transforms_of_ros(message)  # CDR, decoded by the schema the channel advertised
+        got = transforms_of_proto(message)  # decoded by the schema the channel advertised
         expected = by_stamp.get(next(iter(got.values()))[0])
         if expected is not None:
             assert got.keys() == expected.keys()
@@ -98,39 +98,45 @@ def test_rl15_frames_reach_foxglove_as_the_node_computed_them(processes, listene
     try:
         assert client.subprotocol in ('foxglove.sdk.v1', 'foxglove.websocket.v1')
         assert client.server_info['op'] == 'serverInfo'
-        tf_channel = client.channel('/tf')
-        assert (tf_channel['schemaName'], tf_channel['encoding'],
-                tf_channel['schemaEncoding']) == ('tf2_msgs/msg/TFMessage', 'cdr', 'ros2msg')
-        assert client.channel('/tf_static')['schemaName'] == 'foxglove.FrameTransforms'
+        for topic in ('/tf', '/tf_static'):
+            channel = client.channel(topic)
+            assert (channel['schemaName'], channel['encoding'], channel['schemaEncoding']) == (
+                'foxglove.FrameTransforms', 'protobuf', 'protobuf'), topic
         # the 3D panel's URDF layer lists topics of std_msgs String schemas
         assert client.channel('/robot_description')['schemaName'] == 'std_msgs/msg/String'
-        assert client.channel('/joint_states')['schemaName'] == 'sensor_msgs/msg/JointState'
+        joint_channel = client.channel('/joint_states')
+        assert (joint_channel['schemaName'], joint_channel['encoding']) == (
+            'sensor_msgs/msg/JointState', 'json')
         pose_topic = node_topic(node, 'pose/eeCarry_seg6')
         poses = listener.listen(PoseStamped, pose_topic, 1000)
         assert wait(lambda: any(c['topic'] == pose_topic
                                 for c in list(client.channels.values())), 30)
-        assert client.channel(pose_topic)['schemaName'] == 'geometry_msgs/msg/PoseStamped'
+        assert client.channel(pose_topic)['schemaName'] == 'foxglove.PoseInFrame'
         client.subscribe('/tf', '/tf_static', '/joint_states', pose_topic)
         listener.spin_until(lambda: len(tf) >= 50 and static, timeout_s=30)
         sent_before = len(client.messages.get('/tf', []))
         listener.spin_until(lambda: len(client.messages.get('/tf', [])) >= sent_before + 8,
                             timeout_s=30)
         assert_same_as_the_node(client, tf, static)
-        edges = transforms_of_ros(client.messages['/tf'][-1][1])
+        edges = transforms_of_proto(client.messages['/tf'][-1][1])
         assert ('wrist_seg5', 'eeCarry_seg6') in edges
         joints = client.messages['/joint_states'][-1][1]
-        assert list(joints.name[:6]) == [f'joint_{k}' for k in range(1, 7)]
-        assert len(joints.position) == 6
+        assert joints['name'][:6] == [f'joint_{k}' for k in range(1, 7)]
+        assert len(joints['position']) == 6
         # the end effector's pose as the node published it (same stamp, same values)
         listener.spin_until(lambda: client.messages.get(pose_topic), timeout_s=30)
         published = {(p.header.stamp.sec, p.header.stamp.nanosec): p for p in list(poses)}
         matched = 0
         for _, got in client.messages[pose_topic]:
-            assert got.header.frame_id == 'world'
-            mine = published.get((got.header.stamp.sec, got.header.stamp.nanosec))
+            assert got.frame_id == 'world'
+            mine = published.get((got.timestamp.seconds, got.timestamp.nanos))
             if mine is not None:
-                assert (got.pose.position.x, got.pose.orientation.w) == (
-                    mine.pose.position.x, mine.pose.orientation.w)
+                assert (got.pose.position.x, got.pose.position.y, got.pose.position.z,
+                        got.pose.orientation.x, got.pose.orientation.y,
+                        got.pose.orientation.z, got.pose.orientation.w) == (
+                    mine.pose.position.x, mine.pose.position.y, mine.pose.position.z,
+                    mine.pose.orientation.x, mine.pose.orientation.y,
+                    mine.pose.orientation.z, mine.pose.orientation.w)
                 matched += 1
         assert matched >= 1
         # 200 Hz in, at most --rate (30) a second out, the newest
@@ -181,7 +187,7 @@ def test_ur5_meshes_come_back_byte_for_byte_and_nothing_else(processes, listener
         listener.spin_until(lambda: len(client.messages.get('/tf', [])) >= sent_before + 8,
                             timeout_s=30)
         assert_same_as_the_node(client, tf, static)
-        links = {c for _, c in transforms_of_ros(client.messages['/tf'][-1][1])} | \
+        links = {c for _, c in transforms_of_proto(client.messages['/tf'][-1][1])} | \
             {c for _, c in transforms_of_proto(client.messages['/tf_static'][-1][1])}
         joints = ElementTree.fromstring(urdf).findall('joint')
         assert links == {j.find('child').get('link') for j in joints}  # the URDF's tree
@@ -242,8 +248,8 @@ def test_bytes_that_do_not_parse_are_never_passed_through(processes, listener):
                 client.messages.get('/hostile/pose/tool')
         listener.spin_until(good_ones_arrived, timeout_s=20,
                             publish=listener.joint_state(['a', 'b'], [0.5, -0.5]))
-        assert list(client.messages['/joint_states'][-1][1].position) == [0.5, -0.5]
-        assert client.messages['/hostile/pose/tool'][-1][1].header.frame_id == ''
+        assert client.messages['/joint_states'][-1][1]['position'] == [0.5, -0.5]
+        assert client.messages['/hostile/pose/tool'][-1][1].frame_id == ''
     finally:
         client.close()
 

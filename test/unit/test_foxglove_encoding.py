@@ -1,0 +1,92 @@
+"""
+Foxglove messages encoded from the ROS bytes (ros/foxglove_encoding.py) against the references.
+
+``FrameTransformsEncoder`` against the SDK's own ``foxglove.FrameTransforms`` objects and
+encoder (``foxglove_feed.frame_transforms``), both decoded with google.protobuf from the
+schema the SDK advertises; ``joint_state_json`` against ``json.dumps`` of the fields;
+``varint`` against protobuf's own encoder.
+"""
+
+import json
+import math
+
+from dq_fk_ros.messages.cdr import tf_layout, tf_message_template, tf_values
+from dq_fk_ros.ros.foxglove_encoding import FrameTransformsEncoder, joint_state_json, varint
+from hypothesis import given, strategies as st
+import numpy as np
+import pytest
+
+foxglove = pytest.importorskip('foxglove')
+
+
+def frame_transforms_class():
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+    schema = foxglove.messages.FrameTransforms.get_schema()
+    pool = descriptor_pool.DescriptorPool()
+    for file in descriptor_pb2.FileDescriptorSet.FromString(schema.data).file:
+        pool.Add(file)
+    return message_factory.GetMessageClass(
+        pool.FindMessageTypeByName('foxglove.FrameTransforms'))
+
+
+FRAMES = frame_transforms_class()
+NAMES = st.text(st.characters(blacklist_categories=('Cs',), blacklist_characters='\x00'),
+                max_size=140)
+
+
+@given(edges=st.lists(st.tuples(NAMES, NAMES), max_size=12),
+       stamp=st.one_of(st.integers(0, 2**31 * 10**9), st.sampled_from(
+           [0, 1, 127, 128, 10**9, 10**9 - 1, 1_700_000_000_123_456_789, 2**31 * 10**9 - 1])),
+       seed=st.integers(0, 2**32 - 1))
+def test_frame_transforms_decode_as_the_sdks_own(edges, stamp, seed):
+    from dq_fk_ros.ros.foxglove_feed import frame_transforms
+    values = np.random.default_rng(seed).normal(size=(1, 7 * len(edges)))
+    values[0, ::5] = 0.0   # zeros: fields the SDK leaves out, this encoder writes
+    raw = tf_message_template(edges).fill(np.array([stamp]), values)[0].tobytes()
+    layout = tf_layout(raw)
+    encoder = FrameTransformsEncoder(layout)
+    transforms, _ = tf_values(raw, layout)
+    reference = frame_transforms(foxglove.messages,
+                                 [(p, c, pose, stamp) for p, c, pose in transforms]).encode()
+    ours = FRAMES.FromString(encoder.encode(raw, stamp))
+    assert ours == FRAMES.FromString(reference)
+    assert len(ours.transforms) == len(edges)
+    # the same encoder again, another stamp length and other values (its cached forms)
+    raw2 = tf_message_template(edges).fill(np.array([stamp // 7 + 3]), values[:, ::-1].copy())
+    transforms2, _ = tf_values(raw2[0].tobytes(), layout)
+    again = frame_transforms(foxglove.messages, [(p, c, pose, stamp // 7 + 3)
+                                                 for p, c, pose in transforms2]).encode()
+    assert FRAMES.FromString(encoder.encode(raw2[0].tobytes(), stamp // 7 + 3)) == \
+        FRAMES.FromString(again)
+
+
+def test_a_stamp_before_1970_is_refused_as_the_sdk_refuses_it():
+    raw = tf_message_template([('a', 'b')]).fill(np.array([-1]), np.zeros((1, 7)))[0]
+    with pytest.raises(OverflowError):
+        FrameTransformsEncoder(tf_layout(raw.tobytes())).encode(raw.tobytes(), -1)
+    with pytest.raises(OverflowError):
+        foxglove.messages.Timestamp(-1, 0)
+
+
+@given(st.integers(0, 2**64 - 1))
+def test_varints_are_protobufs(value):
+    from google.protobuf.internal.encoder import _VarintBytes
+    assert varint(value) == _VarintBytes(value)
+
+
+FLOATS = st.floats(allow_nan=True, allow_infinity=True)
+
+
+@given(names=st.lists(NAMES, max_size=8), stamp=st.integers(0, 2**62),
+       positions=st.lists(FLOATS, max_size=8), velocities=st.lists(FLOATS, max_size=8))
+def test_joint_state_json_is_the_fields_with_null_for_what_is_not_finite(
+        names, stamp, positions, velocities):
+    def finite(values):
+        return [v if math.isfinite(v) else None for v in values]
+    sec, nanosec = divmod(stamp, 1_000_000_000)
+    expected = {'header': {'stamp': {'sec': sec, 'nanosec': nanosec}, 'frame_id': ''},
+                'name': names, 'position': finite(positions), 'velocity': finite(velocities)}
+    text = joint_state_json(stamp, names, np.array(positions, dtype=float),
+                            np.array(velocities, dtype=float))
+    assert json.loads(text) == json.loads(json.dumps(expected))
+    assert joint_state_json(stamp, names, positions, velocities, json.dumps(names)) == text
