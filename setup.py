@@ -33,10 +33,12 @@ setup(
                            extra_compile_args=['-O3', '-ffp-contract=off', '-fno-fast-math'],
                            optional=True),
                  Extension('dq_fk_ros.messages._cdr', ['dq_fk_ros/messages/_cdr.c'],
+                           depends=['dq_fk_ros/messages/c_arguments.h'],
                            extra_compile_args=['-O2'], optional=True),
                  # MCAP chunks read and written without a Python object per record
                  # (dq_fk_bag process; optional too: the numpy paths run without)
                  Extension('dq_fk_ros.bag._mcap', ['dq_fk_ros/bag/_mcap.c'],
+                           depends=['dq_fk_ros/messages/c_arguments.h'],
                            extra_compile_args=['-O2'], optional=True)],
     install_requires=['setuptools', 'numpy', 'PyYAML'],
     # dq_fk_bag process --scheduler: a Dask cluster (pip install 'dq_fk_ros[cluster]')

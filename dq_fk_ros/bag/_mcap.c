@@ -34,6 +34,8 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "../messages/c_arguments.h"
+
 #define OP_MESSAGE 0x05
 #define RECORD_HEAD 9        /* opcode u8, length u64 */
 #define MESSAGE_HEAD 22      /* channel u16, sequence u32, log time u64, publish time u64 */
@@ -246,52 +248,6 @@ static void rows_dealloc(RowsObject *self)
 {
     rows_clear(self);
     Py_TYPE(self)->tp_free((PyObject *)self);
-}
-
-/* An int in [low, high]; what names it in the error. */
-static int int_within(PyObject *item, Py_ssize_t low, Py_ssize_t high, Py_ssize_t *at,
-                      const char *what)
-{
-    *at = PyLong_AsSsize_t(item);
-    int not_int = *at == -1 && PyErr_Occurred();
-    if (not_int)
-        PyErr_Clear();
-    if (not_int || *at < low || *at > high) {
-        PyErr_Format(PyExc_ValueError, "%s must be an int in %zd..%zd", what, low, high);
-        return -1;
-    }
-    return 0;
-}
-
-/* A sequence (copied into a tuple first) of ints in [low, high], at most max_n of them. */
-static Py_ssize_t *ints_within(PyObject *obj, Py_ssize_t low, Py_ssize_t high, Py_ssize_t *n,
-                               Py_ssize_t max_n, const char *what)
-{
-    PyObject *seq = PySequence_Tuple(obj);
-    if (seq == NULL) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_TypeError, "%s: a sequence of ints", what);
-        return NULL;
-    }
-    *n = PyTuple_GET_SIZE(seq);
-    Py_ssize_t *out = NULL;
-    if (*n > max_n) {
-        PyErr_Format(PyExc_ValueError, "%s: at most %zd of them", what, max_n);
-        goto done;
-    }
-    if ((out = PyMem_Malloc((*n ? *n : 1) * sizeof(Py_ssize_t))) == NULL) {
-        PyErr_NoMemory();
-        goto done;
-    }
-    for (Py_ssize_t i = 0; i < *n; i++)
-        if (int_within(PyTuple_GET_ITEM(seq, i), low, high, out + i, what) < 0) {
-            PyMem_Free(out);
-            out = NULL;
-            goto done;
-        }
-done:
-    Py_DECREF(seq);
-    return out;
 }
 
 /* tuple(obj) of exactly k items, or NULL */

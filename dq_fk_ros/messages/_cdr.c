@@ -26,6 +26,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "c_arguments.h"
+
 /* the largest message a template or a reader takes (a JointState of 4096 joints is 300 kB) */
 #define MAX_MESSAGE (64 << 20)
 
@@ -54,60 +56,6 @@ static void template_dealloc(TemplateObject *self)
     PyMem_Free(self->stamps);
     PyMem_Free(self->slots);
     Py_TYPE(self)->tp_free((PyObject *)self);
-}
-
-/* One int of a sequence, in [low, high]; what names it in the error. */
-static int int_within(PyObject *item, Py_ssize_t low, Py_ssize_t high, Py_ssize_t *at,
-                      const char *what)
-{
-    *at = PyLong_AsSsize_t(item);
-    int not_int = *at == -1 && PyErr_Occurred();  /* not an int, or too large */
-    if (not_int)
-        PyErr_Clear();
-    if (not_int || *at < low || *at > high) {
-        if (not_int)
-            PyErr_Format(PyExc_ValueError, "%s must be an int in %zd..%zd", what, low, high);
-        else
-            PyErr_Format(PyExc_ValueError, "%s %zd is outside %zd..%zd", what, *at, low,
-                         high);
-        return -1;
-    }
-    return 0;
-}
-
-/*
- * A sequence of ints, each in [low, high], as a new C array (*n of them, at most max_n).
- * The sequence is copied into a tuple first: an item's __index__ cannot change the others.
- */
-static Py_ssize_t *ints_within(PyObject *obj, Py_ssize_t low, Py_ssize_t high, Py_ssize_t *n,
-                               Py_ssize_t max_n, const char *what)
-{
-    PyObject *seq = PySequence_Tuple(obj);
-    if (seq == NULL) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_TypeError, "%s: a sequence of ints", what);
-        return NULL;
-    }
-    *n = PyTuple_GET_SIZE(seq);
-    if (*n > max_n) {
-        PyErr_Format(PyExc_ValueError, "%s: at most %zd of them", what, max_n);
-        Py_DECREF(seq);
-        return NULL;
-    }
-    Py_ssize_t *out = PyMem_Malloc((*n ? *n : 1) * sizeof(Py_ssize_t));
-    if (out == NULL) {
-        Py_DECREF(seq);
-        PyErr_NoMemory();
-        return NULL;
-    }
-    for (Py_ssize_t i = 0; i < *n; i++)
-        if (int_within(PyTuple_GET_ITEM(seq, i), low, high, out + i, what) < 0) {
-            PyMem_Free(out);
-            Py_DECREF(seq);
-            return NULL;
-        }
-    Py_DECREF(seq);
-    return out;
 }
 
 /* Offsets with room for `bytes` bytes in a message of `size`, never in the 4-byte header. */
