@@ -615,6 +615,101 @@ static PyTypeObject ReaderType = {
     .tp_methods = reader_methods,
 };
 
+/*
+ * Runs(offsets, lengths, expected): where a TFMessage layout's count and frame ids are, and
+ * their bytes. match(raw) -> bool: raw holds expected's bytes at every offset (the compiled
+ * form of cdr._is_layout, the reference: test_cdr.py's test_tf_latest_tells_layouts_apart).
+ */
+#define MAX_RUNS (1 << 20)
+
+typedef struct {
+    PyObject_HEAD
+    Py_ssize_t n, *offsets, *lengths, end;
+    char *expected;
+    int initialised;
+} RunsObject;
+
+static void runs_dealloc(RunsObject *self)
+{
+    PyMem_Free(self->offsets);
+    PyMem_Free(self->lengths);
+    PyMem_Free(self->expected);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyObject *runs_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+    PyObject *offsets, *lengths, *expected;
+    static char *names[] = {"offsets", "lengths", "expected", NULL};
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOO", names, &offsets, &lengths,
+                                     &expected))
+        return NULL;
+    RunsObject *self = (RunsObject *)type->tp_alloc(type, 0);
+    if (self == NULL)
+        return NULL;
+    Py_ssize_t n_lengths = 0, size = 0, total = 0;
+    if ((self->offsets = ints_within(offsets, 0, MAX_MESSAGE, &self->n, MAX_RUNS,
+                                     "run offset")) == NULL
+        || (self->lengths = ints_within(lengths, 0, MAX_MESSAGE, &n_lengths, MAX_RUNS,
+                                        "run length")) == NULL
+        || (self->expected = bytes_copy(expected, &size, "expected")) == NULL)
+        goto fail;
+    if (n_lengths != self->n) {
+        PyErr_SetString(PyExc_ValueError, "offsets and lengths: one each per run");
+        goto fail;
+    }
+    for (Py_ssize_t i = 0; i < self->n; i++) {
+        /* each term <= 64 MiB, at most 2**20 of them: no overflow */
+        total += self->lengths[i];
+        if (self->offsets[i] + self->lengths[i] > self->end)
+            self->end = self->offsets[i] + self->lengths[i];
+    }
+    if (total != size) {
+        PyErr_SetString(PyExc_ValueError, "expected: the runs' bytes, back to back");
+        goto fail;
+    }
+    return (PyObject *)self;
+fail:
+    Py_DECREF(self);
+    return NULL;
+}
+
+static int runs_init(RunsObject *self, PyObject *args, PyObject *kwargs)
+{
+    return set_once((PyObject *)self, &self->initialised);
+}
+
+static PyObject *runs_match(RunsObject *self, PyObject *raw_obj)
+{
+    Py_buffer raw;
+    if (PyObject_GetBuffer(raw_obj, &raw, PyBUF_SIMPLE) < 0)
+        return NULL;
+    int same = raw.len >= self->end;
+    const char *b = raw.buf, *e = self->expected;
+    for (Py_ssize_t i = 0; same && i < self->n; e += self->lengths[i], i++)
+        same = memcmp(b + self->offsets[i], e, (size_t)self->lengths[i]) == 0;
+    PyBuffer_Release(&raw);
+    return PyBool_FromLong(same);
+}
+
+static PyMethodDef runs_methods[] = {
+    {"match", (PyCFunction)runs_match, METH_O,
+     "match(raw) -> bool: raw holds the expected bytes at every run"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject RunsType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "dq_fk_ros.messages._cdr.Runs",
+    .tp_doc = "Runs(offsets, lengths, expected): byte runs a message must hold (immutable)",
+    .tp_basicsize = sizeof(RunsObject),
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_new = runs_new,
+    .tp_init = (initproc)runs_init,
+    .tp_dealloc = (destructor)runs_dealloc,
+    .tp_methods = runs_methods,
+};
+
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_cdr",
     "Fixed-layout CDR messages filled in C (the reference: dq_fk_ros.messages.cdr.CdrPacker).",
@@ -628,12 +723,14 @@ PyMODINIT_FUNC PyInit__cdr(void)
         PyErr_SetString(PyExc_ImportError, "a big-endian machine: the Python packer runs");
         return NULL;
     }
-    if (PyType_Ready(&TemplateType) < 0 || PyType_Ready(&ReaderType) < 0)
+    if (PyType_Ready(&TemplateType) < 0 || PyType_Ready(&ReaderType) < 0
+        || PyType_Ready(&RunsType) < 0)
         return NULL;
     PyObject *m = PyModule_Create(&module);
     if (m == NULL)
         return NULL;
-    if (PyModule_AddType(m, &TemplateType) < 0 || PyModule_AddType(m, &ReaderType) < 0) {
+    if (PyModule_AddType(m, &TemplateType) < 0 || PyModule_AddType(m, &ReaderType) < 0
+        || PyModule_AddType(m, &RunsType) < 0) {
         Py_DECREF(m);  /* (the types are named by their tp_name's last part) */
         return NULL;
     }

@@ -708,21 +708,39 @@ def _is_layout(raw, check):
     return True
 
 
+def _compiled_check(check):
+    """
+    Return the C form of a layout's check (``_cdr.Runs``), or None (not built).
+
+    ``Runs.match(raw)`` decides as :func:`_is_layout` (the reference; test_cdr.py's
+    ``test_tf_latest_tells_layouts_apart``), a ``memcmp`` per run.
+    """
+    if COMPILED is None:
+        return None
+    runs, _ = check
+    return COMPILED.Runs([at for at, _ in runs], [len(text) for _, text in runs],
+                         b''.join(text for _, text in runs))
+
+
 class _KnownLayout:
     """A layout :class:`TfLatest` has seen, and its check; hashed by identity (cheaply)."""
 
-    __slots__ = ('layout', 'check')
+    __slots__ = ('layout', 'check', 'match')
 
     def __init__(self, layout):
         self.layout, self.check = layout, _layout_check(layout)
+        compiled = _compiled_check(self.check)
+        self.match = compiled.match if compiled is not None else \
+            (lambda raw, check=self.check: _is_layout(raw, check))
 
 
 class TfLatest:
     """
     Keep the newest serialized ``TFMessage`` of each layout (publisher), unread.
 
-    :meth:`take` compares the frame-id bytes of a known layout (a startswith per run, or one
-    numpy gather for a big robot's, alike: ``test_tf_latest_tells_layouts_apart``);
+    :meth:`take` compares the frame-id bytes of a known layout (in C, ``_cdr.Runs``; else a
+    startswith per run, or one numpy gather for a big robot's; all alike:
+    ``test_tf_latest_tells_layouts_apart``);
     :meth:`pop` reads the values of only the newest message of each layout. At most
     ``max_layouts`` layouts are remembered (the oldest is forgotten beyond). The layouts are
     kept in objects hashed by identity: a ``TfLayout`` (a tuple of a whole robot's edges)
@@ -740,7 +758,7 @@ class TfLatest:
         """Note ``raw`` as its layout's newest message (CdrError: unreadable)."""
         raw = raw if isinstance(raw, bytes) else bytes(raw)
         for known in self._by_size.get(len(raw), ()):
-            if _is_layout(raw, known.check):
+            if known.match(raw):
                 self._latest[known] = raw
                 return
         known = _KnownLayout(tf_layout(raw))

@@ -432,7 +432,7 @@ def test_a_batch_with_undefined_padding_is_one_run():
 def test_tf_latest_tells_layouts_apart(count, data):
     """A big robot's layout (one numpy gather) and run by run decide alike, padding aside."""
     from dq_fk_ros.messages.cdr import (
-        _is_layout, _layout_check, TfLatest, tf_layout, tf_values)
+        _compiled_check, _is_layout, _layout_check, TfLatest, tf_layout, tf_values)
     pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     edges = [(f'p{k % 5}', f'child_{k}', pose) for k in range(count)]
     raw = tf_message_bytes(edges, stamp=(1, 0))
@@ -447,10 +447,15 @@ def test_tf_latest_tells_layouts_apart(count, data):
     noise = random.Random(data.draw(st.integers(0, 2**32)))
     for (_, end), (start, _) in zip(layout.strings, layout.strings[1:]):
         dirty[end:start] = noise.randbytes(start - end)  # stamps, padding, values
+    compiled = _compiled_check((runs, gather))
     for message, same in ((raw, True), (other, False), (bytes(dirty), True)):
         assert len(message) == len(raw)
         assert _is_layout(message, (runs, gather)) is same
         assert _is_layout(message, (runs, None)) is same
+        if compiled is not None:  # the C check: the same, and nothing past the end read
+            assert compiled.match(message) is same
+            assert compiled.match(message[:-1]) is same   # (the last values are not read)
+            assert compiled.match(message[:layout.strings[-1][1] - 1]) is False
     latest = TfLatest()
     for message in (raw, other, bytes(dirty)):
         latest.take(message)

@@ -3,7 +3,8 @@ No Python value crashes the C extensions: a hypothesis fuzz of every public comp
 
 ``_kernel.Chain`` (made, ``frames``, ``end``, ``frames_batch``, ``end_batch``, ``jacobian``),
 ``_kernel.Model`` (made, ``poses``, ``poses_batch``, ``frames``), ``_cdr.Template`` (made,
-``one``, ``each``), ``_cdr.JointStateReader`` (made, ``read``) and ``_mcap`` (``scan``,
+``one``, ``each``), ``_cdr.JointStateReader`` (made, ``read``), ``_cdr.Runs`` (made,
+``match``) and ``_mcap`` (``scan``,
 ``gather``, ``Rows`` made and ``fill``) get random shapes (0, 1,
 huge, 2**62), dtypes, strides (negative, non-contiguous, overlapping input and output,
 read-only out), wrong types, and objects whose dunder methods mutate the callee or its other
@@ -433,3 +434,27 @@ def test_mcap_rows_survive_any_arguments(data):
     fresh.fill(out, np.zeros(2, np.int64), np.zeros(2, np.int64),
                [np.zeros((2, 14)), np.zeros((2, 7))])
     assert out[0] == 5
+
+
+@given(st.data())
+def test_runs_survive_any_arguments(data):
+    from dq_fk_ros.messages import _cdr
+    victim = [0, 4]
+    args = [data.draw(st.sampled_from([victim, [0], [], [-1], [2**62], ['x'], None, 7,
+                                       [Mutator(3, victim.clear), 4]])),
+            data.draw(st.sampled_from([[2, 3], [2], [0, 0], [-1, 1], [2**62, 1], None,
+                                       [Mutator(2, victim.clear), 3]])),
+            data.draw(st.sampled_from([b'abxyz', b'', b'ab', bytearray(b'abxyz'), 'text',
+                                       None, memoryview(b'abxyz')[::2]]))]
+    made = attempt(_cdr.Runs, *args)
+    if made is None:
+        made = _cdr.Runs([0, 4], [2, 3], b'abxyz')
+    for _ in range(data.draw(st.integers(1, 4))):
+        raw = data.draw(st.sampled_from([b'ab..xyz', b'ab..xy', b'', b'abab', None, 3,
+                                         bytearray(b'ab..xyz'), np.zeros(9, np.uint8),
+                                         memoryview(b'ab..xyz..')[::2]]))
+        result = attempt(made.match, raw)
+        assert result in (None, True, False)
+        if data.draw(st.booleans()):
+            attempt(made.__init__, *args)
+    assert _cdr.Runs([0, 4], [2, 3], b'abxyz').match(b'ab..xyz') is True
