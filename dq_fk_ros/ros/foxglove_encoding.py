@@ -18,6 +18,10 @@ import math
 import numpy as np
 
 _DOUBLE_TAGS = (0x09, 0x11, 0x19, 0x21)   # fields 1..4 of a message, wire type 1 (64-bit)
+# a form's index arrays take some 17 bytes a byte of the message: the largest /tf written
+# from a template, and the forms kept per layout (one a stamp length: in practice one or two)
+MAX_TEMPLATED_BYTES = 256 << 10
+MAX_FORMS = 2
 
 
 def varint(value: int) -> bytes:
@@ -96,6 +100,8 @@ class FrameTransformsEncoder:
         key = (len(varint(sec)), len(varint(nsec)))
         form = self._forms.get(key)
         if form is None:
+            if len(self._forms) >= MAX_FORMS:   # stamps of every length: keep memory bounded
+                self._forms.clear()
             form = self._forms[key] = _Form(self.layout.edges, self.layout.values, *key)
         out = form.template.copy()
         if form.count:

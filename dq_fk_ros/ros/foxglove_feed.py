@@ -24,11 +24,13 @@ import threading
 
 from dq_fk_ros.errors import CdrError
 from dq_fk_ros.messages.cdr import (
-    JointStateNames, parse_joint_state, parse_pose_stamped, tf_stamp, TfLatest)
-from dq_fk_ros.ros.foxglove_encoding import FrameTransformsEncoder, joint_state_json
+    JointStateNames, parse_joint_state, parse_pose_stamped, tf_stamp, tf_values, TfLatest)
+from dq_fk_ros.ros.foxglove_encoding import (
+    FrameTransformsEncoder, joint_state_json, MAX_TEMPLATED_BYTES)
 
 MAX_POSE_TOPICS = 1024       # pose channels advertised at most (one per ~/pose/<frame>)
 MAX_STATIC_FRAMES = 100_000  # static transforms kept (every child frame once)
+MAX_ENCODERS = 8             # /tf layouts whose FrameTransforms templates are kept
 DESCRIPTION_SCHEMA = {'type': 'object', 'properties': {'data': {'type': 'string'}}}
 _NUMBERS = {'type': 'array', 'items': {'type': ['number', 'null']}}
 JOINT_STATE_SCHEMA = {
@@ -194,9 +196,13 @@ class FoxgloveFeed:
 
     def _frame_transforms(self, layout, raw):
         """Return the FrameTransforms (protobuf bytes) of a /tf message of ``layout``."""
+        if len(raw) > MAX_TEMPLATED_BYTES:   # a huge /tf: the SDK's objects, no template kept
+            transforms, stamp_ns = tf_values(raw, layout)
+            return frame_transforms(self.fox.messages, [(p, c, pose, stamp_ns)
+                                                        for p, c, pose in transforms]).encode()
         encoder = self._encoders.get(id(layout))
         if encoder is None or encoder.layout is not layout:
-            if len(self._encoders) >= 64:   # as many as TfLatest remembers
+            if len(self._encoders) >= MAX_ENCODERS:   # publishers of many layouts: bounded
                 self._encoders.clear()
             encoder = self._encoders[id(layout)] = FrameTransformsEncoder(layout)
         return encoder.encode(raw, tf_stamp(raw, layout))

@@ -90,3 +90,22 @@ def test_joint_state_json_is_the_fields_with_null_for_what_is_not_finite(
                             np.array(velocities, dtype=float))
     assert json.loads(text) == json.loads(json.dumps(expected))
     assert joint_state_json(stamp, names, positions, velocities, json.dumps(names)) == text
+
+
+def test_a_huge_tf_goes_by_the_sdk_and_keeps_no_template():
+    from dq_fk_ros.description.meshes import MeshAssets
+    from dq_fk_ros.description.packages import PackageResolver
+    from dq_fk_ros.ros.foxglove_encoding import MAX_TEMPLATED_BYTES
+    from dq_fk_ros.ros.foxglove_feed import FoxgloveFeed
+    feed = FoxgloveFeed(foxglove, MeshAssets(PackageResolver({}), []), print)
+    edges = [(f'parent_{k}', f'child_{k}') for k in range(3000)]
+    stamp = 1_700_000_000_000_000_001
+    raw = tf_message_template(edges).fill(np.array([stamp]), np.ones((1, 7 * 3000)))[0]
+    assert len(raw) > MAX_TEMPLATED_BYTES
+    small = tf_message_template(edges[:2]).fill(np.array([stamp]), np.ones((1, 14)))[0]
+    for message in (raw.tobytes(), small.tobytes()):
+        layout = tf_layout(message)
+        got = FRAMES.FromString(feed._frame_transforms(layout, message))
+        assert len(got.transforms) == len(layout.edges)
+        assert got.transforms[-1].timestamp.nanos == 1
+    assert len(feed._encoders) == 1   # the small one's template only
