@@ -455,6 +455,7 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
             written += len(q)
 
         span = {} if window is None else {'start': window.start_ns, 'stop': window.stop_ns}
+        by_id = {c.id: c for c in reader.connections}   # (--copy-input's connections)
         batches = iter(reader.message_batches(
             connections=list(reader.connections) if copy_input else conns, size=chunk, **span))
         while True:
@@ -468,7 +469,6 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
                 break
             rows = None
             if copy_input:
-                by_id = {c.id: c for c in reader.connections}
                 for i, cid in enumerate(batch.connection_ids.tolist()):
                     outputs.copy(by_id[cid], int(batch.log_times[i]), batch.raw(i))
                 rows = np.isin(batch.connection_ids, ids)
