@@ -68,7 +68,7 @@ $(STAMPS)/web: web/package.json web/package-lock.json $(STAMPS)/python
 	  npm ci --prefix web --no-audit --no-fund
 	@touch $@
 
-$(STAMPS)/project: setup.py setup.cfg package.xml $(wildcard dq_fk_ros/*/_*.c dq_fk_ros/*/*.h) $(STAMPS)/dev \
+$(STAMPS)/project: setup.py setup.cfg package.xml scripts/rcl_build.py $(wildcard dq_fk_ros/*/_*.c dq_fk_ros/*/*.h) $(STAMPS)/dev \
                   $(STAMPS)/foxglove $(STAMPS)/tf2_msgs $(STAMPS)/web
 	@echo 'setup: installing dq_fk_ros (editable)'
 	@$(STEP) "install dq_fk_ros in editable mode" $(LOGS)/project.log \

@@ -1,7 +1,9 @@
 """Install dq_fk_ros as an ament_python package (colcon) or editable into a venv (pip)."""
 
 from glob import glob
+import os
 import re
+import runpy
 
 from setuptools import Extension, find_packages, setup
 
@@ -12,6 +14,14 @@ with open('dq_fk_ros/__init__.py', encoding='utf-8') as init:
 # the compiled kernel, one file per surface (the module, Chain, Model; kernel_*.h shared)
 KERNEL_SOURCES = ['dq_fk_ros/kinematics/_kernel.c', 'dq_fk_ros/kinematics/_kernel_chain.c',
                   'dq_fk_ros/kinematics/_kernel_model.c']
+# the node's publishes through rcl (many publishers a call): where rcl's headers are (PyPI
+# wheels or a sourced ROS 2), else the node calls rclpy's publish_raw
+RCL = runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)), 'scripts',
+                                  'rcl_build.py'))['rcl_paths']()
+RCL_EXTENSIONS = [] if RCL is None else [
+    Extension('dq_fk_ros.ros._rcl_publish', ['dq_fk_ros/ros/_rcl_publish.c'],
+              include_dirs=RCL[0], library_dirs=[RCL[1]], runtime_library_dirs=[RCL[1]],
+              libraries=['rcl', 'rmw', 'rcutils'], extra_compile_args=['-O2'], optional=True)]
 
 setup(
     name=package_name,
@@ -39,7 +49,7 @@ setup(
                  # (dq_fk_bag process; optional too: the numpy paths run without)
                  Extension('dq_fk_ros.bag._mcap', ['dq_fk_ros/bag/_mcap.c'],
                            depends=['dq_fk_ros/messages/c_arguments.h'],
-                           extra_compile_args=['-O2'], optional=True)],
+                           extra_compile_args=['-O2'], optional=True)] + RCL_EXTENSIONS,
     install_requires=['setuptools', 'numpy', 'PyYAML'],
     # dq_fk_bag process --scheduler: a Dask cluster (pip install 'dq_fk_ros[cluster]')
     # dq_fk_foxglove: the Foxglove SDK's WebSocket server (pip install 'dq_fk_ros[foxglove]')

@@ -37,6 +37,8 @@ from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
 from dq_fk_ros.ros.conversions import joint_state_fields
 from dq_fk_ros.ros.node import DqFkNode
 from dq_fk_ros.ros.node_parameters import INPUT_BATCH_MS_DEFAULT
+from dq_fk_ros.ros.publisher_group import PublisherGroup
+from dq_fk_ros.ros.raw_input import raw_publisher
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 import rclpy
@@ -157,10 +159,11 @@ def main(argv=None):
             return [out.tf(1, 2, relative)] + out.poses(1, 2, absolute, every_frame)
         payloads = serialize(poses[0])
 
-        def publish_all(_):  # as the node does: bytes straight to the handles
-            node._send_tf(payloads[0])
-            for send, payload in zip(node._send_pose, payloads[1:]):
-                send(payload)
+        tf_payload, pose_payloads = (payloads[0],), payloads[1:]
+
+        def publish_all(_):  # as the node does: bytes through rcl (PublisherGroup)
+            node._tf_group.publish(tf_payload)
+            node._pose_group.publish(pose_payloads)
 
         messages = node._messages
 
@@ -177,7 +180,10 @@ def main(argv=None):
                 node._tf_pub.get_subscription_count() == count
 
         one_pose = payloads[1] if len(payloads) > 1 else payloads[0]
-        send_one = node._send_pose[0] if node._send_pose else node._send_tf
+        one_pub = node._pose_pubs[0] if node._pose_pubs else node._tf_pub
+        send_one = raw_publisher(one_pub)  # rclpy's publish_raw
+        one_group = PublisherGroup([one_pub])  # rcl's publish, from C (the node's path)
+        one_message = (one_pose,)
 
         for _ in range(args.rounds):
             timed('reference', _reference, msgs)
@@ -193,6 +199,7 @@ def main(argv=None):
             timed('serialize', serialize, poses)
             timed('publish', publish_all, msgs)
             timed('publish_one', lambda _: send_one(one_pose), msgs)
+            timed('publish_one_rcl', lambda _: one_group.publish(one_message), msgs)
             node.set_parameters([Parameter('publish_unread_topics', value=False)])
             subs = subscribe_everything(probe, topics)
             wait_for(lambda: readers(1), 'the probe subscriptions did not match')
@@ -230,6 +237,7 @@ def main(argv=None):
             ('serialize', f'  serialize /tf ({n_tf}) + {len(every_frame)} poses (bytes)'),
             ('publish', f'  publish /tf + {len(every_frame)} poses (bytes)'),
             ('publish_one', '  rclpy publish of one message (bytes, no subscriber)'),
+            ('publish_one_rcl', '  rcl publish of one message (from C, no subscriber)'),
             ('subscribed', 'update, a subscriber on every topic (same process)'),
             ('remote', 'update, a subscriber on every topic (another process)'),
             ('objects', '(before: message objects, same-process subscriber)'),
@@ -282,6 +290,12 @@ def main(argv=None):
            text=f'- the floor: rclpy publishes one message (bytes) in {floor:.2f} us here; '
                 f'every output ({1 + len(every_frame)} messages) costs at least '
                 f'{floor * (1 + len(every_frame)):.1f} us in publish calls alone')
+    rcl_floor = best_median['publish_one_rcl']
+    figure(f'{model.name}: rcl publishes one message (bytes, from C), the floor of the '
+           "node's path", round(rcl_floor, 2), 'us', group='the node',
+           text=f'- the node publishes through rcl (PublisherGroup, compiled: '
+                f'{node._pose_group.compiled}): one message {rcl_floor:.2f} us here; every '
+                f'output {rcl_floor * (1 + len(every_frame)):.1f} us in rcl and DDS alone')
     return 0
 
 

@@ -110,6 +110,7 @@ class JointStateMerger:
         self._q = [0.0] * n
         self._qdot = [math.nan] * n
         self._seen = [False] * n
+        self._seen_optional_mask, self._seen_optional = None, ()
         self._last_stamp_ns = None
         self.raw_reader = None  # learnt again from the next complete message
         self._q_out, self._qdot_out = np.empty(n), np.empty(n)
@@ -141,7 +142,12 @@ class JointStateMerger:
     def seen_optional(self) -> tuple:
         """Name the optional joints an accepted message gave a value (since the last reset)."""
         n = self.required
-        return tuple(name for name, s in zip(self.joint_names[n:], self._seen[n:]) if s)
+        mask = self._seen[n:]  # a copy; asked at every update: the tuple only when it changed
+        if mask != self._seen_optional_mask:
+            self._seen_optional = tuple(name for name, s in zip(self.joint_names[n:], mask)
+                                        if s)
+            self._seen_optional_mask = mask
+        return self._seen_optional
 
     def merge(self, names, positions, velocities=(), stamp_ns=0) -> 'MergeResult':
         """

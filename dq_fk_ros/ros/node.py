@@ -33,6 +33,7 @@ from dq_fk_ros.ros.node_diagnostics import (
 from dq_fk_ros.ros.node_parameters import NODE_PARAMETERS, NodeParameters, ROBOT_PARAMETERS
 from dq_fk_ros.ros.package_paths import declare_package_paths
 from dq_fk_ros.ros.parameters import declare, help_text
+from dq_fk_ros.ros.publisher_group import PublisherGroup
 from dq_fk_ros.ros.raw_input import raw_publisher, RawSubscriptionThread, take_queued
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
@@ -56,8 +57,7 @@ class DqFkNode(Node):
     def __init__(self, **kwargs):
         """Declare parameters, load the robot (may raise RobotDescriptionError), wire up."""
         super().__init__('dq_fk_node', **kwargs)
-        # the input thread's updates and the executor's callbacks (parameters, timers) take
-        # turns on the node's state
+        # the input thread's updates and the executor's callbacks take turns on the state
         self._lock = threading.RLock()
         # every parameter, checked (ParameterError, one line): one object, replaced on change
         self._params = p = NodeParameters.from_values(declare(self, NODE_PARAMETERS))
@@ -71,7 +71,8 @@ class DqFkNode(Node):
         self._tf_pub = self.create_publisher(TFMessage, TF.topic, qos_profile(TF))
         self._tf_static_pub = self.create_publisher(TFMessage, TF_STATIC.topic,
                                                     qos_profile(TF_STATIC))
-        self._send_tf = raw_publisher(self._tf_pub)
+        self._tf_group = PublisherGroup([self._tf_pub])  # bytes through rcl, many a call
+        self._pose_group = PublisherGroup([])
         self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS.topic,
                                                qos_profile(DIAGNOSTICS))
         # as robot_state_publisher: the URDF for RViz's RobotModel and Foxglove's 3D panel
@@ -87,8 +88,7 @@ class DqFkNode(Node):
         self._names_cache = JointStateNames()
         self._gaps = SequenceGaps()  # joint states lost before the node took them
         self._lost_reported = 0
-        # who reads which pose topic, refreshed twice a second (a new subscriber waits
-        # at most that long for its first message)
+        # who reads which pose topic, twice a second (a new subscriber waits at most that)
         self._readers_timer = self.create_timer(READERS_REFRESH_S, self._refresh_readers)
         self._diag_timer = self.create_timer(1.0, self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -252,13 +252,13 @@ class DqFkNode(Node):
             self._merger.counts = counts
         self._merger.unknown = {n for n in unknown if n not in model.joint_names}
         if outputs is not None:
+            self._pose_group.close()  # lets go of the publishers it held
             for pub in self._pose_pubs + self._twist_pubs:
                 self.destroy_publisher(pub)
             self._messages, self._pose_pubs, self._twist_pubs = outputs
             self._pose_frames = self._messages.plan.pose_frames  # frame index per pose topic
             self.get_logger().info(self._messages.plan.summary())
             # bytes straight to the handles: publishers are replaced under the node's lock
-            self._send_pose = [raw_publisher(pub) for pub in self._pose_pubs]
             self._send_twist = [raw_publisher(pub) for pub in self._twist_pubs]
             self._bytes = FrameBytes(self._messages)
             self._shown_optional = ()
@@ -414,11 +414,9 @@ class DqFkNode(Node):
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self._bytes
         if send_tf and self._params.publish_tf and out.sends_tf:
-            self._send_tf(out.tf(sec, nanosec, relative, q))
+            self._tf_group.publish((out.tf(sec, nanosec, relative, q),))
         if poses:
-            for send, data in zip(self._send_read_poses,
-                                  out.poses(sec, nanosec, absolute, self._read_poses)):
-                send(data)
+            self._pose_group.publish(out.poses(sec, nanosec, absolute, self._read_poses))
         if twists:
             dof = model.chain.dof
             v, w = model.chain.twist(q[:dof], qdot[:dof])
@@ -459,7 +457,7 @@ class DqFkNode(Node):
         """Index the pose topics someone reads, and their senders (for :meth:`_publish`)."""
         read = [i for i, on in enumerate(self._pose_read) if on]
         self._read_poses = [self._pose_frames[i] for i in read]
-        self._send_read_poses = [self._send_pose[i] for i in read]
+        self._pose_group = self._pose_group.regroup([self._pose_pubs[i] for i in read])
 
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self) -> DiagnosticStatus:
@@ -476,6 +474,9 @@ class DqFkNode(Node):
         if getattr(self, '_input', None) is not None:
             self._input.close()
             self._input = None
+        with self._lock:  # the groups hold their publishers' handles: let go
+            for name in ('_tf_group', '_pose_group'):
+                getattr(self, name, PublisherGroup([])).close()
         return super().destroy_node()
 
     def _publish_diagnostics(self):

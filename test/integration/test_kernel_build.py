@@ -23,7 +23,8 @@ def test_without_a_compiler_the_wheel_has_no_kernel_and_fk_runs_on_numpy(tmp_pat
     with zipfile.ZipFile(wheel) as archive:
         names = archive.namelist()
     assert 'dq_fk_ros/kinematics/kernel.py' in names
-    assert not [n for n in names if '_kernel' in n or '_cdr' in n]
+    assert not [n for n in names if '_kernel' in n or '_cdr' in n or '_mcap' in n or
+                '_rcl_publish' in n]
     with zipfile.ZipFile(wheel) as archive:
         archive.extractall(tmp_path / 'site')
     code = ('import numpy as np, dq_fk_ros\n'
@@ -31,11 +32,14 @@ def test_without_a_compiler_the_wheel_has_no_kernel_and_fk_runs_on_numpy(tmp_pat
             f'chain = dq_fk_ros.load_robot({str(source / "config" / "rl15.yaml")!r}).model.chain\n'
             'print((np.round(chain.forward(np.zeros(6)).translation, 6) + 0.0).tolist())\n'
             'from dq_fk_ros.messages.cdr import COMPILED, pose_stamped_template\n'
-            'print(COMPILED is None, pose_stamped_template("w").compiled(7))\n')
+            'print(COMPILED is None, pose_stamped_template("w").compiled(7))\n'
+            'from dq_fk_ros.ros.publisher_group import COMPILED, WHY\n'
+            'print(COMPILED, WHY.split(":")[0])\n')
     run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(tmp_path / 'site')))
     assert run.returncode == 0, run.stderr
-    active, position, writer = run.stdout.splitlines()
+    active, position, writer, publish = run.stdout.splitlines()
     assert active == 'numpy'
     assert position == '[1.025, 0.0, 1.445]'  # the paper's Fig. 4 pose at q = 0
     assert writer == 'True None'  # the node's messages: the struct packer
+    assert publish == 'False publish_raw'  # the node publishes by rclpy's publish_raw
