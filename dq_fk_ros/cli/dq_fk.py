@@ -13,7 +13,6 @@ import math
 import os
 import sys
 
-from dq_fk_ros.description.from_urdf import load_urdf_description
 from dq_fk_ros.description.loading import load_robot, resolve_robot
 from dq_fk_ros.description.packages import parse_package_option
 from dq_fk_ros.description.schema import load_robot_description
@@ -241,6 +240,7 @@ def cmd_plot(args) -> int:
 
 
 def cmd_from_urdf(args) -> int:
+    from dq_fk_ros.description.from_urdf import load_urdf_description  # URDF modules: lazily
     conversion, _ = load_urdf_description(args.file, args.base, args.tip, args.convention,
                                           dict(args.package))
     if args.output in (None, '-'):

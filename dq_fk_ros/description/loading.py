@@ -10,14 +10,15 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 import os
 
-from dq_fk_ros.description.from_urdf import load_urdf_description, OPTIONS, urdf_to_description
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
-from dq_fk_ros.description.urdf_reader import read_urdf_text
 from dq_fk_ros.description.xacro_sandbox import ros_package_roots, TIME_LIMIT_S
 from dq_fk_ros.errors import listing, printable_line, RobotDescriptionError
 
 URDF_SUFFIXES = ('.urdf', '.xacro')
+# how the tools name the URDF chain's ends in messages (from_urdf.OPTIONS: the URDF modules,
+# ~11 ms of imports, are imported only when a URDF is loaded; test_loading.py holds the two)
+OPTIONS = ('--base', '--tip')
 
 
 @dataclass(frozen=True)
@@ -149,6 +150,8 @@ def load_robot(spec: str | os.PathLike, base: str | None = None, tip: str | None
         roots = list(access.dirs) + ros_package_roots()
     if not is_urdf(path):
         return LoadedRobot(load_robot_description(path))
+    from dq_fk_ros.description.from_urdf import load_urdf_description, urdf_to_description
+    from dq_fk_ros.description.urdf_reader import read_urdf_text
     if access is None:
         conversion, text = load_urdf_description(path, base, tip, convention, packages,
                                                  options)
@@ -165,6 +168,7 @@ def robot_from_urdf_text(text: str, source: str = 'robot_description', base: str
     """Convert URDF XML given as text (robot_state_publisher's ``robot_description``)."""
     if not isinstance(text, str) or not text.strip():
         raise RobotDescriptionError(f'{source}: empty; give URDF XML')
+    from dq_fk_ros.description.from_urdf import urdf_to_description
     conversion = urdf_to_description(text, source, base, tip, convention, options)
     return LoadedRobot(replace(conversion.model, source=source, urdf=text), conversion)
 

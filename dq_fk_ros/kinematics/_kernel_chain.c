@@ -337,7 +337,7 @@ static PyObject *chain_call(ChainObject *self, PyObject *const *args, Py_ssize_t
         return NULL;
     }
     run(self->prog, self->n_ops, self->base, self->have_tool ? self->tool : NULL, q.buf,
-        out.buf, end_only, 1);
+        out.buf, end_only, 1, NULL);
     PyBuffer_Release(&q);
     PyBuffer_Release(&out);
     Py_RETURN_NONE;
@@ -408,7 +408,7 @@ static PyObject *chain_jacobian(ChainObject *self, PyObject *const *args, Py_ssi
     }
     /* every frame first (q is read there only), then out is written */
     run(self->prog, self->n_ops, self->base, self->have_tool ? self->tool : NULL, q.buf,
-        frames, 0, 0);
+        frames, 0, 0, NULL);
     double *jac = out.buf, p_end[3];
     const double *r = self->rows;
     memset(jac, 0, 6 * dof * sizeof(double));

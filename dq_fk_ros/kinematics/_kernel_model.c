@@ -26,6 +26,7 @@
 typedef struct {
     ChainObject *chain;
     Py_ssize_t parent, n_frames, n_rows, first_frame, first_row;
+    Py_ssize_t n_z;  /* the chain program's z steps: their trig serves rows 0..n_z-1 */
     Py_ssize_t *q_map;
     double *rows;
     int standard;
@@ -34,8 +35,8 @@ typedef struct {
 typedef struct {
     PyObject_HEAD
     ModelChain *chains;
-    Py_ssize_t n_chains, n_links, dof, n_frames, n_relative, max_chain_dof;
-    double *links, *coeffs, *q_chain;
+    Py_ssize_t n_chains, n_links, dof, n_frames, n_relative, max_chain_dof, max_chain_z;
+    double *links, *coeffs, *q_chain, *trig;
     int initialised;
 } ModelObject;
 
@@ -52,6 +53,7 @@ static void model_dealloc(ModelObject *self)
     PyMem_Free(self->links);
     PyMem_Free(self->coeffs);
     PyMem_Free(self->q_chain);
+    PyMem_Free(self->trig);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -128,8 +130,13 @@ static int model_take_chain(ModelObject *self, PyObject *item, Py_ssize_t c)
     mc->first_frame = self->n_frames - n_frames;
     mc->first_row = self->n_relative - n_rows;
     mc->standard = standard;
+    mc->n_z = 0;
+    for (Py_ssize_t i = 0; i < ch->n_ops; i++)
+        mc->n_z += ch->prog[i * OP_FIELDS + OP_KIND] == 0.0;
     if (ch->dof > self->max_chain_dof)
         self->max_chain_dof = ch->dof;
+    if (mc->n_z > self->max_chain_z)
+        self->max_chain_z = mc->n_z;
     ok = 0;
 done:
     let_go(&qv);
@@ -210,7 +217,9 @@ static int model_build(ModelObject *self, PyObject *chains, PyObject *links, Py_
     self->coeffs = PyMem_Malloc((n_frames ? n_frames : 1) * 8 * sizeof(double));
     self->q_chain = PyMem_Malloc((self->max_chain_dof ? self->max_chain_dof : 1)
                                  * sizeof(double));
-    if (self->coeffs == NULL || self->q_chain == NULL) {
+    /* 3 doubles a z step (n_ops <= a chain's checked size: no overflow) */
+    self->trig = PyMem_Malloc((self->max_chain_z ? self->max_chain_z : 1) * 3 * sizeof(double));
+    if (self->coeffs == NULL || self->q_chain == NULL || self->trig == NULL) {
         PyErr_NoMemory();
         return -1;
     }
@@ -252,8 +261,13 @@ static void pose_of(const double *h, double *p)
     p[3] = x; p[4] = y; p[5] = z; p[6] = w;
 }
 
-/* KinematicChain.row_poses for one row: the transform frame i-1 -> frame i */
-static void row_pose(const double *r, const double *q, int standard, double *p)
+/*
+ * KinematicChain.row_poses for one row: the transform frame i-1 -> frame i. trig (or NULL):
+ * the (half angle, cos, sin) the chain program computed for this row's z step; taken when
+ * its half angle is this row's, bit for bit (then cos and sin are too), else computed.
+ */
+static void row_pose(const double *r, const double *q, int standard, double *p,
+                     const double *trig)
 {
     double ca = r[ROW_COS_HALF_ALPHA], sa = r[ROW_SIN_HALF_ALPHA], a = r[ROW_A];
     double theta = r[ROW_THETA], d = r[ROW_D], scale = r[ROW_SCALE];
@@ -262,7 +276,12 @@ static void row_pose(const double *r, const double *q, int standard, double *p)
     if (ti >= 0) theta = theta + scale * q[(Py_ssize_t)ti];
     if (di >= 0) d = d + scale * q[(Py_ssize_t)di];
     double half = 0.5 * theta;
-    double ct = cos(half), st = sin(half);
+    double ct, st;
+    if (trig && trig[0] == half) {
+        ct = trig[1]; st = trig[2];
+    } else {
+        ct = cos(half); st = sin(half);
+    }
     double qx, qy, qz, qw;
     if (standard) {
         qx = sa * ct; qy = sa * st; qz = ca * st; qw = ca * ct;
@@ -293,11 +312,12 @@ static void model_run(ModelObject *self, const double *q, double *relative)
         else
             memcpy(base, ch->base, sizeof base);
         run(ch->prog, ch->n_ops, base, ch->have_tool ? ch->tool : NULL, qc,
-            coeffs + 8 * mc->first_frame, 0, 0);
+            coeffs + 8 * mc->first_frame, 0, 0, relative ? self->trig : NULL);
         if (relative)
             for (Py_ssize_t i = 0; i < mc->n_rows; i++)
                 row_pose(mc->rows + ROW_FIELDS * i, qc, mc->standard,
-                         relative + 7 * (mc->first_row + i));
+                         relative + 7 * (mc->first_row + i),
+                         i < mc->n_z ? self->trig + 3 * i : NULL);
     }
     Py_ssize_t first = self->n_frames - self->n_links;
     Py_ssize_t first_rel = self->n_relative - self->n_links;

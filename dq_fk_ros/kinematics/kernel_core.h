@@ -130,9 +130,11 @@ KERNEL_SHARED void canonical(double *h)
 /*
  * Run the program from base at q; write frame 0, every marked frame, then base*tool, into
  * out (8 doubles each); only the last one if end_only. As run_program, step by step.
+ * trig (or NULL): each z step's (half angle, cos, sin), 3 doubles a z step, in order (a
+ * Model's TF transforms take them instead of computing them again).
  */
 KERNEL_SHARED void run(const double *prog, Py_ssize_t n_ops, const double *base, const double *tool,
-                const double *q, double *out, int end_only, int canon)
+                const double *q, double *out, int end_only, int canon, double *trig)
 {
     double aw = base[0], ax = base[1], ay = base[2], az = base[3];
     double bw = base[4], bx = base[5], by = base[6], bz = base[7];
@@ -148,6 +150,10 @@ KERNEL_SHARED void run(const double *prog, Py_ssize_t n_ops, const double *base,
         if (op[OP_KIND] == 0.0) {  /* h (c + s k) (1 + eps hd k) */
             double half = p3 < 0 ? 0.5 * p1 : 0.5 * (p1 + p2 * q[(Py_ssize_t)p3]);
             double c = cos(half), s = sin(half);
+            if (trig) {
+                trig[0] = half; trig[1] = c; trig[2] = s;
+                trig += 3;
+            }
             double nw = aw * c - az * s, nx = ax * c + ay * s, ny = ay * c - ax * s,
                    nz = az * c + aw * s;
             double mw = bw * c - bz * s, mx = bx * c + by * s, my = by * c - bx * s,

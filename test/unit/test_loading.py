@@ -130,3 +130,18 @@ def test_a_fifo_or_a_device_is_refused_without_blocking(tmp_path):
     with pytest.raises(RobotDescriptionError, match='not a file'):
         load_robot(str(tmp_path / 'pipe.yaml').replace('.yaml', '.urdf')
                    if os.mkfifo(tmp_path / 'pipe.urdf') is None else '')
+
+
+def test_the_urdf_modules_are_imported_only_for_a_urdf():
+    """A DH robot loads without the URDF modules (dq_fk_bag's start); the names agree."""
+    import subprocess
+    import sys
+    code = ('import sys\n'
+            'from dq_fk_ros.description.loading import load_robot, OPTIONS\n'
+            'load_robot("rl15")\n'
+            'print("dq_fk_ros.description.from_urdf" in sys.modules)\n'
+            'from dq_fk_ros.description import from_urdf\n'
+            'print(from_urdf.OPTIONS == OPTIONS)\n')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out == ['False', 'True']
