@@ -1,5 +1,6 @@
 """A test-side rclpy context: probe node, publishers, subscriptions and a spin loop."""
 
+import contextlib
 import itertools
 import os
 import time
@@ -31,6 +32,27 @@ def unique_node_name(base):
 
 
 EVERY_UPDATE = 'publish_frequency:=0.0'
+
+
+@contextlib.contextmanager
+def own_node(name):
+    """Yield an rclpy node in a context of its own; destroyed and shut down afterwards."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node(name, context=context)
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+
+
+def wait_until(predicate, timeout_s=10.0):
+    """Poll ``predicate`` every 10 ms until it holds or ``timeout_s``; return its last value."""
+    deadline = time.monotonic() + timeout_s
+    while not predicate() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return predicate()
 
 
 def start(processes, name, *params, namespace=None, log_level='warn', options=()):

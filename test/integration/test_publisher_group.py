@@ -17,6 +17,7 @@ import pytest
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
+from ros_harness import own_node, wait_until
 
 pytestmark = pytest.mark.integration
 needs_c = pytest.mark.skipif(not COMPILED, reason='dq_fk_ros.ros._rcl_publish is not built '
@@ -28,21 +29,8 @@ ALLOWED = (ValueError, TypeError, OverflowError, MemoryError, RuntimeError)
 
 @pytest.fixture
 def node(ros_domain_id):
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node('dq_fk_test_publisher_group', context=context)
-    try:
+    with own_node('dq_fk_test_publisher_group') as node:
         yield node
-    finally:
-        node.destroy_node()
-        rclpy.shutdown(context=context)
-
-
-def wait_until(predicate, timeout_s=10.0):
-    deadline = time.monotonic() + timeout_s
-    while not predicate() and time.monotonic() < deadline:
-        time.sleep(0.01)
-    return predicate()
 
 
 def pose_bytes(x, frame='world'):
@@ -149,16 +137,9 @@ VALUES = st.one_of(st.none(), st.integers(), st.floats(), st.text(max_size=4),
 @pytest.fixture(scope='module')
 def fuzz_handles(ros_domain_id):
     """Three publishers' handles, one node for every example of the fuzz."""
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node('dq_fk_test_publisher_group_fuzz', context=context)
-    pubs = [node.create_publisher(PoseStamped, f'/dq_fk_test_group/z{i}', QOS)
-            for i in range(3)]
-    try:
-        yield [p.handle for p in pubs]
-    finally:
-        node.destroy_node()
-        rclpy.shutdown(context=context)
+    with own_node('dq_fk_test_publisher_group_fuzz') as node:
+        yield [node.create_publisher(PoseStamped, f'/dq_fk_test_group/z{i}', QOS).handle
+               for i in range(3)]
 
 
 @needs_c

@@ -6,9 +6,9 @@ import time
 
 from dq_fk_ros.ros.raw_input import raw_publisher, RawSubscriptionThread, take_queued
 import pytest
-import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
+from ros_harness import own_node, wait_until
 from std_msgs.msg import String
 
 pytestmark = pytest.mark.integration
@@ -17,21 +17,8 @@ QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
 @pytest.fixture
 def node(ros_domain_id):
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node('dq_fk_test_raw_input', context=context)
-    try:
+    with own_node('dq_fk_test_raw_input') as node:
         yield node
-    finally:
-        node.destroy_node()
-        rclpy.shutdown(context=context)
-
-
-def wait_until(predicate, timeout_s=10.0):
-    deadline = time.monotonic() + timeout_s
-    while not predicate() and time.monotonic() < deadline:
-        time.sleep(0.01)
-    return predicate()
 
 
 def test_bytes_published_raw_arrive_in_order_with_their_sequence_numbers(node):
