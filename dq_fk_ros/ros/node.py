@@ -388,9 +388,6 @@ class DqFkNode(Node):
                                        self._messages.plan)
         self._bytes = FrameBytes(self._messages)
         self._shown_optional = seen
-        hidden = self._messages.hidden
-        self._pose_read = [read and k not in hidden
-                           for k, read in zip(self._pose_frames, self._pose_read)]
         self._note_read_poses()
         if new:
             self.get_logger().info(f'joint states name joints {listing(new, 10)}: publishing '
@@ -446,16 +443,16 @@ class DqFkNode(Node):
             if joint_states is not None:
                 self._gaps.single_publisher(publishers == 1)
             if pose_pubs is self._pose_pubs and twist_pubs is self._twist_pubs:
-                hidden = self._messages.hidden  # side-branch links not named yet
-                self._pose_read = [read and k not in hidden
-                                   for k, read in zip(self._pose_frames, pose)]
+                self._pose_readers = pose
                 self._twist_read = twist
                 self._any_twist_read = any(twist)
                 self._note_read_poses()
 
     def _note_read_poses(self):
-        """Index the pose topics someone reads, and their senders (for :meth:`_publish`)."""
-        read = [i for i, on in enumerate(self._pose_read) if on]
+        """Index the pose topics someone reads of links shown, and their publishers."""
+        hidden = self._messages.hidden  # side-branch links not named yet
+        read = [i for i, (k, on) in enumerate(zip(self._pose_frames, self._pose_readers))
+                if on and k not in hidden]
         self._read_poses = [self._pose_frames[i] for i in read]
         self._pose_group = self._pose_group.regroup([self._pose_pubs[i] for i in read])
 

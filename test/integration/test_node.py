@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from ros_harness import Harness, TF_STATIC_QOS
 from tf2_msgs.msg import TFMessage
 
@@ -113,6 +114,19 @@ def test_missing_joints_hold_publishing_back(ros):
     assert status['joints_never_seen'] == 'joint_5, joint_6'
     rest = ros.joint_state(RL15_JOINTS[4:], [0, 0])
     assert ros.spin_until(lambda: poses, publish=rest)
+
+
+def test_a_side_branch_pose_topic_is_published_from_the_message_that_first_names_it(ros):
+    """Not from the next look at who reads the pose topics (twice a second): at once."""
+    node = ros.start_node(robot_description_file='dual_arm', publish_unread_topics=True)
+    hidden = [k for k in node._pose_frames if k in node._messages.hidden]
+    assert hidden and len(node._pose_group) == len(node._pose_pubs) - len(hidden)
+    model = node._model
+    every_joint = ros.joint_state(model.joint_names, [0.1] * len(model.joint_names))
+    # handed to the node as its input thread does (no timer can run in between)
+    node._on_joint_state(serialize_message(every_joint), {'publication_sequence_number': None})
+    assert not node._messages.hidden
+    assert len(node._pose_group) == len(node._pose_pubs)
 
 
 def test_a_tree_publishes_each_chain_when_its_joints_arrive_and_a_mimic_with_its_source(ros):
