@@ -26,7 +26,9 @@ class PublisherGroup:
     The compiled group holds each publisher's handle as ``with publisher.handle:`` does: a
     publisher destroyed meanwhile (``Node.destroy_publisher``) is destroyed only when
     :meth:`close` lets go of it. Close a group before, or right after, destroying its
-    publishers; the node does both under its lock, as it publishes.
+    publishers; the node does both under its lock, as it publishes. The GIL is held while
+    rcl publishes, as for ``publish_raw``: meant for KEEP_LAST publishers (the node's, whose
+    writes never wait for room in the history).
     """
 
     def __init__(self, publishers: Sequence, compiled: bool = True):
