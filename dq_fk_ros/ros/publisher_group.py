@@ -2,7 +2,7 @@
 Serialized messages on several publishers in one call: the node's poses and /tf.
 
 The fast path is ``_rcl_publish.Publishers`` (C, rcl's ``rcl_publish_serialized_message``
-for every message of a call, ~0.36 us a message here); the reference is each publisher's
+for every message of a call, 0.35-0.41 us a message here); the reference is each publisher's
 ``publish_raw`` (:func:`~dq_fk_ros.ros.raw_input.raw_publisher`, ~0.75 us), which runs where
 the extension was not built (no rcl headers at install) or with ``DQ_FK_PURE_PYTHON`` set.
 test/integration/test_publisher_group.py holds the two equal: a subscriber receives the same
@@ -38,6 +38,7 @@ class PublisherGroup:
         :param compiled: use the C path where it was built (False: ``publish_raw`` each).
         """
         self.publishers = list(publishers)
+        self.closed = False
         self._compiled_asked = compiled
         self.compiled = bool(compiled and COMPILED)
         self._group = _RCL.Publishers([pub.handle for pub in publishers]) if self.compiled \
@@ -59,11 +60,11 @@ class PublisherGroup:
 
     def regroup(self, publishers: Sequence) -> 'PublisherGroup':
         """
-        Return this group if it holds ``publishers`` (same, same order), else a new one.
+        Return this group if it is open and holds ``publishers`` (same order), else a new one.
 
         A new group closes this one first (the publishers it held are let go).
         """
-        if list(publishers) == self.publishers:
+        if not self.closed and list(publishers) == self.publishers:
             return self
         self.close()
         return PublisherGroup(publishers, self._compiled_asked)
@@ -75,3 +76,4 @@ class PublisherGroup:
         self._each = []
         self._n = 0
         self.publishers = []
+        self.closed = True

@@ -87,6 +87,18 @@ def test_rcl_from_c_delivers_what_publish_raw_delivers(node):
             [100.0 * r + i for r in range(5)]
 
 
+def test_a_closed_group_is_regrouped_even_for_the_same_publishers(node):
+    pubs = [node.create_publisher(PoseStamped, '/dq_fk_test_group/re', QOS)]
+    group = PublisherGroup(pubs)
+    assert group.regroup(list(pubs)) is group
+    group.close()
+    again = group.regroup([])
+    assert again is not group and not again.closed and len(again) == 0
+    again.publish([])  # nothing to publish: no error
+    assert again.regroup(pubs) is not again and again.closed
+    group.close()
+
+
 def test_publish_raw_group_checks_the_count(node):
     pubs = [node.create_publisher(PoseStamped, f'/dq_fk_test_group/n{i}', QOS) for i in range(2)]
     group = PublisherGroup(pubs, compiled=False)
