@@ -692,9 +692,78 @@ static PyObject *runs_match(RunsObject *self, PyObject *raw_obj)
     return PyBool_FromLong(same);
 }
 
+/* an int64 vector (numpy's "l" or "q", C-contiguous, 1-d), held */
+static int int64_vector(PyObject *obj, Py_buffer *v, const char *what)
+{
+    if (PyObject_GetBuffer(obj, v, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+        v->obj = NULL;
+        return -1;
+    }
+    if (v->itemsize != 8 || v->ndim != 1 || v->format == NULL
+        || (strcmp(v->format, "l") != 0 && strcmp(v->format, "q") != 0
+            && strcmp(v->format, "<q") != 0 && strcmp(v->format, "=q") != 0)) {
+        PyBuffer_Release(v);
+        v->obj = NULL;
+        PyErr_Format(PyExc_TypeError, "%s: a 1-d int64 array", what);
+        return -1;
+    }
+    return 0;
+}
+
+static PyObject *runs_match_many(RunsObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Py_buffer data = {0}, starts = {0}, lengths = {0};
+    PyObject *out = NULL;
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "match_many(data, starts, lengths, size)");
+        return NULL;
+    }
+    Py_ssize_t size = PyLong_AsSsize_t(args[3]);  /* converted before anything is held */
+    if (size == -1 && PyErr_Occurred())
+        return NULL;
+    if (PyObject_GetBuffer(args[0], &data, PyBUF_SIMPLE) < 0)
+        return NULL;
+    if (int64_vector(args[1], &starts, "starts") < 0
+        || int64_vector(args[2], &lengths, "lengths") < 0)
+        goto done;
+    Py_ssize_t n = starts.shape[0];
+    if (lengths.shape[0] != n) {
+        PyErr_SetString(PyExc_ValueError, "starts and lengths: one each per message");
+        goto done;
+    }
+    out = PyBytes_FromStringAndSize(NULL, n);
+    if (out == NULL)
+        goto done;
+    char *same = PyBytes_AS_STRING(out);
+    const char *b = data.buf;
+    const int64_t *at = starts.buf, *len = lengths.buf;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        int64_t s = at[i], l = len[i];
+        if (s < 0 || l < 0 || s > data.len || l > data.len - s) {
+            PyErr_Format(PyExc_ValueError, "message %zd lies outside the buffer", i);
+            Py_CLEAR(out);
+            goto done;
+        }
+        int ok = l == size && l >= self->end;
+        const char *m = b + s, *e = self->expected;
+        for (Py_ssize_t r = 0; ok && r < self->n; e += self->lengths[r], r++)
+            ok = memcmp(m + self->offsets[r], e, (size_t)self->lengths[r]) == 0;
+        same[i] = (char)ok;
+    }
+done:
+    PyBuffer_Release(&data);
+    PyBuffer_Release(&starts);  /* (obj NULL: nothing held, nothing done) */
+    PyBuffer_Release(&lengths);
+    return out;
+}
+
 static PyMethodDef runs_methods[] = {
     {"match", (PyCFunction)runs_match, METH_O,
      "match(raw) -> bool: raw holds the expected bytes at every run"},
+    {"match_many", (PyCFunction)(void (*)(void))runs_match_many, METH_FASTCALL,
+     "match_many(data, starts, lengths, size) -> bytes of 0/1: message i, the bytes at "
+     "data[starts[i]:][:lengths[i]] (int64 arrays), is size bytes and holds the expected "
+     "bytes at every run"},
     {NULL, NULL, 0, NULL},
 };
 

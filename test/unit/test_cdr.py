@@ -497,3 +497,53 @@ def test_a_pose_stamped_of_no_sense_is_refused_in_one_line():
         with pytest.raises(CdrError) as error:
             parse_pose_stamped(raw)
         assert '\n' not in str(error.value)
+
+
+@settings(max_examples=60)
+@given(st.lists(st.text('abcj_0123', min_size=1, max_size=9), min_size=1, max_size=6,
+                unique=True), st.booleans(), st.text('xyz', max_size=7), st.data())
+def test_the_compiled_batch_match_is_the_numpy_compare(names, with_velocities, frame_id, data):
+    """_Layout.matches: a memcmp per run in C, the numpy compare its reference; spans anywhere."""
+    from dq_fk_ros.messages.cdr import _Layout, _rows, COMPILED
+    n = len(names)
+    raw = joint_state_bytes(names, [0.5] * n, [0.25] * n if with_velocities else [], 7,
+                            frame_id)
+    layout = _Layout(raw, JointStateNames())
+    noise = random.Random(data.draw(st.integers(0, 2**32)))
+    messages = []
+    for _ in range(data.draw(st.integers(1, 12))):
+        message = bytearray(joint_state_bytes(names, [noise.uniform(-3, 3)] * n,
+                                              [1.0] * n if with_velocities else [],
+                                              noise.randrange(10**12), frame_id))
+        kind = data.draw(st.sampled_from(['same', 'flip', 'short', 'long']))
+        if kind == 'flip':  # any byte: a fixed one (another layout) or a value (the same)
+            message[noise.randrange(len(message))] ^= 1 << noise.randrange(8)
+        elif kind == 'short':
+            message = message[:noise.randrange(len(message))]
+        elif kind == 'long':
+            message += b'\0' * noise.randint(1, 9)
+        messages.append(bytes(message))
+    # back to back with gaps between them, as records lie in a chunk
+    joined, starts = bytearray(), []
+    for message in messages:
+        joined += noise.randbytes(noise.randrange(4))
+        starts.append(len(joined))
+        joined += message
+    joined = np.frombuffer(bytes(joined), np.uint8)
+    starts = np.array(starts, np.int64)
+    lengths = np.array([len(m) for m in messages], np.int64)
+    same = np.flatnonzero(lengths == layout.size)
+    expected = np.zeros(len(messages), bool)
+    if len(same):  # the reference sees only messages of the layout's size
+        rows = _rows(joined, starts, same, layout.size)
+        expected[same] = (rows[:, layout.fixed] == layout.template).all(axis=1)
+    # and the reference is right: a message of the same fixed bytes is one of the layout
+    for i, message in enumerate(messages):
+        assert expected[i] == (len(message) == layout.size and all(
+            message[k] == raw[k] for k in layout.fixed))
+    if COMPILED is None:
+        return
+    got = np.frombuffer(layout.runs.match_many(joined, starts, lengths, layout.size), bool)
+    assert got.tolist() == expected.tolist()
+    with pytest.raises(ValueError, match='outside the buffer'):
+        layout.runs.match_many(joined, starts + len(joined) + 1, lengths, layout.size)

@@ -4,7 +4,7 @@ No Python value crashes the C extensions: a hypothesis fuzz of every public comp
 ``_kernel.Chain`` (made, ``frames``, ``end``, ``frames_batch``, ``end_batch``, ``jacobian``),
 ``_kernel.Model`` (made, ``poses``, ``poses_batch``, ``frames``), ``_cdr.Template`` (made,
 ``one``, ``each``), ``_cdr.JointStateReader`` (made, ``read``), ``_cdr.Runs`` (made,
-``match``) and ``_mcap`` (``scan``,
+``match``, ``match_many``) and ``_mcap`` (``scan``,
 ``gather``, ``Rows`` made and ``fill``) get random shapes (0, 1,
 huge, 2**62), dtypes, strides (negative, non-contiguous, overlapping input and output,
 read-only out), wrong types, and objects whose dunder methods mutate the callee or its other
@@ -455,6 +455,17 @@ def test_runs_survive_any_arguments(data):
                                          memoryview(b'ab..xyz..')[::2]]))
         result = attempt(made.match, raw)
         assert result in (None, True, False)
+        # the batch form: spans anywhere (negative, past the end, huge), odd arrays
+        spans = data.draw(st.sampled_from([
+            np.array([0, 2], np.int64), np.array([-1], np.int64), np.array([2**62], np.int64),
+            np.array([2**63 - 1, 0], np.int64), np.zeros(0, np.int64), np.zeros(2, np.int32),
+            np.zeros((2, 1), np.int64), np.arange(4, dtype=np.int64)[::2], [0, 1], None]))
+        lengths = data.draw(st.sampled_from([
+            np.array([7, 7], np.int64), np.array([2**63 - 1, 1], np.int64),
+            np.array([-5], np.int64), np.zeros(2, np.int64), np.zeros(1, np.float64), 3]))
+        size = data.draw(st.sampled_from([7, 0, -1, 2**62, 2**70, 'x', Mutator(7, victim.clear)]))
+        many = attempt(made.match_many, raw, spans, lengths, size)
+        assert many is None or (isinstance(many, bytes) and set(many) <= {0, 1})
         if data.draw(st.booleans()):
             attempt(made.__init__, *args)
     assert _cdr.Runs([0, 4], [2, 3], b'abxyz').match(b'ab..xyz') is True
