@@ -50,29 +50,6 @@ static uint64_t load_u64(const unsigned char *p)
     return v;  /* little-endian: the module refuses to load elsewhere */
 }
 
-/* A buffer of int64 items (numpy 'q' or 'l' on LP64), writable or not. */
-static int int64_buffer(PyObject *obj, Py_buffer *b, int writable, const char *what)
-{
-    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
-    if (PyObject_GetBuffer(obj, b, flags) < 0) {
-        b->obj = NULL;
-        PyErr_Clear();
-        PyErr_Format(PyExc_ValueError, "%s: a C-contiguous%s int64 array", what,
-                     writable ? " writable" : "");
-        return -1;
-    }
-    if (b->itemsize != 8 || b->format == NULL
-        || (strcmp(b->format, "q") != 0 && strcmp(b->format, "l") != 0
-            && strcmp(b->format, "<q") != 0 && strcmp(b->format, "=q") != 0)) {
-        PyBuffer_Release(b);
-        b->obj = NULL;
-        PyErr_Format(PyExc_ValueError, "%s: a C-contiguous%s int64 array", what,
-                     writable ? " writable" : "");
-        return -1;
-    }
-    return 0;
-}
-
 static int bytes_buffer(PyObject *obj, Py_buffer *b, int writable, const char *what)
 {
     if (PyObject_GetBuffer(obj, b, writable ? PyBUF_WRITABLE : PyBUF_SIMPLE) < 0) {

@@ -692,24 +692,6 @@ static PyObject *runs_match(RunsObject *self, PyObject *raw_obj)
     return PyBool_FromLong(same);
 }
 
-/* an int64 vector (numpy's "l" or "q", C-contiguous, 1-d), held */
-static int int64_vector(PyObject *obj, Py_buffer *v, const char *what)
-{
-    if (PyObject_GetBuffer(obj, v, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
-        v->obj = NULL;
-        return -1;
-    }
-    if (v->itemsize != 8 || v->ndim != 1 || v->format == NULL
-        || (strcmp(v->format, "l") != 0 && strcmp(v->format, "q") != 0
-            && strcmp(v->format, "<q") != 0 && strcmp(v->format, "=q") != 0)) {
-        PyBuffer_Release(v);
-        v->obj = NULL;
-        PyErr_Format(PyExc_TypeError, "%s: a 1-d int64 array", what);
-        return -1;
-    }
-    return 0;
-}
-
 static PyObject *runs_match_many(RunsObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     Py_buffer data = {0}, starts = {0}, lengths = {0};
@@ -723,11 +705,11 @@ static PyObject *runs_match_many(RunsObject *self, PyObject *const *args, Py_ssi
         return NULL;
     if (PyObject_GetBuffer(args[0], &data, PyBUF_SIMPLE) < 0)
         return NULL;
-    if (int64_vector(args[1], &starts, "starts") < 0
-        || int64_vector(args[2], &lengths, "lengths") < 0)
+    if (int64_buffer(args[1], &starts, 0, "starts") < 0
+        || int64_buffer(args[2], &lengths, 0, "lengths") < 0)
         goto done;
-    Py_ssize_t n = starts.shape[0];
-    if (lengths.shape[0] != n) {
+    Py_ssize_t n = starts.len / 8;
+    if (lengths.len / 8 != n) {
         PyErr_SetString(PyExc_ValueError, "starts and lengths: one each per message");
         goto done;
     }

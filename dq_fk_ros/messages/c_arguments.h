@@ -1,13 +1,15 @@
 /*
  * Python ints converted to C and checked, for the package's C extensions (messages/_cdr.c,
  * bag/_mcap.c): one int in a range, and a sequence of them copied first into a tuple of
- * our own (an item's __index__ cannot change the others while they are read).
+ * our own (an item's __index__ cannot change the others while they are read); an int64
+ * array's buffer.
  */
 #ifndef DQ_FK_C_ARGUMENTS_H
 #define DQ_FK_C_ARGUMENTS_H
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <string.h>
 
 /* One int of a sequence, in [low, high]; what names it in the error. */
 static int int_within(PyObject *item, Py_ssize_t low, Py_ssize_t high, Py_ssize_t *at,
@@ -61,6 +63,29 @@ static Py_ssize_t *ints_within(PyObject *obj, Py_ssize_t low, Py_ssize_t high, P
         }
     Py_DECREF(seq);
     return out;
+}
+
+/* A buffer of int64 items (numpy 'q' or 'l' on LP64), writable or not. */
+static int int64_buffer(PyObject *obj, Py_buffer *b, int writable, const char *what)
+{
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj, b, flags) < 0) {
+        b->obj = NULL;
+        PyErr_Clear();
+        PyErr_Format(PyExc_ValueError, "%s: a C-contiguous%s int64 array", what,
+                     writable ? " writable" : "");
+        return -1;
+    }
+    if (b->itemsize != 8 || b->format == NULL
+        || (strcmp(b->format, "q") != 0 && strcmp(b->format, "l") != 0
+            && strcmp(b->format, "<q") != 0 && strcmp(b->format, "=q") != 0)) {
+        PyBuffer_Release(b);
+        b->obj = NULL;
+        PyErr_Format(PyExc_ValueError, "%s: a C-contiguous%s int64 array", what,
+                     writable ? " writable" : "");
+        return -1;
+    }
+    return 0;
 }
 
 #endif /* DQ_FK_C_ARGUMENTS_H */
