@@ -9,8 +9,8 @@
  * (or the object's end) lets go of it: the rcl_publisher_t read from a handle at the start
  * stays alive while it is held. publish(messages) hands message i (bytes) to publisher i
  * with rcl_publish_serialized_message, the call publish_raw makes, GIL held throughout.
- * The reference is publish_raw itself: test/integration/test_rcl_publish.py holds the two
- * equal (a subscriber receives the same bytes from both).
+ * The reference is publish_raw itself: test/integration/test_publisher_group.py holds the
+ * two equal (a subscriber receives the same bytes from both).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>

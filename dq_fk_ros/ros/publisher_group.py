@@ -45,10 +45,9 @@ class PublisherGroup:
             else None
         self._each = None if self.compiled else [raw_publisher(pub) for pub in publishers]
         self.publish = self._group.publish if self.compiled else self._publish_each
-        self._n = len(publishers)
 
     def __len__(self) -> int:
-        return self._n
+        return len(self.publishers)
 
     def _publish_each(self, messages):
         """Publish ``messages`` (a list or tuple of bytes) one ``publish_raw`` each."""
@@ -74,6 +73,5 @@ class PublisherGroup:
         if self._group is not None:
             self._group.close()
         self._each = []
-        self._n = 0
         self.publishers = []
         self.closed = True
