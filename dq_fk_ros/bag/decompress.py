@@ -72,23 +72,25 @@ def _within_limit(data, compression):
     return raw
 
 
-def bound_rosbags() -> None:
+def bound_rosbags(ros1: bool = False) -> None:
     """
-    Make rosbags' MCAP and ROS 1 readers decompress through this module.
+    Make rosbags' MCAP readers (and with ``ros1`` its ROS 1 ones) decompress through here.
 
     rosbags decompresses a chunk whole, with no bound (a 131 KB zstd chunk can expand to
     4 GiB). Its MCAP decompressors are given the declared size (:func:`decompress_chunk`);
     its ROS 1 ones are not, so they are bounded by :data:`MAX_CHUNK_BYTES`. A refused
     chunk raises inside rosbags' reading, and the bag is read again record by record,
-    skipping that chunk.
+    skipping that chunk. The ROS 1 reader is bounded by the ROS 1 adapter, which alone
+    imports it (a rosbag2 command does not load it).
     """
-    from rosbags.rosbag1 import reader as ros1
     from rosbags.rosbag2 import storage_mcap
     for name in ('zstd', 'lz4'):
         storage_mcap.DECOMPRESSORS[name] = \
             lambda data, size, name=name: decompress_chunk(data, name, size)
-    for name in ('bz2', 'lz4'):
-        ros1.decompressors[name] = lambda data, name=name: _within_limit(data, name)
+    if ros1:
+        from rosbags.rosbag1 import reader as ros1_reader
+        for name in ('bz2', 'lz4'):
+            ros1_reader.decompressors[name] = lambda data, name=name: _within_limit(data, name)
 
 
 __all__ = ['bound_rosbags', 'ChunkRefused', 'decompress_chunk', 'MAX_CHUNK_BYTES']

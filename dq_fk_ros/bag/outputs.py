@@ -88,6 +88,7 @@ class BagOutputs:
         for conn in copy_from:
             self.copied[conn.id] = _copy_connection(writer, conn)
         self.static_written = False
+        self._fk_out = None     # write_chunk's FK arrays, reused
 
     def write_static(self, time_ns) -> None:
         """Write /tf_static once: base, fixed rows, tool and links, stamped ``time_ns``."""
@@ -106,9 +107,15 @@ class BagOutputs:
         Returns the end effector's ``(N, 7)`` poses, ``(x, y, z, qx, qy, qz, qw)``.
         """
         model = self.model
-        # (N, frames, 7) and (N, transforms, 7): the compiled kernel, as the node's
-        absolute, relative = model.frame_pose_arrays_batch(q)
-        end = absolute[:, self.end]
+        # (N, frames, 7) and (N, transforms, 7): the compiled kernel, as the node's, into
+        # arrays kept from chunk to chunk (fresh ones fault their pages in at every chunk)
+        if self._fk_out is None or len(self._fk_out[0]) < len(q):
+            self._fk_out = tuple(np.ascontiguousarray(a) for a in
+                                 model.frame_pose_arrays_batch(q))
+            absolute, relative = self._fk_out
+        else:
+            absolute, relative = model.frame_pose_arrays_batch(q, self._fk_out)
+        end = absolute[:, self.end].copy()
         absolute = self.plan.rooted_poses(absolute)  # frames below a floating joint
         n = len(q)
         helpers = self.plan.helpers

@@ -32,7 +32,7 @@ class Ros1Bag(BatchesFromMessages):
         from dq_fk_ros.bag.ros1_scan import Ros1ChunkScan
         from rosbags.rosbag1 import Reader, ReaderError
         from rosbags.typesys import get_typestore, Stores
-        bound_rosbags()
+        bound_rosbags(ros1=True)
         self.path = path
         self.note = f'{path}: a ROS 1 bag; its JointState messages are converted to ROS 2'
         self._ros1 = get_typestore(Stores.ROS1_NOETIC)

@@ -93,6 +93,7 @@ class McapChunkStorage:
         self.path = path / f'{path.name}.mcap'
         self.file = self.path.open('xb')
         self._rows_made = {}         # (channel ids, template ids) -> (_mcap.Rows, templates)
+        self._block = np.empty(0, np.uint8)   # write_templates' chunk block, reused
         self.schemas = []            # record bodies, for the summary
         self.schema_ids = {}         # msgtype -> schema id
         self.channels = []           # record bodies, for the summary
@@ -199,9 +200,12 @@ class McapChunkStorage:
         values = [np.asarray(v, dtype=np.float64) for v in values]
         row_bytes = rows.row_bytes
         per_chunk = max(1, CHUNK_BYTES // row_bytes)
-        # one block for every chunk (each is written out before the next is filled): its
-        # pages are touched once, not once a chunk
-        whole = np.empty(min(len(times), per_chunk) * row_bytes, np.uint8)
+        # one block for every chunk, kept from call to call (each chunk is written out
+        # before the next is filled): its pages fault in once, not once a chunk or a call
+        need = min(len(times), per_chunk) * row_bytes
+        if len(self._block) < need:
+            self._block = np.empty(max(need, CHUNK_BYTES + row_bytes), np.uint8)
+        whole = self._block
         for lo in range(0, len(times), per_chunk):
             t = times[lo:lo + per_chunk]
             m = len(t)

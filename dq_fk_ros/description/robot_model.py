@@ -345,9 +345,10 @@ class RobotModel:
         """Return the TF transforms alone as one array (``TreeKinematics``'s)."""
         return self.kinematics.transform_pose_array(q, relative)
 
-    def frame_pose_arrays_batch(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    def frame_pose_arrays_batch(self, q: ArrayLike, out: tuple | None = None
+                                ) -> tuple[np.ndarray, np.ndarray]:
         """Return :meth:`frame_pose_arrays` for N configurations (``TreeKinematics``'s)."""
-        return self.kinematics.frame_pose_arrays_batch(q)
+        return self.kinematics.frame_pose_arrays_batch(q, out)
 
     @property
     def n_transforms(self) -> int:

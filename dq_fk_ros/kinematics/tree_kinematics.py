@@ -202,9 +202,15 @@ class TreeKinematics:
         return KERNEL.Model(chains, links, self.dof)
 
     # -- N configurations --------------------------------------------------------------
-    def frame_pose_arrays_batch(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    def frame_pose_arrays_batch(self, q: ArrayLike, out: tuple | None = None
+                                ) -> tuple[np.ndarray, np.ndarray]:
         """
         :meth:`frame_pose_arrays` for N configurations: ``(N, n_frames, 7)``, ``(N, n, 7)``.
+
+        ``out``: ``(absolute, relative)`` float64 C-contiguous arrays of at least N rows of
+        those shapes, written in their first N rows (a bag's batches reuse them: a fresh
+        array's pages fault in at first touch, which costs more than the FK here). The
+        views of those rows are returned.
 
         Fast path: the kernel's ``Model``, configuration by configuration; reference: the
         numpy batch (:meth:`_batch`), test_kernel_tree.py's
@@ -212,13 +218,21 @@ class TreeKinematics:
         """
         kernel = self._kernel_model
         if kernel is None:
-            return self.frame_pose_arrays_batch_reference(q)
+            absolute, relative = self.frame_pose_arrays_batch_reference(q)
+            if out is None:
+                return absolute, relative
+            out = _rows_of(out, len(absolute), self.n_frames, self.n_transforms)
+            out[0][...], out[1][...] = absolute, relative
+            return out
         q = np.ascontiguousarray(q, dtype=float)
         if q.ndim != 2 or q.shape[1] != self.dof:
             raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
                              f'got shape {q.shape}')
-        absolute = np.empty((len(q), self.n_frames, 7))
-        relative = np.empty((len(q), self.n_transforms, 7))
+        if out is None:
+            absolute = np.empty((len(q), self.n_frames, 7))
+            relative = np.empty((len(q), self.n_transforms, 7))
+        else:
+            absolute, relative = _rows_of(out, len(q), self.n_frames, self.n_transforms)
         kernel.poses_batch(q, absolute, relative)
         return absolute, relative
 
@@ -293,3 +307,16 @@ def link_motion(motion: tuple, q: Sequence, cos: Callable, sin: Callable) -> tup
         return (1.0 + zero, zero, zero, zero, zero, half * ax, half * ay, half * az)
     c, s = cos(0.5 * value), sin(0.5 * value)
     return (c, s * ax, s * ay, s * az, zero, zero, zero, zero)
+
+
+def _rows_of(out, n, n_frames, n_transforms):
+    """Return the first ``n`` rows of ``out``'s two arrays, checked against their shapes."""
+    absolute, relative = out
+    for array, width, what in ((absolute, n_frames, 'absolute'),
+                               (relative, n_transforms, 'relative')):
+        if not isinstance(array, np.ndarray) or array.dtype != np.float64 or \
+                array.ndim != 3 or array.shape[1:] != (width, 7) or len(array) < n or \
+                not array.flags.c_contiguous or not array.flags.writeable:
+            raise ValueError(f'out: {what} must be a writable C-contiguous float64 array of '
+                             f'at least ({n}, {width}, 7)')
+    return absolute[:n], relative[:n]

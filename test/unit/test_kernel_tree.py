@@ -257,3 +257,27 @@ def test_a_batch_refuses_what_the_numpy_batch_refuses():
     q = np.zeros((6, model.dof * 2))[::2, ::2]  # not contiguous: copied, then taken
     np.testing.assert_array_equal(model.frame_pose_arrays_batch(q)[0],
                                   model.frame_pose_arrays_batch(q.copy())[0])
+
+
+@pytest.mark.parametrize('compiled', [True, False])
+def test_a_batch_into_kept_arrays_equals_a_fresh_one(compiled, monkeypatch):
+    """The bag tool's reused FK arrays: the first N rows written, the rest left alone."""
+    model = parse_robot_description(open('config/dual_arm.yaml', encoding='utf-8').read())
+    if not compiled:
+        monkeypatch.setattr(model.kinematics, '_kernel_model', None)
+    rng = np.random.default_rng(7)
+    kept = (np.full((5, len(model.frame_names), 7), 7.0),
+            np.full((5, model.n_transforms, 7), 7.0))
+    fresh = []
+    for n in (5, 3):  # a full batch, then a shorter last one
+        q = rng.uniform(-2, 2, (n, model.dof))
+        absolute, relative = model.frame_pose_arrays_batch(q, kept)
+        fresh.append(model.frame_pose_arrays_batch(q))
+        assert absolute.base is kept[0] and relative.base is kept[1]
+        np.testing.assert_array_equal(absolute, fresh[-1][0])
+        np.testing.assert_array_equal(relative, fresh[-1][1])
+    np.testing.assert_array_equal(kept[0][3:], fresh[0][0][3:])
+    for bad in ((kept[0][:2], kept[1]), (kept[0], kept[1][:, :-1]),
+                (kept[0].astype(np.float32), kept[1]), (kept[0][:, ::-1], kept[1])):
+        with pytest.raises(ValueError, match='out: .* must be a writable C-contiguous'):
+            model.frame_pose_arrays_batch(np.zeros((3, model.dof)), bad)

@@ -4,12 +4,14 @@ import json
 import math
 import xml.etree.ElementTree as ET
 
+from dq_fk_ros.description import to_urdf
 from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.description.to_urdf import (
     description_urdf, HelperFrames, link_poses, link_segments, NO_LIMIT_SPEED, robot_to_urdf)
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 import homogeneous as hm
+from hypothesis import given, strategies as st
 import numpy as np
 import pytest
 
@@ -120,6 +122,19 @@ def test_hostile_robot_names_leave_the_urdf_well_formed(name):
     root = ET.fromstring(robot_to_urdf(model))  # expat, a real XML parser
     assert root.tag == 'robot' and root.attrib['name'] == name
     assert {link.attrib['name'] for link in root.iter('link')} >= set(model.frame_names)
+
+
+# every character XML 1.0 allows (its Char production), the ones markup uses most often
+XML_TEXT = st.text(st.sampled_from('&<>"\'\t\n\r ;#') | st.characters(
+    blacklist_categories=('Cs',), blacklist_characters='\ufffe\uffff').filter(
+    lambda c: c in '\t\n\r' or ord(c) >= 0x20))
+
+
+@given(XML_TEXT)
+def test_an_attribute_value_reads_back_as_written(text):
+    """The URDF's attribute quoting, read back by expat (tabs and newlines kept, not spaces)."""
+    element = ET.fromstring(f'<a b={to_urdf._xml_attribute(text)}/>')
+    assert element.attrib['b'] == text
 
 
 MIMIC_ROBOT = (
