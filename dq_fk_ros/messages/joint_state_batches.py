@@ -54,6 +54,8 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
         columns, joints = _run_columns(merger, names, members[0][1], members[0][2], len(rows))
         if columns is None:
             continue
+        # (a range of columns or joints in order, the usual case, as a slice: no copies)
+        columns, joints = _as_slice(columns), _as_slice(joints)
         q = np.concatenate([np.asarray(p, dtype=float) for _, p, _ in members])[:, columns]
         ok = np.isfinite(q).all(axis=1)
         merger.count_rejected('non_finite', len(rows) - int(ok.sum()))
@@ -70,7 +72,7 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
             given[:, joints] = True
             values[:, joints] = q
         else:
-            taken = rows[ok][:, None]
+            taken = rows[ok] if isinstance(joints, slice) else rows[ok][:, None]
             given[taken, joints] = True
             values[taken, joints] = q[ok]
         if n_vel:
@@ -78,7 +80,8 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
             qdot = qdot[:, columns]
             bad_rate = ~np.isfinite(qdot).all(axis=1)  # dropped for the whole message
             merger.counts['velocities_non_finite'] += int((ok & bad_rate).sum())
-            rates[taken, joints] = np.where(bad_rate[:, None], math.nan, qdot)[ok]
+            rated = np.where(bad_rate[:, None], math.nan, qdot)
+            rates[taken, joints] = rated if isinstance(taken, slice) else rated[ok]
     stamped = np.flatnonzero(accepted & (stamps != 0))
     jumps, last_stamp = _track_stamps(merger, stamps[stamped])
     resets = stamped[jumps]
@@ -95,13 +98,22 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
     published = np.flatnonzero(accepted & complete)
     merger.counts[PUBLISH] += len(published)
     merger.counts[INCOMPLETE] += int((accepted & ~complete).sum())
-    qdot = qdot_out[published]
+    every = slice(None) if len(published) == total else published  # (all: no copies)
+    qdot = qdot_out[every]
     # as merge: every required joint's velocity, or none
     qdot[~np.isfinite(qdot[:, :merger.required]).all(axis=1)] = math.nan
     seen_rows = np.concatenate(seen_rows) if seen_rows else \
         np.zeros((0, n), bool)
-    merger.last_seen = seen_rows[published]
-    return published, q_out[published], qdot
+    merger.last_seen = seen_rows[every]
+    return published, q_out[every], qdot
+
+
+def _as_slice(indices):
+    """Return ascending consecutive ``indices`` as a slice (basic indexing), else as they are."""
+    first = indices[0] if len(indices) else 0
+    if list(indices) == list(range(first, first + len(indices))):
+        return slice(first, first + len(indices))
+    return indices
 
 
 def _run_columns(merger, names, positions, velocities, k):
