@@ -68,6 +68,40 @@ def _record(opcode, body):
     return bytes((opcode,)) + _U64.pack(len(body)) + body
 
 
+def _message_indexes(index, at):
+    """
+    Return the message index records of a chunk, one a channel, and where each starts.
+
+    ``index``: channel id -> ``(log times, offsets in the chunk's records)``; ``at``: the
+    file offset of the first record. Channels of one length (a batch's, the usual case)
+    are laid out together with numpy: a record is a 15-byte head (opcode, length, channel
+    id, bytes of pairs) and its ``(log time, offset)`` pairs, little-endian uint64.
+    """
+    lengths = {len(times) for times, _ in index.values()}
+    if len(lengths) != 1:
+        parts, offsets = [], []
+        for cid, (times, positions) in index.items():
+            pairs = np.empty((len(times), 2), '<u8')
+            pairs[:, 0], pairs[:, 1] = times, positions
+            offsets.append((cid, at + sum(map(len, parts))))
+            parts.append(_record(OP_MESSAGE_INDEX, _U16.pack(cid) + _U32.pack(pairs.nbytes)
+                                 + pairs.tobytes()))
+        return b''.join(parts), offsets
+    m = lengths.pop()
+    k = len(index)
+    size = 15 + 16 * m
+    block = np.empty((k, size), np.uint8)
+    block[:, 0] = OP_MESSAGE_INDEX
+    block[:, 1:9] = np.frombuffer(_U64.pack(size - 9), np.uint8)
+    block[:, 9:11] = np.array(list(index), '<u2').view(np.uint8).reshape(k, 2)
+    block[:, 11:15] = np.frombuffer(_U32.pack(16 * m), np.uint8)
+    pairs = np.empty((k, m, 2), '<u8')
+    for row, (times, positions) in enumerate(index.values()):
+        pairs[row, :, 0], pairs[row, :, 1] = times, positions
+    block[:, 15:] = pairs.view(np.uint8).reshape(k, 16 * m)
+    return block, [(cid, at + row * size) for row, cid in enumerate(index)]
+
+
 class McapChunkStorage:
     """
     MCAP storage for rosbags' Writer that also takes whole arrays of messages.
@@ -256,13 +290,9 @@ class McapChunkStorage:
         self._emit(bytes((OP_CHUNK,)) + _U64.pack(len(head) + len(stored)) + head)
         self._emit(stored)
         index_start = self.file.tell()
-        offsets = []
-        for cid, (times, positions) in index.items():
-            pairs = np.empty((len(times), 2), '<u8')
-            pairs[:, 0], pairs[:, 1] = times, positions
-            offsets.append((cid, self.file.tell()))
-            self._emit(_record(OP_MESSAGE_INDEX, _U16.pack(cid) + _U32.pack(pairs.nbytes)
-                               + pairs.tobytes()))
+        records, offsets = _message_indexes(index, index_start)
+        self._emit(records)
+        for cid, (times, _) in index.items():
             self.channel_counts[cid] += len(times)
         offsets_map = b''.join(_U16.pack(cid) + _U64.pack(at) for cid, at in offsets)
         self.chunk_indexes.append(

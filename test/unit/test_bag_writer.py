@@ -12,6 +12,7 @@ import zlib
 from dq_fk_ros.bag import writer as bag_writer
 from dq_fk_ros.bag.writer import BagWriter
 from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
+from mcap.data_stream import RecordBuilder
 from mcap.reader import make_reader
 from mcap.records import Chunk, Message, MessageIndex
 from mcap.stream_reader import StreamReader
@@ -166,6 +167,24 @@ def test_mcap_message_indexes_point_at_their_messages(tmp_path, monkeypatch):
                 checked += 1
     assert checked == 1002
     assert not any(isinstance(r, Message) for r in records)  # every message is in a chunk
+
+
+@pytest.mark.parametrize('lengths', [(3, 3, 3), (3, 1, 2), (0, 2)])
+def test_message_index_records_are_the_mcap_librarys(lengths):
+    """A chunk's message indexes, laid out together or one by one, as mcap's records."""
+    rng = np.random.default_rng(len(lengths))
+    index = {cid: (rng.integers(0, 2**63, m, dtype=np.int64), rng.integers(0, 2**40, m))
+             for cid, m in zip((7, 2, 65535), lengths)}
+    at = 1000
+    records, offsets = bag_writer._message_indexes(index, at)
+    expected, where = b'', []
+    for cid, (times, positions) in index.items():
+        where.append((cid, at + len(expected)))
+        builder = RecordBuilder()
+        MessageIndex(channel_id=cid, records=list(zip(times.tolist(), positions.tolist()))
+                     ).write(builder)
+        expected += builder.end()
+    assert bytes(records) == expected and offsets == where
 
 
 def test_mcap_summary_crc(tmp_path):
