@@ -23,6 +23,12 @@
  *     into out (exactly N * row_bytes bytes, every byte written).
  *     The reference: CdrTemplate.fill and the numpy records of McapChunkStorage.write_rows
  *     (test_mcap_chunks.py holds them equal byte for byte).
+ * reserve(fd, offset, length) -> bool
+ *     Reserve the file's blocks [offset, offset + length) beyond its end without changing
+ *     its size (Linux fallocate, FALLOC_FL_KEEP_SIZE): the writes that follow skip the file
+ *     system's block reservation page by page. False where the file system or platform
+ *     cannot (nothing is written or emulated). The writer truncates to its size at the end,
+ *     which gives back what was not used.
  *
  * Every argument is converted to C values first (sequences copied into tuples of our own),
  * then every buffer taken and checked, then the work runs with no Python code in between;
@@ -31,6 +37,8 @@
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <fcntl.h>
+#include <limits.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -505,7 +513,31 @@ static PyTypeObject RowsType = {
     .tp_getset = rows_getset,
 };
 
+static PyObject *reserve(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    Py_ssize_t fd, offset, length;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "reserve(fd, offset, length)");
+        return NULL;
+    }
+    if (int_within(args[0], 0, INT_MAX, &fd, "fd") < 0
+        || int_within(args[1], 0, PY_SSIZE_T_MAX, &offset, "offset") < 0
+        || int_within(args[2], 1, PY_SSIZE_T_MAX - offset, &length, "length") < 0)
+        return NULL;
+#if defined(__linux__) && defined(FALLOC_FL_KEEP_SIZE)
+    int r;
+    Py_BEGIN_ALLOW_THREADS
+    r = fallocate((int)fd, FALLOC_FL_KEEP_SIZE, (off_t)offset, (off_t)length);
+    Py_END_ALLOW_THREADS
+    return PyBool_FromLong(r == 0);
+#else
+    Py_RETURN_FALSE;
+#endif
+}
+
 static PyMethodDef module_methods[] = {
+    {"reserve", (PyCFunction)(void (*)(void))reserve, METH_FASTCALL,
+     "reserve(fd, offset, length) -> bool: blocks reserved past the end, its size kept"},
     {"scan", (PyCFunction)(void (*)(void))scan, METH_FASTCALL,
      "scan(records, wanted, start, stop, times, offsets, lengths, channels) -> n"},
     {"gather", (PyCFunction)(void (*)(void))gather, METH_FASTCALL,

