@@ -45,6 +45,13 @@ def run(module: str = 'dq_fk_ros.cli.dq_fk_bag') -> None:
         code = importlib.import_module(module).main()
     except KeyboardInterrupt:
         code = interrupted_code()
+    except Exception:
+        # After a signal, an error on the way out is the signal's: its KeyboardInterrupt can
+        # come wrapped (Python 3.11 makes one raised in a class's __set_name__, while a
+        # module such as Dask's is imported, a RuntimeError)
+        if not _received:
+            raise
+        code = interrupted_code()
     # The work is done and saved. A signal from here on ends the process at once, with
     # 128 + the signal: while the exit hooks run (a Dask client's, logging's), and after
     # them, where Python's own shutdown would have reset the handlers and let the default
