@@ -20,7 +20,7 @@ from dq_fk_ros.bag.text import printable
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
-from dq_fk_ros.messages.cdr import JointStateNames, JointStateRun, parse_joint_state_spans
+from dq_fk_ros.messages.cdr import group_joint_state_spans, JointStateNames
 from dq_fk_ros.messages.joint_states import JointStateMerger
 import numpy as np
 
@@ -338,14 +338,25 @@ def _process_with(reader, model, in_path, out_path, o, window=None):
 
 
 def _merge_spans(merger, cache, data, starts, lengths):
-    """Parse and merge serialized JointStates (the node's rules); return the runs and merge."""
-    items = parse_joint_state_spans(data, starts, lengths, cache)
-    runs = [item for item in items if isinstance(item, JointStateRun)]
-    malformed = len(items) - len(runs)
-    merger.counts['received'] += malformed
-    merger.count_rejected('malformed_cdr', malformed)
-    return runs, merger.merge_many(
-        [(r.names, r.positions, r.velocities, r.stamps_ns) for r in runs])
+    """
+    Parse and merge serialized JointStates (the node's rules), one group per layout.
+
+    Returns ``(groups, valid, stamps, (published, q, qdot))``: the layouts' groups, the
+    batch indices of the readable messages in order, their stamps in that order, and the
+    merge, whose ``published`` indexes ``valid``.
+    """
+    groups, malformed = group_joint_state_spans(data, starts, lengths, cache)
+    merger.counts['received'] += len(malformed)
+    merger.count_rejected('malformed_cdr', len(malformed))
+    valid = np.sort(np.concatenate([g.rows for g in groups])) if groups else \
+        np.zeros(0, np.int64)
+    places = [np.searchsorted(valid, g.rows) for g in groups]
+    stamps = np.zeros(len(valid), np.int64)
+    for g, at in zip(groups, places):
+        stamps[at] = g.stamps_ns
+    merged = merger.merge_many([(g.names, g.positions, g.velocities, g.stamps_ns, at)
+                                for g, at in zip(groups, places)])
+    return groups, valid, stamps, merged
 
 
 class _Pending:
@@ -427,16 +438,14 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
                 return
             counted = pending.count
             data, starts, lengths, log_times = pending.take()
-            runs, (published, q, _) = _merge_spans(merger, cache, data, starts, lengths)
-            for run in runs:
+            merged = _merge_spans(merger, cache, data, starts, lengths)
+            groups, valid, stamps, (published, q, _) = merged
+            for group in groups:
                 if len(names_seen) < 50:
-                    names_seen.extend(n for n in run.names if n not in names_seen)
-            # message index in this batch of every run message, in merge order
-            where = np.concatenate([r.first + np.arange(len(r.stamps_ns)) for r in runs] or [[]])
-            where = where.astype(np.int64)[published]
+                    names_seen.extend(n for n in group.names if n not in names_seen)
+            where = valid[published]   # the batch index of every published message
             out_times = np.asarray(log_times, dtype=np.int64)[where]
-            stamps = np.concatenate([r.stamps_ns for r in runs] or [[]])
-            stamps = stamps.astype(np.int64)[published]
+            stamps = stamps[published]
             stamps = np.where(stamps != 0, stamps, out_times)  # output stamps are input stamps
             if _progress_counter is not None:
                 with _progress_counter.get_lock():

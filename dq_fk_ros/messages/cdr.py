@@ -277,6 +277,16 @@ class JointStateRun(NamedTuple):
     velocities: np.ndarray    # (k, len(velocities)) float64, often (k, 0)
 
 
+class JointStateGroup(NamedTuple):
+    """Messages of one layout anywhere in the batch (``rows``: their indices), as arrays."""
+
+    rows: np.ndarray          # (k,) int64, ascending
+    names: tuple
+    stamps_ns: np.ndarray     # (k,) int64
+    positions: np.ndarray     # (k, len(positions)) float64
+    velocities: np.ndarray    # (k, len(velocities)) float64, often (k, 0)
+
+
 class MalformedJointState(NamedTuple):
     """A message of the batch that is not readable CDR of a JointState."""
 
@@ -368,17 +378,53 @@ def parse_joint_state_spans(joined, starts, lengths, cache=None, max_layouts=8) 
     :param starts: ``(m,)`` int64, where message i starts in ``joined``.
     :param lengths: ``(m,)`` int64, its length (every span inside ``joined``).
     """
+    groups, malformed = group_joint_state_spans(joined, starts, lengths, cache, max_layouts)
     m = len(starts)
     if not m:
         return []
+    layout_of = np.full(m, -1)
+    rank = np.zeros(m, np.int64)     # position of a message among its layout's messages
+    for g, group in enumerate(groups):
+        layout_of[group.rows] = g
+        rank[group.rows] = np.arange(len(group.rows))
+    reasons = {}
+    for item in malformed:
+        layout_of[item.index] = -2
+        reasons[item.index] = item.reason
+    out = []
+    breaks = np.flatnonzero((layout_of[1:] != layout_of[:-1]) | (layout_of[1:] == -2)) + 1
+    for a, b in zip(np.concatenate([[0], breaks]), np.concatenate([breaks, [m]])):
+        a, b = int(a), int(b)
+        lid = layout_of[a]
+        if lid == -2:
+            out.append(MalformedJointState(a, reasons[a]))
+            continue
+        r, group = rank[a], groups[lid]
+        out.append(JointStateRun(a, group.names, group.stamps_ns[r:r + b - a],
+                                 group.positions[r:r + b - a], group.velocities[r:r + b - a]))
+    return out
+
+
+def group_joint_state_spans(joined, starts, lengths, cache=None, max_layouts=8) -> tuple:
+    """
+    Read messages that lie in one buffer as one group per layout: ``(groups, malformed)``.
+
+    :func:`parse_joint_state_spans` cuts the same groups into runs of consecutive
+    messages; several publishers' interleaved messages are a run each, but one group per
+    layout here (the bag tool merges them so, ``merge_many`` with each message's place).
+    ``groups``: :class:`JointStateGroup` s, in the order of their first message;
+    ``malformed``: :class:`MalformedJointState` s. Arguments as there.
+    """
+    m = len(starts)
+    if not m:
+        return [], []
     joined = np.frombuffer(joined, np.uint8)
     starts = np.asarray(starts, np.int64)
     lengths = np.asarray(lengths, np.int64)
     if starts.min() < 0 or lengths.min() < 0 or (starts + lengths).max() > len(joined):
         raise ValueError('a message span lies outside the buffer')
-    layout_of = np.full(m, -1)
-    rank = np.zeros(m, np.int64)     # position of a message among its layout's messages
-    layouts, values, malformed = [], [], {}
+    done = np.zeros(m, bool)
+    groups, malformed = [], []
     todo = np.arange(m)
     while len(todo):
         first = int(todo[0])
@@ -386,32 +432,18 @@ def parse_joint_state_spans(joined, starts, lengths, cache=None, max_layouts=8) 
             layout = _Layout(joined[starts[first]:starts[first] + lengths[first]].tobytes(),
                              cache)
         except CdrError as exc:
-            malformed[first] = str(exc)
-            layout_of[first] = -2
+            malformed.append(MalformedJointState(first, str(exc)))
+            done[first] = True
             todo = todo[1:]
             continue
-        same = todo[lengths[todo] == layout.size] if len(layouts) < max_layouts else todo[:1]
+        same = todo[lengths[todo] == layout.size] if len(groups) < max_layouts else todo[:1]
         rows = _rows(joined, starts, same, layout.size)
         match = layout.matches(joined, starts[same], lengths[same], rows)
         members = same[match]
-        layout_of[members] = len(layouts)
-        rank[members] = np.arange(len(members))
-        layouts.append(layout)
-        values.append(layout.values(rows[match]))
-        todo = todo[layout_of[todo] == -1]
-    out = []
-    breaks = np.flatnonzero((layout_of[1:] != layout_of[:-1]) | (layout_of[1:] == -2)) + 1
-    for a, b in zip(np.concatenate([[0], breaks]), np.concatenate([breaks, [m]])):
-        a, b = int(a), int(b)
-        lid = layout_of[a]
-        if lid == -2:
-            out.append(MalformedJointState(a, malformed[a]))
-            continue
-        r = rank[a]
-        stamps, positions, velocities = values[lid]
-        out.append(JointStateRun(a, layouts[lid].names, stamps[r:r + b - a],
-                                 positions[r:r + b - a], velocities[r:r + b - a]))
-    return out
+        done[members] = True
+        groups.append(JointStateGroup(members, layout.names, *layout.values(rows[match])))
+        todo = todo[~done[todo]]
+    return groups, malformed
 
 
 def _rows(joined, starts, which, size):

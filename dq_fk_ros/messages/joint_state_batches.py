@@ -26,6 +26,10 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
     ``names``: ``(k, len(names))`` positions, ``(k, len(names))`` or ``(k, 0)``
     velocities, ``(k,)`` stamps (0: none). Runs may name different joints (several
     publishers): each joint keeps its last accepted value, carried forward with numpy.
+    A run may end with ``order``, the ``(k,)`` places of its messages in the sequence
+    merged (every run then has one; together they are each place once): several
+    publishers' interleaved messages are then one run per layout, not one per message
+    (the bag tool's batches; test_joint_states.py holds both ways equal).
     Returns ``(published, q, qdot)``: indices (into all the runs' messages, in order) of
     the messages that completed the joint vector, their ``(p, dof)`` joint values and
     ``(p, dof)`` velocities (a NaN row where ``merge`` gives no ``qdot``). Counts and
@@ -42,15 +46,17 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
     # runs of one layout (several publishers interleave) are checked together
     layouts = {}
     at = 0
-    for names, positions, velocities, run_stamps in runs:
+    _check_orders(runs, total)
+    for names, positions, velocities, run_stamps, *order in runs:
         k = len(run_stamps)
         key = (tuple(names), np.shape(positions)[1], np.shape(velocities)[1])
-        layouts.setdefault(key, []).append((at, positions, velocities))
-        stamps[at:at + k] = run_stamps
+        places = np.arange(at, at + k) if not order else np.asarray(order[0], np.int64)
+        layouts.setdefault(key, []).append((places, positions, velocities))
+        stamps[places] = run_stamps
         at += k
     merger.counts['received'] += total
     for (names, _, n_vel), members in layouts.items():
-        rows = np.concatenate([np.arange(a, a + len(p)) for a, p, _ in members])
+        rows = np.concatenate([places for places, _, _ in members])
         columns, joints = _run_columns(merger, names, members[0][1], members[0][2], len(rows))
         if columns is None:
             continue
@@ -67,7 +73,8 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
         elif merger.out_of_limits == 'clamp':
             q = np.clip(q, lower, upper)
         accepted[rows] = ok
-        if len(rows) == total and ok.all():   # one layout, every message taken: slices
+        if len(rows) == total and ok.all() and (rows[1:] > rows[:-1]).all():
+            # one layout, every message taken, in order: slices
             taken = slice(None)
             given[:, joints] = True
             values[:, joints] = q
@@ -106,6 +113,18 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
         np.zeros((0, n), bool)
     merger.last_seen = seen_rows[every]
     return published, q_out[every], qdot
+
+
+def _check_orders(runs, total):
+    """Refuse orders given to some runs only, or not each place once."""
+    given = [len(run) > 4 for run in runs]
+    if not any(given):
+        return
+    if not all(given):
+        raise ValueError('merge_many: an order for every run or for none')
+    places = np.concatenate([np.asarray(run[4], np.int64) for run in runs])
+    if total and not np.array_equal(np.sort(places), np.arange(total)):
+        raise ValueError(f'merge_many: the orders must hold each of 0..{total - 1} once')
 
 
 def _as_slice(indices):

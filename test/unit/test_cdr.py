@@ -1,12 +1,13 @@
 """The fast CDR reader and templates against rosbags' own (independent) CDR implementation."""
 
 import random
+import re
 import struct
 
 from dq_fk_ros.messages.cdr import (
-    CDR_LE_HEADER, CdrError, JointStateNames, JointStateRun, MalformedJointState,
-    parse_joint_state, parse_joint_states, pose_stamped_template, tf_layout,
-    tf_message_template, twist_stamped_template)
+    CDR_LE_HEADER, CdrError, group_joint_state_spans, JointStateNames, JointStateRun,
+    MalformedJointState, parse_joint_state, parse_joint_states, pose_stamped_template,
+    tf_layout, tf_message_template, twist_stamped_template)
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
@@ -174,6 +175,32 @@ def test_batch_parse_equals_parsing_one_by_one(seed, max_layouts):
             assert (g[0], g[1]) == (e[0], e[1])
             np.testing.assert_array_equal(g[2], e[2])
             np.testing.assert_array_equal(g[3], e[3])
+
+
+@pytest.mark.parametrize('max_layouts', [1, 8])
+@pytest.mark.parametrize('seed', range(3))
+def test_groups_of_a_batch_hold_each_message_once_as_one_by_one_reads_it(seed, max_layouts):
+    rng = np.random.default_rng(seed)
+    raws = [bytes(r) for r in mixed_messages(rng, 300)]
+    rng.shuffle(raws)   # interleaved layouts: groups are not runs
+    starts = np.cumsum([0] + [len(r) for r in raws[:-1]]).astype(np.int64)
+    lengths = np.array([len(r) for r in raws], np.int64)
+    groups, malformed = group_joint_state_spans(b''.join(raws), starts, lengths,
+                                                JointStateNames(), max_layouts)
+    seen = np.zeros(len(raws), int)
+    for item in malformed:
+        seen[item.index] += 1
+        with pytest.raises(CdrError, match=re.escape(item.reason)):
+            parse_joint_state(raws[item.index])
+    for group in groups:
+        assert (np.diff(group.rows) > 0).all()
+        for j, i in enumerate(group.rows.tolist()):
+            seen[i] += 1
+            stamp, names, positions, velocities = parse_joint_state(raws[i])[:4]
+            assert (int(group.stamps_ns[j]), group.names) == (stamp, names)
+            np.testing.assert_array_equal(group.positions[j], positions)
+            np.testing.assert_array_equal(group.velocities[j], velocities)
+    assert (seen == 1).all()
 
 
 def test_batch_parse_makes_one_run_of_a_uniform_batch():

@@ -157,6 +157,39 @@ def merge_one_by_one(merger, runs):
     return published, np.array(qs).reshape(-1, 3), np.array(qdots).reshape(-1, 3), optional
 
 
+def by_layout(runs):
+    """Return the runs' messages as one run per layout (names and array lengths), placed."""
+    groups, at = {}, 0
+    for names, positions, velocities, stamps in runs:
+        k = len(stamps)
+        key = (tuple(names), np.shape(positions)[1], np.shape(velocities)[1])
+        groups.setdefault(key, []).append((positions, velocities, stamps, np.arange(at, at + k)))
+        at += k
+    return [(key[0], *(np.concatenate([np.asarray(m[i]) for m in members]) for i in range(4)))
+            for key, members in groups.items()]
+
+
+def test_a_run_in_any_order_merges_as_its_messages_in_that_order():
+    rng = np.random.default_rng(3)
+    positions, velocities, stamps = random_batch(rng, NAMES, 9)
+    order = rng.permutation(9)
+    placed = JointStateMerger(NAMES, LIMITS, 'warn')
+    plain = JointStateMerger(NAMES, LIMITS, 'warn')
+    got = placed.merge_many([(NAMES, positions, velocities, stamps, order)])
+    back = np.argsort(order)   # the message at place i
+    expected = plain.merge_many([(NAMES, positions[back], velocities[back], stamps[back])])
+    assert got[0].tolist() == expected[0].tolist()
+    np.testing.assert_array_equal(got[1], expected[1])
+    np.testing.assert_array_equal(got[2], expected[2])
+
+
+def test_merge_many_refuses_orders_that_do_not_cover_each_place_once(merger):
+    run = (NAMES, np.zeros((2, 3)), np.zeros((2, 0)), [0, 0])
+    for bad in ([run + ([0, 0],)], [run + ([0, 1],), run], [run + ([0, 2],)]):
+        with pytest.raises(ValueError, match='merge_many: '):
+            merger.merge_many(bad)
+
+
 @pytest.mark.parametrize('required', [3, 2])  # 2: joint c is optional (a side branch)
 @pytest.mark.parametrize('policy', ['warn', 'clamp', 'reject'])
 @pytest.mark.parametrize('seed', range(6))
@@ -164,6 +197,7 @@ def test_merge_many_equals_merging_one_by_one(policy, seed, required):
     rng = np.random.default_rng(seed)
     batched = JointStateMerger(NAMES, LIMITS, policy, required=required)
     single = JointStateMerger(NAMES, LIMITS, policy, required=required)
+    grouped = JointStateMerger(NAMES, LIMITS, policy, required=required)
     for _ in range(25):
         runs = []
         for _ in range(int(rng.integers(1, 8))):  # several publishers, interleaved
@@ -174,6 +208,13 @@ def test_merge_many_equals_merging_one_by_one(policy, seed, required):
             runs.append((names, positions, velocities, stamps))
         published, q, qdot = batched.merge_many(runs)
         expected = merge_one_by_one(single, runs)
+        # the same messages as one run per layout, each message's place given
+        in_order = grouped.merge_many(by_layout(runs))
+        assert in_order[0].tolist() == expected[0]
+        np.testing.assert_array_equal(in_order[1], expected[1])
+        np.testing.assert_array_equal(in_order[2], expected[2])
+        np.testing.assert_array_equal(grouped.last_seen, batched.last_seen)
+        assert grouped.counts == single.counts
         assert published.tolist() == expected[0]
         np.testing.assert_array_equal(q, expected[1])
         np.testing.assert_array_equal(qdot, expected[2])
@@ -185,6 +226,8 @@ def test_merge_many_equals_merging_one_by_one(policy, seed, required):
         # the state left behind is the same: a partial message completes alike
         probe_b = batched.merge(['b'], [0.25], [0.5], stamp_ns=0)
         probe_s = single.merge(['b'], [0.25], [0.5], stamp_ns=0)
+        probe_g = grouped.merge(['b'], [0.25], [0.5], stamp_ns=0)
+        assert (probe_g.status, str(probe_g.q)) == (probe_s.status, str(probe_s.q))
         assert (probe_b.status, str(probe_b.q), str(probe_b.qdot)) == \
             (probe_s.status, str(probe_s.q), str(probe_s.qdot))
     for outcome in ('time_jumps', 'rejected_non_finite', 'incomplete', 'publish'):
