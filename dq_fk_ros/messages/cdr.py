@@ -441,7 +441,8 @@ def group_joint_state_spans(joined, starts, lengths, cache=None, max_layouts=8) 
         match = layout.matches(joined, starts[same], lengths[same], rows)
         members = same[match]
         done[members] = True
-        groups.append(JointStateGroup(members, layout.names, *layout.values(rows[match])))
+        taken = rows if match.all() else rows[match]   # (all of them: no copy)
+        groups.append(JointStateGroup(members, layout.names, *layout.values(taken)))
         todo = todo[~done[todo]]
     return groups, malformed
 
