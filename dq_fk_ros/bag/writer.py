@@ -100,7 +100,7 @@ def _message_indexes(index, at):
     for row, (times, positions) in enumerate(index.values()):
         pairs[row, :, 0], pairs[row, :, 1] = times, positions
     block[:, 15:] = pairs.view(np.uint8).reshape(k, 16 * m)
-    return block, [(cid, at + row * size) for row, cid in enumerate(index)]
+    return block.reshape(-1), [(cid, at + row * size) for row, cid in enumerate(index)]
 
 
 class McapChunkStorage:
@@ -137,12 +137,13 @@ class McapChunkStorage:
         self.start_ns, self.end_ns = None, None
         self._pending = bytearray()
         self._pending_index = {}     # channel id -> [(log time, offset)]
-        self._reserved = 0           # the file's blocks reserved up to here (None: cannot)
+        self._reserved = 0           # the file's blocks reserved up to here
+        self._can_reserve = True     # (False once the file system could not)
         self._emit(MAGIC)
         self._emit(_record(OP_HEADER, _string('ros2') + _string(_library())))
 
     def _emit(self, data):
-        if self._reserved is not None:
+        if self._can_reserve:
             end = self.file.tell() + len(data)
             if end > self._reserved:
                 self._reserve(end)
@@ -158,12 +159,14 @@ class McapChunkStorage:
         """
         start = self._reserved
         size = max(RESERVE_BYTES, end - start)
-        done = COMPILED is not None and COMPILED.reserve(self.file.fileno(), start, size)
-        self._reserved = start + size if done else None
+        if COMPILED is not None and COMPILED.reserve(self.file.fileno(), start, size):
+            self._reserved = start + size
+        else:
+            self._can_reserve = False
 
     def _release(self):
         """Truncate the file to what was written: the reserved blocks past it are freed."""
-        if self._reserved is not None and self._reserved > 0:
+        if self._reserved > 0:
             self.file.flush()
             os.ftruncate(self.file.fileno(), self.file.tell())
 

@@ -213,6 +213,22 @@ def test_blocks_reserved_ahead_are_given_back(tmp_path, monkeypatch):
     assert reserved.stat().st_blocks * 512 < size + (64 << 10)   # none of the last 512 KiB
 
 
+def test_reserving_stops_once_the_file_system_refuses(tmp_path, monkeypatch):
+    if bag_writer.COMPILED is None:
+        pytest.skip('the C extension _mcap is not built: nothing is reserved')
+    reserve, calls = bag_writer.COMPILED.reserve, []
+
+    def once(fd, offset, length):   # the first works, then the disk is full, say
+        calls.append(offset)
+        return reserve(fd, offset, length) if len(calls) == 1 else False
+    monkeypatch.setattr(bag_writer, 'COMPILED', _Stand(bag_writer.COMPILED, reserve=once))
+    monkeypatch.setattr(bag_writer, 'RESERVE_BYTES', 1 << 19)
+    write_sample(tmp_path / 'bag', 'mcap', 6000)
+    path = tmp_path / 'bag' / 'bag.mcap'
+    assert len(calls) == 2   # not tried again once refused
+    assert path.stat().st_blocks * 512 < path.stat().st_size + (64 << 10)
+
+
 def test_an_aborted_bag_keeps_no_reserved_blocks(tmp_path, monkeypatch):
     monkeypatch.setattr(bag_writer, 'RESERVE_BYTES', 8 << 20)
     writer = BagWriter(tmp_path / 'cut', 'mcap')
