@@ -262,8 +262,7 @@ class McapChunkStorage:
         values = [np.asarray(v, dtype=np.float64) for v in values]
         row_bytes = rows.row_bytes
         per_chunk = max(1, CHUNK_BYTES // row_bytes)
-        # one block for every chunk, kept from call to call (each chunk is written out
-        # before the next is filled): its pages fault in once, not once a chunk or a call
+        # one block for every chunk (each written out before the next), kept between calls
         need = min(len(times), per_chunk) * row_bytes
         if len(self._block) < need:
             self._block = np.empty(max(need, CHUNK_BYTES + row_bytes), np.uint8)

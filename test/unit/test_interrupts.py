@@ -1,4 +1,4 @@
-"""dq_fk_bag's console script ends quietly on a signal, whatever the signal interrupts."""
+"""The console scripts end quietly on a signal, whatever the signal interrupts."""
 
 import signal
 import subprocess
@@ -48,3 +48,15 @@ def test_an_error_with_no_signal_is_still_shown(tmp_path):
          'from dq_fk_ros.cli.interrupts import run; run("failing_command")', str(tmp_path)],
         capture_output=True, text=True, timeout=60)
     assert run.returncode == 1 and 'RuntimeError: x' in run.stderr
+
+
+def test_a_ros_program_interrupted_while_starting_exits_quietly(tmp_path):
+    """As dq_fk_view's Ctrl-C while rclpy's modules are imported (exit 0 while starting)."""
+    (tmp_path / 'cut_program.py').write_text(textwrap.dedent(COMMAND.format(signal='SIGINT')))
+    run = subprocess.run(
+        [sys.executable, '-c', 'import sys; sys.path.insert(0, sys.argv[1]); '
+         'from dq_fk_ros.ros.executables import run_program; '
+         'sys.exit(run_program("cut_program"))', str(tmp_path)],
+        capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert 'Traceback' not in run.stderr
