@@ -73,16 +73,7 @@ def run_main(main) -> int:
 
 def run_program(module: str) -> int:
     """Import ``module`` (a Ctrl-C meanwhile stops it quietly) and return its ``main()``'s code."""
-    take_sigint()
-    try:
-        main = importlib.import_module(module).main
-    except KeyboardInterrupt:
-        return 0
-    except Exception:
-        if not _interrupted:
-            raise
-        return 0
-    return run_main(main)
+    return run_main(lambda: importlib.import_module(module).main())
 
 
 def run_dq_fk_node() -> int:
