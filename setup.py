@@ -6,6 +6,8 @@ import re
 import runpy
 
 from setuptools import Extension, find_packages, setup
+from setuptools.command.develop import develop as _develop
+from setuptools.command.install_scripts import install_scripts as _install_scripts
 
 package_name = 'dq_fk_ros'
 # the version is written once, in the package (an MCAP file's header names it)
@@ -22,6 +24,52 @@ RCL_EXTENSIONS = [] if RCL is None else [
     Extension('dq_fk_ros.ros._rcl_publish', ['dq_fk_ros/ros/_rcl_publish.c'],
               include_dirs=RCL[0], library_dirs=[RCL[1]], runtime_library_dirs=[RCL[1]],
               libraries=['rcl', 'rmw', 'rcutils'], extra_compile_args=['-O2'], optional=True)]
+
+# the programs (console scripts); ros2 run finds them in lib/dq_fk_ros (setup.cfg)
+CONSOLE_SCRIPTS = {
+    'dq_fk_node': 'dq_fk_ros.ros.executables:run_dq_fk_node',
+    'dq_fk': 'dq_fk_ros.cli.dq_fk:main',
+    'fake_joint_publisher': 'dq_fk_ros.ros.executables:run_fake_joint_publisher',
+    'dq_fk_bag': 'dq_fk_ros.cli.interrupts:run_dq_fk_bag',
+    'dq_fk_view': 'dq_fk_ros.ros.executables:run_dq_fk_view',
+    'dq_fk_foxglove': 'dq_fk_ros.ros.executables:run_dq_fk_foxglove',
+}
+
+
+def direct_script(name, contents):
+    """
+    Return console script ``name`` that imports its function, as pip writes one from a wheel.
+
+    ``setup.py develop`` (an editable pip install) and ``install`` (colcon's ament_python)
+    write a script that looks its function up through ``importlib.metadata``: ~30 ms of every
+    start here (it imports the email package and reads the installed distributions'
+    metadata). The first line (the interpreter) is kept. test_ament_layout.py (colcon) and
+    test_processes.py (this install) check the scripts installed.
+    """
+    if name not in CONSOLE_SCRIPTS:
+        return contents
+    module, function = CONSOLE_SCRIPTS[name].split(':')
+    header = contents.splitlines(keepends=True)[0]
+    return (f'{header}# {name}: {module}:{function} (dq_fk_ros setup.py, direct_script)\n'
+            f'import sys\n\nfrom {module} import {function}\n\n'
+            f"if __name__ == '__main__':\n    sys.exit({function}())\n")
+
+
+class develop(_develop):
+    """``setup.py develop`` (pip install -e) writing :func:`direct_script` scripts."""
+
+    def write_script(self, script_name, contents, *args, **kwargs):
+        return super().write_script(script_name, direct_script(script_name, contents),
+                                    *args, **kwargs)
+
+
+class install_scripts(_install_scripts):
+    """``setup.py install`` (colcon) writing :func:`direct_script` scripts."""
+
+    def write_script(self, script_name, contents, *args, **kwargs):
+        return super().write_script(script_name, direct_script(script_name, contents),
+                                    *args, **kwargs)
+
 
 setup(
     name=package_name,
@@ -60,14 +108,7 @@ setup(
     description='Dual-quaternion forward kinematics from a YAML DH table, published to ROS 2.',
     license='Apache-2.0',
     tests_require=['pytest'],
-    entry_points={
-        'console_scripts': [
-            'dq_fk_node = dq_fk_ros.ros.executables:run_dq_fk_node',
-            'dq_fk = dq_fk_ros.cli.dq_fk:main',
-            'fake_joint_publisher = dq_fk_ros.ros.executables:run_fake_joint_publisher',
-            'dq_fk_bag = dq_fk_ros.cli.interrupts:run_dq_fk_bag',
-            'dq_fk_view = dq_fk_ros.ros.executables:run_dq_fk_view',
-            'dq_fk_foxglove = dq_fk_ros.ros.executables:run_dq_fk_foxglove',
-        ],
-    },
+    entry_points={'console_scripts': [f'{name} = {target}'
+                                      for name, target in CONSOLE_SCRIPTS.items()]},
+    cmdclass={'develop': develop, 'install_scripts': install_scripts},
 )

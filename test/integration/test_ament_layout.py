@@ -49,6 +49,10 @@ def test_install_layout(colcon_workspace):
     assert (share / 'dq_fk_ros' / 'package.xml').is_file()
     executable = ws / 'install' / 'dq_fk_ros' / 'lib' / 'dq_fk_ros' / 'dq_fk_node'
     assert os.access(executable, os.X_OK)
+    # setup.py's direct_script: the function imported, not looked up in importlib.metadata
+    text = executable.read_text(encoding='utf-8')
+    assert 'from dq_fk_ros.ros.executables import run_dq_fk_node' in text, text
+    assert 'importlib' not in text, text
 
 
 def _wait_for_node(name, timeout_s):

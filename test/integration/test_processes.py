@@ -7,7 +7,9 @@ The test listens from its own rclpy context; every process is started and reaped
 
 import math
 import os
+import re
 import signal
+import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -190,8 +192,27 @@ def test_two_robots_with_different_prefixes_do_not_mix(processes, listener):
     np.testing.assert_allclose(htf.pose_matrix(right[-1].pose), expected, atol=1e-9)
 
 
-@pytest.mark.parametrize('program', ['dq_fk_node', 'fake_joint_publisher', 'dq_fk_view',
-                                     'dq_fk', 'dq_fk_bag', 'dq_fk_foxglove'])
+PROGRAMS = ['dq_fk_node', 'fake_joint_publisher', 'dq_fk_view', 'dq_fk', 'dq_fk_bag',
+            'dq_fk_foxglove']
+
+
+@pytest.mark.parametrize('program', PROGRAMS)
+def test_every_installed_program_imports_its_function_without_a_metadata_lookup(program):
+    """
+    setup.py's direct_script: as pip writes a wheel's scripts, not setuptools' develop ones.
+
+    Those find their function through importlib.metadata, ~30 ms of every start here.
+    """
+    path = os.path.join(sys.prefix, 'lib', 'dq_fk_ros', program)   # where setup.cfg puts it
+    with open(path, encoding='utf-8') as script:
+        text = script.read()
+    assert text.startswith('#!') and os.access(path, os.X_OK)
+    assert 'importlib' not in text and 'pkg_resources' not in text, text
+    assert re.search(r'^from dq_fk_ros(\.\w+)+ import run_\w+|^from dq_fk_ros(\.\w+)+ import '
+                     r'main$', text, re.M), text
+
+
+@pytest.mark.parametrize('program', PROGRAMS)
 @pytest.mark.parametrize('flag', ['--help', '-h'])
 def test_every_program_answers_help_with_its_options_and_starts_nothing(program, flag,
                                                                         processes):
