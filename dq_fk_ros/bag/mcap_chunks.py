@@ -1,9 +1,11 @@
 """
 An intact rosbag2 MCAP folder read a whole chunk at a time, without a Python object per record.
 
-:class:`McapChunkReader` is the fast adapter of a rosbag2 folder whose MCAP files rosbags
-opens and whose summaries pass their CRC. It walks the summary's chunk index, takes each
-chunk whole (uncompressed: a view of the mapped file; ``zstd``/``lz4``: decompressed within
+:class:`McapChunkReader` is the fast adapter of a rosbag2 folder whose MCAP files' summaries
+pass their checks (:func:`~dq_fk_ros.bag.mcap_summary.read_summary`), opened without rosbags
+(:func:`~dq_fk_ros.bag.mcap_folder.open_mcap_folder`) or, where that is not taken, by rosbags'
+``Reader``. It walks the summary's chunk index, takes each
+chunk whole (uncompressed: the bytes read; ``zstd``/``lz4``: decompressed within
 its declared size, :mod:`dq_fk_ros.bag.decompress`), checks its CRC and finds its message
 records with the compiled :func:`scan` (``_mcap.scan``; the reference :func:`scan_records`,
 test_mcap_chunks.py holds them equal). Its :meth:`McapChunkReader.message_batches` hands
@@ -24,7 +26,6 @@ it does when rosbags stops in a damaged chunk. test_bag_readers.py holds this re
 to rosbags', message for message.
 """
 
-import mmap
 import os
 import struct
 from typing import Iterator, Optional
@@ -32,7 +33,7 @@ from typing import Iterator, Optional
 from dq_fk_ros.bag.crc import crc32
 from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk, MAX_CHUNK_BYTES
 from dq_fk_ros.bag.mcap_format import OP_CHUNK
-from dq_fk_ros.bag.mcap_stream import _RecordReader
+from dq_fk_ros.bag.mcap_summary import read_summary, SummaryRefused
 from dq_fk_ros.bag.reader_interface import BagReader, BATCH, MessageBatch
 import numpy as np
 
@@ -118,26 +119,22 @@ class _Piece:
 class _FileChunks:
     """One MCAP file of the bag: its mapping, chunk index and channels as connections."""
 
-    def __init__(self, path, connections):
+    def __init__(self, path, connections, summary=None):
+        """Open ``path``; ``summary``: its :func:`~dq_fk_ros.bag.mcap_summary.read_summary`."""
         self.path = path
+        if summary is None:
+            try:
+                summary = read_summary(path)
+            except (OSError, SummaryRefused) as exc:
+                raise ChunkDamaged(f'{path}: no summary to walk ({exc})') from None
+        # chunks read with pread: memory stays one chunk whatever the file's length
         self.file = open(path, 'rb')
         self.size = os.fstat(self.file.fileno()).st_size
-        try:
-            # the summary read through a mapping (its pages only); chunks with pread, so
-            # that memory stays one chunk whatever the file's length
-            with mmap.mmap(self.file.fileno(), 0, access=mmap.ACCESS_READ) as whole:
-                index = _RecordReader(whole)
-                summary_found = index.summary_start is not None
-        except (OSError, ValueError):
-            summary_found = False
-        if not summary_found:
-            self.file.close()
-            raise ChunkDamaged(f'{path}: no summary to walk')
-        self.chunks = [index.chunk_index[k] for k in sorted(index.chunk_index)]
+        self.chunks = [summary.chunk_index[k] for k in sorted(summary.chunk_index)]
         self.connection_of = {}     # channel id -> connection of the bag
         self.ids = np.full(65536, -1, np.int64)  # channel id -> the connection's id
-        for channel in index.summary_channels.values():
-            schema = index.summary_schemas.get(channel.schema_id)
+        for channel in summary.channels.values():
+            schema = summary.schemas.get(channel.schema_id)
             msgtype = schema.name if schema is not None else ''
             conn = next((c for c in connections
                          if (c.topic, c.msgtype) == (channel.topic, msgtype)), None)
@@ -187,7 +184,8 @@ class McapChunkReader:
     """
     A rosbag2 folder of intact MCAP files, read a chunk at a time (a ``BagReader``).
 
-    :param reference: the folder's :class:`~dq_fk_ros.bag.rosbag2_reader.Rosbag2Reader`,
+    :param reference: the folder's :class:`~dq_fk_ros.bag.mcap_folder.McapFolder` or
+        :class:`~dq_fk_ros.bag.rosbag2_reader.Rosbag2Reader`,
         whose connections, times and fallback this reader takes.
     """
 
@@ -196,16 +194,21 @@ class McapChunkReader:
     copies_messages = True
     windowable = True
 
-    def __init__(self, reference, mcaps):
-        """Map the files and read their chunk indexes; raises :class:`ChunkDamaged`."""
+    def __init__(self, reference, mcaps, summaries=None):
+        """
+        Open the files and read their chunk indexes; raises :class:`ChunkDamaged`.
+
+        :param summaries: the files' summaries, already read (None: read here).
+        """
         self._reference = reference
         self.connections = reference.connections
         self.all_topics = reference.all_topics
         self.start_time, self.end_time = reference.start_time, reference.end_time
         self._files = []
         try:
-            for path in mcaps:
-                self._files.append(_FileChunks(path, self.connections))
+            for k, path in enumerate(mcaps):
+                self._files.append(_FileChunks(path, self.connections,
+                                               summaries[k] if summaries else None))
         except Exception:
             self.close()
             raise

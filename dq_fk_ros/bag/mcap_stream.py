@@ -31,11 +31,11 @@ from dq_fk_ros.bag.mcap_format import (
     KNOWN_OPCODES, MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER,
     OP_HEADER, OP_MESSAGE, OP_MESSAGE_INDEX, OP_METADATA, OP_SCHEMA)
 from dq_fk_ros.bag.reader_interface import BatchesFromMessages
+from dq_fk_ros.bag.rosbag2_metadata import parse_qos
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.errors import BagError
 from rosbags.interfaces import (
     Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat)
-from rosbags.rosbag2.metadata import parse_qos
 
 END_LENGTHS = {OP_DATA_END: 4, OP_FOOTER: 20}   # the body sizes of the records that end data
 # what a resynchronisation looks for, and how an intact schema or channel record looks

@@ -277,7 +277,7 @@ def process_window(in_path, out_path, model, options, window) -> ProcessSummary:
 
 def check_compression(options) -> None:
     """Refuse a compression that is not one, or one for a storage that has none."""
-    from dq_fk_ros.bag.writer import COMPRESSIONS
+    from dq_fk_ros.bag.mcap_writer import COMPRESSIONS
     if options.compression not in COMPRESSIONS:
         raise BagError(f'--compression {printable(str(options.compression), 20)}: one of '
                        f'{", ".join(COMPRESSIONS)}')
@@ -306,14 +306,13 @@ def _process_with(reader, model, in_path, out_path, o, window=None):
     topic, storage, csv_path, csv_only = o.topic, o.storage, o.csv_path, o.csv_only
     copy_input, pose_namespace, frame_prefix = o.copy_input, o.pose_namespace, o.frame_prefix
     out_of_limits, progress, chunk, poses = o.out_of_limits, o.progress, o.chunk, o.poses
-    from dq_fk_ros.bag.writer import BagWriter
     conns = joint_state_connections(reader, in_path, topic)
     writer = None
     if not csv_only:
         if os.path.lexists(out_path):  # checked: --overwrite given, or our own first try
             _remove(out_path)
-        writer = BagWriter(out_path, storage, o.compression)
-        writer.open()
+        from dq_fk_ros.bag.mcap_bag_writer import open_bag_writer
+        writer = open_bag_writer(out_path, storage, o.compression)
     copy_from = list(reader.connections) if copy_input else []
     try:
         outputs = BagOutputs(writer, model, pose_namespace, frame_prefix,

@@ -101,8 +101,6 @@ def open_reader(path, reference=False) -> BagReader:
     says so and its ``damage`` what was skipped. A ROS 1 ``.bag`` file is read with rosbags
     and its JointStates converted to ROS 2 CDR. Raises :class:`BagError`.
     """
-    from dq_fk_ros.bag.decompress import bound_rosbags
-    bound_rosbags()
     path = os.fspath(path)
     if not os.path.lexists(path):
         raise BagError(f'{path}: no such bag')

@@ -1,11 +1,12 @@
 """
 A rosbag2 folder (MCAP or sqlite3) read with rosbags: the reference reader.
 
-:func:`open_rosbag2` opens it as a :class:`~dq_fk_ros.bag.reader_interface.BagReader`; a folder
-rosbags cannot open, or whose MCAP summary fails its CRC, is read record by record instead
-(:class:`~dq_fk_ros.bag.mcap_stream.McapStreamBag`), with a note saying so. An intact MCAP
-folder is read a chunk at a time (:class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`) unless
-the reference is asked for.
+:func:`open_rosbag2` opens it as a :class:`~dq_fk_ros.bag.reader_interface.BagReader`. An
+intact MCAP folder is read a chunk at a time (:class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`)
+unless the reference is asked for, opened without rosbags where
+:func:`~dq_fk_ros.bag.mcap_folder.open_mcap_folder` takes it; a folder rosbags cannot open,
+or whose MCAP summary fails its CRC, is read record by record instead
+(:class:`~dq_fk_ros.bag.mcap_stream.McapStreamBag`), with a note saying so.
 """
 
 import os
@@ -24,6 +25,13 @@ def open_rosbag2(path: str, reference: bool = False) -> BagReader:
     :param reference: read an intact MCAP folder with rosbags' reader itself (else a chunk
         at a time, :class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`, in rosbags' order).
     """
+    if not reference:
+        from dq_fk_ros.bag.mcap_folder import open_mcap_folder
+        fast = open_mcap_folder(path)
+        if fast is not None:
+            return fast
+    from dq_fk_ros.bag.decompress import bound_rosbags
+    bound_rosbags()
     from rosbags.rosbag2 import Reader
     try:
         reader = Reader(path)

@@ -8,7 +8,7 @@ the same batches (``message_batches``) as messages.
 
 import shutil
 
-from dq_fk_ros.bag import writer as bag_writer
+from dq_fk_ros.bag import mcap_writer as bag_writer
 from dq_fk_ros.bag.mcap_chunks import McapChunkReader
 from dq_fk_ros.bag.mcap_stream import McapStreamBag
 from dq_fk_ros.bag.process import process_bag

@@ -1,6 +1,8 @@
 """
 BagWriter: array writes read back by rosbags, and by the official MCAP library (Foxglove).
 
+McapBagWriter (no rosbags module) writes the same bytes as BagWriter (rosbags' Writer).
+
 The MCAP checks use ``mcap`` (chunk and data-section CRCs validated, summary statistics) and
 ``mcap_ros2`` (decodes every message from the schema the bag carries): readers that share
 no code with the writer.
@@ -9,8 +11,10 @@ no code with the writer.
 import struct
 import zlib
 
-from dq_fk_ros.bag import writer as bag_writer
+from dq_fk_ros.bag import mcap_writer as bag_writer
+from dq_fk_ros.bag.mcap_bag_writer import McapBagWriter
 from dq_fk_ros.bag.writer import BagWriter
+from dq_fk_ros.errors import BagError
 from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
 from mcap.data_stream import RecordBuilder
 from mcap.reader import make_reader
@@ -290,3 +294,60 @@ def test_write_rows_refuses_what_it_cannot_write(tmp_path):
         writer.write_rows([conn], np.arange(3), [rows.astype(float)])
     writer.close()
     other.close()
+
+
+def write_both_ways(folder, make, compression, mode, n=3000):
+    """The same calls on a writer: a latched topic, rows or templates or single writes."""
+    times, pose_values, tf_values = content(n, seed=3)
+    writer = make(folder, compression)
+    writer.open()
+    static = writer.add_connection('/tf_static', 'tf2_msgs/msg/TFMessage', typestore=TS,
+                                   offered_qos_profiles=LATCHED)
+    pose = writer.add_connection('/pose', 'geometry_msgs/msg/PoseStamped', typestore=TS)
+    tf = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
+    templates = [pose_stamped_template('base'), tf_message_template(EDGES)]
+    rows = [t.fill(times, v) for t, v in zip(templates, (pose_values, tf_values))]
+    writer.write(static, int(times[0]), rows[1][0].tobytes())
+    if mode == 'rows':
+        writer.write_rows([pose, tf], times, rows)
+    elif mode == 'templates':
+        writer.write_templates([pose, tf], times, times, templates, [pose_values, tf_values])
+    else:
+        for i, t in enumerate(times.tolist()):
+            writer.write(pose, t, rows[0][i].tobytes())
+            writer.write(tf, t, rows[1][i].tobytes())
+    writer.close()
+
+
+@pytest.mark.parametrize('compression', ['none', 'zstd', 'lz4'])
+@pytest.mark.parametrize('mode', ['rows', 'templates', 'singles'])
+def test_the_bag_without_rosbags_is_byte_for_byte_rosbags_writers(tmp_path, compression, mode):
+    """McapBagWriter (dq_fk_bag process's MCAP output) against BagWriter, rosbags' Writer."""
+    write_both_ways(tmp_path / 'ours' / 'bag', McapBagWriter, compression, mode)
+    write_both_ways(tmp_path / 'ref' / 'bag', lambda p, c: BagWriter(p, 'mcap', c),
+                    compression, mode)
+    for name in ('bag.mcap', 'metadata.yaml'):
+        ours = (tmp_path / 'ours' / 'bag' / name).read_bytes()
+        assert ours == (tmp_path / 'ref' / 'bag' / name).read_bytes(), name
+    assert b'transient_local' in ours
+
+
+def test_the_writer_without_rosbags_refuses_as_rosbags_writer_does(tmp_path):
+    with pytest.raises(BagError, match="compression 'brotli': one of none, zstd, lz4"):
+        McapBagWriter(tmp_path / 'a', 'brotli')
+    (tmp_path / 'there').mkdir()
+    with pytest.raises(BagError, match='exists already'):
+        McapBagWriter(tmp_path / 'there')
+    writer = McapBagWriter(tmp_path / 'bag')
+    with pytest.raises(BagError, match='not opened'):
+        writer.write_rows([], np.arange(3), [])
+    writer.open()
+    conn = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
+    with pytest.raises(BagError, match='only be added once'):
+        writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
+    with pytest.raises(BagError, match='msgdef'):
+        writer.add_connection('/x', 'std_msgs/msg/String')
+    with pytest.raises(BagError, match='unknown connection'):
+        writer.write(conn._replace(id=9), 0, b'')
+    writer.abort()
+    assert not (tmp_path / 'bag' / 'metadata.yaml').exists()

@@ -10,7 +10,7 @@ and in the official ``mcap`` library with every CRC checked.
 
 import struct
 
-from dq_fk_ros.bag import mcap_chunks, writer as bag_writer
+from dq_fk_ros.bag import mcap_chunks, mcap_writer as bag_writer
 from dq_fk_ros.bag.mcap_chunks import scan_records
 from dq_fk_ros.bag.writer import BagWriter
 from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
