@@ -297,7 +297,7 @@ def test_write_rows_refuses_what_it_cannot_write(tmp_path):
 
 
 def write_both_ways(folder, make, compression, mode, n=3000):
-    """The same calls on a writer: a latched topic, rows or templates or single writes."""
+    """Make the same calls on a writer: a latched topic, rows or templates or single writes."""
     times, pose_values, tf_values = content(n, seed=3)
     writer = make(folder, compression)
     writer.open()
@@ -322,7 +322,7 @@ def write_both_ways(folder, make, compression, mode, n=3000):
 @pytest.mark.parametrize('compression', ['none', 'zstd', 'lz4'])
 @pytest.mark.parametrize('mode', ['rows', 'templates', 'singles'])
 def test_the_bag_without_rosbags_is_byte_for_byte_rosbags_writers(tmp_path, compression, mode):
-    """McapBagWriter (dq_fk_bag process's MCAP output) against BagWriter, rosbags' Writer."""
+    """Hold McapBagWriter (dq_fk_bag process's MCAP output) to BagWriter (rosbags' Writer)."""
     write_both_ways(tmp_path / 'ours' / 'bag', McapBagWriter, compression, mode)
     write_both_ways(tmp_path / 'ref' / 'bag', lambda p, c: BagWriter(p, 'mcap', c),
                     compression, mode)

@@ -21,7 +21,7 @@ T0 = 1_700_000_000_000_000_000
 
 
 def ours(folder, compression='none', n=8000):
-    """A file of McapChunkStorage: two channels of one schema, several chunks."""
+    """Write a file with McapChunkStorage: two channels of one schema, several chunks."""
     folder.mkdir()
     storage = McapChunkStorage(folder, None, compression)
     conns = [Connection(k, f'/topic_{k}', 'std_msgs/msg/String',
@@ -37,7 +37,7 @@ def ours(folder, compression='none', n=8000):
 
 
 def library(path, profile='ros2'):
-    """A file of the mcap library's writer (its own chunking, metadata and attachments)."""
+    """Write a file with the mcap library's writer (its chunking, metadata, attachments)."""
     with open(path, 'wb') as f:
         writer = LibraryWriter(f, chunk_size=2000)
         writer.start(profile=profile, library='test')
@@ -54,7 +54,7 @@ def library(path, profile='ros2'):
 
 
 def the_librarys(path):
-    """The library's summary as read_summary's tuples' fields."""
+    """Return the library's summary as the fields of read_summary's tuples."""
     with open(path, 'rb') as f:
         summary = make_reader(f).get_summary()
     return ({k: (s.id, s.name, s.encoding, bytes(s.data)) for k, s in summary.schemas.items()},
@@ -95,13 +95,13 @@ def test_a_file_that_is_not_ros2_or_not_whole_is_refused(tmp_path):
 
 
 def crc_off(data):
-    """The same file, its summary CRC 0 (not checked): the records themselves are read."""
+    """Return the same file, its summary CRC 0 (not checked): its records are then read."""
     return data[:-12] + b'\x00\x00\x00\x00' + data[-8:]
 
 
 @pytest.fixture(scope='module')
 def small_file(tmp_path_factory):
-    """A library-written file, its summary CRC off, and where its summary starts."""
+    """Return a library-written file, its summary CRC off, and where its summary starts."""
     data = crc_off(library(tmp_path_factory.mktemp('lib') / 'lib.mcap').read_bytes())
     return data, struct.unpack_from('<Q', data, len(data) - 28)[0]
 
