@@ -12,10 +12,12 @@ memory grows with the bag.
 
 The floor, in the same run on the same input (issue "Bags at the reading floor"): rosbags'
 bare read (``AnyReader.messages()``, every message, nothing done with it) and the ``mcap``
-library's bare ``iter_messages``, each a whole command as ``dq_fk_bag process`` is. Each
-command runs ``--repeat`` times, its best time taken; the ratios of ``dq_fk_bag process`` (every
-pose topic, MCAP out) to both are printed with their targets (<= 0.7x and <= 0.3x), and
-the reference reader's (``--reference-reader``) beside it.
+library's bare ``iter_messages``, each a whole command as ``dq_fk_bag process`` is. The
+two reads and the three ``dq_fk_bag process`` cases run in ``--repeat`` rounds (at least
+5), every command once a round (round robin: a slow minute of this machine slows them
+alike), each its best round taken; the ratios of ``dq_fk_bag process`` (every pose topic, MCAP out) to both are
+printed with their targets (<= 0.7x and <= 0.3x), and the reference reader's
+(``--reference-reader``) beside it.
 
 Each child runs on one CPU (its affinity set to the first this process may use); an output
 left by the previous case is removed before the clock starts. The package's modules are
@@ -45,6 +47,7 @@ from rosbags.typesys import get_typestore, Stores
 CASES = ['mcap:all:full', 'mcap:end:full', 'mcap:none:full', 'sqlite3:all:full',
          'mcap:all:split', 'mcap:all:full:zstd', 'mcap:all:full:lz4']
 RATIO_MESSAGES = 300_000     # the issue's figure: a bag of this many JointStates
+FLOOR_ROUNDS = 5             # rounds of the floor and the ratios, at least
 # the floor's commands: the same input read and nothing done with it
 ROSBAGS_READ = """
 import sys
@@ -139,14 +142,20 @@ def best(runs):
 
 def floor_and_ratios(in_bag, out_bag, n, repeat):
     """Time the floor's reads and dq_fk_bag process on one input; print and record ratios."""
-    reads = {}
-    for name, code in (('rosbags', ROSBAGS_READ), ('mcap', MCAP_READ)):
-        reads[name] = best([run_child([sys.executable, '-c', code, in_bag])
-                            for _ in range(repeat)])[0]
-    ours = {}
+    # round robin: each round runs every command once, so that a minute in which this
+    # machine runs slow (it varies up to 2x) slows all of them alike; each its best round
+    commands = {('read', 'rosbags'): lambda: run_child([sys.executable, '-c', ROSBAGS_READ,
+                                                         in_bag]),
+                ('read', 'mcap'): lambda: run_child([sys.executable, '-c', MCAP_READ, in_bag])}
     for poses in ('none', 'end', 'all'):   # the every-topic output the last one left
-        ours[poses] = best([run_process(in_bag, out_bag, 'mcap', poses)
-                            for _ in range(repeat)])[0]
+        commands[('ours', poses)] = lambda poses=poses: run_process(in_bag, out_bag, 'mcap',
+                                                                    poses)
+    times = {key: [] for key in commands}
+    for _ in range(repeat):
+        for key, command in commands.items():
+            times[key].append(command()[0])
+    reads = {name: min(times[('read', name)]) for name in ('rosbags', 'mcap')}
+    ours = {poses: min(times[('ours', poses)]) for poses in ('none', 'end', 'all')}
     size = sum(os.path.getsize(os.path.join(out_bag, f)) for f in os.listdir(out_bag))
     writing = best([run_child([sys.executable, '-c', WRITE_FLOOR, out_bag + '_floor',
                                str(size)]) for _ in range(repeat)])[0]
@@ -155,7 +164,7 @@ def floor_and_ratios(in_bag, out_bag, n, repeat):
                       for _ in range(repeat)])[0]
     group = 'dq_fk_bag process'
     print(f'# dq_fk_bag process and the reading floor ({n:,} RL15 JointStates, one CPU), '
-          f'best of {repeat}')
+          f'best of {repeat} rounds, each round every command once')
     shown = {'all': 'every pose topic', 'end': "the end effector's pose topic",
              'none': '/tf only'}
     for what, seconds in (("rosbags' bare read (AnyReader.messages())", reads['rosbags']),
@@ -201,7 +210,7 @@ def main(argv=None):
                       f'{time.perf_counter() - start:.1f} s', file=sys.stderr)
                 out_bag = os.path.join(work, 'out')
                 if n == RATIO_MESSAGES and shape == 'full':
-                    floor_and_ratios(in_bag, out_bag, n, args.repeat)
+                    floor_and_ratios(in_bag, out_bag, n, max(args.repeat, FLOOR_ROUNDS))
                 for storage, poses, _, compression in [c for c in cases if c[2] == shape]:
                     elapsed, rss, line = best([
                         run_process(in_bag, out_bag, storage, poses, compression)

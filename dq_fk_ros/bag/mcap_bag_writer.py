@@ -46,6 +46,7 @@ class McapBagWriter(ArrayWrites):
         self.connections = []
         self.counts = {}
         self.added_types = set()
+        self._qos_texts = {}   # QoS profiles -> their YAML text
         self.min_timestamp, self.max_timestamp = 2 ** 63 - 1, 0
 
     def open(self) -> None:  # noqa: A003 (rosbags' Writer.open)
@@ -87,8 +88,10 @@ class McapBagWriter(ArrayWrites):
         if msgtype not in self.added_types:
             self.storage.add_msgtype(connection)
             self.added_types.add(msgtype)
-        self.storage.add_connection(connection,
-                                    to_yaml(dump_qos(offered_qos_profiles)).strip())
+        qos = tuple(offered_qos_profiles)   # (the topics share a few: each dumped once)
+        if qos not in self._qos_texts:
+            self._qos_texts[qos] = to_yaml(dump_qos(qos)).strip()
+        self.storage.add_connection(connection, self._qos_texts[qos])
         self.connections.append(connection)
         self.counts[connection.id] = 0
         return connection

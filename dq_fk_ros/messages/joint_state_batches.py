@@ -123,7 +123,9 @@ def _check_orders(runs, total):
     if not all(given):
         raise ValueError('merge_many: an order for every run or for none')
     places = np.concatenate([np.asarray(run[4], np.int64) for run in runs])
-    if total and not np.array_equal(np.sort(places), np.arange(total)):
+    # each of 0..total-1 once: as many places, all in range, none twice (no sort)
+    if len(places) != total or (total and (places.min() < 0 or places.max() >= total or
+                                           np.bincount(places, minlength=total).max() > 1)):
         raise ValueError(f'merge_many: the orders must hold each of 0..{total - 1} once')
 
 

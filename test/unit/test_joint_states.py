@@ -185,7 +185,8 @@ def test_a_run_in_any_order_merges_as_its_messages_in_that_order():
 
 def test_merge_many_refuses_orders_that_do_not_cover_each_place_once(merger):
     run = (NAMES, np.zeros((2, 3)), np.zeros((2, 0)), [0, 0])
-    for bad in ([run + ([0, 0],)], [run + ([0, 1],), run], [run + ([0, 2],)]):
+    for bad in ([run + ([0, 0],)], [run + ([0, 1],), run], [run + ([0, 2],)],
+                [run + ([1, -1],)], [run + ([1],)]):
         with pytest.raises(ValueError, match='merge_many: '):
             merger.merge_many(bad)
 
