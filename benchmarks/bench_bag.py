@@ -15,9 +15,9 @@ bare read (``AnyReader.messages()``, every message, nothing done with it) and th
 library's bare ``iter_messages``, each a whole command as ``dq_fk_bag process`` is. The
 two reads and the three ``dq_fk_bag process`` cases run in ``--repeat`` rounds (at least
 5), every command once a round (round robin: a slow minute of this machine slows them
-alike), each its best round taken; the ratios of ``dq_fk_bag process`` (every pose topic, MCAP out) to both are
-printed with their targets (<= 0.7x and <= 0.3x), and the reference reader's
-(``--reference-reader``) beside it.
+alike), each its best round taken; the ratios of ``dq_fk_bag process`` (every pose topic,
+MCAP out) to both are printed with their targets (<= 0.7x and <= 0.3x), and the reference
+reader's (``--reference-reader``) beside it.
 
 Each child runs on one CPU (its affinity set to the first this process may use); an output
 left by the previous case is removed before the clock starts. The package's modules are
@@ -144,9 +144,9 @@ def floor_and_ratios(in_bag, out_bag, n, repeat):
     """Time the floor's reads and dq_fk_bag process on one input; print and record ratios."""
     # round robin: each round runs every command once, so that a minute in which this
     # machine runs slow (it varies up to 2x) slows all of them alike; each its best round
-    commands = {('read', 'rosbags'): lambda: run_child([sys.executable, '-c', ROSBAGS_READ,
-                                                         in_bag]),
-                ('read', 'mcap'): lambda: run_child([sys.executable, '-c', MCAP_READ, in_bag])}
+    commands = {
+        ('read', 'rosbags'): lambda: run_child([sys.executable, '-c', ROSBAGS_READ, in_bag]),
+        ('read', 'mcap'): lambda: run_child([sys.executable, '-c', MCAP_READ, in_bag])}
     for poses in ('none', 'end', 'all'):   # the every-topic output the last one left
         commands[('ours', poses)] = lambda poses=poses: run_process(in_bag, out_bag, 'mcap',
                                                                     poses)
