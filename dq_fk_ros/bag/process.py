@@ -347,13 +347,13 @@ def _merge_spans(merger, cache, data, starts, lengths):
     groups, malformed = group_joint_state_spans(data, starts, lengths, cache)
     merger.counts['received'] += len(malformed)
     merger.count_rejected('malformed_cdr', len(malformed))
-    if len(groups) == 1:   # one layout (the usual bag): its rows ascend, no sort
-        valid = groups[0].rows
-        places = [np.arange(len(valid))]
-    else:
-        valid = np.sort(np.concatenate([g.rows for g in groups])) if groups else \
-            np.zeros(0, np.int64)
-        places = [np.searchsorted(valid, g.rows) for g in groups]
+    if len(groups) == 1:   # one layout (the usual bag): its rows ascend, in order
+        g = groups[0]
+        merged = merger.merge_many([(g.names, g.positions, g.velocities, g.stamps_ns)])
+        return groups, g.rows, g.stamps_ns, merged
+    valid = np.sort(np.concatenate([g.rows for g in groups])) if groups else \
+        np.zeros(0, np.int64)
+    places = [np.searchsorted(valid, g.rows) for g in groups]
     stamps = np.zeros(len(valid), np.int64)
     for g, at in zip(groups, places):
         stamps[at] = g.stamps_ns

@@ -63,7 +63,7 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
         # (a range of columns or joints in order, the usual case, as a slice: no copies)
         columns, joints = _as_slice(columns), _as_slice(joints)
         q = np.concatenate([np.asarray(p, dtype=float) for _, p, _ in members])[:, columns]
-        ok = np.isfinite(q).all(axis=1)
+        ok = _rows_all(np.isfinite(q))
         merger.count_rejected('non_finite', len(rows) - int(ok.sum()))
         lower, upper = merger.limits[joints, 0], merger.limits[joints, 1]
         if merger.out_of_limits == 'reject':
@@ -85,7 +85,7 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
         if n_vel:
             qdot = np.concatenate([np.asarray(v, dtype=float) for _, _, v in members])
             qdot = qdot[:, columns]
-            bad_rate = ~np.isfinite(qdot).all(axis=1)  # dropped for the whole message
+            bad_rate = ~_rows_all(np.isfinite(qdot))  # dropped for the whole message
             merger.counts['velocities_non_finite'] += int((ok & bad_rate).sum())
             rated = np.where(bad_rate[:, None], math.nan, qdot)
             rates[taken, joints] = rated if isinstance(taken, slice) else rated[ok]
@@ -108,11 +108,22 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
     every = slice(None) if len(published) == total else published  # (all: no copies)
     qdot = qdot_out[every]
     # as merge: every required joint's velocity, or none
-    qdot[~np.isfinite(qdot[:, :merger.required]).all(axis=1)] = math.nan
+    finite = np.isfinite(qdot[:, :merger.required])
+    if not finite.any():   # no message with them (no velocities at all: the usual case)
+        qdot[:] = math.nan
+    elif not finite.all():
+        qdot[~finite.all(axis=1)] = math.nan
     seen_rows = np.concatenate(seen_rows) if seen_rows else \
         np.zeros((0, n), bool)
     merger.last_seen = seen_rows[every]
     return published, q_out[every], qdot
+
+
+def _rows_all(mask):
+    """Return ``mask.all(axis=1)``; a whole ``True`` mask without the row-wise reduction."""
+    if mask.all():   # (numpy's row-wise all on a few columns is ~10x slower)
+        return np.ones(len(mask), bool)
+    return mask.all(axis=1)
 
 
 def _check_orders(runs, total):
