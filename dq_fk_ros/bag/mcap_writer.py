@@ -27,8 +27,8 @@ import struct
 from dq_fk_ros.bag.crc import crc32
 from dq_fk_ros.bag.mcap_format import (
     MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER, OP_HEADER, OP_MESSAGE,
-    OP_MESSAGE_INDEX, OP_METADATA, OP_METADATA_INDEX, OP_SCHEMA, OP_STATISTICS,
-    OP_SUMMARY_OFFSET)
+    OP_METADATA, OP_METADATA_INDEX, OP_SCHEMA, OP_STATISTICS, OP_SUMMARY_OFFSET)
+from dq_fk_ros.bag.mcap_indexes import message_indexes, UniformIndex
 import numpy as np
 from rosbags.interfaces import MessageDefinitionFormat
 
@@ -66,40 +66,6 @@ def _record(opcode, body):
     return bytes((opcode,)) + _U64.pack(len(body)) + body
 
 
-def _message_indexes(index, at):
-    """
-    Return the message index records of a chunk, one a channel, and where each starts.
-
-    ``index``: channel id -> ``(log times, offsets in the chunk's records)``; ``at``: the
-    file offset of the first record. Channels of one length (a batch's, the usual case)
-    are laid out together with numpy: a record is a 15-byte head (opcode, length, channel
-    id, bytes of pairs) and its ``(log time, offset)`` pairs, little-endian uint64.
-    """
-    lengths = {len(times) for times, _ in index.values()}
-    if len(lengths) != 1:
-        parts, offsets = [], []
-        for cid, (times, positions) in index.items():
-            pairs = np.empty((len(times), 2), '<u8')
-            pairs[:, 0], pairs[:, 1] = times, positions
-            offsets.append((cid, at + sum(map(len, parts))))
-            parts.append(_record(OP_MESSAGE_INDEX, _U16.pack(cid) + _U32.pack(pairs.nbytes)
-                                 + pairs.tobytes()))
-        return b''.join(parts), offsets
-    m = lengths.pop()
-    k = len(index)
-    size = 15 + 16 * m
-    block = np.empty((k, size), np.uint8)
-    block[:, 0] = OP_MESSAGE_INDEX
-    block[:, 1:9] = np.frombuffer(_U64.pack(size - 9), np.uint8)
-    block[:, 9:11] = np.array(list(index), '<u2').view(np.uint8).reshape(k, 2)
-    block[:, 11:15] = np.frombuffer(_U32.pack(16 * m), np.uint8)
-    pairs = np.empty((k, m, 2), '<u8')
-    for row, (times, positions) in enumerate(index.values()):
-        pairs[row, :, 0], pairs[row, :, 1] = times, positions
-    block[:, 15:] = pairs.view(np.uint8).reshape(k, 16 * m)
-    return block.reshape(-1), [(cid, at + row * size) for row, cid in enumerate(index)]
-
-
 class McapChunkStorage:
     """
     One MCAP file of a rosbag2 folder that also takes whole arrays of messages.
@@ -127,6 +93,7 @@ class McapChunkStorage:
         self.file = self.path.open('xb')
         self._rows_made = {}         # (channel ids, template ids) -> (_mcap.Rows, templates)
         self._block = np.empty(0, np.uint8)   # write_templates' chunk block, reused
+        self._indexes_made = {}      # a chunk layout -> its UniformIndex
         self.schemas = []            # record bodies, for the summary
         self.schema_ids = {}         # msgtype -> schema id
         self.channels = []           # record bodies, for the summary
@@ -265,14 +232,31 @@ class McapChunkStorage:
         if len(self._block) < need:
             self._block = np.empty(max(need, CHUNK_BYTES + row_bytes), np.uint8)
         whole = self._block
+        ordered = len(times) < 2 or bool((times[1:] >= times[:-1]).all())  # (log time order)
         for lo in range(0, len(times), per_chunk):
             t = times[lo:lo + per_chunk]
             m = len(t)
             block = whole[:m * row_bytes]
             rows.fill(block, stamps[lo:lo + m], t, [v[lo:lo + m] for v in values])
-            steps = np.arange(m, dtype=np.int64) * row_bytes
-            index = {cid: (t, steps + at) for cid, at in zip(channel_ids, rows.offsets)}
-            self._write_chunk(block, int(t.min()), int(t.max()), index)
+            index = self._uniform_index(tuple(channel_ids), rows.offsets, row_bytes, t)
+            self._write_chunk(block, int(t[0] if ordered else t.min()),
+                              int(t[-1] if ordered else t.max()), index)
+
+    def _uniform_index(self, channel_ids, offsets, row_bytes, times):
+        """
+        Return the message indexes of a chunk of rows (a :class:`UniformIndex`).
+
+        Channel k's i-th message is at byte ``offsets[k] + i * row_bytes``, every channel at
+        ``times``. The records, but for the times, are made once a layout (the last few kept).
+        """
+        key = (channel_ids, tuple(offsets), row_bytes, len(times))
+        made = self._indexes_made.get(key)
+        if made is None:
+            if len(self._indexes_made) >= 4:
+                self._indexes_made.clear()
+            made = self._indexes_made[key] = UniformIndex(*key)
+        made.set_times(times)
+        return made
 
     def _rows(self, channel_ids, templates):
         """Return the compiled writer of these channels' templates (made once), or None."""
@@ -315,10 +299,15 @@ class McapChunkStorage:
         self._emit(bytes((OP_CHUNK,)) + _U64.pack(len(head) + len(stored)) + head)
         self._emit(stored)
         index_start = self.file.tell()
-        records, offsets = _message_indexes(index, index_start)
+        if isinstance(index, UniformIndex):
+            records, offsets = index.records(index_start)
+            for cid in index.channel_ids:
+                self.channel_counts[cid] += index.m
+        else:
+            records, offsets = message_indexes(index, index_start)
+            for cid, (times, _) in index.items():
+                self.channel_counts[cid] += len(times)
         self._emit(records)
-        for cid, (times, _) in index.items():
-            self.channel_counts[cid] += len(times)
         offsets_map = b''.join(_U16.pack(cid) + _U64.pack(at) for cid, at in offsets)
         self.chunk_indexes.append(
             _U64.pack(start_ns) + _U64.pack(end_ns) + _U64.pack(chunk_start)

@@ -11,7 +11,7 @@ no code with the writer.
 import struct
 import zlib
 
-from dq_fk_ros.bag import mcap_writer as bag_writer
+from dq_fk_ros.bag import mcap_indexes, mcap_writer as bag_writer
 from dq_fk_ros.bag.mcap_bag_writer import McapBagWriter
 from dq_fk_ros.bag.writer import BagWriter
 from dq_fk_ros.errors import BagError
@@ -180,7 +180,7 @@ def test_message_index_records_are_the_mcap_librarys(lengths):
     index = {cid: (rng.integers(0, 2**63, m, dtype=np.int64), rng.integers(0, 2**40, m))
              for cid, m in zip((7, 2, 65535), lengths)}
     at = 1000
-    records, offsets = bag_writer._message_indexes(index, at)
+    records, offsets = mcap_indexes.message_indexes(index, at)
     expected, where = b'', []
     for cid, (times, positions) in index.items():
         where.append((cid, at + len(expected)))
@@ -189,6 +189,23 @@ def test_message_index_records_are_the_mcap_librarys(lengths):
                      ).write(builder)
         expected += builder.end()
     assert bytes(records) == expected and offsets == where
+
+
+@pytest.mark.parametrize('k, m', [(1, 1), (3, 5), (8, 680)])
+def test_a_reused_index_layout_is_the_one_made_afresh(k, m):
+    """Hold UniformIndex (write_templates' chunks) to message_indexes, chunk after chunk."""
+    rng = np.random.default_rng(k * m)
+    cids = tuple(int(c) for c in rng.choice(65535, k, replace=False) + 1)
+    offsets, row_bytes = np.sort(rng.integers(0, 200, k)), 200 + int(rng.integers(0, 100))
+    uniform = mcap_indexes.UniformIndex(cids, offsets, row_bytes, m)
+    for chunk in range(3):   # the same layout, other times
+        times = rng.integers(0, 2**63, m, dtype=np.int64)
+        uniform.set_times(times)
+        steps = np.arange(m, dtype=np.int64) * row_bytes
+        fresh = mcap_indexes.message_indexes(
+            {cid: (times, steps + at) for cid, at in zip(cids, offsets)}, 5000 + chunk)
+        got = uniform.records(5000 + chunk)
+        assert bytes(got[0]) == bytes(fresh[0]) and got[1] == fresh[1]
 
 
 def test_blocks_reserved_ahead_are_given_back(tmp_path, monkeypatch):

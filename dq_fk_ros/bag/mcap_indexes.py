@@ -1,0 +1,93 @@
+"""
+The message index records of an MCAP chunk (https://mcap.dev/spec): one a channel.
+
+A record is a 15-byte head (opcode, length, channel id, bytes of pairs) and the channel's
+``(log time, offset in the chunk's records)`` pairs, little-endian uint64. The MCAP writer
+(:mod:`~dq_fk_ros.bag.mcap_writer`) writes them after each chunk; readers find a chunk's
+channels through them. :func:`message_indexes` lays out any chunk's; :class:`UniformIndex`
+a chunk of rows (every channel one message a row), once a layout, its times written per
+chunk; test_bag_writer.py holds both to the ``mcap`` library's ``MessageIndex`` records.
+"""
+
+import struct
+
+from dq_fk_ros.bag.mcap_format import OP_MESSAGE_INDEX
+import numpy as np
+
+_U16, _U32, _U64 = struct.Struct('<H'), struct.Struct('<I'), struct.Struct('<Q')
+
+
+def _record(opcode, body):
+    return bytes((opcode,)) + _U64.pack(len(body)) + body
+
+
+def message_indexes(index: dict, at: int) -> tuple:
+    """
+    Return the message index records of a chunk, one a channel, and where each starts.
+
+    ``index``: channel id -> ``(log times, offsets in the chunk's records)``; ``at``: the
+    file offset of the first record. Channels of one length (a batch's, the usual case)
+    are laid out together with numpy: a record is a 15-byte head (opcode, length, channel
+    id, bytes of pairs) and its ``(log time, offset)`` pairs, little-endian uint64.
+    """
+    lengths = {len(times) for times, _ in index.values()}
+    if len(lengths) != 1:
+        parts, offsets = [], []
+        for cid, (times, positions) in index.items():
+            pairs = np.empty((len(times), 2), '<u8')
+            pairs[:, 0], pairs[:, 1] = times, positions
+            offsets.append((cid, at + sum(map(len, parts))))
+            parts.append(_record(OP_MESSAGE_INDEX, _U16.pack(cid) + _U32.pack(pairs.nbytes)
+                                 + pairs.tobytes()))
+        return b''.join(parts), offsets
+    m = lengths.pop()
+    k = len(index)
+    size = 15 + 16 * m
+    block = np.empty((k, size), np.uint8)
+    block[:, 0] = OP_MESSAGE_INDEX
+    block[:, 1:9] = np.frombuffer(_U64.pack(size - 9), np.uint8)
+    block[:, 9:11] = np.array(list(index), '<u2').view(np.uint8).reshape(k, 2)
+    block[:, 11:15] = np.frombuffer(_U32.pack(16 * m), np.uint8)
+    pairs = np.empty((k, m, 2), '<u8')
+    for row, (times, positions) in enumerate(index.values()):
+        pairs[row, :, 0], pairs[row, :, 1] = times, positions
+    block[:, 15:] = pairs.view(np.uint8).reshape(k, 16 * m)
+    return block.reshape(-1), [(cid, at + row * size) for row, cid in enumerate(index)]
+
+
+class UniformIndex:
+    """
+    The message index records of a chunk of rows, laid out once and reused.
+
+    What :func:`message_indexes` makes for ``{cid: (times, offsets[k] + arange(m) *
+    row_bytes)}``, byte for byte (test_bag_writer.py), without a dict or a layout a chunk.
+    """
+
+    def __init__(self, channel_ids: tuple, offsets, row_bytes: int, m: int):
+        """Lay out the k records of m messages each; only the times change between chunks."""
+        self.channel_ids, self.m = channel_ids, m
+        k = len(channel_ids)
+        self.size = 15 + 16 * m
+        block = np.empty((k, self.size), np.uint8)
+        block[:, 0] = OP_MESSAGE_INDEX
+        block[:, 1:9] = np.frombuffer(_U64.pack(self.size - 9), np.uint8)
+        block[:, 9:11] = np.array(channel_ids, '<u2').view(np.uint8).reshape(k, 2)
+        block[:, 11:15] = np.frombuffer(_U32.pack(16 * m), np.uint8)
+        pairs = np.empty((k, m, 2), '<u8')
+        pairs[:, :, 1] = np.asarray(offsets, np.int64)[:, None] + \
+            np.arange(m, dtype=np.int64) * row_bytes
+        block[:, 15:] = pairs.view(np.uint8).reshape(k, 16 * m)
+        self.block = block
+        self._times = block[:, 15:].view('<u8').reshape(k, m, 2)[:, :, 0]
+
+    def set_times(self, times) -> None:
+        """Write the chunk's log times (ns) into every channel's record."""
+        self._times[:] = times
+
+    def records(self, at: int) -> tuple:
+        """Return the bytes (1-D uint8) and where each record starts, the first at ``at``."""
+        return (self.block.reshape(-1),
+                [(cid, at + row * self.size) for row, cid in enumerate(self.channel_ids)])
+
+
+__all__ = ['message_indexes', 'UniformIndex']
