@@ -70,6 +70,9 @@ def probe_main(frame_names):
         rclpy.spin(node)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
+    except Exception:   # SIGINT shut the context down while spin made its wait set
+        if rclpy.ok():
+            raise
     return 0
 
 

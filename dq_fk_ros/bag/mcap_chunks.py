@@ -117,7 +117,7 @@ class _Piece:
 
 
 class _FileChunks:
-    """One MCAP file of the bag: its mapping, chunk index and channels as connections."""
+    """One MCAP file of the bag: its chunk index and its channels as connections."""
 
     def __init__(self, path, connections, summary=None):
         """Open ``path``; ``summary``: its :func:`~dq_fk_ros.bag.mcap_summary.read_summary`."""

@@ -21,7 +21,7 @@ from dq_fk_ros.bag.mcap_format import (
     MAGIC, OP_CHANNEL, OP_CHUNK_INDEX, OP_FOOTER, OP_HEADER, OP_SCHEMA, OP_STATISTICS,
     OP_SUMMARY_OFFSET)
 
-MAX_SUMMARY_BYTES = 256 << 20   # a larger summary is left to the other readers
+MAX_SUMMARY_BYTES = 64 << 20    # a larger summary is left to the other readers
 
 Schema = namedtuple('Schema', 'id name encoding data')
 Channel = namedtuple('Channel', 'id schema_id topic message_encoding metadata')
@@ -107,7 +107,7 @@ def read_summary(path, qos=None) -> Summary:
             raise SummaryRefused('no footer')
         if not summary_start or not header_end <= summary_start <= footer_at or \
                 footer_at - summary_start > MAX_SUMMARY_BYTES:
-            raise SummaryRefused('no summary')
+            raise SummaryRefused(f'no summary (or one over {MAX_SUMMARY_BYTES >> 20} MiB)')
         data = os.pread(fd, size - 4 - 8 - summary_start, summary_start)
     if summary_crc and crc32(data) != summary_crc:
         raise SummaryRefused('the summary fails its CRC')

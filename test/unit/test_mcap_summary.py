@@ -129,3 +129,12 @@ def test_the_fuzzed_file_reads_whole_without_damage(small_file, tmp_path):
     (tmp_path / 'f.mcap').write_bytes(data)
     assert as_fields(read_summary(tmp_path / 'f.mcap')) == the_librarys(tmp_path / 'f.mcap')
     assert data[start] == 0x03   # the summary starts with the schema record
+
+
+def test_a_summary_larger_than_the_bound_is_refused(tmp_path, monkeypatch):
+    from dq_fk_ros.bag import mcap_summary
+    path = library(tmp_path / 'lib.mcap')
+    read_summary(path)
+    monkeypatch.setattr(mcap_summary, 'MAX_SUMMARY_BYTES', 100)
+    with pytest.raises(SummaryRefused, match='no summary'):
+        read_summary(path)
