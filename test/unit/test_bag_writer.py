@@ -44,6 +44,14 @@ def content(n, seed=0):
     return times, rng.normal(size=(n, 7)), rng.normal(size=(n, 14))
 
 
+def sample_connections(writer):
+    """Add /tf_static (latched), /pose and /tf to an open writer; return their connections."""
+    return (writer.add_connection('/tf_static', 'tf2_msgs/msg/TFMessage', typestore=TS,
+                                  offered_qos_profiles=LATCHED),
+            writer.add_connection('/pose', 'geometry_msgs/msg/PoseStamped', typestore=TS),
+            writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS))
+
+
 def write_sample(path, storage, n, bulk=True):
     """
     One static message, then N (pose, tf) pairs; then a chatter message at the last time.
@@ -59,10 +67,7 @@ def write_sample(path, storage, n, bulk=True):
     else:
         writer = BagWriter(path, storage)
     writer.open()
-    static = writer.add_connection('/tf_static', 'tf2_msgs/msg/TFMessage', typestore=TS,
-                                   offered_qos_profiles=LATCHED)
-    pose = writer.add_connection('/pose', 'geometry_msgs/msg/PoseStamped', typestore=TS)
-    tf = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
+    static, pose, tf = sample_connections(writer)
     chat = writer.add_connection('/chatter', 'std_msgs/msg/String', typestore=TS)
     writer.write(static, int(times[0]), tfs[0].tobytes())
     if bulk:
@@ -318,10 +323,7 @@ def write_both_ways(folder, make, compression, mode, n=3000):
     times, pose_values, tf_values = content(n, seed=3)
     writer = make(folder, compression)
     writer.open()
-    static = writer.add_connection('/tf_static', 'tf2_msgs/msg/TFMessage', typestore=TS,
-                                   offered_qos_profiles=LATCHED)
-    pose = writer.add_connection('/pose', 'geometry_msgs/msg/PoseStamped', typestore=TS)
-    tf = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
+    static, pose, tf = sample_connections(writer)
     templates = [pose_stamped_template('base'), tf_message_template(EDGES)]
     rows = [t.fill(times, v) for t, v in zip(templates, (pose_values, tf_values))]
     writer.write(static, int(times[0]), rows[1][0].tobytes())
