@@ -58,7 +58,9 @@ def open_mcap_folder(path: str) -> Optional[BagReader]:
     """
     Return a chunk reader of the rosbag2 MCAP folder ``path``, or None (left to rosbags).
 
-    None also where a file cannot be read: rosbags then says what is wrong.
+    None also where a file cannot be read: rosbags then says what is wrong. Raises
+    :class:`~dq_fk_ros.errors.BagError` for a ``metadata.yaml`` larger than rosbag2 writes
+    (:func:`~dq_fk_ros.bag.rosbag2_metadata.check_bounds`).
     """
     from dq_fk_ros.bag.mcap_chunks import ChunkDamaged, McapChunkReader
     try:

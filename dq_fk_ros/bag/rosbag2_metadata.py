@@ -16,12 +16,15 @@ the caller opens the folder with rosbags, which says what is wrong, as before.
 
 import os
 
+from dq_fk_ros.errors import BagError
 from rosbags.interfaces import (
     Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat, Qos,
     QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime)
 import yaml
 
-MAX_METADATA_BYTES = 16 << 20   # a metadata.yaml larger than this is left to rosbags
+MAX_METADATA_BYTES = 16 << 20   # a larger metadata.yaml is refused (rosbag2's: kilobytes)
+MAX_TOPICS = 10_000             # topics a metadata.yaml may list (rosbag2's list tens)
+MAX_QOS_PROFILES = 64           # offered QoS profiles a topic may list (rosbag2's: one)
 VERSION = 9                     # the version written (rosbags' latest; Jazzy's rosbag2)
 _LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 _DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
@@ -35,7 +38,8 @@ def read_information(folder: str) -> dict:
     """
     Return the ``rosbag2_bagfile_information`` mapping of ``<folder>/metadata.yaml``.
 
-    Raises :class:`NotTaken` where rosbags should read it (see the module's docstring).
+    Raises :class:`NotTaken` where rosbags should read it (see the module's docstring), and
+    :class:`~dq_fk_ros.errors.BagError` for one larger than rosbag2 writes (:func:`check_bounds`).
     """
     path = os.path.join(folder, 'metadata.yaml')
     try:
@@ -44,7 +48,8 @@ def read_information(folder: str) -> dict:
     except OSError as exc:
         raise NotTaken(f'{path}: {exc.strerror}') from None
     if len(text) > MAX_METADATA_BYTES:
-        raise NotTaken(f'{path}: larger than {MAX_METADATA_BYTES} bytes')
+        raise BagError(f'{path}: larger than {MAX_METADATA_BYTES >> 20} MiB; a rosbag2 '
+                       f'metadata.yaml is read up to that')
     try:
         document = yaml.load(text, Loader=_LOADER)
     except (yaml.YAMLError, ValueError, RecursionError) as exc:
@@ -53,6 +58,26 @@ def read_information(folder: str) -> dict:
     if not isinstance(info, dict):
         raise NotTaken(f'{path}: no rosbag2_bagfile_information')
     return info
+
+
+def check_bounds(info: dict, folder: str) -> None:
+    """
+    Refuse a metadata mapping listing more topics or QoS profiles than a bag is read with.
+
+    Raises :class:`~dq_fk_ros.errors.BagError` (one line): at most :data:`MAX_TOPICS` topics
+    and :data:`MAX_QOS_PROFILES` profiles a topic (YAML aliases make a small file list
+    millions; rosbags would make a connection of each). Called before rosbags reads it too.
+    """
+    topics = info.get('topics_with_message_count')
+    if isinstance(topics, list) and len(topics) > MAX_TOPICS:
+        raise BagError(f'{folder}: metadata.yaml lists {len(topics)} topics; a bag is read '
+                       f'with at most {MAX_TOPICS}')
+    for entry in topics if isinstance(topics, list) else ():
+        topic = entry.get('topic_metadata') if isinstance(entry, dict) else None
+        profiles = topic.get('offered_qos_profiles') if isinstance(topic, dict) else None
+        if isinstance(profiles, list) and len(profiles) > MAX_QOS_PROFILES:
+            raise BagError(f'{folder}: metadata.yaml lists {len(profiles)} QoS profiles; a '
+                           f'bag is read with at most {MAX_QOS_PROFILES} a topic')
 
 
 def _field(mapping, key, kind, default=None):
@@ -74,6 +99,7 @@ def mcap_folder(folder: str, info: dict) -> tuple:
     :class:`NotTaken` for anything but an uncompressed-folder MCAP bag of version <= 9 with
     every file present and every topic CDR.
     """
+    check_bounds(info, folder)
     version = _field(info, 'version', int)
     if not 1 <= version <= VERSION:
         raise NotTaken(f'version {version}')
@@ -213,5 +239,6 @@ def information(connections, counts, start_ns, end_ns, file_name) -> dict:
         'custom_data': None, 'ros_distro': 'rosbags'}
 
 
-__all__ = ['dump_qos', 'information', 'MAX_METADATA_BYTES', 'mcap_folder', 'NotTaken',
-           'parse_qos', 'read_information', 'to_yaml', 'with_definitions']
+__all__ = ['check_bounds', 'dump_qos', 'information', 'MAX_METADATA_BYTES',
+           'MAX_QOS_PROFILES', 'MAX_TOPICS', 'mcap_folder', 'NotTaken', 'parse_qos',
+           'read_information', 'to_yaml', 'with_definitions']

@@ -30,6 +30,7 @@ def open_rosbag2(path: str, reference: bool = False) -> BagReader:
         fast = open_mcap_folder(path)
         if fast is not None:
             return fast
+    _check_metadata_bounds(path)   # (before rosbags makes a connection of every topic)
     from dq_fk_ros.bag.decompress import bound_rosbags
     bound_rosbags()
     from rosbags.rosbag2 import Reader
@@ -60,6 +61,15 @@ def open_rosbag2(path: str, reference: bool = False) -> BagReader:
         return McapChunkReader(rosbags, files)
     except (ChunkDamaged, OSError, ValueError):  # left to rosbags, which says what it finds
         return open_rosbag2(path, reference=True)
+
+
+def _check_metadata_bounds(path):
+    """Refuse a ``metadata.yaml`` larger than rosbag2 writes (BagError), else nothing."""
+    from dq_fk_ros.bag.rosbag2_metadata import check_bounds, NotTaken, read_information
+    try:
+        check_bounds(read_information(path), path)
+    except NotTaken:   # not read here (none, not YAML...): rosbags says what it finds
+        pass
 
 
 def _chunked_files(reader):

@@ -16,8 +16,10 @@ from dq_fk_ros.bag.mcap_chunks import McapChunkReader
 from dq_fk_ros.bag.mcap_folder import McapFolder, open_mcap_folder
 from dq_fk_ros.bag.reading import open_reader
 from dq_fk_ros.bag.rosbag2_metadata import (
-    MAX_METADATA_BYTES, mcap_folder, NotTaken, parse_qos, read_information)
+    MAX_METADATA_BYTES, MAX_QOS_PROFILES, MAX_TOPICS, mcap_folder, NotTaken, parse_qos,
+    read_information)
 from dq_fk_ros.description.loading import load_robot
+from dq_fk_ros.errors import BagError
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
@@ -32,6 +34,11 @@ TS = get_typestore(Stores.ROS2_JAZZY)
 JOINTS = list(load_robot('rl15').model.joint_names)
 T0 = 1_700_000_000_000_000_000
 NEVER = QosTime(sec=0, nsec=0)
+PROFILE_TEXT = {'history': 'keep_last', 'depth': 1, 'reliability': 'reliable',
+                'durability': 'volatile', 'deadline': {'sec': 0, 'nsec': 0},
+                'lifespan': {'sec': 0, 'nsec': 0}, 'liveliness': 'automatic',
+                'liveliness_lease_duration': {'sec': 0, 'nsec': 0},
+                'avoid_ros_namespace_conventions': False}
 PROFILES = [Qos(QosHistory.KEEP_LAST, 7, QosReliability.BEST_EFFORT, QosDurability.VOLATILE,
                 QosTime(1, 2), NEVER, QosLiveliness.MANUAL_BY_TOPIC, QosTime(3, 4), True)]
 
@@ -155,16 +162,38 @@ def test_what_is_not_sure_is_left_to_rosbags(tmp_path, case):
         reader.close()
 
 
-def test_a_huge_or_broken_metadata_file_is_left_to_rosbags(tmp_path):
+def test_a_broken_metadata_file_is_left_to_rosbags(tmp_path):
     path = write_bag(tmp_path / 'bag')
-    (path / 'metadata.yaml').write_bytes(b'#' * (MAX_METADATA_BYTES + 1))
-    assert open_mcap_folder(str(path)) is None
     for text in (b'[unclosed', b'- a list', b'rosbag2_bagfile_information: 3', b'\xff\xfe'):
         (path / 'metadata.yaml').write_bytes(text)
         with pytest.raises(NotTaken):
             read_information(str(path))
     (path / 'metadata.yaml').unlink()
     assert open_mcap_folder(str(path)) is None
+
+
+@pytest.mark.parametrize('reference', [False, True])
+def test_metadata_larger_than_rosbag2_writes_is_refused_before_rosbags_reads_it(tmp_path,
+                                                                                reference):
+    """One line, by either reader: a rosbags Reader would make a connection of each topic."""
+    path = write_bag(tmp_path / 'bag')
+    text = (path / 'metadata.yaml').read_text()
+    cases = {
+        # YAML aliases: 10 001 topics in 110 KB
+        'lists 10001 topics': lambda i: i.update(
+            topics_with_message_count=i['topics_with_message_count'][:1] * (MAX_TOPICS + 1)),
+        'lists 65 QoS profiles': lambda i: _topic(i).update(
+            offered_qos_profiles=[PROFILE_TEXT] * (MAX_QOS_PROFILES + 1)),
+    }
+    for message, change in cases.items():
+        (path / 'metadata.yaml').write_text(text)
+        change_metadata(path, change)
+        assert (path / 'metadata.yaml').stat().st_size < 200_000   # (aliases: ~11 bytes each)
+        with pytest.raises(BagError, match=f'^{path}: metadata.yaml {message}; a bag is '):
+            open_reader(path, reference=reference)
+    (path / 'metadata.yaml').write_bytes(b'#' * (MAX_METADATA_BYTES + 1))
+    with pytest.raises(BagError, match='larger than 16 MiB'):
+        open_reader(path, reference=reference)
 
 
 NAMES = st.sampled_from(['keep_last', 'KEEP_ALL', 'Reliable', 'best_effort', 'volatile',
