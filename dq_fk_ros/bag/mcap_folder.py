@@ -14,10 +14,11 @@ before: every damaged-input case goes the way it went.
 from typing import Optional
 
 from dq_fk_ros.bag.mcap_stream import open_stream_bag
-from dq_fk_ros.bag.mcap_summary import read_summary, SummaryRefused
+from dq_fk_ros.bag.mcap_summary import read_summary, SummaryRefused, SummaryTooLarge
 from dq_fk_ros.bag.reader_interface import BagReader, mcap_folder_files
 from dq_fk_ros.bag.rosbag2_metadata import (
     mcap_folder, NotTaken, parse_qos, read_information, with_definitions)
+from dq_fk_ros.errors import BagError
 
 
 class McapFolder:
@@ -60,12 +61,18 @@ def open_mcap_folder(path: str) -> Optional[BagReader]:
 
     None also where a file cannot be read: rosbags then says what is wrong. Raises
     :class:`~dq_fk_ros.errors.BagError` for a ``metadata.yaml`` larger than rosbag2 writes
-    (:func:`~dq_fk_ros.bag.rosbag2_metadata.check_bounds`).
+    (:func:`~dq_fk_ros.bag.rosbag2_metadata.check_bounds`) and for a summary listing more
+    than :data:`~dq_fk_ros.bag.mcap_summary.MAX_CHANNELS` channels.
     """
     from dq_fk_ros.bag.mcap_chunks import ChunkDamaged, McapChunkReader
     try:
         files, connections, start, end = mcap_folder(path, read_information(path))
-        summaries = [read_summary(f, qos=parse_qos) for f in files]
+        summaries = []
+        for f in files:
+            try:
+                summaries.append(read_summary(f, qos=parse_qos))
+            except SummaryTooLarge as exc:   # (each channel's QoS text parsed: time bound)
+                raise BagError(f'{f}: {exc}') from None
         connections = with_definitions(connections, [_definitions(s) for s in summaries])
         return McapChunkReader(McapFolder(path, connections, start, end), files, summaries)
     except (NotTaken, SummaryRefused, ChunkDamaged, OSError, ValueError):

@@ -22,6 +22,7 @@ from dq_fk_ros.bag.mcap_format import (
     OP_SUMMARY_OFFSET)
 
 MAX_SUMMARY_BYTES = 64 << 20    # a larger summary is left to the other readers
+MAX_CHANNELS = 10_000           # channels a summary may list (each one's QoS text is parsed)
 
 Schema = namedtuple('Schema', 'id name encoding data')
 Channel = namedtuple('Channel', 'id schema_id topic message_encoding metadata')
@@ -38,6 +39,10 @@ _CHUNK_TIMES = struct.Struct('<QQQQ')
 
 class SummaryRefused(Exception):
     """The file is not read through its summary here; the message says why."""
+
+
+class SummaryTooLarge(SummaryRefused):
+    """The summary lists more channels than a bag is read with (:data:`MAX_CHANNELS`)."""
 
 
 class _Fields:
@@ -139,6 +144,9 @@ def _records(data, end, qos):
             if key in channels or (schema_id and schema_id not in schemas):
                 # twice, or a schema that comes after it: rosbags reads either its own way
                 raise SummaryRefused(f'channel {key} twice, or before its schema')
+            if len(channels) == MAX_CHANNELS:
+                raise SummaryTooLarge(f'its summary lists more than {MAX_CHANNELS} channels; '
+                                      f'a bag is read with at most {MAX_CHANNELS}')
             if qos is not None and 'offered_qos_profiles' in record.metadata:
                 try:
                     qos(record.metadata['offered_qos_profiles'])
@@ -164,5 +172,5 @@ def _records(data, end, qos):
     return Summary(schemas, channels, chunk_index)
 
 
-__all__ = ['Channel', 'ChunkIndex', 'MAX_SUMMARY_BYTES', 'read_summary', 'Schema',
-           'Summary', 'SummaryRefused']
+__all__ = ['Channel', 'ChunkIndex', 'MAX_CHANNELS', 'MAX_SUMMARY_BYTES', 'read_summary',
+           'Schema', 'Summary', 'SummaryRefused', 'SummaryTooLarge']

@@ -138,3 +138,19 @@ def test_a_summary_larger_than_the_bound_is_refused(tmp_path, monkeypatch):
     monkeypatch.setattr(mcap_summary, 'MAX_SUMMARY_BYTES', 100)
     with pytest.raises(SummaryRefused, match='no summary'):
         read_summary(path)
+
+
+def test_a_summary_of_more_channels_than_a_bag_is_read_with_is_refused(tmp_path, monkeypatch):
+    """Each channel's QoS text is parsed: their number bounds the time (one line by the bag)."""
+    from dq_fk_ros.bag import mcap_summary
+    from dq_fk_ros.bag.mcap_folder import open_mcap_folder
+    from dq_fk_ros.errors import BagError
+    from test_rosbag2_metadata import write_bag
+    path = write_bag(tmp_path / 'bag')   # three channels
+    monkeypatch.setattr(mcap_summary, 'MAX_CHANNELS', 2)
+    with pytest.raises(mcap_summary.SummaryTooLarge, match='more than 2 channels'):
+        read_summary(path / 'bag.mcap')
+    with pytest.raises(BagError, match=r'bag\.mcap: its summary lists more than 2 channels'):
+        open_mcap_folder(str(path))
+    monkeypatch.setattr(mcap_summary, 'MAX_CHANNELS', 3)
+    open_mcap_folder(str(path)).close()   # (three: read)
