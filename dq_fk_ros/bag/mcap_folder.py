@@ -55,9 +55,12 @@ def _definitions(summary):
             if c.schema_id in summary.schemas]
 
 
-def open_mcap_folder(path: str) -> Optional[BagReader]:
+def open_mcap_folder(path: str, info: Optional[dict] = None) -> Optional[BagReader]:
     """
     Return a chunk reader of the rosbag2 MCAP folder ``path``, or None (left to rosbags).
+
+    :param info: its metadata, already read
+        (:func:`~dq_fk_ros.bag.rosbag2_metadata.read_information`; None: read here).
 
     None also where a file cannot be read: rosbags then says what is wrong. Raises
     :class:`~dq_fk_ros.errors.BagError` for a ``metadata.yaml`` larger than rosbag2 writes
@@ -66,7 +69,8 @@ def open_mcap_folder(path: str) -> Optional[BagReader]:
     """
     from dq_fk_ros.bag.mcap_chunks import ChunkDamaged, McapChunkReader
     try:
-        files, connections, start, end = mcap_folder(path, read_information(path))
+        info = read_information(path) if info is None else info
+        files, connections, start, end = mcap_folder(path, info)
         summaries = []
         for f in files:
             try:

@@ -57,6 +57,7 @@ def read_information(folder: str) -> dict:
     info = document.get('rosbag2_bagfile_information') if isinstance(document, dict) else None
     if not isinstance(info, dict):
         raise NotTaken(f'{path}: no rosbag2_bagfile_information')
+    check_bounds(info, folder)
     return info
 
 
@@ -66,7 +67,8 @@ def check_bounds(info: dict, folder: str) -> None:
 
     Raises :class:`~dq_fk_ros.errors.BagError` (one line): at most :data:`MAX_TOPICS` topics
     and :data:`MAX_QOS_PROFILES` profiles a topic (YAML aliases make a small file list
-    millions; rosbags would make a connection of each). Called before rosbags reads it too.
+    millions; rosbags would make a connection of each). :func:`read_information` calls it:
+    a folder is read once here, before either reader.
     """
     topics = info.get('topics_with_message_count')
     if isinstance(topics, list) and len(topics) > MAX_TOPICS:
@@ -99,7 +101,6 @@ def mcap_folder(folder: str, info: dict) -> tuple:
     :class:`NotTaken` for anything but an uncompressed-folder MCAP bag of version <= 9 with
     every file present and every topic CDR.
     """
-    check_bounds(info, folder)
     version = _field(info, 'version', int)
     if not 1 <= version <= VERSION:
         raise NotTaken(f'version {version}')

@@ -25,12 +25,12 @@ def open_rosbag2(path: str, reference: bool = False) -> BagReader:
     :param reference: read an intact MCAP folder with rosbags' reader itself (else a chunk
         at a time, :class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`, in rosbags' order).
     """
-    if not reference:
+    info = _information(path)   # (its bounds checked before rosbags makes a connection
+    if not reference and info is not None:   # of every topic)
         from dq_fk_ros.bag.mcap_folder import open_mcap_folder
-        fast = open_mcap_folder(path)
+        fast = open_mcap_folder(path, info)
         if fast is not None:
             return fast
-    _check_metadata_bounds(path)   # (before rosbags makes a connection of every topic)
     from dq_fk_ros.bag.decompress import bound_rosbags
     bound_rosbags()
     from rosbags.rosbag2 import Reader
@@ -63,13 +63,17 @@ def open_rosbag2(path: str, reference: bool = False) -> BagReader:
         return open_rosbag2(path, reference=True)
 
 
-def _check_metadata_bounds(path):
-    """Refuse a ``metadata.yaml`` larger than rosbag2 writes (BagError), else nothing."""
-    from dq_fk_ros.bag.rosbag2_metadata import check_bounds, NotTaken, read_information
+def _information(path):
+    """
+    Return the folder's metadata (``read_information``), or None where rosbags reads it.
+
+    Raises BagError for a ``metadata.yaml`` larger than rosbag2 writes.
+    """
+    from dq_fk_ros.bag.rosbag2_metadata import NotTaken, read_information
     try:
-        check_bounds(read_information(path), path)
-    except NotTaken:   # not read here (none, not YAML...): rosbags says what it finds
-        pass
+        return read_information(path)
+    except NotTaken:   # (none, not YAML...): rosbags says what it finds
+        return None
 
 
 def _chunked_files(reader):
