@@ -1,18 +1,22 @@
 """
 End to end over DDS: a raw JointState publisher -> dq_fk_node -> a raw /tf subscriber.
 
-Three processes on loopback. The publisher (this script with ``--publish``) sends
+Four processes on loopback. The publisher (this script with ``--publish``) sends
 pre-serialized joint states of ``--robot`` (RL15 by default; every joint in one message),
-stamped at sending, at a fixed rate; this script subscribes to /tf as a tf2 listener would
-(reliable; but depth 1000, not a listener's 100: a stall of this script is not the node's
-loss) without building message objects, so that the figures measure the node (node on
-CPU 1, publisher on CPU 0 with ``taskset``, this subscriber where the scheduler puts it).
-For each rate and repetition it prints: updates sent, the node's published updates and the
-joint states it counted lost at its input (``updates_lost``), /tf messages received, lost,
-latency from the JointState stamp to arrival (p50, p99, max), the node's CPU use (share of
-one core) from the first /tf message received to the last, split by thread (the input
-thread, Fast DDS's threads, the rest), and the major page faults of the node and of this
-subscriber during the run (all from /proc).
+stamped at sending, at a fixed rate; a recorder (this script with ``--record``) subscribes
+to /tf as a tf2 listener would (reliable; but depth 1000, not a listener's 100: a stall of
+the recorder is not the node's loss) without building message objects and does nothing
+else, so that the figures measure the node (node on CPU 1, publisher on CPU 0 with
+``taskset``, the recorder where the scheduler puts it); this script starts them and reads
+/diagnostics and /proc. For each rate and repetition it prints: updates sent, the node's
+published updates and the joint states it counted lost at its input (``updates_lost``),
+/tf messages received, lost, latency from the JointState stamp to arrival (p50, p99, max;
+and two parts of it: p99 to the node's write of the /tf message, rmw's
+``source_timestamp``, and p99 to the moment the recorder's DDS received it,
+``received_timestamp``: between them lies the transport, after the second the recorder's
+own wake-up), the node's CPU use (share of one core) from the first /tf message received
+to the last, split by thread (the input thread, Fast DDS's threads, the rest), and the
+major page faults of the node and of the recorder during the run (/proc, getrusage).
 
 ``--capacity S``: a flood instead. The publisher sends as fast as it can for S seconds
 (best effort, the node's default input), the node publishes every output
@@ -31,6 +35,7 @@ import signal
 import struct
 import subprocess
 import sys
+import tempfile
 import time
 
 from bench_results import figure
@@ -170,35 +175,107 @@ def stop(*procs):
                 proc.kill()
 
 
-def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
-    """One run at ``rate_hz``; returns a dict of figures."""
-    params = (['joint_states_reliability:=reliable'] if reliable else []) + list(extra) + \
-        [f'robot_description_file:={robot}']
-    node_proc = start_node(params)
-    rclpy.init(args=LOG)
-    probe = rclpy.create_node('dq_fk_bench_e2e')
-    executor = SingleThreadedExecutor()
-    executor.add_node(probe)
-    latencies_ns, stamps = [], set()
+def start_recorder(count, seconds, out_path):
+    argv = [sys.executable, os.path.abspath(__file__), '--record', str(count), str(seconds),
+            out_path]
+    return subprocess.Popen(argv, start_new_session=True)
 
-    def record(raw):  # a serialized TFMessage: the first transform's stamp at bytes 8..16
+
+# -- the recording subscriber process ------------------------------------------------------
+QUIET_S = 3.0  # the recorder stops once nothing came for this long after the first message
+
+
+def record(count, seconds, out_path):
+    """
+    Subscribe to /tf (raw, reliable, depth 1000) and save what arrives to ``out_path``.
+
+    One row per message: the JointState stamp it carries (the first transform's, bytes
+    8..16), the node's write (rmw's ``source_timestamp``), this process's DDS reception
+    (``received_timestamp``) and the callback's arrival, all ns of the system clock; and
+    this process's major page faults while it recorded. Stops at ``count`` distinct stamps,
+    :data:`QUIET_S` after the last message, or ``seconds * 3 + 20`` s.
+    """
+    import resource
+    rclpy.init(args=LOG)
+    node = rclpy.create_node('dq_fk_bench_recorder')
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    rows, stamps = [], set()
+
+    def keep(raw, info):
         arrival = time.time_ns()
         sec, nanosec = _STAMP.unpack_from(raw, 8)
         ns = sec * 1_000_000_000 + nanosec
-        latencies_ns.append(arrival - ns)
+        rows.append((ns, info['source_timestamp'], info['received_timestamp'], arrival))
         stamps.add(ns)
 
-    def on_tf(raw):  # and whatever else is queued: one executor wake-up for a burst
-        record(raw)
+    def on_tf(raw, info):  # and whatever else is queued: one executor wake-up for a burst
+        keep(raw, info)
         while True:
             with sub.handle:
                 taken = sub.handle.take_message(sub.msg_type, True)
             if taken is None:
                 return
-            record(taken[0])
-    sub = probe.create_subscription(
+            keep(*taken)
+    sub = node.create_subscription(
         TFMessage, '/tf', on_tf,
         QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE), raw=True)
+    gc.freeze()  # its own garbage collection stays out of the latencies
+    gc.disable()
+    faults = resource.getrusage(resource.RUSAGE_SELF).ru_majflt
+    deadline = time.monotonic() + seconds * 3 + 20
+    last_count, quiet_since = 0, time.monotonic()
+    try:
+        while len(stamps) < count and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+            if len(stamps) != last_count:
+                last_count, quiet_since = len(stamps), time.monotonic()
+            elif stamps and time.monotonic() - quiet_since > QUIET_S:
+                break  # nothing more is coming
+    except KeyboardInterrupt:
+        pass
+    faults = resource.getrusage(resource.RUSAGE_SELF).ru_majflt - faults
+    np.savez(out_path, rows=np.array(rows, dtype=np.int64).reshape(-1, 4), faults=faults)
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+def _cpu_between(samples, first_ns, last_ns):
+    """
+    Return the node's CPU % by thread group between two wall times, from ``samples``.
+
+    :param samples: (wall ns, {group: CPU s}) read from /proc every :data:`CPU_READ_S`.
+    """
+    inside = [s for s in samples if first_ns <= s[0] <= last_ns]
+    if len(inside) < 2 or inside[-1][0] == inside[0][0]:
+        return dict.fromkeys(THREAD_GROUPS, float('nan'))
+    (t0, c0), (t1, c1) = inside[0], inside[-1]
+    return {group: 100.0 * (c1[group] - c0[group]) / ((t1 - t0) / 1e9)
+            for group in THREAD_GROUPS}
+
+
+def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
+    """
+    One run at ``rate_hz``; returns a dict of figures.
+
+    The /tf messages are taken by a process of their own (:func:`record`) that does nothing
+    else: taken here, beside starting processes, reading /proc and /diagnostics, this
+    script's own DDS reception stalled for 260 to 340 ms in about one run of six (RL15,
+    2026-12-04), while a second subscriber on the same /tf saw the same messages within
+    8 ms, and the node wrote each within 3 ms of its JointState.
+    """
+    params = (['joint_states_reliability:=reliable'] if reliable else []) + list(extra) + \
+        [f'robot_description_file:={robot}']
+    total = int(rate_hz * seconds)
+    out_dir = tempfile.mkdtemp(prefix='dq_fk_bench_e2e_')
+    out_path = os.path.join(out_dir, 'tf.npz')
+    node_proc = start_node(params)
+    recorder = start_recorder(total, seconds, out_path)
+    rclpy.init(args=LOG)
+    probe = rclpy.create_node('dq_fk_bench_e2e')
+    executor = SingleThreadedExecutor()
+    executor.add_node(probe)
     published, lost_at_input = [], []
 
     def on_diagnostics(msg):
@@ -207,56 +284,52 @@ def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
         lost_at_input.append(int(values['updates_lost']))
     probe.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
     pub_proc = None
-    total = int(rate_hz * seconds)
+    samples = []  # (wall ns, node CPU s by thread group), every CPU_READ_S
     try:
         deadline = time.monotonic() + 20
         while probe.count_publishers('/tf') < 1 or probe.count_subscribers('/tf') < 1:
             if time.monotonic() > deadline:
-                raise RuntimeError('dq_fk_node did not come up within 20 s')
+                raise RuntimeError('dq_fk_node or the recorder did not come up within 20 s')
             executor.spin_once(timeout_sec=0.05)
         pub_proc = start_publisher(rate_hz, total, reliable, robot)
-        faults_start = major_faults(node_proc.pid), major_faults(os.getpid())
-        deadline = time.monotonic() + seconds * 3 + 20
-        last_count, quiet_since = 0, time.monotonic()
-        # the node's CPU while updates flow: from the first /tf message received to the
-        # last (start-up, discovery and the wait for stragglers left out); /proc is read at
-        # most every CPU_READ_S, not per message (reading a dozen thread files a millisecond
-        # slowed this subscriber enough to lose big /tf messages)
-        first = last = None
-        while len(stamps) < total and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-            if len(stamps) != last_count:
-                now = time.monotonic()
-                if first is None or now - last[0] >= CPU_READ_S or len(stamps) >= total:
-                    last = (now, thread_cpu_seconds(node_proc.pid), len(stamps))
-                    first = first or last
-                last_count, quiet_since = len(stamps), now
-            elif stamps and time.monotonic() - quiet_since > 3.0:
-                break  # nothing more is coming
-        faults = (major_faults(node_proc.pid) - faults_start[0],
-                  major_faults(os.getpid()) - faults_start[1])
-        if first is not None and last[0] > first[0]:
-            cpu = {group: 100.0 * (last[1][group] - first[1][group]) / (last[0] - first[0])
-                   for group in THREAD_GROUPS}
-        else:  # fewer than two arrivals apart in time: no CPU figure
-            cpu = dict.fromkeys(THREAD_GROUPS, float('nan'))
+        faults_start = major_faults(node_proc.pid)
+        deadline = time.monotonic() + seconds * 3 + 30
+        # the node's CPU is read from /proc at most every CPU_READ_S (reading a dozen thread
+        # files a millisecond slowed a subscriber enough to lose big /tf messages), then
+        # counted from the first /tf message received to the last
+        while recorder.poll() is None and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=CPU_READ_S / 4)
+            if not samples or time.time_ns() - samples[-1][0] >= CPU_READ_S * 1e9:
+                samples.append((time.time_ns(), thread_cpu_seconds(node_proc.pid)))
+        faults_node = major_faults(node_proc.pid) - faults_start
         published.clear()
         deadline = time.monotonic() + 3
         while not published and time.monotonic() < deadline:  # the node's own count
             executor.spin_once(timeout_sec=0.05)
     finally:
-        stop(pub_proc, node_proc)
+        stop(pub_proc, recorder, node_proc)
         probe.destroy_node()
         rclpy.try_shutdown()
-    lat_ms = np.array(latencies_ns) / 1e6
+    try:
+        with np.load(out_path) as saved:
+            rows, faults_recorder = saved['rows'], int(saved['faults'])
+    finally:
+        shutil.rmtree(out_dir, ignore_errors=True)
+    stamp, written, received, arrival = rows.T if len(rows) else [np.zeros(0)] * 4
+    cpu = _cpu_between(samples, arrival.min(), arrival.max()) if len(rows) else \
+        dict.fromkeys(THREAD_GROUPS, float('nan'))
+
+    def ms(later, q):
+        return np.percentile((later - stamp) / 1e6, q) if len(rows) else float('nan')
+    received_stamps = len(np.unique(stamp))
     return {'rate': rate_hz, 'reliable': reliable, 'sent': total,
-            'published': published[-1] if published else -1, 'received': len(stamps),
+            'published': published[-1] if published else -1, 'received': received_stamps,
             'lost_at_input': lost_at_input[-1] if lost_at_input else -1,
-            'lost': total - len(stamps),
-            'p50': np.percentile(lat_ms, 50) if len(lat_ms) else float('nan'),
-            'p99': np.percentile(lat_ms, 99) if len(lat_ms) else float('nan'),
-            'max': lat_ms.max() if len(lat_ms) else float('nan'),
-            'cpu': sum(cpu.values()), 'cpu_split': cpu, 'faults': faults}
+            'lost': total - received_stamps,
+            'p50': ms(arrival, 50), 'p99': ms(arrival, 99), 'max': ms(arrival, 100),
+            'p99_written': ms(written, 99), 'p99_received': ms(received, 99),
+            'cpu': sum(cpu.values()), 'cpu_split': cpu,
+            'faults': (faults_node, faults_recorder)}
 
 
 def capacity(seconds, input_thread='true'):
@@ -315,7 +388,11 @@ def main(argv=None):
                         'config/fastdds_large_tf_localhost.xml: an 8 MiB shared-memory segment)')
     parser.add_argument('--publish', nargs=3, metavar=('RATE', 'COUNT', 'RELIABLE'),
                         help=argparse.SUPPRESS)
+    parser.add_argument('--record', nargs=3, metavar=('COUNT', 'SECONDS', 'OUT'),
+                        help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.record:
+        return record(int(args.record[0]), float(args.record[1]), args.record[2])
     if args.publish:
         from rclpy._rclpy_pybind11 import RCLError
         try:
@@ -333,15 +410,11 @@ def main(argv=None):
         extra.append(f'qos_depth:={args.qos_depth}')
     if args.input_batch_ms is not None:
         extra.append(f'input_batch_ms:={args.input_batch_ms!r}')
-    # this subscriber is not pinned: on CPU 0 beside the publisher it stalled for about
-    # 250 ms in one run of three on this project's machines (the node lost nothing then)
-    gc.freeze()  # its own garbage collection stays out of the latencies
-    gc.disable()
     rows = [run_rate(rate, args.seconds, rate >= 5000, extra, args.robot) for rate in args.rates
             for _ in range(args.repeat)]
     print(f'# end to end: raw publisher -> dq_fk_node -> raw /tf subscriber, {args.robot}, '
           f'{args.seconds:g} s per run, {os.cpu_count()} CPUs, loopback; node on CPU 1, '
-          f'publisher on CPU 0 (taskset), this subscriber unpinned; nothing else running; '
+          f'publisher on CPU 0 (taskset), the /tf recorder unpinned; nothing else running; '
           f'input_thread:={args.input_thread}'
           + (f', Fast DDS profile {os.path.basename(args.fastdds_profile)}'
              if args.fastdds_profile else ", Fast DDS's default transports")
@@ -349,16 +422,20 @@ def main(argv=None):
           + (f', input_batch_ms:={args.input_batch_ms!r}' if args.input_batch_ms is not None
              else ''))
     print('| rate Hz | input | sent | node published | node: lost at its input | received on '
-          '/tf | lost | latency p50 ms | p99 ms | max ms | node CPU % of a core '
-          '| of it: input thread / DDS / rest | major page faults, node / subscriber |')
-    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|')
+          "/tf | lost | latency p50 ms | p99 ms | max ms | p99 to the node's write ms "
+          "| p99 to the recorder's DDS reception ms "
+          '| node CPU % of a core | of it: input thread / DDS / rest '
+          '| major page faults, node / recorder |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
     for r in rows:
         split = r['cpu_split']
         print(f"| {r['rate']:g} | {'reliable' if r['reliable'] else 'best effort'} "
               f"| {r['sent']} | {r['published']} | {r['lost_at_input']} | {r['received']} "
               f"| {r['lost']} "
               f"| {r['p50']:.3f} "
-              f"| {r['p99']:.3f} | {r['max']:.3f} | {r['cpu']:.1f} "
+              f"| {r['p99']:.3f} | {r['max']:.3f} | {r['p99_written']:.3f} "
+              f"| {r['p99_received']:.3f} "
+              f"| {r['cpu']:.1f} "
               f"| {split['input']:.1f} / {split['dds']:.1f} / {split['other']:.1f} "
               f"| {r['faults'][0]} / {r['faults'][1]} |")
     rate = None
@@ -394,6 +471,12 @@ def print_targets(rows, capacity_rate, rl15=True, tiago_dual=False, label='rl15'
                '< 5 ms', p99 < 5.0, group=group, show=False)
         print(f'- 1 kHz: 0 lost and p99 < 5 ms in every repetition: lost {lost}, p99 '
               f"{p99:.2f} ms: {'met' if lost == 0 and p99 < 5.0 else 'NOT met'}")
+        written = max(r['p99_written'] for r in at_1k)
+        received = max(r['p99_received'] for r in at_1k)
+        figure(f"{label}: 1 kHz, p99 to the node's write in the worst repetition",
+               round(float(written), 2), 'ms', group=group,
+               text=f"- of it, worst repetition: p99 to the node's write {written:.2f} ms, "
+               f"to the recorder's DDS reception {received:.2f} ms (the rest: its wake-up)")
         if rl15:
             figure(f'{label}: node CPU at 1 kHz', round(cpu, 1), '% of a core', '<= 15 %',
                    cpu <= 15, group=group)
