@@ -263,7 +263,10 @@ def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
     else: taken here, beside starting processes, reading /proc and /diagnostics, this
     script's own DDS reception stalled for 260 to 340 ms in about one run of six (RL15,
     2026-12-04), while a second subscriber on the same /tf saw the same messages within
-    8 ms, and the node wrote each within 3 ms of its JointState.
+    8 ms, and the node wrote each within 3 ms of its JointState. The recorder still meets
+    such a stall in about one run of fifteen (its DDS reception ~335 ms after the node's
+    write, the node's own trace on time; a 20 ms writer heartbeat changed nothing): the
+    p99 to the node's write is printed beside it.
     """
     params = (['joint_states_reliability:=reliable'] if reliable else []) + list(extra) + \
         [f'robot_description_file:={robot}']
