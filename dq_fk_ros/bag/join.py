@@ -10,6 +10,7 @@ reads as the one-bag command's output, message for message.
 
 import os
 
+from dq_fk_ros.bag.rosbag2_metadata import NotTaken, read_information
 from dq_fk_ros.errors import BagError
 import yaml
 
@@ -17,9 +18,18 @@ INFO = 'rosbag2_bagfile_information'
 
 
 def read_metadata(folder) -> dict:
-    """Return the ``rosbag2_bagfile_information`` of a bag folder's metadata.yaml."""
-    with open(os.path.join(folder, 'metadata.yaml'), encoding='utf-8') as stream:
-        return yaml.safe_load(stream)[INFO]
+    """
+    Return the ``rosbag2_bagfile_information`` of a bag folder's metadata.yaml.
+
+    Read as any bag's (:func:`~dq_fk_ros.bag.rosbag2_metadata.read_information`: at most
+    16 MiB, bounded lists); a file that is not such a mapping raises
+    :class:`~dq_fk_ros.errors.BagError` in one line. An earlier output's file is found
+    damaged this way, and its bag redone (``Manifest.complete``).
+    """
+    try:
+        return read_information(folder)
+    except NotTaken as exc:
+        raise BagError(f'{exc}: not a rosbag2 metadata.yaml') from None
 
 
 def join_bags(parts, out_dir) -> dict:

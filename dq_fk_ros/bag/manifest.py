@@ -187,7 +187,7 @@ class FleetState:
             return (entry.get('input') == input_fingerprint(input_path)
                     and os.path.isdir(output) and not os.path.islink(output)
                     and topic_counts(output) == entry.get('output'))
-        except (OSError, ValueError, KeyError, TypeError):
+        except (OSError, ValueError, KeyError, TypeError, BagError):  # damaged: redone
             return False
 
     def work_folder(self, name) -> str:

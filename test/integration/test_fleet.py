@@ -437,3 +437,20 @@ def test_a_signal_at_any_moment_exits_quietly_and_a_new_run_resumes(signal_fleet
                      '--robot', 'rl15', '--jobs', '2', '--quiet']) == 0
     for k in range(2):
         assert _mcap_bytes(out / f'b{k}') == _mcap_bytes(signal_fleet / 'reference' / f'b{k}')
+
+
+@pytest.mark.parametrize('metadata', [
+    b'rosbag2_bagfile_information: {topics_with_message_count: [',  # not YAML
+    b'rosbag2_bagfile_information:\n' + b'  ' + b'[' * 2000 + b']' * 2000 + b'\n',  # deep
+    b'# ' + b'x' * (17 << 20) + b'\n',  # the same, but larger than any rosbag2 writes
+], ids=['not-yaml', 'nested', 'huge'])
+def test_a_damaged_earlier_output_is_redone_not_a_crash(tmp_path, metadata):
+    rl15_bag(tmp_path / 'in' / 'b0', 100)
+    out = tmp_path / 'out'
+    first = process_fleet([tmp_path / 'in'], out, 'rl15', QUIET, jobs=1, progress=False)
+    assert [b.status for b in first.bags] == ['done']
+    path = out / 'b0' / 'metadata.yaml'
+    path.write_bytes(path.read_bytes() + metadata if metadata.startswith(b'#') else metadata)
+    again = process_fleet([tmp_path / 'in'], out, 'rl15', QUIET, jobs=1, progress=False)
+    assert [b.status for b in again.bags] == ['done']
+    assert messages(out / 'b0') == serial(tmp_path / 'in' / 'b0', tmp_path / 's0')
