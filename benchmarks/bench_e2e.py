@@ -314,6 +314,8 @@ def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
         probe.destroy_node()
         rclpy.try_shutdown()
     try:
+        if not os.path.exists(out_path):
+            raise RuntimeError(f'the /tf recorder saved nothing (exit code {recorder.poll()})')
         with np.load(out_path) as saved:
             rows, faults_recorder = saved['rows'], int(saved['faults'])
     finally:
