@@ -229,6 +229,8 @@ def main(argv=None) -> int:
                 server_listener=make_listener(foxglove, ros, feed),
                 message_backlog_size=MESSAGE_BACKLOG)
         except Exception as exc:  # the port is taken, the address is not ours
+            if isinstance(exc.__cause__, KeyboardInterrupt):
+                return 0  # Ctrl-C while it started (pyo3: a SystemError caused by it): a stop
             print(f'dq_fk_foxglove: cannot listen on {args.host}:{args.port}: {exc}',
                   file=sys.stderr)
             return 1

@@ -318,3 +318,24 @@ def test_it_listens_on_loopback_only_by_default(processes):
         listening = [line.split()[1] for line in table.readlines()[1:]
                      if line.split()[3] == '0A' and line.split()[1].endswith(f':{port:04X}')]
     assert listening == [f'0100007F:{port:04X}']
+
+
+def test_ctrl_c_while_the_server_starts_is_a_quiet_stop(monkeypatch, capsys):
+    """
+    SIGINT inside foxglove-sdk's start_server: pyo3 returns a SystemError caused by it.
+
+    That is a Ctrl-C, not a port that cannot be listened on (exit 1 and "cannot listen"
+    once in a loaded test run: test_program_signals.py's while-starting case).
+    """
+    import foxglove
+    from dq_fk_ros.ros import foxglove_live
+
+    def interrupted(**_):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise SystemError('<built-in function start_server> returned a result with an '
+                              'exception set') from exc
+    monkeypatch.setattr(foxglove, 'start_server', interrupted)
+    assert foxglove_live.main(['dq_fk_foxglove']) == 0
+    assert 'cannot listen' not in capsys.readouterr().err
