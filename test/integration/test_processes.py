@@ -41,18 +41,24 @@ def test_poses_and_tf_equal_core_fk_of_the_published_joints(processes, listener,
     ee = model.frame_names[-1]
     poses = listener.listen(PoseStamped, node_topic(node, f'pose/{ee}'))
     tf = listener.listen(TFMessage, '/tf')
-    assert listener.spin_until(lambda: len(poses) >= 100 and len(tf) >= 100, timeout_s=20)
-    by_stamp = {stamp_key(m.header.stamp): m for m in joints}
-    matched = 0
-    for pose in poses:
-        js = by_stamp.get(stamp_key(pose.header.stamp))
-        if js is None:
-            continue
+
+    def pairs():  # the poses whose JointState this listener has, with it
+        by_stamp = {stamp_key(m.header.stamp): m for m in joints}
+        return by_stamp, [(p, by_stamp[stamp_key(p.header.stamp)]) for p in poses
+                          if stamp_key(p.header.stamp) in by_stamp]
+
+    def enough():
+        by_stamp, matched = pairs()
+        return len(matched) >= 90 and len(tf) >= 100 and all(
+            stamp_key(m.transforms[0].header.stamp) in by_stamp for m in tf[-20:])
+    # wait for poses with their JointState, not for counts: a loaded run once had 100 poses
+    # and none whose JointState the listener had yet (its subscriptions match in any order)
+    assert listener.spin_until(enough, timeout_s=30)
+    by_stamp, matched = pairs()
+    for pose, js in matched:
         q = np.array([js.position[list(js.name).index(n)] for n in model.joint_names])
         expected = model.chain.forward(q).to_matrix()
         np.testing.assert_allclose(htf.pose_matrix(pose.pose), expected, atol=1e-9)
-        matched += 1
-    assert matched >= 90
     _, relative = None, None
     for msg in tf[-20:]:
         js = by_stamp[stamp_key(msg.transforms[0].header.stamp)]
