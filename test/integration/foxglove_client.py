@@ -135,13 +135,13 @@ class FoxgloveClient:
         return decode
 
     # -- requests ------------------------------------------------------------------------
-    def send(self, frame):
+    def send(self, frame, timeout_s=10):
         """Send a text (str, dict) or binary (bytes) frame as it is."""
         if isinstance(frame, dict):
             frame = json.dumps(frame)
         coroutine = self._ws.send_bytes(frame) if isinstance(frame, bytes) else \
             self._ws.send_str(frame)
-        asyncio.run_coroutine_threadsafe(coroutine, self._loop).result(10)
+        asyncio.run_coroutine_threadsafe(coroutine, self._loop).result(timeout_s)
 
     def channel(self, topic, timeout_s=20):
         """Return the advertised channel of ``topic``, waiting for it."""
