@@ -126,23 +126,6 @@ class McapBagWriter(ArrayWrites):
         if storage is not None:
             storage.abort()
 
-    def __enter__(self) -> 'McapBagWriter':
-        """Open the bag."""
-        self.open()
-        return self
-
-    def __exit__(self, exc_type, exc, traceback) -> bool:
-        """Close the bag, or abort it after an error."""
-        if exc_type is None:
-            try:
-                self.close()
-            except BaseException:
-                self.abort()
-                raise
-        else:
-            self.abort()
-        return False
-
 
 def open_bag_writer(path, storage: str = 'mcap', compression: str = 'none') -> object:
     """
