@@ -21,6 +21,17 @@ def _record(opcode, body):
     return bytes((opcode,)) + _U64.pack(len(body)) + body
 
 
+def _heads(channel_ids, m):
+    """Return k records of m pairs each as a ``(k, 15 + 16 m)`` uint8 block, heads filled."""
+    k, size = len(channel_ids), 15 + 16 * m
+    block = np.empty((k, size), np.uint8)
+    block[:, 0] = OP_MESSAGE_INDEX
+    block[:, 1:9] = np.frombuffer(_U64.pack(size - 9), np.uint8)
+    block[:, 9:11] = np.array(channel_ids, '<u2').view(np.uint8).reshape(k, 2)
+    block[:, 11:15] = np.frombuffer(_U32.pack(16 * m), np.uint8)
+    return block
+
+
 def message_indexes(index: dict, at: int) -> tuple:
     """
     Return the message index records of a chunk, one a channel, and where each starts.
@@ -42,12 +53,8 @@ def message_indexes(index: dict, at: int) -> tuple:
         return b''.join(parts), offsets
     m = lengths.pop()
     k = len(index)
-    size = 15 + 16 * m
-    block = np.empty((k, size), np.uint8)
-    block[:, 0] = OP_MESSAGE_INDEX
-    block[:, 1:9] = np.frombuffer(_U64.pack(size - 9), np.uint8)
-    block[:, 9:11] = np.array(list(index), '<u2').view(np.uint8).reshape(k, 2)
-    block[:, 11:15] = np.frombuffer(_U32.pack(16 * m), np.uint8)
+    block = _heads(list(index), m)
+    size = block.shape[1]
     pairs = np.empty((k, m, 2), '<u8')
     for row, (times, positions) in enumerate(index.values()):
         pairs[row, :, 0], pairs[row, :, 1] = times, positions
@@ -67,12 +74,8 @@ class UniformIndex:
         """Lay out the k records of m messages each; only the times change between chunks."""
         self.channel_ids, self.m = channel_ids, m
         k = len(channel_ids)
-        self.size = 15 + 16 * m
-        block = np.empty((k, self.size), np.uint8)
-        block[:, 0] = OP_MESSAGE_INDEX
-        block[:, 1:9] = np.frombuffer(_U64.pack(self.size - 9), np.uint8)
-        block[:, 9:11] = np.array(channel_ids, '<u2').view(np.uint8).reshape(k, 2)
-        block[:, 11:15] = np.frombuffer(_U32.pack(16 * m), np.uint8)
+        block = _heads(channel_ids, m)
+        self.size = block.shape[1]
         pairs = np.empty((k, m, 2), '<u8')
         pairs[:, :, 1] = np.asarray(offsets, np.int64)[:, None] + \
             np.arange(m, dtype=np.int64) * row_bytes
