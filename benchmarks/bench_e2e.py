@@ -107,8 +107,13 @@ def pinned(argv, core):
 
 
 # -- the publisher process ----------------------------------------------------------------
-def publish(rate_hz, count, reliable, robot='rl15'):
-    """Send ``count`` pre-serialized joint states at ``rate_hz`` (0: as fast as possible)."""
+def publish(rate_hz, count, reliable, robot='rl15', settle_s=0.5):
+    """
+    Send ``count`` pre-serialized joint states at ``rate_hz`` (0: as fast as possible).
+
+    The first ``settle_s`` after a subscriber matched (:data:`SETTLE_S` in a latency run):
+    nothing sent.
+    """
     from dq_fk_ros.description.loading import load_robot
     model = load_robot(robot).model
     names = list(model.joint_names)
@@ -127,7 +132,7 @@ def publish(rate_hz, count, reliable, robot='rl15'):
     deadline = time.monotonic() + 20
     while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
         time.sleep(0.01)
-    time.sleep(0.5)  # the subscriber's side of the match
+    time.sleep(settle_s)  # the subscriber's side of the match; discovery's last steps
     start = time.monotonic()
     for k in range(count):
         if rate_hz:
@@ -147,6 +152,21 @@ def publish(rate_hz, count, reliable, robot='rl15'):
 
 
 # -- one measurement ----------------------------------------------------------------------
+SETTLE_S = 5.0
+"""
+Seconds between the publisher matching the node and its first JointState in a latency run.
+
+Fast DDS opens another participant's shared-memory port the first time it sends to it, and
+checks the port's listeners first (``SharedMemGlobal::Port::healthy_check``): a listener
+that waits on a quiet port answers only when its wait times out, a third of the transport's
+``healthy_check_timeout_ms`` (1000 ms by default), and meanwhile the opening thread holds
+what every write of its participant needs. Traced with ``perf`` (sched_switch, 25 runs,
+2026-12-04): among processes started a second apart that wait is 333 ms, 0.5 to 4 s after
+a process starts (the periodic participant announcements reach ports not used before), and
+the writes of the process that opens (the publisher's JointState, the node's /tf) wait with
+it: the ~335 ms stalls that once fell in about one run of eight. Started 5 s after the match,
+a run measures the processes' steady state; docs/node.md says what a user meets.
+"""
 CPU_READ_S = 0.2  # how often the node's CPU time is read from /proc during a run
 
 
@@ -157,9 +177,9 @@ def start_node(params=()):
     return subprocess.Popen(pinned(argv, 1), start_new_session=True)
 
 
-def start_publisher(rate_hz, count, reliable, robot='rl15'):
+def start_publisher(rate_hz, count, reliable, robot='rl15', settle_s=0.5):
     argv = [sys.executable, os.path.abspath(__file__), '--publish', str(rate_hz), str(count),
-            '1' if reliable else '0', '--robot', robot]
+            '1' if reliable else '0', '--robot', robot, '--settle', repr(settle_s)]
     return subprocess.Popen(pinned(argv, 0), start_new_session=True)
 
 
@@ -175,9 +195,9 @@ def stop(*procs):
                 proc.kill()
 
 
-def start_recorder(count, seconds, out_path):
+def start_recorder(count, seconds, out_path, name='dq_fk_bench_recorder'):
     argv = [sys.executable, os.path.abspath(__file__), '--record', str(count), str(seconds),
-            out_path]
+            out_path, '--record-name', name]
     return subprocess.Popen(argv, start_new_session=True)
 
 
@@ -185,7 +205,7 @@ def start_recorder(count, seconds, out_path):
 QUIET_S = 3.0  # the recorder stops once nothing came for this long after the first message
 
 
-def record(count, seconds, out_path):
+def record(count, seconds, out_path, name='dq_fk_bench_recorder'):
     """
     Subscribe to /tf (raw, reliable, depth 1000) and save what arrives to ``out_path``.
 
@@ -197,7 +217,7 @@ def record(count, seconds, out_path):
     """
     import resource
     rclpy.init(args=LOG)
-    node = rclpy.create_node('dq_fk_bench_recorder')
+    node = rclpy.create_node(name)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     rows, stamps = [], set()
@@ -255,19 +275,22 @@ def _cpu_between(samples, first_ns, last_ns):
             for group in THREAD_GROUPS}
 
 
-def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
+def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15', settle_s=None,
+             join_at_s=None):
     """
     One run at ``rate_hz``; returns a dict of figures.
 
     The /tf messages are taken by a process of their own (:func:`record`) that does nothing
     else: taken here, beside starting processes, reading /proc and /diagnostics, this
     script's own DDS reception stalled for 260 to 340 ms in about one run of six (RL15,
-    2026-12-04), while a second subscriber on the same /tf saw the same messages within
-    8 ms, and the node wrote each within 3 ms of its JointState. The recorder still meets
-    such a stall in about one run of fifteen (its DDS reception ~335 ms after the node's
-    write, the node's own trace on time; a 20 ms writer heartbeat changed nothing): the
-    p99 to the node's write is printed beside it.
+    2026-12-04). Those stalls were Fast DDS's discovery among the just-started processes
+    (:data:`SETTLE_S`); the publisher now starts after it.
+
+    :param join_at_s: start a second /tf subscriber process this many seconds after the
+        publisher's settling time (about that far into the run); None: none. What a
+        subscriber joining costs the others (docs/node.md).
     """
+    settle_s = SETTLE_S if settle_s is None else settle_s
     params = (['joint_states_reliability:=reliable'] if reliable else []) + list(extra) + \
         [f'robot_description_file:={robot}']
     total = int(rate_hz * seconds)
@@ -286,7 +309,7 @@ def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
         published.append(int(values['updates_published']))
         lost_at_input.append(int(values['updates_lost']))
     probe.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
-    pub_proc = None
+    pub_proc = joiner = None
     samples = []  # (wall ns, node CPU s by thread group), every CPU_READ_S
     try:
         deadline = time.monotonic() + 20
@@ -294,7 +317,8 @@ def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
             if time.monotonic() > deadline:
                 raise RuntimeError('dq_fk_node or the recorder did not come up within 20 s')
             executor.spin_once(timeout_sec=0.05)
-        pub_proc = start_publisher(rate_hz, total, reliable, robot)
+        pub_proc = start_publisher(rate_hz, total, reliable, robot, settle_s)
+        join_time = None if join_at_s is None else time.monotonic() + settle_s + join_at_s
         faults_start = major_faults(node_proc.pid)
         deadline = time.monotonic() + seconds * 3 + 30
         # the node's CPU is read from /proc at most every CPU_READ_S (reading a dozen thread
@@ -302,6 +326,9 @@ def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
         # counted from the first /tf message received to the last
         while recorder.poll() is None and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=CPU_READ_S / 4)
+            if joiner is None and join_time is not None and time.monotonic() >= join_time:
+                joiner = start_recorder(int(rate_hz), 2, os.path.join(out_dir, 'joiner.npz'),
+                                        'dq_fk_bench_joiner')
             if not samples or time.time_ns() - samples[-1][0] >= CPU_READ_S * 1e9:
                 samples.append((time.time_ns(), thread_cpu_seconds(node_proc.pid)))
         faults_node = major_faults(node_proc.pid) - faults_start
@@ -310,7 +337,7 @@ def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15'):
         while not published and time.monotonic() < deadline:  # the node's own count
             executor.spin_once(timeout_sec=0.05)
     finally:
-        stop(pub_proc, recorder, node_proc)
+        stop(pub_proc, joiner, recorder, node_proc)
         probe.destroy_node()
         rclpy.try_shutdown()
     try:
@@ -391,18 +418,26 @@ def main(argv=None):
     parser.add_argument('--fastdds-profile', metavar='XML',
                         help='a Fast DDS profile for all three processes (e.g. '
                         'config/fastdds_large_tf_localhost.xml: an 8 MiB shared-memory segment)')
+    parser.add_argument('--settle', type=float, default=SETTLE_S, metavar='S',
+                        help='seconds between the publisher matching the node and its first '
+                        f'message (default {SETTLE_S:g}: discovery settled, see SETTLE_S)')
+    parser.add_argument('--join-at', type=float, default=None, metavar='S',
+                        help='start a second /tf subscriber S seconds into each run (what a '
+                        'subscriber joining costs the others)')
+    parser.add_argument('--record-name', default='dq_fk_bench_recorder', help=argparse.SUPPRESS)
     parser.add_argument('--publish', nargs=3, metavar=('RATE', 'COUNT', 'RELIABLE'),
                         help=argparse.SUPPRESS)
     parser.add_argument('--record', nargs=3, metavar=('COUNT', 'SECONDS', 'OUT'),
                         help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.record:
-        return record(int(args.record[0]), float(args.record[1]), args.record[2])
+        return record(int(args.record[0]), float(args.record[1]), args.record[2],
+                      args.record_name)
     if args.publish:
         from rclpy._rclpy_pybind11 import RCLError
         try:
             return publish(float(args.publish[0]), int(args.publish[1]),
-                           args.publish[2] == '1', args.robot)
+                           args.publish[2] == '1', args.robot, args.settle)
         except (KeyboardInterrupt, RCLError):  # the flood ends with SIGINT (context gone)
             return 0
     if args.fastdds_profile:  # before rclpy starts here; the children inherit it
@@ -415,12 +450,16 @@ def main(argv=None):
         extra.append(f'qos_depth:={args.qos_depth}')
     if args.input_batch_ms is not None:
         extra.append(f'input_batch_ms:={args.input_batch_ms!r}')
-    rows = [run_rate(rate, args.seconds, rate >= 5000, extra, args.robot) for rate in args.rates
-            for _ in range(args.repeat)]
+    rows = [run_rate(rate, args.seconds, rate >= 5000, extra, args.robot, args.settle,
+                     args.join_at)
+            for rate in args.rates for _ in range(args.repeat)]
     print(f'# end to end: raw publisher -> dq_fk_node -> raw /tf subscriber, {args.robot}, '
           f'{args.seconds:g} s per run, {os.cpu_count()} CPUs, loopback; node on CPU 1, '
           f'publisher on CPU 0 (taskset), the /tf recorder unpinned; nothing else running; '
-          f'input_thread:={args.input_thread}'
+          f'input_thread:={args.input_thread}; the publisher starts {args.settle:g} s after '
+          f'matching the node (discovery settled)'
+          + (f'; a second /tf subscriber joins about {args.join_at:g} s into each run'
+             if args.join_at is not None else '')
           + (f', Fast DDS profile {os.path.basename(args.fastdds_profile)}'
              if args.fastdds_profile else ", Fast DDS's default transports")
           + (f', qos_depth:={args.qos_depth}' if args.qos_depth else '')
@@ -450,8 +489,11 @@ def main(argv=None):
               'output published, node pinned to one core')
         print(f'sustained updates published: {rate:,.0f} per second, node CPU {cpu:.0f} % '
               f'of a core')
+    profile = os.path.basename(args.fastdds_profile or '')
     label = os.path.basename(str(args.robot)).replace('.urdf', '') + (
-        ', large shared-memory segment' if args.fastdds_profile else '')
+        '' if not profile else ', large shared-memory segment'
+        if profile == 'fastdds_large_tf_localhost.xml' else f', profile {profile}') + (
+        ', a subscriber joining' if args.join_at is not None else '')
     print_targets(rows, rate, args.robot == 'rl15', 'tiago_dual' in args.robot, label)
     return 0
 

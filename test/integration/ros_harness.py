@@ -55,7 +55,7 @@ def wait_until(predicate, timeout_s=10.0):
     return predicate()
 
 
-def start(processes, name, *params, namespace=None, log_level='warn', options=()):
+def start(processes, name, *params, namespace=None, log_level='warn', options=(), env=None):
     """
     Start one of the package's programs with ``-p`` parameters, reaped by ``processes``.
 
@@ -64,7 +64,7 @@ def start(processes, name, *params, namespace=None, log_level='warn', options=()
     ``node_name``; its private topics are under it: :func:`node_topic`). dq_fk_node sends
     /tf at every update (``publish_frequency:=0.0``, :data:`EVERY_UPDATE`) unless ``params``
     set ``publish_frequency``: the tests count and compare updates; test_urdf_node.py
-    checks the default (robot_state_publisher's 20 Hz).
+    checks the default (robot_state_publisher's 20 Hz). ``env``: variables set for it alone.
     """
     argv = executable(name) + list(options) + ['--ros-args', '--log-level', log_level]
     node_name = None
@@ -77,7 +77,7 @@ def start(processes, name, *params, namespace=None, log_level='warn', options=()
         params = (EVERY_UPDATE,) + params
     for p in params:
         argv += ['-p', p]
-    proc = processes.start(argv)
+    proc = processes.start(argv, env=dict(env or {}))
     proc.node_name = node_name
     proc.namespace = (namespace or '').rstrip('/')
     return proc
