@@ -18,6 +18,11 @@ own wake-up), the node's CPU use (share of one core) from the first /tf message 
 to the last, split by thread (the input thread, Fast DDS's threads, the rest), and the
 major page faults of the node and of the recorder during the run (/proc, getrusage).
 
+The publisher sends its first JointState ``--settle`` seconds (5 by default) after it
+matched the node: Fast DDS's discovery among the just-started processes holds writes for up
+to 333 ms in its first seconds (:data:`SETTLE_S`). ``--join-at S`` starts a second /tf
+subscriber process S seconds into each run: what a subscriber joining costs the others.
+
 ``--capacity S``: a flood instead. The publisher sends as fast as it can for S seconds
 (best effort, the node's default input), the node publishes every output
 (``publish_unread_topics``), pinned to one core when ``taskset`` exists, and the script
