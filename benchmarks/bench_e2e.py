@@ -280,7 +280,7 @@ def _cpu_between(samples, first_ns, last_ns):
             for group in THREAD_GROUPS}
 
 
-def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15', settle_s=None,
+def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15', settle_s=SETTLE_S,
              join_at_s=None):
     """
     One run at ``rate_hz``; returns a dict of figures.
@@ -295,7 +295,6 @@ def run_rate(rate_hz, seconds, reliable, extra=(), robot='rl15', settle_s=None,
         publisher's settling time (about that far into the run); None: none. What a
         subscriber joining costs the others (docs/node.md).
     """
-    settle_s = SETTLE_S if settle_s is None else settle_s
     params = (['joint_states_reliability:=reliable'] if reliable else []) + list(extra) + \
         [f'robot_description_file:={robot}']
     total = int(rate_hz * seconds)
