@@ -402,6 +402,17 @@ def capacity(seconds, input_thread='true'):
     return (n1 - n0) / (t1 - t0), 100.0 * (c1 - c0) / (t1 - t0)
 
 
+def seconds_at_least_0(text):
+    """Return ``text`` as seconds, finite and not negative (an argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float('nan')
+    if not 0.0 <= value < float('inf'):
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number of seconds >= 0')
+    return value
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--rates', type=float, nargs='+', default=[100, 1000, 5000])
@@ -422,10 +433,10 @@ def main(argv=None):
     parser.add_argument('--fastdds-profile', metavar='XML',
                         help='a Fast DDS profile for all three processes (e.g. '
                         'config/fastdds_large_tf_localhost.xml: an 8 MiB shared-memory segment)')
-    parser.add_argument('--settle', type=float, default=SETTLE_S, metavar='S',
+    parser.add_argument('--settle', type=seconds_at_least_0, default=SETTLE_S, metavar='S',
                         help='seconds between the publisher matching the node and its first '
                         f'message (default {SETTLE_S:g}: discovery settled, see SETTLE_S)')
-    parser.add_argument('--join-at', type=float, default=None, metavar='S',
+    parser.add_argument('--join-at', type=seconds_at_least_0, default=None, metavar='S',
                         help='start a second /tf subscriber S seconds into each run (what a '
                         'subscriber joining costs the others)')
     parser.add_argument('--record-name', default='dq_fk_bench_recorder', help=argparse.SUPPRESS)
