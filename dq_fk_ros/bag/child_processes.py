@@ -5,6 +5,13 @@ A Ctrl-C goes to the terminal's whole process group: to the fleet's workers too,
 (still importing, say) would print a ``KeyboardInterrupt`` traceback each. Workers started
 inside :func:`signals_blocked` inherit SIGINT blocked and never see it; the command that
 does see it calls :func:`stop_children` (SIGTERM, then SIGKILL) before it exits.
+
+A worker is started in two steps: its process, then its start-up data written to it through
+a pipe. A process that exits between the two leaves the worker reading a closed pipe, and
+it prints an ``EOFError`` traceback; Dask starts its workers from threads of its own, which
+a signal does not stop. So every spawned start runs under one lock (:func:`prepare_children`
+installs it), and :func:`stop_children` takes that lock first: no worker is half-started
+when it looks, and it stops those whose start has not yet been counted as a child.
 """
 
 import contextlib
@@ -14,24 +21,70 @@ import sys
 import threading
 import time
 from typing import Iterator
+import weakref
 
 # workers stopped at once leave semaphores the resource tracker then removes: it need not
 # warn of each (a warning filter for the tracker, which takes the -W options of its parent)
 QUIET_TRACKER = 'ignore:resource_tracker:UserWarning'
 
+_START_LOCK = threading.RLock()  # held while a spawned worker starts (process and data)
+_GUARD_LOCK = threading.Lock()  # one installation of the guard, whichever thread asks
+_STARTED = weakref.WeakSet()  # the spawned workers' Popen objects (children not yet counted)
+_NO_MORE = []  # set by stop_children(for_good=True): no worker starts after it
+_LOCK_WAIT_S = 5.0  # longest wait for a start under way (one takes milliseconds)
+
 
 def prepare_children() -> None:
     """
-    Start multiprocessing's resource tracker now, from this thread, quiet.
+    Start multiprocessing's resource tracker now, from this thread, quiet; guard starts.
 
     Started later from a thread that blocks SIGINT, it would unblock SIGINT there (it blocks
     and then unblocks the signals around its own start), and every process that thread
-    starts would see the terminal's Ctrl-C again.
+    starts would see the terminal's Ctrl-C again. The guard: see the module's docstring.
     """
     from multiprocessing import resource_tracker
     if QUIET_TRACKER not in sys.warnoptions:  # (read by the processes started from now on)
         sys.warnoptions.append(QUIET_TRACKER)
     resource_tracker.ensure_running()
+    _guard_spawned_starts()
+
+
+def _guard_spawned_starts() -> None:
+    """
+    Run every start of a 'spawn' worker under :data:`_START_LOCK` (once per process).
+
+    multiprocessing has no hook for it: this wraps ``popen_spawn_posix.Popen._launch``, which
+    starts the process and writes its data (test/integration/test_fleet.py's
+    ``test_a_signal_while_a_worker_starts_leaves_no_traceback`` holds it to that).
+    """
+    from multiprocessing import popen_spawn_posix
+    with _GUARD_LOCK:
+        launch = popen_spawn_posix.Popen._launch
+        if not getattr(launch, 'dq_fk_guarded', False):
+            popen_spawn_posix.Popen._launch = _guarded(launch)
+
+
+def _guarded(launch):
+    """
+    Return ``launch`` run under :data:`_START_LOCK`, refused after a for-good stop.
+
+    Refused: the main thread gets a ``RuntimeError`` saying so; another thread (Dask's,
+    starting a worker while the command exits) waits, quietly, for the process to exit.
+    """
+
+    def guarded_launch(popen, process_obj):
+        with _START_LOCK:
+            stopping = bool(_NO_MORE)
+            if not stopping:
+                launch(popen, process_obj)
+                _STARTED.add(popen)
+        if stopping and threading.current_thread() is threading.main_thread():
+            raise RuntimeError('no worker process can start: an interrupted run stopped them '
+                               'for good in this Python process; start a new one')
+        if stopping:
+            threading.Event().wait()
+    guarded_launch.dq_fk_guarded = True
+    return guarded_launch
 
 
 def run_with_sigint_blocked(make) -> object:
@@ -92,15 +145,31 @@ def signals_blocked() -> Iterator[None]:
             signal.raise_signal(caught[0])
 
 
-def stop_children(timeout_s: float = 1.0, at_once: bool = False) -> None:
+def stop_children(timeout_s: float = 1.0, at_once: bool = False,
+                  for_good: bool = False) -> None:
     """
     Stop every child process multiprocessing started: SIGTERM, then SIGKILL after a while.
 
-    A pool's workers and a Dask LocalCluster's (its nannies run in this process); not
-    multiprocessing's resource tracker, which ends by itself once they all have.
+    A pool's workers and a Dask LocalCluster's (its nannies run in this process), also one
+    whose start another thread has just finished; not multiprocessing's resource tracker,
+    which ends by itself once they all have. It waits for a start under way to finish.
     ``at_once``: SIGKILL straight away (a Dask worker takes its time over a SIGTERM).
+    ``for_good``: no worker starts after this (a thread that tries waits for ever): for a
+    process about to exit.
     """
-    children = multiprocessing.active_children()
+    held = _START_LOCK.acquire(timeout=_LOCK_WAIT_S)
+    try:
+        if for_good:
+            _NO_MORE.append(True)
+        children = multiprocessing.active_children()
+        counted = {child.pid for child in children}
+        uncounted = [popen for popen in list(_STARTED)
+                     if popen.pid not in counted and popen.poll() is None]
+    finally:
+        if held:
+            _START_LOCK.release()
+    for popen in uncounted:  # started, not yet a child multiprocessing knows: never waited on
+        popen.kill()
     for child in children:
         child.kill() if at_once else child.terminate()
     deadline = time.monotonic() + timeout_s
@@ -110,6 +179,8 @@ def stop_children(timeout_s: float = 1.0, at_once: bool = False) -> None:
         if child.is_alive():
             child.kill()
             child.join(0.5)
+    for popen in uncounted:
+        popen.wait(0.5)
 
 
 __all__ = ['prepare_children', 'run_with_sigint_blocked', 'signals_blocked', 'stop_children']

@@ -407,7 +407,7 @@ def _abandon_cluster():
     for cluster in _LOCAL_CLUSTERS:  # a nanny would start a new worker for one stopped
         for nanny in list(getattr(cluster, 'workers', {}).values()):
             nanny.status = Status.closing
-    stop_children(at_once=True)
+    stop_children(at_once=True, for_good=True)
     ABANDONED.append(True)
 
 

@@ -439,6 +439,84 @@ def test_a_signal_at_any_moment_exits_quietly_and_a_new_run_resumes(signal_fleet
         assert _mcap_bytes(out / f'b{k}') == _mcap_bytes(signal_fleet / 'reference' / f'b{k}')
 
 
+# Put on PYTHONPATH for the command alone (DQ_FK_SLOW_START set): every spawned worker's
+# process starts half a second before its start-up data is written to it (a busy machine's
+# scheduling, made certain), so a signal lands in that gap
+SLOW_START = """
+import os
+import time
+if os.environ.pop('DQ_FK_SLOW_START', None):
+    from multiprocessing import util
+    spawnv_passfds = util.spawnv_passfds
+
+    def slow_spawnv_passfds(path, args, passfds):
+        pid = spawnv_passfds(path, args, passfds)
+        if any('spawn_main' in str(arg) for arg in args):
+            time.sleep(0.5)
+        return pid
+    util.spawnv_passfds = slow_spawnv_passfds
+"""
+
+
+def _spawned_by(pid):
+    """Return the pids of the processes whose parent is ``pid`` and run multiprocessing's spawn."""
+    found = []
+    for child in os.listdir('/proc'):
+        if child.isdigit():
+            try:
+                with open(f'/proc/{child}/stat', 'rb') as stream:
+                    ppid = int(stream.read().rsplit(b')', 1)[1].split()[1])
+                with open(f'/proc/{child}/cmdline', 'rb') as stream:
+                    spawned = b'spawn_main' in stream.read()
+            except (OSError, IndexError, ValueError):
+                continue
+            if ppid == pid and spawned:
+                found.append(int(child))
+    return found
+
+
+@pytest.mark.parametrize('how', ['pool', 'local'])
+def test_a_signal_while_a_worker_starts_leaves_no_traceback(signal_fleet, tmp_path, how):
+    """
+    SIGTERM between a worker's process starting and its start-up data being written.
+
+    Dask starts its workers from its own threads: the command exiting there left the worker
+    reading a closed pipe, which printed an ``EOFError`` traceback (seen once in CI).
+    """
+    (tmp_path / 'site').mkdir()
+    (tmp_path / 'site' / 'sitecustomize.py').write_text(SLOW_START)
+    mark = f'dq_fk_slow_start_test_{os.getpid()}_{how}'
+    env = dict(os.environ, DQ_FK_MARK=mark, DQ_FK_SLOW_START='1',
+               PYTHONPATH=os.pathsep.join([str(tmp_path / 'site')]
+                                          + os.environ.get('PYTHONPATH', '').split(os.pathsep)))
+    extra = {'pool': ['--jobs', '2'], 'local': ['--scheduler', 'local', '--jobs', '2']}[how]
+    argv = executable('dq_fk_bag') + ['process', str(signal_fleet / 'in'), '--output-dir',
+                                      str(tmp_path / 'out'), '--robot', 'rl15', '--quiet'] + extra
+    child = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, env=env)
+    try:
+        deadline = time.monotonic() + 30
+        while not _spawned_by(child.pid) and child.poll() is None:
+            assert time.monotonic() < deadline, 'no worker started within 30 s'
+            time.sleep(0.005)
+        sent = time.monotonic()
+        os.kill(child.pid, signal.SIGTERM)
+        _, err = child.communicate(timeout=20)
+        took = time.monotonic() - sent
+    finally:
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGKILL)
+    time.sleep(0.5)
+    left = _processes_marked(mark)
+    for pid in left:
+        os.kill(pid, signal.SIGKILL)
+    err = err.decode(errors='replace')
+    assert child.returncode == 128 + signal.SIGTERM, (child.returncode, err[-2000:])
+    assert 'Traceback' not in err and err.count('\n') <= 1, err[-2000:]
+    assert took < 2.0, took
+    assert left == [], left
+
+
 @pytest.mark.parametrize('metadata', [
     b'rosbag2_bagfile_information: {topics_with_message_count: [',  # not YAML
     b'rosbag2_bagfile_information:\n' + b'  ' + b'[' * 2000 + b']' * 2000 + b'\n',  # deep

@@ -1,7 +1,9 @@
-"""signals_blocked holds a signal back until the block ends, whichever thread takes it."""
+"""signals_blocked holds a signal back till the block ends; a stop for good ends worker starts."""
 
 import os
 import signal
+import subprocess
+import sys
 import threading
 import time
 
@@ -44,3 +46,42 @@ def test_the_handlers_are_put_back():
         assert signal.getsignal(signal.SIGTERM) is handler
     finally:
         signal.signal(signal.SIGTERM, saved)
+
+
+FOR_GOOD = """
+import multiprocessing
+import threading
+import time
+
+from dq_fk_ros.bag.child_processes import prepare_children, stop_children
+
+if __name__ == '__main__':
+    prepare_children()
+    ctx = multiprocessing.get_context('spawn')
+    worker = ctx.Process(target=time.sleep, args=(60,))
+    worker.start()
+    stop_children(at_once=True, for_good=True)
+    assert worker.exitcode == -9, worker.exitcode
+    try:
+        ctx.Process(target=time.sleep, args=(60,)).start()
+    except RuntimeError as exc:
+        print('main thread:', exc)
+    starter = threading.Thread(target=ctx.Process(target=time.sleep, args=(60,)).start,
+                               daemon=True)
+    starter.start()
+    starter.join(0.5)
+    print('other thread waits:', starter.is_alive())
+    print('children:', multiprocessing.active_children())
+"""
+
+
+def test_after_a_stop_for_good_no_worker_starts(tmp_path):
+    """The workers are killed; the main thread is told in one line; another thread waits."""
+    script = tmp_path / 'for_good.py'
+    script.write_text(FOR_GOOD)
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = done.stdout.splitlines()
+    assert lines[0].startswith('main thread: no worker process can start: '), lines
+    assert lines[1:] == ['other thread waits: True', 'children: []'], lines
