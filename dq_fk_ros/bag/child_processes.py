@@ -16,6 +16,7 @@ when it looks, and it stops those whose start has not yet been counted as a chil
 
 import contextlib
 import multiprocessing
+import os
 import signal
 import sys
 import threading
@@ -183,4 +184,22 @@ def stop_children(timeout_s: float = 1.0, at_once: bool = False,
         popen.wait(0.5)
 
 
-__all__ = ['prepare_children', 'run_with_sigint_blocked', 'signals_blocked', 'stop_children']
+def exit_with_parent(parent_pid: int, every_s: float = 0.25) -> None:
+    """
+    In a worker: exit at once when ``parent_pid`` is no longer this process's parent.
+
+    A pool worker waiting for work holds both ends of its queue's pipe, so it would wait for
+    ever once the command is killed alone (SIGKILL, the OOM killer); a daemon thread looks
+    every ``every_s`` seconds. Dask's workers watch their nanny with a pipe of their own.
+    """
+    def watch():
+        while os.getppid() == parent_pid:
+            time.sleep(every_s)
+        os._exit(1)
+    if os.getppid() != parent_pid:  # gone already
+        os._exit(1)
+    threading.Thread(target=watch, name='dq_fk exit with parent', daemon=True).start()
+
+
+__all__ = ['exit_with_parent', 'prepare_children', 'run_with_sigint_blocked', 'signals_blocked',
+           'stop_children']

@@ -27,8 +27,9 @@ import shutil
 import sys
 import time
 
-from dq_fk_ros.bag.child_processes import (prepare_children, run_with_sigint_blocked,
-                                           signals_blocked, stop_children)
+from dq_fk_ros.bag.child_processes import (exit_with_parent, prepare_children,
+                                           run_with_sigint_blocked, signals_blocked,
+                                           stop_children)
 from dq_fk_ros.bag.discover import find_bags
 from dq_fk_ros.bag.fleet_units import RobotSpec, run_unit, Unit, UnitResult
 from dq_fk_ros.bag.join import join_bags
@@ -279,8 +280,8 @@ class _Runner:
             try:
                 with signals_blocked():  # no Ctrl-C for the workers; no signal mid-spawn
                     pool = ProcessPoolExecutor(max_workers=min(self.jobs, len(todo)),
-                                               mp_context=ctx, initializer=set_progress_counter,
-                                               initargs=(counter,))
+                                               mp_context=ctx, initializer=_start_pool_worker,
+                                               initargs=(counter, os.getpid()))
                     futures = {pool.submit(run_unit, u): u for u in todo}
                 todo = self._drain(futures, tries, counter)
             except BaseException:  # Ctrl-C, SIGTERM: the workers go first, then we do
@@ -377,6 +378,12 @@ class _Runner:
             return
         report.status = 'done'
         report.tf_out = counts.get('/tf', 0)
+
+
+def _start_pool_worker(counter, parent_pid):
+    """Set up a pool worker: count into ``counter``; exit when ``parent_pid`` is gone."""
+    set_progress_counter(counter)
+    exit_with_parent(parent_pid)
 
 
 def _needs_whole_run(summaries):

@@ -195,13 +195,69 @@ def test_a_run_killed_mid_bag_is_completed_by_the_next(tmp_path):
     while time.monotonic() < deadline and not any(
             name.endswith('.mcap') for _, _, names in os.walk(work) for name in names):
         time.sleep(0.02)
-    os.killpg(child.pid, signal.SIGKILL)  # the command and its workers, mid-bag
+    _kill_all_but_the_tracker(child.pid)  # the command and its workers, mid-bag
     child.wait()
     assert not (out / 'b0').exists() or not (out / 'b1').exists()
     summary = process_fleet([tmp_path / 'in'], out, 'rl15', QUIET, jobs=2, progress=False)
     assert summary.failed == 0
     for k in range(2):
         assert messages(out / f'b{k}') == serial(tmp_path / 'in' / f'b{k}', tmp_path / f's{k}')
+
+
+def _kill_all_but_the_tracker(pgid):
+    """
+    SIGKILL the process group ``pgid`` but multiprocessing's resource tracker.
+
+    The tracker outlives them and removes the pool's semaphores (``/dev/shm/sem.mp-*``);
+    killed too, it would leave them there, six a run.
+    """
+    for pid in os.listdir('/proc'):
+        if pid.isdigit():
+            try:
+                with open(f'/proc/{pid}/cmdline', 'rb') as stream:
+                    tracker = b'resource_tracker import main' in stream.read()
+                in_group = os.getpgid(int(pid)) == pgid
+            except OSError:
+                continue
+            if in_group and not tracker:
+                os.kill(int(pid), signal.SIGKILL)
+
+
+@pytest.mark.parametrize('how', ['pool', 'local'])
+def test_the_command_killed_alone_leaves_no_worker_behind(tmp_path, how):
+    """
+    SIGKILL to the command only (the OOM killer's choice, say): its workers follow it.
+
+    A pool worker waiting for work holds both ends of its queue's pipe, so it would wait for
+    ever; each watches its parent instead, and exits within a second of it.
+    """
+    rl15_bag(tmp_path / 'in' / 'b0', 40_000)
+    rl15_bag(tmp_path / 'in' / 'b1', 40_000, offset=0.1)
+    mark = f'dq_fk_orphan_test_{os.getpid()}_{how}'
+    out = tmp_path / 'out'
+    argv = executable('dq_fk_bag') + ['process', str(tmp_path / 'in'), '--output-dir',
+                                      str(out), '--robot', 'rl15', '--jobs', '2', '--quiet']
+    argv += ['--scheduler', 'local'] if how == 'local' else []
+    child = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL, env=dict(os.environ, DQ_FK_MARK=mark))
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not any(
+                name.endswith('.mcap') for _, _, names in os.walk(out / '.dq_fk_fleet' / 'work')
+                for name in names):
+            time.sleep(0.02)
+        workers = [pid for pid in _processes_marked(mark) if pid != child.pid]
+        os.kill(child.pid, signal.SIGKILL)
+        child.wait()
+        assert workers, 'no worker process seen'
+        deadline = time.monotonic() + 3.0
+        while _processes_marked(mark) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        left = _processes_marked(mark)
+    finally:
+        for pid in _processes_marked(mark):
+            os.kill(pid, signal.SIGKILL)
+    assert left == [], left
 
 
 def test_a_worker_killed_mid_bag_is_run_again(tmp_path, monkeypatch):
