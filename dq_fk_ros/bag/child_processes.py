@@ -155,8 +155,8 @@ def stop_children(timeout_s: float = 1.0, at_once: bool = False,
     whose start another thread has just finished; not multiprocessing's resource tracker,
     which ends by itself once they all have. It waits for a start under way to finish.
     ``at_once``: SIGKILL straight away (a Dask worker takes its time over a SIGTERM).
-    ``for_good``: no worker starts after this (a thread that tries waits for ever): for a
-    process about to exit.
+    ``for_good``: no worker starts after this (the main thread trying is told so in a
+    ``RuntimeError``, another thread waits for ever): for a process about to exit.
     """
     held = _START_LOCK.acquire(timeout=_LOCK_WAIT_S)
     try:
