@@ -182,6 +182,50 @@ def test_complete_outputs_are_skipped_and_changed_or_missing_ones_redone(tmp_pat
     assert [b.status for b in other.bags] == ['done'] * 3
 
 
+def _processes(test):
+    """Return the pids of the processes for which ``test(pid)`` holds (gone ones left out)."""
+    found = []
+    for name in os.listdir('/proc'):
+        if name.isdigit():
+            try:
+                if test(int(name)):
+                    found.append(int(name))
+            except (OSError, IndexError, ValueError):  # gone meanwhile
+                pass
+    return found
+
+
+def _proc(pid, what):
+    with open(f'/proc/{pid}/{what}', 'rb') as stream:
+        return stream.read()
+
+
+def _processes_marked(mark):
+    """Return the pids of the processes whose environment holds ``mark`` (left behind)."""
+    return _processes(lambda pid: mark.encode() in _proc(pid, 'environ'))
+
+
+def _spawned_by(parent):
+    """Return the pids of the processes ``parent`` started with multiprocessing's spawn."""
+    return _processes(lambda pid: b'spawn_main' in _proc(pid, 'cmdline') and int(
+        _proc(pid, 'stat').rsplit(b')', 1)[1].split()[1]) == parent)
+
+
+def _kill_all_but_the_tracker(pgid):
+    """
+    SIGKILL the process group ``pgid`` but multiprocessing's resource tracker.
+
+    The tracker outlives them and removes the pool's semaphores (``/dev/shm/sem.mp-*``);
+    killed too, it would leave them there, six a run.
+    """
+    for pid in _processes(lambda pid: os.getpgid(pid) == pgid and (
+            b'resource_tracker import main' not in _proc(pid, 'cmdline'))):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
 def test_a_run_killed_mid_bag_is_completed_by_the_next(tmp_path):
     for k in range(2):
         rl15_bag(tmp_path / 'in' / f'b{k}', 40_000, offset=0.1 * k)
@@ -202,25 +246,6 @@ def test_a_run_killed_mid_bag_is_completed_by_the_next(tmp_path):
     assert summary.failed == 0
     for k in range(2):
         assert messages(out / f'b{k}') == serial(tmp_path / 'in' / f'b{k}', tmp_path / f's{k}')
-
-
-def _kill_all_but_the_tracker(pgid):
-    """
-    SIGKILL the process group ``pgid`` but multiprocessing's resource tracker.
-
-    The tracker outlives them and removes the pool's semaphores (``/dev/shm/sem.mp-*``);
-    killed too, it would leave them there, six a run.
-    """
-    for pid in os.listdir('/proc'):
-        if pid.isdigit():
-            try:
-                with open(f'/proc/{pid}/cmdline', 'rb') as stream:
-                    tracker = b'resource_tracker import main' in stream.read()
-                in_group = os.getpgid(int(pid)) == pgid
-            except OSError:
-                continue
-            if in_group and not tracker:
-                os.kill(int(pid), signal.SIGKILL)
 
 
 @pytest.mark.parametrize('how', ['pool', 'local'])
@@ -416,20 +441,6 @@ def test_a_bag_named_twice_is_processed_once(tmp_path, capsys):
     assert messages(out / 'run') == serial(tmp_path / 'in' / 'run', tmp_path / 's')
 
 
-def _processes_marked(mark):
-    """Return the pids of the processes whose environment holds ``mark`` (left behind)."""
-    found = []
-    for pid in os.listdir('/proc'):
-        if pid.isdigit():
-            try:
-                with open(f'/proc/{pid}/environ', 'rb') as stream:
-                    if mark.encode() in stream.read():
-                        found.append(int(pid))
-            except OSError:
-                pass
-    return found
-
-
 def _mcap_bytes(folder):
     return {p.name: p.read_bytes() for p in sorted(folder.rglob('*.mcap'))}
 
@@ -512,23 +523,6 @@ if os.environ.pop('DQ_FK_SLOW_START', None):
         return pid
     util.spawnv_passfds = slow_spawnv_passfds
 """
-
-
-def _spawned_by(pid):
-    """Return the pids of the processes whose parent is ``pid`` and run multiprocessing's spawn."""
-    found = []
-    for child in os.listdir('/proc'):
-        if child.isdigit():
-            try:
-                with open(f'/proc/{child}/stat', 'rb') as stream:
-                    ppid = int(stream.read().rsplit(b')', 1)[1].split()[1])
-                with open(f'/proc/{child}/cmdline', 'rb') as stream:
-                    spawned = b'spawn_main' in stream.read()
-            except (OSError, IndexError, ValueError):
-                continue
-            if ppid == pid and spawned:
-                found.append(int(child))
-    return found
 
 
 @pytest.mark.parametrize('how', ['pool', 'local'])
