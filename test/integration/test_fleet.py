@@ -507,7 +507,7 @@ def test_a_signal_at_any_moment_exits_quietly_and_a_new_run_resumes(signal_fleet
 
 
 # Put on PYTHONPATH for the command alone (DQ_FK_SLOW_START set): every spawned worker's
-# process starts half a second before its start-up data is written to it (a busy machine's
+# process starts 0.3 s before its start-up data is written to it (a busy machine's
 # scheduling, made certain), so a signal lands in that gap
 SLOW_START = """
 import os
@@ -519,7 +519,7 @@ if os.environ.pop('DQ_FK_SLOW_START', None):
     def slow_spawnv_passfds(path, args, passfds):
         pid = spawnv_passfds(path, args, passfds)
         if any('spawn_main' in str(arg) for arg in args):
-            time.sleep(0.5)
+            time.sleep(0.3)
         return pid
     util.spawnv_passfds = slow_spawnv_passfds
 """
