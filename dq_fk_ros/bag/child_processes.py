@@ -75,15 +75,14 @@ def _guarded(launch):
 
     def guarded_launch(popen, process_obj):
         with _START_LOCK:
-            stopping = bool(_NO_MORE)
-            if not stopping:
+            if not _NO_MORE:
                 launch(popen, process_obj)
                 _STARTED.add(popen)
-        if stopping and threading.current_thread() is threading.main_thread():
+                return
+        if threading.current_thread() is threading.main_thread():
             raise RuntimeError('no worker process can start: an interrupted run stopped them '
                                'for good in this Python process; start a new one')
-        if stopping:
-            threading.Event().wait()
+        threading.Event().wait()
     guarded_launch.dq_fk_guarded = True
     return guarded_launch
 

@@ -226,6 +226,15 @@ def _kill_all_but_the_tracker(pgid):
             pass
 
 
+def _wait_for_work(out, timeout_s=60):
+    """Wait until a fleet writing ``out`` has an output bag under way (an MCAP in its work)."""
+    work = out / '.dq_fk_fleet' / 'work'
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and not any(
+            name.endswith('.mcap') for _, _, names in os.walk(work) for name in names):
+        time.sleep(0.02)
+
+
 def test_a_run_killed_mid_bag_is_completed_by_the_next(tmp_path):
     for k in range(2):
         rl15_bag(tmp_path / 'in' / f'b{k}', 40_000, offset=0.1 * k)
@@ -234,11 +243,7 @@ def test_a_run_killed_mid_bag_is_completed_by_the_next(tmp_path):
                                       str(out), '--robot', 'rl15', '--jobs', '2', '--quiet']
     child = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL)
-    work = out / '.dq_fk_fleet' / 'work'
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and not any(
-            name.endswith('.mcap') for _, _, names in os.walk(work) for name in names):
-        time.sleep(0.02)
+    _wait_for_work(out)
     _kill_all_but_the_tracker(child.pid)  # the command and its workers, mid-bag
     child.wait()
     assert not (out / 'b0').exists() or not (out / 'b1').exists()
@@ -266,11 +271,7 @@ def test_the_command_killed_alone_leaves_no_worker_behind(tmp_path, how):
     child = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL, env=dict(os.environ, DQ_FK_MARK=mark))
     try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not any(
-                name.endswith('.mcap') for _, _, names in os.walk(out / '.dq_fk_fleet' / 'work')
-                for name in names):
-            time.sleep(0.02)
+        _wait_for_work(out)
         workers = [pid for pid in _processes_marked(mark) if pid != child.pid]
         os.kill(child.pid, signal.SIGKILL)
         child.wait()
