@@ -33,7 +33,12 @@ SCREENSHOT_ENV = 'DQ_FK_VIEW_SCREENSHOT'  # also save the screenshot there (READ
 
 
 def start_view(processes, *args):
-    """Start dq_fk_view on a free port; return ``(process, base URL)`` once it listens."""
+    """
+    Start dq_fk_view on a free port; return ``(process, base URL)`` once it listens.
+
+    The lines printed before the address are kept as ``lines_before_open``: the robot's
+    description may arrive, and its problems be logged, before the server listens.
+    """
     proc = processes.start(executable('dq_fk_view') + ['--port', '0', *args])
     deadline = time.monotonic() + 20
     seen = []
@@ -43,6 +48,7 @@ def start_view(processes, *args):
             line = proc.stdout.readline()
             seen.append(line)
             if line.startswith('dq_fk_view: open '):
+                proc.lines_before_open = seen[:-1]  # (a mesh's problem may come first)
                 return proc, line.split('open ', 1)[1].strip().rstrip('/')
         if proc.poll() is not None:
             break

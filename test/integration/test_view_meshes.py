@@ -90,6 +90,8 @@ def read_lines(proc, seconds):
     """
     Return the lines a process prints within ``seconds`` (its merged stdout and stderr).
 
+    The first call also returns the lines start_view read before the view's address.
+
     One thread per process reads its lines (select on the pipe would miss a line that an
     earlier readline already took into the file object's buffer).
     """
@@ -99,6 +101,8 @@ def read_lines(proc, seconds):
     lines_queue = getattr(proc, 'lines_read', None)
     if lines_queue is None:
         lines_queue = proc.lines_read = queue.Queue()
+        for line in getattr(proc, 'lines_before_open', ()):  # read by start_view
+            lines_queue.put(line)
 
         def pump():
             for line in iter(proc.stdout.readline, ''):
