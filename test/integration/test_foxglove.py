@@ -8,14 +8,13 @@ byte for byte, and nothing else from the disk.
 """
 
 import os
-import select
-import time
 import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.meshes import visual_mesh_uris
 from dq_fk_ros.ros.executables import executable
 from foxglove_client import FoxgloveClient, wait
 from geometry_msgs.msg import PoseStamped
+from process_lines import process_lines
 import pytest
 from ros_harness import node_topic, start, TF_STATIC_QOS
 from tf2_msgs.msg import TFMessage
@@ -27,18 +26,11 @@ pytestmark = pytest.mark.integration
 def start_foxglove(processes, *args):
     """Start dq_fk_foxglove on a free port; return ``(process, ws:// URL)`` once it listens."""
     proc = start(processes, 'dq_fk_foxglove', options=['--port', '0', *args])
-    deadline = time.monotonic() + 30
-    seen = []
-    while time.monotonic() < deadline:
-        ready, _, _ = select.select([proc.stdout], [], [], 0.2)
-        if ready:
-            line = proc.stdout.readline()
-            seen.append(line)
-            if 'Foxglove WebSocket > ' in line:
-                return proc, line.rsplit('> ', 1)[1].strip()
-        if proc.poll() is not None:
-            break
-    raise AssertionError(f'dq_fk_foxglove did not start: {"".join(seen)}')
+    reader = process_lines(proc)
+    line = reader.until(lambda text: 'Foxglove WebSocket > ' in text, timeout_s=30)
+    if line is None:
+        raise AssertionError(f'dq_fk_foxglove did not start: {"".join(reader.lines)}')
+    return proc, line.rsplit('> ', 1)[1].strip()
 
 
 def transforms_of_proto(message):
@@ -281,8 +273,13 @@ def test_bad_clients_cannot_stop_the_server_or_grow_it(processes, listener):
         bad[3].send({'op': 'subscribe', 'subscriptions': [
             {'id': k, 'channelId': channel} for k in range(5000)]})
         for k in range(2000):  # thousands of subscribes (one took over 10 s in a loaded run)
-            bad[4].send({'op': 'subscribe', 'subscriptions': [{'id': 10_000 + k,
-                                                               'channelId': channel}]}, 60)
+            try:
+                bad[4].send({'op': 'subscribe', 'subscriptions': [{'id': 10_000 + k,
+                                                                   'channelId': channel}]}, 60)
+            except ConnectionResetError:
+                # the SDK drops a client whose control queue (a status reply per refused
+                # subscribe) fills faster than it reads: a way to survive it, not a failure
+                break
         slow += [FoxgloveClient(url) for _ in range(3)]     # readers that never read
         for s in slow:
             s.subscribe('/tf', '/joint_states')

@@ -9,7 +9,6 @@ Selenium and compared with the core FK of the published joints.
 import asyncio
 import json
 import os
-import select
 import shutil
 import time
 import xml.etree.ElementTree as ElementTree
@@ -21,6 +20,7 @@ from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 from dq_fk_ros.ros.executables import executable
 import homogeneous_tf as htf
 import numpy as np
+from process_lines import process_lines
 import pytest
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -33,26 +33,13 @@ SCREENSHOT_ENV = 'DQ_FK_VIEW_SCREENSHOT'  # also save the screenshot there (READ
 
 
 def start_view(processes, *args):
-    """
-    Start dq_fk_view on a free port; return ``(process, base URL)`` once it listens.
-
-    The lines printed before the address are kept as ``lines_before_open``: the robot's
-    description may arrive, and its problems be logged, before the server listens.
-    """
+    """Start dq_fk_view on a free port; return ``(process, base URL)`` once it listens."""
     proc = processes.start(executable('dq_fk_view') + ['--port', '0', *args])
-    deadline = time.monotonic() + 20
-    seen = []
-    while time.monotonic() < deadline:
-        ready, _, _ = select.select([proc.stdout], [], [], 0.2)
-        if ready:
-            line = proc.stdout.readline()
-            seen.append(line)
-            if line.startswith('dq_fk_view: open '):
-                proc.lines_before_open = seen[:-1]  # (a mesh's problem may come first)
-                return proc, line.split('open ', 1)[1].strip().rstrip('/')
-        if proc.poll() is not None:
-            break
-    raise AssertionError(f'dq_fk_view did not start: {"".join(seen)}')
+    reader = process_lines(proc)  # keeps what comes before the address (a mesh's problem)
+    line = reader.until(lambda text: text.startswith('dq_fk_view: open '), timeout_s=20)
+    if line is None:
+        raise AssertionError(f'dq_fk_view did not start: {"".join(reader.lines)}')
+    return proc, line.split('open ', 1)[1].strip().rstrip('/')
 
 
 def wait_for(driver, script, timeout_s=20.0):

@@ -19,6 +19,7 @@ from dq_fk_ros.description.shipped import shipped_robot_path
 import homogeneous_tf as htf
 import numpy as np
 import pinocchio_oracle as oracle
+from process_lines import process_lines
 import pytest
 from ros_harness import set_robot_file, start
 from test_view import start_view, wait_for
@@ -87,36 +88,8 @@ def show(processes, urdf_path, *view_args, positions=None):
 
 
 def read_lines(proc, seconds):
-    """
-    Return the lines a process prints within ``seconds`` (its merged stdout and stderr).
-
-    The first call also returns the lines start_view read before the view's address.
-
-    One thread per process reads its lines (select on the pipe would miss a line that an
-    earlier readline already took into the file object's buffer).
-    """
-    import queue
-    import threading
-    import time
-    lines_queue = getattr(proc, 'lines_read', None)
-    if lines_queue is None:
-        lines_queue = proc.lines_read = queue.Queue()
-        for line in getattr(proc, 'lines_before_open', ()):  # read by start_view
-            lines_queue.put(line)
-
-        def pump():
-            for line in iter(proc.stdout.readline, ''):
-                lines_queue.put(line)
-        threading.Thread(target=pump, daemon=True).start()
-    lines, deadline = [], time.monotonic() + seconds
-    while True:
-        left = deadline - time.monotonic()
-        if left <= 0:
-            return lines
-        try:
-            lines.append(lines_queue.get(timeout=left))
-        except queue.Empty:
-            return lines
+    """Return the lines ``proc`` printed that no earlier call returned, waiting ``seconds``."""
+    return process_lines(proc).new_lines(seconds)
 
 
 def robot_pixels(browser, tmp_path, name):
