@@ -6,11 +6,16 @@ The fenced blocks marked ``sh`` are the runnable ones: each runs as one bash scr
 Makefile's own (``make test`` runs this test) and are left out. Blocks marked ``python``
 run with the set-up's Python, in file order after the shell blocks before them. Other
 blocks (``text``, ``yaml``, output) are not commands.
+
+Two things are changed before a block runs, so that it touches nothing of another run or of
+the user: ``/tmp/`` becomes a scratch folder of this run (the same for every block: they
+chain), and the Dask scheduler's port 8799 a free port.
 """
 
 import glob
 import os
 import re
+import socket
 import subprocess
 
 import pytest
@@ -42,8 +47,36 @@ def test_the_docs_have_python_examples():
     assert len([p for p, _ in EXAMPLES if p.endswith(':python')]) >= 2
 
 
+DOCS_PORT = '8799'  # the scheduler's port in the README
+
+
+@pytest.fixture(scope='module')
+def private_places(tmp_path_factory):
+    """Return ``(scratch folder, free port)``: where this run's examples put ``/tmp/``, 8799."""
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        port = probe.getsockname()[1]
+    return str(tmp_path_factory.mktemp('docs_tmp')), str(port)
+
+
+def made_private(script, scratch, port):
+    """Return ``script`` with ``/tmp/`` in ``scratch`` and the port 8799 as ``port``."""
+    script = script.replace('/tmp/', scratch.rstrip('/') + '/')
+    return re.sub(rf'(?<=[ :]){DOCS_PORT}\b', port, script)
+
+
+def test_made_private_moves_every_place_of_the_readme_fleet_example():
+    script = next(s for _, s in EXAMPLES if DOCS_PORT in s)
+    private = made_private(script, '/x/run', '40001')
+    assert DOCS_PORT not in private and '/tmp/' not in private
+    assert '--port 40001 ' in private and 'tcp://127.0.0.1:40001 ' in private
+    assert '/x/run/fleet_in ' in private
+
+
 @pytest.mark.parametrize('place, script', EXAMPLES, ids=[place for place, _ in EXAMPLES])
-def test_a_shell_example_runs_as_written(place, script, ros_domain_id, tmp_path):
+def test_a_shell_example_runs_as_written(place, script, ros_domain_id, tmp_path,
+                                         private_places):
+    script = made_private(script, *private_places)
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', HOME=str(tmp_path))
     if place.endswith(':python'):
         command = [os.path.join(ROOT, '.venv', 'bin', 'python'), '-c', script]
