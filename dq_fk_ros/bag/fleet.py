@@ -427,8 +427,11 @@ def _dask_client(scheduler, jobs):
                        "(or pip install 'dask[distributed]')") from None
     if scheduler == 'local':
         def make():  # its threads and workers never see the terminal's Ctrl-C: we stop them
+            # the scheduler serves HTTP (health, metrics) even without a dashboard, on 8787
+            # unless told: a free loopback port (8787 taken printed a UserWarning)
             made = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                                dashboard_address=None, host='127.0.0.1')
+                                dashboard_address=None, host='127.0.0.1',
+                                scheduler_kwargs={'dashboard_address': '127.0.0.1:0'})
             _LOCAL_CLUSTERS.append(made)
             return made, Client(made)
         try:

@@ -9,15 +9,19 @@ blocks (``text``, ``yaml``, output) are not commands.
 
 Two things are changed before a block runs, so that it touches nothing of another run or of
 the user: ``/tmp/`` becomes a scratch folder of this run (the same for every block: they
-chain), and the Dask scheduler's port 8799 a free port.
+chain), and the Dask scheduler's port 8799 a free port. While a block runs, every TCP port
+it or a process it starts listens on must be on loopback.
 """
 
 import glob
 import os
 import re
+import signal
 import socket
 import subprocess
+import time
 
+from proc_table import in_session, listening
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -85,7 +89,21 @@ def test_a_shell_example_runs_as_written(place, script, ros_domain_id, tmp_path,
         if not any(line.strip() for line in lines):
             return  # a block of make commands only: the Makefile's own (CI runs them)
         command = ['bash', '-c', 'set -e\n' + '\n'.join(lines)]
-    run = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True,
-                         timeout=180)
-    assert run.returncode == 0, f'{place}: exit {run.returncode}\n{run.stdout[-2000:]}\n' \
-                                f'{run.stderr[-2000:]}'
+    with open(tmp_path / 'stdout', 'w+') as out, open(tmp_path / 'stderr', 'w+') as err:
+        run = subprocess.Popen(command, cwd=ROOT, env=env, stdout=out, stderr=err,
+                               start_new_session=True)
+        seen, deadline = set(), time.monotonic() + 180
+        try:  # what it and everything it starts listen on, while it runs
+            while run.poll() is None and time.monotonic() < deadline:
+                seen |= listening(in_session(run.pid))
+                time.sleep(0.05)
+        finally:
+            if run.poll() is None:
+                os.killpg(run.pid, signal.SIGKILL)
+            run.wait()
+        out.seek(0)
+        err.seek(0)
+        stdout, stderr = out.read(), err.read()
+    assert run.returncode == 0, f'{place}: exit {run.returncode}\n{stdout[-2000:]}\n' \
+                                f'{stderr[-2000:]}'
+    assert all(address == '0100007F' for address, _ in seen), (place, seen)

@@ -20,6 +20,7 @@ from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.ros.executables import executable
 import numpy as np
+from proc_table import in_session, listening, proc_file, processes
 import pytest
 from rosbags.rosbag2 import Reader
 from test_bag import js_bytes, NAMES, T0, trajectory, write_bag
@@ -182,33 +183,15 @@ def test_complete_outputs_are_skipped_and_changed_or_missing_ones_redone(tmp_pat
     assert [b.status for b in other.bags] == ['done'] * 3
 
 
-def _processes(test):
-    """Return the pids of the processes for which ``test(pid)`` holds (gone ones left out)."""
-    found = []
-    for name in os.listdir('/proc'):
-        if name.isdigit():
-            try:
-                if test(int(name)):
-                    found.append(int(name))
-            except (OSError, IndexError, ValueError):  # gone meanwhile
-                pass
-    return found
-
-
-def _proc(pid, what):
-    with open(f'/proc/{pid}/{what}', 'rb') as stream:
-        return stream.read()
-
-
 def _processes_marked(mark):
     """Return the pids of the processes whose environment holds ``mark`` (left behind)."""
-    return _processes(lambda pid: mark.encode() in _proc(pid, 'environ'))
+    return processes(lambda pid: mark.encode() in proc_file(pid, 'environ'))
 
 
 def _spawned_by(parent):
     """Return the pids of the processes ``parent`` started with multiprocessing's spawn."""
-    return _processes(lambda pid: b'spawn_main' in _proc(pid, 'cmdline') and int(
-        _proc(pid, 'stat').rsplit(b')', 1)[1].split()[1]) == parent)
+    return processes(lambda pid: b'spawn_main' in proc_file(pid, 'cmdline') and int(
+        proc_file(pid, 'stat').rsplit(b')', 1)[1].split()[1]) == parent)
 
 
 def _kill_all_but_the_tracker(pgid):
@@ -218,8 +201,8 @@ def _kill_all_but_the_tracker(pgid):
     The tracker outlives them and removes the pool's semaphores (``/dev/shm/sem.mp-*``);
     killed too, it would leave them there, six a run.
     """
-    for pid in _processes(lambda pid: os.getpgid(pid) == pgid and (
-            b'resource_tracker import main' not in _proc(pid, 'cmdline'))):
+    for pid in processes(lambda pid: os.getpgid(pid) == pgid and (
+            b'resource_tracker import main' not in proc_file(pid, 'cmdline'))):
         try:
             os.kill(pid, signal.SIGKILL)
         except ProcessLookupError:
@@ -233,6 +216,35 @@ def _wait_for_work(out, timeout_s=60):
     while time.monotonic() < deadline and not any(
             name.endswith('.mcap') for _, _, names in os.walk(work) for name in names):
         time.sleep(0.02)
+
+
+def test_a_local_cluster_listens_on_loopback_only_and_on_no_fixed_port(tmp_path):
+    """Dask's scheduler serves HTTP on 8787 unless told: held here, that printed a warning."""
+    import socket
+    for k in range(2):
+        rl15_bag(tmp_path / 'in' / f'b{k}', 40_000, offset=0.1 * k)
+    holder = socket.socket()
+    try:
+        holder.bind(('127.0.0.1', 8787))  # (if another program has it: taken all the same)
+        holder.listen()
+    except OSError:
+        pass
+    try:
+        child = subprocess.Popen(
+            executable('dq_fk_bag') + ['process', str(tmp_path / 'in'), '--output-dir',
+                                       str(tmp_path / 'out'), '--robot', 'rl15', '--jobs', '2',
+                                       '--scheduler', 'local', '--quiet'],
+            start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+        seen = set()
+        while child.poll() is None:
+            seen |= listening(in_session(child.pid))
+            time.sleep(0.05)
+        output = child.stdout.read().decode()
+    finally:
+        holder.close()
+    assert child.returncode == 0 and 'Warning' not in output, output
+    assert seen and all(address == '0100007F' for address, _ in seen), seen
+    assert 8787 not in {port for _, port in seen}
 
 
 def test_a_run_killed_mid_bag_is_completed_by_the_next(tmp_path):

@@ -14,6 +14,7 @@ from dq_fk_ros.description.meshes import visual_mesh_uris
 from dq_fk_ros.ros.executables import executable
 from foxglove_client import FoxgloveClient, wait
 from geometry_msgs.msg import PoseStamped
+from proc_table import listening
 from process_lines import process_lines
 import pytest
 from ros_harness import node_topic, start, TF_STATIC_QOS
@@ -309,12 +310,9 @@ def test_without_the_sdk_it_says_how_to_get_it(processes, tmp_path):
 
 
 def test_it_listens_on_loopback_only_by_default(processes):
-    _, url = start_foxglove(processes)
+    proc, url = start_foxglove(processes)
     port = int(url.rsplit(':', 1)[1])
-    with open('/proc/net/tcp') as table:
-        listening = [line.split()[1] for line in table.readlines()[1:]
-                     if line.split()[3] == '0A' and line.split()[1].endswith(f':{port:04X}')]
-    assert listening == [f'0100007F:{port:04X}']
+    assert listening([proc.pid]) == {('0100007F', port)}  # and on nothing else
 
 
 def test_ctrl_c_while_the_server_starts_is_a_quiet_stop(monkeypatch, capsys):

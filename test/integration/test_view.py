@@ -20,6 +20,7 @@ from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 from dq_fk_ros.ros.executables import executable
 import homogeneous_tf as htf
 import numpy as np
+from proc_table import listening
 from process_lines import process_lines
 import pytest
 from rclpy.parameter import Parameter
@@ -152,7 +153,7 @@ async def _status(session, url):
 
 def test_the_server_with_many_rude_and_early_clients(processes, listener):
     import aiohttp
-    _, url = start_view(processes)
+    view, url = start_view(processes)
     port = int(url.rsplit(':', 1)[1])
 
     async def scenario():
@@ -201,11 +202,7 @@ def test_the_server_with_many_rude_and_early_clients(processes, listener):
                 await ws.close()
 
     asyncio.run(scenario())
-    # it listens on the loopback address only
-    with open('/proc/net/tcp', encoding='ascii') as table:
-        listening = [line.split()[1] for line in table.readlines()[1:]
-                     if line.split()[3] == '0A' and line.split()[1].endswith(f':{port:04X}')]
-    assert listening == [f'0100007F:{port:04X}']
+    assert listening([view.pid]) == {('0100007F', port)}  # loopback only, nothing else
 
 
 def test_a_bag_played_into_the_node_drives_the_view(processes, tmp_path):
