@@ -229,19 +229,21 @@ def test_a_local_cluster_listens_on_loopback_only_and_on_no_fixed_port(tmp_path)
         holder.listen()
     except OSError:
         pass
+    child = subprocess.Popen(
+        executable('dq_fk_bag') + ['process', str(tmp_path / 'in'), '--output-dir',
+                                   str(tmp_path / 'out'), '--robot', 'rl15', '--jobs', '2',
+                                   '--scheduler', 'local', '--quiet'],
+        start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    seen, deadline = set(), time.monotonic() + 120
     try:
-        child = subprocess.Popen(
-            executable('dq_fk_bag') + ['process', str(tmp_path / 'in'), '--output-dir',
-                                       str(tmp_path / 'out'), '--robot', 'rl15', '--jobs', '2',
-                                       '--scheduler', 'local', '--quiet'],
-            start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-        seen = set()
-        while child.poll() is None:
+        while child.poll() is None and time.monotonic() < deadline:
             seen |= listening(in_session(child.pid))
             time.sleep(0.05)
-        output = child.stdout.read().decode()
     finally:
         holder.close()
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGKILL)
+        output = child.communicate()[0].decode()
     assert child.returncode == 0 and 'Warning' not in output, output
     assert seen and all(address == '0100007F' for address, _ in seen), seen
     assert 8787 not in {port for _, port in seen}
