@@ -23,8 +23,9 @@ def proc_file(pid, what):
 
 
 def in_session(sid):
-    """Return the pids of the processes of the session ``sid`` (started with a new session)."""
-    return processes(lambda pid: os.getsid(pid) == sid)
+    """Return the live processes of the session ``sid`` (a test started it in a new one)."""
+    return processes(lambda pid: os.getsid(pid) == sid and proc_file(
+        pid, 'stat').rsplit(b')', 1)[1].split()[0] != b'Z')  # (a zombie is gone, unreaped)
 
 
 def listening(pids):

@@ -77,6 +77,24 @@ def test_made_private_moves_every_place_of_the_readme_fleet_example():
     assert '/x/run/fleet_in ' in private
 
 
+def stop_left_behind(session, grace_s=10.0):
+    """
+    Stop what a block left running when a line of it failed (``dask worker ... &``).
+
+    SIGTERM first, so that multiprocessing's resource tracker removes its semaphores from
+    /dev/shm; SIGKILL what is still there after ``grace_s``.
+    """
+    deadline = time.monotonic() + grace_s
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for pid in in_session(session):
+            try:
+                os.kill(pid, sig)
+            except ProcessLookupError:
+                pass
+        while in_session(session) and time.monotonic() < deadline:
+            time.sleep(0.05)
+
+
 @pytest.mark.parametrize('place, script', EXAMPLES, ids=[place for place, _ in EXAMPLES])
 def test_a_shell_example_runs_as_written(place, script, ros_domain_id, tmp_path,
                                          private_places):
@@ -101,6 +119,7 @@ def test_a_shell_example_runs_as_written(place, script, ros_domain_id, tmp_path,
             if run.poll() is None:
                 os.killpg(run.pid, signal.SIGKILL)
             run.wait()
+            stop_left_behind(run.pid)
         out.seek(0)
         err.seek(0)
         stdout, stderr = out.read(), err.read()
