@@ -22,10 +22,14 @@ def proc_file(pid, what):
         return stream.read()
 
 
+def proc_stat(pid):
+    """Return the fields of ``/proc/<pid>/stat`` after the command's name: state, ppid, ..."""
+    return proc_file(pid, 'stat').rsplit(b')', 1)[1].split()
+
+
 def in_session(sid):
     """Return the live processes of the session ``sid`` (a test started it in a new one)."""
-    return processes(lambda pid: os.getsid(pid) == sid and proc_file(
-        pid, 'stat').rsplit(b')', 1)[1].split()[0] != b'Z')  # (a zombie is gone, unreaped)
+    return processes(lambda pid: os.getsid(pid) == sid and proc_stat(pid)[0] != b'Z')
 
 
 def listening(pids):

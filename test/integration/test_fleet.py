@@ -20,7 +20,7 @@ from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.ros.executables import executable
 import numpy as np
-from proc_table import in_session, listening, proc_file, processes
+from proc_table import in_session, listening, proc_file, proc_stat, processes
 import pytest
 from rosbags.rosbag2 import Reader
 from test_bag import js_bytes, NAMES, T0, trajectory, write_bag
@@ -191,7 +191,7 @@ def _processes_marked(mark):
 def _spawned_by(parent):
     """Return the pids of the processes ``parent`` started with multiprocessing's spawn."""
     return processes(lambda pid: b'spawn_main' in proc_file(pid, 'cmdline') and int(
-        proc_file(pid, 'stat').rsplit(b')', 1)[1].split()[1]) == parent)
+        proc_stat(pid)[1]) == parent)
 
 
 def _kill_all_but_the_tracker(pgid):
