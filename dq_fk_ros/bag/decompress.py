@@ -82,8 +82,15 @@ def bound_rosbags(ros1: bool = False) -> None:
     chunk raises inside rosbags' reading, and the bag is read again record by record,
     skipping that chunk. The ROS 1 reader is bounded by the ROS 1 adapter, which alone
     imports it (a rosbag2 command does not load it).
+
+    Its rosbag2 storages parse each topic's ``offered_qos_profiles`` text with ruamel, whose
+    C composer recurses (a few KiB of ``[[[`` crash the process): they are given
+    :func:`bounded_parse_qos`, which refuses text over the bounds of
+    :func:`~dq_fk_ros.bag.rosbag2_metadata.parse_qos` first (rosbags' ``ReaderError``).
     """
-    from rosbags.rosbag2 import storage_mcap
+    from rosbags.rosbag2 import reader, storage_mcap, storage_sqlite3
+    for module in (reader, storage_mcap, storage_sqlite3):
+        module.parse_qos = bounded_parse_qos
     for name in ('zstd', 'lz4'):
         storage_mcap.DECOMPRESSORS[name] = \
             lambda data, size, name=name: decompress_chunk(data, name, size)
@@ -93,4 +100,18 @@ def bound_rosbags(ros1: bool = False) -> None:
             ros1_reader.decompressors[name] = lambda data, name=name: _within_limit(data, name)
 
 
-__all__ = ['bound_rosbags', 'ChunkRefused', 'decompress_chunk', 'MAX_CHUNK_BYTES']
+def bounded_parse_qos(profiles):
+    """rosbags' ``parse_qos``, after text over the QoS bounds is refused (ReaderError)."""
+    from dq_fk_ros.bag.rosbag2_metadata import check_qos_text
+    from dq_fk_ros.description.yaml_bounds import YamlTooLarge
+    from rosbags.rosbag2.errors import ReaderError
+    from rosbags.rosbag2.metadata import parse_qos
+    if isinstance(profiles, str):
+        try:
+            check_qos_text(profiles)
+        except YamlTooLarge as exc:
+            raise ReaderError(str(exc)) from None
+    return parse_qos(profiles)
+
+
+__all__ = ['bound_rosbags', 'bounded_parse_qos', 'ChunkRefused', 'decompress_chunk', 'MAX_CHUNK_BYTES']

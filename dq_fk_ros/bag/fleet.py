@@ -167,15 +167,15 @@ def _plan(bag, work, spec, options):
                  options)
     try:
         reader = open_reader(bag.path)
-    except BagError:
-        return [whole]  # the worker reports why, as the one-bag command does
+    except Exception:   # one bag's problem never ends a fleet: its worker reports it, as
+        return [whole]  # the one-bag command does
     try:
         if not reader.windowable or options.copy_input:
             return [whole]
         conns = joint_state_connections(reader, bag.path, options.topic)
         messages = sum(c.msgcount for c in conns)
         return [replace(whole, messages=messages, window=_WholeBag(conns[0].topic))]
-    except BagError:
+    except Exception:
         return [whole]
     finally:
         reader.close()
@@ -223,7 +223,10 @@ class _Runner:
         count = unit.messages // size
         if self.workers < 2 or count < 2:
             return [whole]
-        counts = chunk_counts(unit.path, unit.window.topic)
+        try:
+            counts = chunk_counts(unit.path, unit.window.topic)
+        except Exception:   # read again by its worker, which reports what it finds
+            counts = None
         if counts is None:
             return [whole]
         windows = plan_windows(counts, count)
@@ -372,7 +375,7 @@ class _Runner:
             else:
                 joined = results[0].unit.output
             counts = self.state.place(name, report.input, joined, report.output)
-        except (OSError, BagError) as exc:
+        except Exception as exc:   # (OSError, BagError, a damaged part's metadata)
             report.problems = [f'{report.output}: cannot be put in place ({one_line(exc)})']
             shutil.rmtree(work, ignore_errors=True)
             return

@@ -26,6 +26,7 @@ import struct
 import time
 
 from dq_fk_ros.bag.join import topic_counts
+from dq_fk_ros.bag.reader_interface import check_bag_files
 from dq_fk_ros.errors import BagError
 
 STATE = '.dq_fk_fleet'
@@ -76,6 +77,7 @@ def manifest_bags(text: bytes) -> dict | None:
 def input_fingerprint(path) -> dict:
     """Return the files (name, size, mtime in ns) of a bag and a hash of their summaries."""
     path = os.fspath(path)
+    check_bag_files(path)   # (a FIFO would block the read below for ever)
     if os.path.isdir(path):
         names = sorted(n for n in os.listdir(path) if os.path.isfile(os.path.join(path, n)))
         files = [os.path.join(path, n) for n in names]
@@ -119,6 +121,26 @@ def options_fingerprint(spec, options) -> str:
     return digest.hexdigest()
 
 
+def _open_lock(path) -> int:
+    """
+    Open (or make) the lock file ``path``; return its descriptor.
+
+    Never through a symbolic link, never truncating, never a FIFO or device (``O_NOFOLLOW``,
+    no ``O_TRUNC``, ``O_NONBLOCK``, then ``fstat``): a link planted as the lock would have
+    made the run empty the file it names. Raises :class:`~dq_fk_ros.errors.BagError`.
+    """
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK
+                     | os.O_CLOEXEC, 0o644)
+    except OSError as exc:
+        raise BagError(f'{path}: cannot be the lock ({exc.strerror}: a symbolic link or '
+                       f'not a file?); remove it') from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise BagError(f'{path}: not a regular file; remove it')
+    return fd
+
+
 class FleetState:
     """The state folder of an output folder: lock, manifest, work folders (a context)."""
 
@@ -139,11 +161,11 @@ class FleetState:
             raise BagError(f'{self.folder}: not a folder of this fleet (a link or a file); '
                            f'remove it or choose another --output-dir')
         os.makedirs(self.folder, exist_ok=True)
-        self._lock = open(os.path.join(self.folder, 'lock'), 'w')
+        self._lock = _open_lock(os.path.join(self.folder, 'lock'))
         try:
             fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            self._lock.close()
+            os.close(self._lock)
             raise BagError(f'{self.output_dir}: another dq_fk_bag run is writing this output '
                            f'folder') from None
         shutil.rmtree(self.work, ignore_errors=True)
@@ -176,7 +198,7 @@ class FleetState:
     def __exit__(self, *exc):
         """Remove the work folders and release the lock."""
         shutil.rmtree(self.work, ignore_errors=True)
-        self._lock.close()
+        os.close(self._lock)
 
     def complete(self, name, input_path, output) -> bool:
         """Say whether ``name``'s output is complete for this input, robot and options."""
@@ -187,7 +209,7 @@ class FleetState:
             return (entry.get('input') == input_fingerprint(input_path)
                     and os.path.isdir(output) and not os.path.islink(output)
                     and topic_counts(output) == entry.get('output'))
-        except (OSError, ValueError, KeyError, TypeError, BagError):  # damaged: redone
+        except Exception:  # damaged (OSError, BagError, a malformed entry...): redone
             return False
 
     def work_folder(self, name) -> str:

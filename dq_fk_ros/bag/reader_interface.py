@@ -8,6 +8,7 @@ registry of formats that picks one (:mod:`dq_fk_ros.bag.reading`) imports them.
 from dataclasses import dataclass
 import os
 import re
+import stat
 from typing import Iterator, Optional, Protocol, runtime_checkable, Sequence
 
 import numpy as np
@@ -114,6 +115,34 @@ def batch_of(ids, log_times, raws) -> MessageBatch:
     np.cumsum(lengths[:-1], out=starts[1:])
     return MessageBatch(np.array(ids, np.int64), np.array(log_times, np.int64),
                         b''.join(raws), starts, lengths)
+
+
+def check_bag_files(path) -> None:
+    """
+    Refuse a bag that is, or holds, something other than regular files (one-line BagError).
+
+    A FIFO or device named like a bag file (or ``metadata.yaml``) would block every reader
+    that opens it, for ever; links are followed (a link to a bag file is a bag file).
+    """
+    from dq_fk_ros.errors import BagError
+    path = os.fspath(path)
+    try:
+        mode = os.stat(path).st_mode
+        names = sorted(os.listdir(path)) if stat.S_ISDIR(mode) else None
+    except OSError as exc:
+        raise BagError(f'{path}: cannot be read ({exc.strerror})') from None
+    if names is None:
+        if not stat.S_ISREG(mode):
+            raise BagError(f'{path}: not a regular file (a FIFO or a device); a bag is files')
+        return
+    for name in names:
+        inner = os.path.join(path, name)
+        try:
+            mode = os.stat(inner).st_mode
+        except OSError:
+            continue    # a dangling link: the readers say so if they need it
+        if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+            raise BagError(f'{inner}: not a regular file (a FIFO or a device); a bag is files')
 
 
 def mcap_folder_files(folder) -> list:

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import os
 from typing import Callable, Optional
 
-from dq_fk_ros.bag.reader_interface import BagReader, JOINT_STATE, mcap_folder_files
+from dq_fk_ros.bag.reader_interface import (
+    BagReader, check_bag_files, JOINT_STATE, mcap_folder_files)
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.errors import BagDamaged, BagError
 
@@ -99,11 +100,13 @@ def open_reader(path, reference=False) -> BagReader:
     recording that did not stop cleanly), one whose MCAP summary fails its CRC, and a bare
     ``.mcap`` file are read record by record, skipping damaged chunks; the reader's ``note``
     says so and its ``damage`` what was skipped. A ROS 1 ``.bag`` file is read with rosbags
-    and its JointStates converted to ROS 2 CDR. Raises :class:`BagError`.
+    and its JointStates converted to ROS 2 CDR. A bag that is or holds a FIFO or device
+    is refused before anything is opened (:func:`check_bag_files`). Raises :class:`BagError`.
     """
     path = os.fspath(path)
     if not os.path.lexists(path):
         raise BagError(f'{path}: no such bag')
+    check_bag_files(path)
     fmt = bag_format(path)
     return (fmt.reference if reference and fmt.reference else fmt.opener)(path)
 

@@ -16,6 +16,7 @@ the caller opens the folder with rosbags, which says what is wrong, as before.
 
 import os
 
+from dq_fk_ros.description.yaml_bounds import check_yaml_text, YamlTooLarge
 from dq_fk_ros.errors import BagError
 from rosbags.interfaces import (
     Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat, Qos,
@@ -25,6 +26,8 @@ import yaml
 MAX_METADATA_BYTES = 16 << 20   # a larger metadata.yaml is refused (rosbag2's: kilobytes)
 MAX_TOPICS = 10_000             # topics a metadata.yaml may list (rosbag2's list tens)
 MAX_QOS_PROFILES = 64           # offered QoS profiles a topic may list (rosbag2's: one)
+QOS_DEPTH = 8                   # nesting of QoS text (rosbag2's: 3, a list of maps of maps)
+QOS_NODES = 64                  # nodes a QoS profile may have (rosbag2's: 25)
 VERSION = 9                     # the version written (rosbags' latest; Jazzy's rosbag2)
 _LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 _DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
@@ -51,6 +54,10 @@ def read_information(folder: str) -> dict:
         raise BagError(f'{path}: larger than {MAX_METADATA_BYTES >> 20} MiB; a rosbag2 '
                        f'metadata.yaml is read up to that')
     try:
+        check_yaml_text(text, path)
+    except YamlTooLarge as exc:   # before any loader: ours and rosbags' recurse in C
+        raise BagError(str(exc)) from None
+    try:
         document = yaml.load(text, Loader=_LOADER)
     except (yaml.YAMLError, ValueError, RecursionError) as exc:
         raise NotTaken(f'{path}: {type(exc).__name__}') from None
@@ -67,7 +74,8 @@ def check_bounds(info: dict, folder: str) -> None:
 
     Raises :class:`~dq_fk_ros.errors.BagError` (one line): at most :data:`MAX_TOPICS` topics
     and :data:`MAX_QOS_PROFILES` profiles a topic (YAML aliases make a small file list
-    millions; rosbags would make a connection of each). :func:`read_information` calls it:
+    millions; rosbags would make a connection of each), QoS text within the bounds of
+    :func:`check_qos_text`. :func:`read_information` calls it:
     a folder is read once here, before either reader.
     """
     topics = info.get('topics_with_message_count')
@@ -80,6 +88,11 @@ def check_bounds(info: dict, folder: str) -> None:
         if isinstance(profiles, list) and len(profiles) > MAX_QOS_PROFILES:
             raise BagError(f'{folder}: metadata.yaml lists {len(profiles)} QoS profiles; a '
                            f'bag is read with at most {MAX_QOS_PROFILES} a topic')
+        if isinstance(profiles, str):   # (version 8: YAML text in the YAML)
+            try:
+                check_qos_text(profiles)
+            except YamlTooLarge as exc:
+                raise BagError(f'{folder}: metadata.yaml: {exc}') from None
 
 
 def _field(mapping, key, kind, default=None):
@@ -179,11 +192,20 @@ def parse_qos(profiles) -> list:
     Return rosbags ``Qos`` tuples of ``offered_qos_profiles`` (a list, or YAML text: v8).
 
     rosbags' ``parse_qos``: an unknown policy reads as UNKNOWN; a missing depth, time or
-    flag raises KeyError.
+    flag raises KeyError. Text nested deeper than a profile list or standing for more than
+    :data:`MAX_QOS_PROFILES` profiles' nodes (aliases expanded) raises
+    :class:`~dq_fk_ros.description.yaml_bounds.YamlTooLarge` before it is loaded.
     """
     if not profiles:
         return []
-    items = yaml.load(profiles, Loader=_LOADER) if isinstance(profiles, str) else profiles
+    if isinstance(profiles, str):
+        check_qos_text(profiles)
+        items = yaml.load(profiles, Loader=_LOADER)
+    else:
+        items = profiles
+    if not isinstance(items, list) or len(items) > MAX_QOS_PROFILES:
+        raise YamlTooLarge(f'offered_qos_profiles: not a list of at most {MAX_QOS_PROFILES} '
+                           f'profiles')
     out = []
     for item in items:
         times = [QosTime(item[k]['sec'], item[k]['nsec'])
@@ -194,6 +216,18 @@ def parse_qos(profiles) -> list:
                        _enum(QosLiveliness, item, 'liveliness'), times[2],
                        item['avoid_ros_namespace_conventions']))
     return out
+
+
+def check_qos_text(text: str) -> None:
+    """
+    Raise :class:`~dq_fk_ros.description.yaml_bounds.YamlTooLarge` for QoS text over the bounds.
+
+    At most :data:`QOS_DEPTH` deep and :data:`MAX_QOS_PROFILES` profiles of
+    :data:`QOS_NODES` nodes, aliases expanded (a 594 KiB text of aliases stood for millions
+    of profiles).
+    """
+    check_yaml_text(text, 'offered_qos_profiles', max_depth=QOS_DEPTH,
+                    max_nodes=MAX_QOS_PROFILES * QOS_NODES)
 
 
 def dump_qos(qos) -> list:
@@ -240,6 +274,6 @@ def information(connections, counts, start_ns, end_ns, file_name) -> dict:
         'custom_data': None, 'ros_distro': 'rosbags'}
 
 
-__all__ = ['check_bounds', 'dump_qos', 'information', 'MAX_METADATA_BYTES',
+__all__ = ['check_bounds', 'check_qos_text', 'dump_qos', 'information', 'MAX_METADATA_BYTES',
            'MAX_QOS_PROFILES', 'MAX_TOPICS', 'mcap_folder', 'NotTaken', 'parse_qos',
            'read_information', 'to_yaml', 'with_definitions']
