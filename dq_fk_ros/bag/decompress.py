@@ -100,8 +100,8 @@ def bound_rosbags(ros1: bool = False) -> None:
             ros1_reader.decompressors[name] = lambda data, name=name: _within_limit(data, name)
 
 
-def bounded_parse_qos(profiles):
-    """rosbags' ``parse_qos``, after text over the QoS bounds is refused (ReaderError)."""
+def bounded_parse_qos(profiles: 'list | str') -> list:
+    """Return rosbags' ``parse_qos(profiles)``, text over the QoS bounds refused first."""
     from dq_fk_ros.bag.rosbag2_metadata import check_qos_text
     from dq_fk_ros.description.yaml_bounds import YamlTooLarge
     from rosbags.rosbag2.errors import ReaderError
@@ -114,4 +114,5 @@ def bounded_parse_qos(profiles):
     return parse_qos(profiles)
 
 
-__all__ = ['bound_rosbags', 'bounded_parse_qos', 'ChunkRefused', 'decompress_chunk', 'MAX_CHUNK_BYTES']
+__all__ = ['bound_rosbags', 'bounded_parse_qos', 'ChunkRefused', 'decompress_chunk',
+           'MAX_CHUNK_BYTES']

@@ -23,7 +23,7 @@ class YamlTooLarge(ValueError):
     """YAML text nested deeper, or standing for more nodes, than allowed; one line."""
 
 
-def check_yaml_text(text, where: str, max_depth: int = MAX_DEPTH,
+def check_yaml_text(text: 'str | bytes', where: str, max_depth: int = MAX_DEPTH,
                     max_nodes: int = MAX_NODES) -> None:
     """
     Raise :class:`YamlTooLarge` if ``text`` nests deeper or expands to more nodes than allowed.

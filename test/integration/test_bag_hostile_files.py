@@ -73,7 +73,7 @@ def rewrite_qos(folder, qos_text):
 
 
 def alias_bomb(levels=12):
-    """QoS text of a few KiB that stands for 10^levels profiles."""
+    """Return QoS text of a few KiB that stands for 10^levels profiles."""
     lines = ['- &p0 {history: keep_last, depth: 1}']
     for k in range(1, levels):
         lines.append(f'- &p{k} [' + ', '.join([f'*p{k - 1}'] * 10) + ']')
@@ -83,7 +83,7 @@ def alias_bomb(levels=12):
 @pytest.mark.parametrize('qos', [DEEP, BLOCK_DEEP, alias_bomb()], ids=['flow', 'block', 'alias'])
 @pytest.mark.parametrize('reader', ['folder', 'bare-mcap'])
 def test_hostile_qos_text_in_an_mcap_channel_crashes_nothing(tmp_path, qos, reader):
-    """The folder: our summary reader refuses, rosbags (bounded) refuses, then record by record."""
+    """A folder: our summary reader, then bounded rosbags refuse it; read record by record."""
     valid_bag(tmp_path / 'in', n=20)
     rewrite_qos(tmp_path / 'in', qos)
     source = tmp_path / 'in'
