@@ -173,14 +173,24 @@ static PyObject *gather(PyObject *module, PyObject *const *args, Py_ssize_t narg
         goto done;
     }
     Py_ssize_t n = offs.len / 8, total = 0;
-    const int64_t *o = offs.buf, *l = lens.buf;
+    /* the spans copied before they are checked: dst may overlap offsets or lengths, and
+       what the copy writes must not change a span checked before it */
+    int64_t *o = PyMem_Malloc(n ? 16 * (size_t)n : 1), *l = o + n;
+    if (o == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    memcpy(o, offs.buf, 8 * (size_t)n);
+    memcpy(l, lens.buf, 8 * (size_t)n);
     for (Py_ssize_t i = 0; i < n; i++) {
         if (o[i] < 0 || l[i] < 0 || o[i] > src.len || l[i] > src.len - o[i]) {
             PyErr_Format(PyExc_IndexError, "span %zd lies outside src", i);
+            PyMem_Free(o);
             goto done;
         }
         if (l[i] > dst.len - total) {
             PyErr_SetString(PyExc_ValueError, "the spans do not fit dst");
+            PyMem_Free(o);
             goto done;
         }
         total += l[i];
@@ -190,6 +200,7 @@ static PyObject *gather(PyObject *module, PyObject *const *args, Py_ssize_t narg
     /* memmove: src and dst may be views of one object's bytes */
     for (Py_ssize_t i = 0, at = 0; i < n; at += l[i], i++)
         memmove(to + at, from + o[i], (size_t)l[i]);
+    PyMem_Free(o);
     result = PyLong_FromSsize_t(total);
 done:
     release(&src);

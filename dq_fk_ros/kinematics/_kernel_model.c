@@ -459,6 +459,8 @@ static PyObject *model_poses_batch(ModelObject *self, PyObject *const *args, Py_
         goto done;
     if (model_out(args[2], &relative, 7 * self->n_relative, n, "relative") < 0)
         goto done;
+    if (self->n_relative == 0 && (absolute.obj == NULL || self->n_frames == 0))
+        n = 0;  /* nothing to write: N bounded by what is written (an empty (2^57, 0) q) */
     for (Py_ssize_t i = 0; i < n; i++) {
         model_run(self, (const double *)q.buf + i * self->dof,
                   (double *)relative.buf + i * 7 * self->n_relative);

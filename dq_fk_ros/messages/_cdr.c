@@ -484,6 +484,10 @@ static PyObject *reader_read(ReaderObject *self, PyObject *const *args, Py_ssize
             return NULL;
     }
     PyObject *q = args[2], *qdot = args[3];
+    if (q == qdot) {  /* each slot would be replaced twice, its first new float let go of */
+        PyErr_SetString(PyExc_ValueError, "q and qdot: two different lists");
+        return NULL;
+    }
     Py_ssize_t dof = PyList_GET_SIZE(q);
     Py_buffer raw = {0}, q_out = {0}, qdot_out = {0};
     PyObject *result = NULL;
@@ -493,6 +497,11 @@ static PyObject *reader_read(ReaderObject *self, PyObject *const *args, Py_ssize
     }
     if (out_vector(args[4], &q_out, dof) < 0 || out_vector(args[5], &qdot_out, dof) < 0)
         goto done;
+    if (dof > 0 && (char *)q_out.buf < (char *)qdot_out.buf + qdot_out.len
+        && (char *)qdot_out.buf < (char *)q_out.buf + q_out.len) {
+        PyErr_SetString(PyExc_ValueError, "q_out and qdot_out: buffers that do not overlap");
+        goto done;
+    }
     if (PyList_GET_SIZE(qdot) != dof) {
         PyErr_SetString(PyExc_ValueError, "q and qdot: the same length");
         goto done;

@@ -325,6 +325,8 @@ def test_a_joint_state_reader_survives_any_arguments(data):
         dof = data.draw(st.sampled_from([3, 3, 0, 2, 4]))
         q = [0.0] * dof
         qdot = [0.0] * data.draw(st.sampled_from([dof, dof, 0, 5]))
+        if data.draw(st.integers(0, 3)) == 0:   # aliasing: one list for both
+            qdot = q
         if dof and data.draw(st.booleans()):
             at = data.draw(st.integers(0, dof - 1))
             q[at] = FloatWithDel(0.5, q)
@@ -392,9 +394,23 @@ def test_the_mcap_scan_and_gather_survive_any_arguments(data):
             lambda x: np.array(x, np.int64)), hostile_arrays(np.zeros(2))))
     dst = data.draw(st.sampled_from([bytearray(8), bytearray(0), victim, b'read only', None,
                                      np.zeros(4, np.uint8)]))
+    if data.draw(st.booleans()):   # aliasing: arguments sharing one buffer, overlapping
+        shared = bytearray(data.draw(st.binary(min_size=64, max_size=64)))
+        spans = np.ndarray((4,), np.int64, buffer=shared)
+        spans[:] = data.draw(st.lists(st.sampled_from([0, 8, 16, 24, 2**62]), min_size=4,
+                                      max_size=4))
+        view = data.draw(st.sampled_from([0, 8, 16]))
+        offsets = np.ndarray((2,), np.int64, buffer=shared, offset=view)
+        lengths = np.ndarray((2,), np.int64, buffer=shared, offset=data.draw(
+            st.sampled_from([0, 8, 16])))
+        dsts = [shared, memoryview(shared)[8:], memoryview(shared)[:40], offsets, lengths]
+        dst = dsts[data.draw(st.integers(0, len(dsts) - 1))]
+        srcs = [shared, bytes(shared), memoryview(shared)[16:], src]
+        src = srcs[data.draw(st.integers(0, len(srcs) - 1))]
     total = attempt(MCAP.gather, src, offsets, lengths, dst)
     if total is not None:
-        assert 0 <= total <= len(dst)
+        assert 0 <= total <= (len(dst) if isinstance(dst, (bytes, bytearray)) else
+                              memoryview(dst).nbytes)
 
 
 @needs_mcap

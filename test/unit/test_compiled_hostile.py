@@ -116,6 +116,33 @@ print(reader.read(raw, None, [0.0] * 3, [0.0] * 3, out, np.empty(3)))
 print(refused(_cdr.JointStateReader, **{**good, 'positions_at': 2**63 - 8}))
 print(refused(_cdr.JointStateReader, **{**good, 'velocities_at': 2**63 - 8}))
 """,
+    # the same list as q and qdot: each slot replaced twice, a float released twice
+    'a joint state reader given one list as q and qdot': READER + """
+reader = _cdr.JointStateReader(**good)
+for _ in range(5):
+    q = [0.0] * 3
+    print(refused(reader.read, raw, None, q, q, out, np.empty(3)))
+print(refused(reader.read, raw, None, [0.0] * 3, [0.0] * 3, out, out))
+print(reader.read(raw, None, [0.0] * 3, [0.0] * 3, out, np.empty(3)))
+""",
+    # gather re-read the spans it had checked while copying into a dst overlapping them
+    'gather into a dst overlapping its lengths': """
+from dq_fk_ros.bag import _mcap
+buf = bytearray(64)
+lens = np.ndarray((2,), np.int64, buffer=buf, offset=0)
+offs = np.ndarray((2,), np.int64, buffer=buf, offset=16)
+offs[:] = [0, 0]
+lens[:] = [16, 8]
+src = np.array([16, 1 << 24], np.int64).tobytes() + bytes(1000)
+print(_mcap.gather(src, offs, lens, buf))
+""",
+    # a model with nothing to write looped 2**57 times over an empty q, holding the GIL
+    'a model with nothing to write and 2**57 configurations': """
+base = np.array([1., 0, 0, 0, 0, 0, 0, 0])
+chain = _kernel.Chain(np.zeros((0, 7)), base, None, 0, None, True)
+model = _kernel.Model([(chain, -1, np.zeros(0), np.zeros((0, 10)), True)], np.zeros((0, 17)), 0)
+print(model.n_relative, model.poses_batch(np.empty((2**57, 0)), None, np.empty((0, 7))))
+""",
 }
 
 EXPECTED = {
@@ -126,6 +153,9 @@ EXPECTED = {
     'a joint state reader after a failed re-init': 'TypeError\n10',
     'a joint state reader re-initialised by the stamp': 'ValueError\n10',
     'a joint state reader with positions at 2**63-8': 'ValueError\nValueError',
+    'a joint state reader given one list as q and qdot': 'ValueError\n' * 6 + '10',
+    'gather into a dst overlapping its lengths': '24',
+    'a model with nothing to write and 2**57 configurations': '0 None',
 }
 
 
@@ -133,6 +163,6 @@ EXPECTED = {
 def test_a_hostile_call_is_refused_and_crashes_nothing(case):
     code = PRELUDE + textwrap.dedent(CASES[case])
     run = subprocess.run([sys.executable, '-P', '-c', code], capture_output=True, text=True,
-                         timeout=120, env=dict(os.environ, PYTHONFAULTHANDLER='1'))
+                         timeout=60, env=dict(os.environ, PYTHONFAULTHANDLER='1'))
     assert run.returncode == 0, f'{case}: exit {run.returncode}\n{run.stderr[-3000:]}'
     assert run.stdout.strip() == EXPECTED[case], run.stderr[-3000:]
