@@ -28,7 +28,7 @@ import zlib
 
 from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
 from dq_fk_ros.bag.mcap_format import (
-    KNOWN_OPCODES, MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER,
+    MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER,
     OP_HEADER, OP_MESSAGE, OP_MESSAGE_INDEX, OP_METADATA, OP_SCHEMA)
 from dq_fk_ros.bag.reader_interface import BatchesFromMessages
 from dq_fk_ros.bag.rosbag2_metadata import parse_qos
@@ -42,6 +42,8 @@ END_LENGTHS = {OP_DATA_END: 4, OP_FOOTER: 20}   # the body sizes of the records 
 _CANDIDATE = re.compile(rb'[\x03\x04\x06]')
 _NAME = re.compile(r'[A-Za-z0-9_]+(/[A-Za-z0-9_]+)*')
 _TOPIC = re.compile(r'/?[A-Za-z0-9_~{}]+(/[A-Za-z0-9_{}]+)*')
+MAX_DAMAGE_LINES = 3            # damaged parts described in full; the rest are counted
+MAX_DAMAGE_LINE = 300           # characters of one description
 MAX_DEFINITION_BYTES = 1 << 20  # a schema or channel record found by a resync is smaller
 SCHEMA_ENCODINGS = ('ros2msg', 'ros2idl', 'ros1msg', 'omgidl', 'jsonschema', 'protobuf',
                     'flatbuffer')
@@ -208,7 +210,15 @@ class McapStreamBag(BatchesFromMessages):
         self._report(f'{path}: the chunk at byte {offset} is damaged ({why}); skipped {held}')
 
     def _report(self, line):
-        self.damage = '; '.join(filter(None, [self.damage, line]))
+        """Add a line to :attr:`damage`: the first few whole, the rest counted (one line)."""
+        self._reports = getattr(self, '_reports', 0) + 1
+        if self._reports <= MAX_DAMAGE_LINES:
+            line = line if len(line) <= MAX_DAMAGE_LINE else line[:MAX_DAMAGE_LINE - 3] + '...'
+            self.damage = '; '.join(filter(None, [self.damage, line]))
+            self._shown = self.damage
+        else:
+            self.damage = f'{self._shown}; and {self._reports - MAX_DAMAGE_LINES} more ' \
+                          f'damaged parts skipped'
 
     def _channel(self, file_index, channel, schemas, scanning):
         key = (file_index, channel.id)
@@ -278,8 +288,8 @@ class _RecordReader:
         opcode = self.data[pos]
         length = _U64.unpack_from(self.data, pos + 1)[0]
         end = pos + 9 + length
-        if opcode not in KNOWN_OPCODES:
-            raise _DamagedRecord(f'unknown record type 0x{opcode:02x} at byte {pos}')
+        if opcode == 0:   # the spec's invalid opcode; others unknown here are skipped, as
+            raise _DamagedRecord(f'record type 0x00 at byte {pos}')   # rosbags and mcap do
         if end > self.size:
             raise _DamagedRecord(f'the record at byte {pos} runs past the end of the file')
         return opcode, pos + 9, end

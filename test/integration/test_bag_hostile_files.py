@@ -12,6 +12,8 @@ import sys
 
 from dq_fk_ros.ros.executables import executable
 from mcap.reader import make_reader
+from mcap.records import Message
+from mcap.stream_reader import StreamReader
 from mcap.writer import Writer as McapWriter
 import pytest
 from test_bag import valid_bag
@@ -190,3 +192,36 @@ def test_the_fleet_lock_is_never_opened_through_a_link(tmp_path):
                            '--robot', 'rl15', '--quiet')
     assert_one_line_refusal(rc, err, 'lock')
     assert victim.read_text() == 'keep me'
+
+
+@pytest.mark.parametrize('opcode', [0x80, 0xff, 0x20], ids=['private', 'private-ff', 'future'])
+def test_records_of_opcodes_reserved_for_extensions_are_skipped(tmp_path, opcode):
+    """The MCAP spec's readers skip records they do not know (rosbags and mcap do)."""
+    valid_bag(tmp_path / 'in', n=50)
+    data = next((tmp_path / 'in').glob('*.mcap')).read_bytes()
+    header_end = 8 + 9 + int.from_bytes(data[9:17], 'little')
+    extra = b''.join(bytes([opcode]) + (5).to_bytes(8, 'little') + b'12345'
+                     for _ in range(2000))
+    bare = tmp_path / 'ext.mcap'
+    bare.write_bytes(data[:header_end] + extra + data[header_end:])
+    with open(bare, 'rb') as stream:   # the reference library reads every message
+        assert sum(isinstance(r, Message) for r in StreamReader(stream).records) == 50
+    rc, out, err = run_bag('process', bare, tmp_path / 'out', '--robot', 'rl15', '--csv',
+                           tmp_path / 'ee.csv')
+    assert rc == 0, (rc, err[-1000:])
+    assert 'damage' not in err and len(err) < 1000, err[-1000:]
+    assert len((tmp_path / 'ee.csv').read_text().splitlines()) == 51
+
+
+def test_a_damage_line_is_bounded_however_much_is_damaged(tmp_path):
+    """2000 damaged parts (the issue's file had 2000 records, 291 294 characters): one line."""
+    from dq_fk_ros.bag.mcap_stream import open_stream_bag
+    valid_bag(tmp_path / 'in', n=20)
+    mcap = str(next((tmp_path / 'in').glob('*.mcap')))
+    bag = open_stream_bag([mcap], mcap, None)
+    assert bag.damage is None
+    for k in range(2000):
+        bag._report(f'{mcap}: the chunk at byte {k} is damaged (' + 'x' * 1000 + ')')
+    assert '\n' not in bag.damage and len(bag.damage) < 1500, len(bag.damage)
+    assert bag.damage.endswith('and 1997 more damaged parts skipped'), bag.damage[-100:]
+    bag.close()
