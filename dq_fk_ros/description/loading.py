@@ -117,7 +117,9 @@ class FileAccess:
             raise RobotDescriptionError(f'{shown}: not in the folders robot files may be read '
                                         f'from (robot_description_dirs: '
                                         f'{", ".join(self.dirs)})')
-        if path.lower().endswith('.xacro') and not self.xacro:
+        # the name given and the file read alike (``robot.urdf.xacro/.``, a link to a xacro)
+        named = os.fspath(path).lower().rstrip('/.' + os.sep)
+        if (named.endswith('.xacro') or real.lower().endswith('.xacro')) and not self.xacro:
             raise RobotDescriptionError(
                 f'{shown}: a .xacro file is a program and is not run when set at run time '
                 f"(the node's read-only parameter allow_runtime_xacro is off)")

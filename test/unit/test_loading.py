@@ -114,6 +114,20 @@ def test_a_xacro_named_at_run_time_is_not_run_unless_allowed(tmp_path):
     assert model.dof == 2
 
 
+@pytest.mark.parametrize('named', ['arm.urdf.xacro/.', 'arm.urdf.xacro/', 'arm.XACRO',
+                                   'link.urdf', 'arm.urdf.xacro/./'])
+def test_a_xacro_named_another_way_at_run_time_is_not_run_either(tmp_path, named):
+    """The suffix of the name given and of the file read (a peer named 'x.xacro/.')."""
+    marker = tmp_path / 'marker'
+    program = tmp_path / ('arm.XACRO' if 'XACRO' in named else 'arm.urdf.xacro')
+    program.write_text('<?xml version="1.0"?><robot name="r" xmlns:xacro="http://www.ros.org/'
+                       f'wiki/xacro"><link name="${{open(\'{marker}\', \'w\')}}"/></robot>')
+    (tmp_path / 'link.urdf').symlink_to(program)
+    with pytest.raises(RobotDescriptionError, match='a .xacro file is a program'):
+        load_robot(str(tmp_path) + '/' + named, access=access_to(tmp_path))
+    assert not marker.exists()
+
+
 def test_the_summary_keeps_every_name_on_one_line():
     urdf = URDF.replace('</robot>', '<link name="odd&#10;name"/><joint name="s&#10;j" '
                         'type="floating"><parent link="l2"/><child link="odd&#10;name"/>'
