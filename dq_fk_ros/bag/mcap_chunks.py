@@ -115,6 +115,29 @@ class _Piece:
         return _Piece(self.buffer, self.times[which], self.offsets[which],
                       self.lengths[which], self.ids[which], self.order_key)
 
+    def compact(self):
+        """Return the same messages in a buffer of their own (the chunk's may then go)."""
+        data = bytearray(int(self.lengths.sum()))
+        _gather_into(self.buffer, self.offsets, self.lengths, memoryview(data))
+        offsets = np.zeros(len(self.lengths), np.int64)
+        np.cumsum(self.lengths[:-1], out=offsets[1:])
+        return _Piece(bytes(data), self.times, offsets, self.lengths, self.ids,
+                      self.order_key)
+
+
+def _bounded(pieces):
+    """
+    Return ``pieces``, the messages of sparse ones copied out of their chunks' buffers.
+
+    Pieces waiting for a batch to fill (or for later chunks' times) would hold every
+    decompressed chunk they came from: thousands of chunks of one JointState each (the
+    rest another topic's) held gigabytes. A piece whose buffer is more than twice its
+    messages' bytes (and 4 KiB) keeps only its bytes: a copy that :func:`_cut` would make
+    anyway; a dense piece (a JointState-only chunk) keeps its buffer, as before.
+    """
+    return [p if memoryview(p.buffer).nbytes <= 2 * int(p.lengths.sum()) + 4096
+            else p.compact() for p in pieces]
+
 
 class _FileChunks:
     """One MCAP file of the bag: its chunk index and its channels as connections."""
@@ -247,6 +270,7 @@ class McapChunkReader:
         try:
             for piece in self._pieces(wanted_ids, start, stop):
                 pending.append(piece)
+                pending = _bounded(pending)
                 count += len(piece.times)
                 while count >= size:
                     batch, pending, count = _cut(pending, size)
@@ -293,6 +317,7 @@ class McapChunkReader:
             pool.append(piece if order is None else piece.take(order))
             below = chunks[k + 1].message_start_time if k + 1 < len(chunks) else None
             ready, pool = _ready(pool, below)
+            pool = _bounded(pool)
             yield from ready
 
 
