@@ -74,9 +74,15 @@ def rewrite_qos(folder, qos_text):
             writer.finish()
 
 
+PROFILE = ('{history: keep_last, depth: 1, reliability: reliable, durability: volatile, '
+           'deadline: {sec: 0, nsec: 0}, lifespan: {sec: 0, nsec: 0}, liveliness: automatic, '
+           'liveliness_lease_duration: {sec: 0, nsec: 0}, '
+           'avoid_ros_namespace_conventions: false}')
+
+
 def alias_bomb(levels=12):
-    """Return QoS text of a few KiB that stands for 10^levels profiles."""
-    lines = ['- &p0 {history: keep_last, depth: 1}']
+    """Return QoS text of a few KiB that stands for 10^levels whole profiles."""
+    lines = [f'- &p0 {PROFILE}']
     for k in range(1, levels):
         lines.append(f'- &p{k} [' + ', '.join([f'*p{k - 1}'] * 10) + ']')
     return '\n'.join(lines) + '\n'
@@ -262,3 +268,23 @@ def test_chunks_of_one_message_each_are_not_all_held_until_a_batch_fills(tmp_pat
     peak_mib = usage.ru_maxrss / 1024
     # 600 MiB of decompressed chunks: held whole before (1172 MiB), one at a time now
     assert peak_mib < 250, peak_mib
+
+
+def test_qos_text_of_aliases_in_metadata_cannot_bypass_the_profile_bound(tmp_path):
+    """Version 8 metadata holds QoS as YAML text: 594 KiB of aliases took 27 s and 1.3 GiB."""
+    valid_bag(tmp_path / 'in', n=20)
+    meta = tmp_path / 'in' / 'metadata.yaml'
+    import yaml
+    info = yaml.safe_load(meta.read_text())
+    info['rosbag2_bagfile_information']['version'] = 8
+    for topic in info['rosbag2_bagfile_information']['topics_with_message_count']:
+        topic['topic_metadata']['offered_qos_profiles'] = alias_bomb(7)
+    meta.write_text(yaml.safe_dump(info))
+    proc = subprocess.Popen(executable('dq_fk_bag') + [
+        'process', str(tmp_path / 'in'), str(tmp_path / 'out'), '--robot', 'rl15', '--quiet'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert_one_line_refusal(proc.returncode, err, 'offered_qos_profiles')
