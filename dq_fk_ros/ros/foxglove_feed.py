@@ -20,14 +20,17 @@ module is imported only by the program that needs it.
 """
 
 import json
+import math
 import threading
 
+from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
 from dq_fk_ros.errors import CdrError
 from dq_fk_ros.messages.cdr import (
     JointStateNames, parse_joint_state, parse_pose_stamped, tf_stamp, tf_values, TfLatest)
 from dq_fk_ros.ros.foxglove_encoding import (
     FrameTransformsEncoder, joint_state_json, MAX_TEMPLATED_BYTES)
 
+MAX_STAMP_NS = (1 << 32) * 1_000_000_000  # foxglove.Timestamp: unsigned 32-bit seconds
 MAX_POSE_TOPICS = 1024       # pose channels advertised at most (one per ~/pose/<frame>)
 MAX_STATIC_FRAMES = 100_000  # static transforms kept (every child frame once)
 MAX_ENCODERS = 8             # /tf layouts whose FrameTransforms templates are kept
@@ -84,7 +87,8 @@ class FoxgloveFeed:
         self.resend = set()        # channels a client subscribed to since the last flush
         self.static_changed = False
         self.description_changed = False
-        self.counts = {'tf_messages': 0, 'bad_input': 0, 'flushes': 0}
+        self.counts = {'tf_messages': 0, 'bad_input': 0, 'bad_static': 0, 'flushes': 0}
+        self._told_description_size = False
         self._names = JointStateNames()
 
     # -- in, from the ROS callbacks ------------------------------------------------------
@@ -98,15 +102,36 @@ class FoxgloveFeed:
                 self.counts['bad_input'] += 1
 
     def take_static(self, transforms) -> None:
-        """Keep ``[(parent, child, pose, stamp_ns), ...]`` of a /tf_static message."""
+        """
+        Keep ``[(parent, child, pose, stamp_ns), ...]`` of a /tf_static message.
+
+        A transform Foxglove cannot carry (a stamp before 1970 or past 2106, a value that is
+        not finite) is dropped alone and counted (``bad_static``): the others still go.
+        """
         with self.lock:
             for parent, child, pose, stamp_ns in transforms:
+                if not (0 <= stamp_ns < MAX_STAMP_NS and all(map(math.isfinite, pose))):
+                    self.counts['bad_static'] += 1
+                    continue
                 if child in self.static or len(self.static) < MAX_STATIC_FRAMES:
                     self.static[child] = (parent, pose, stamp_ns)
             self.static_changed = True
 
     def take_description(self, text) -> None:
-        """Keep a new URDF; its meshes, and no other file, become fetchable."""
+        """
+        Keep a new URDF; its meshes, and no other file, become fetchable.
+
+        A text over :data:`~dq_fk_ros.description.urdf_reader.MAX_URDF_BYTES` (the node's
+        bound) is not relayed: one log line, counted (``bad_input``).
+        """
+        if len(text) > MAX_URDF_BYTES:
+            with self.lock:
+                self.counts['bad_input'] += 1
+                told, self._told_description_size = self._told_description_size, True
+            if not told:   # (once: a peer sending it again and again writes no more lines)
+                self.log(f'robot_description: {len(text)} characters, more than a URDF may '
+                         f'have ({MAX_URDF_BYTES >> 20} MiB); not relayed (said once)')
+            return
         with self.lock:
             if text == self.urdf:
                 return

@@ -109,3 +109,25 @@ def test_a_huge_tf_goes_by_the_sdk_and_keeps_no_template():
         assert len(got.transforms) == len(layout.edges)
         assert got.transforms[-1].timestamp.nanos == 1
     assert len(feed._encoders) == 1   # the small one's template only
+
+
+def test_a_bad_static_transform_is_dropped_alone_and_a_huge_description_not_relayed():
+    from dq_fk_ros.description.meshes import MeshAssets
+    from dq_fk_ros.description.packages import PackageResolver
+    from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
+    from dq_fk_ros.ros.foxglove_feed import FoxgloveFeed
+    lines = []
+    feed = FoxgloveFeed(foxglove, MeshAssets(PackageResolver({}), []), lines.append)
+    good = (0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    feed.take_static([('world', 'a', good, 1_700_000_000_000_000_000),
+                      ('world', 'before_1970', good, -1),
+                      ('world', 'nan', (float('nan'),) + good[1:], 5),
+                      ('world', 'b', good, 0)])
+    assert sorted(feed.static) == ['a', 'b'] and feed.counts['bad_static'] == 2
+    feed.flush()   # the good ones are sent: no exception, no count of a failed log
+    assert feed.counts['bad_input'] == 0
+    huge = '<robot name="r">' + ' ' * MAX_URDF_BYTES + '</robot>'
+    for _ in range(3):
+        feed.take_description(huge)
+    assert feed.urdf is None and feed.counts['bad_input'] == 3
+    assert len(lines) == 1 and 'not relayed' in lines[0] and len(lines[0]) < 200
