@@ -22,6 +22,7 @@ module is imported only by the program that needs it.
 import json
 import math
 import threading
+import time
 
 from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
 from dq_fk_ros.errors import CdrError
@@ -31,6 +32,7 @@ from dq_fk_ros.ros.foxglove_encoding import (
     FrameTransformsEncoder, joint_state_json, MAX_TEMPLATED_BYTES)
 
 MAX_STAMP_NS = (1 << 32) * 1_000_000_000  # foxglove.Timestamp: unsigned 32-bit seconds
+RESEND_INTERVAL_S = 1.0     # a channel's kept message is sent again at most this often
 MAX_POSE_TOPICS = 1024       # pose channels advertised at most (one per ~/pose/<frame>)
 MAX_STATIC_FRAMES = 100_000  # static transforms kept (every child frame once)
 MAX_ENCODERS = 8             # /tf layouts whose FrameTransforms templates are kept
@@ -89,6 +91,7 @@ class FoxgloveFeed:
         self.description_changed = False
         self.counts = {'tf_messages': 0, 'bad_input': 0, 'bad_static': 0, 'flushes': 0}
         self._told_description_size = False
+        self._resent_at = {}       # channel -> when its kept message was last sent again
         self._names = JointStateNames()
 
     # -- in, from the ROS callbacks ------------------------------------------------------
@@ -167,9 +170,16 @@ class FoxgloveFeed:
     def flush(self) -> None:
         """Log the newest of every input on its channel (and what new subscribers need)."""
         m = self.fox.messages
+        now = time.monotonic()
         with self.lock:
             newest = self.tf_latest.pop_raw()
-            resend, self.resend = self.resend, set()
+            # a kept message sent again for new subscribers at most once a RESEND_INTERVAL_S
+            # a channel: every client gets it, so toggling a subscription must not make a
+            # stream of URDFs to everyone (440 MiB in 5 s to a bystander)
+            resend = {t for t in self.resend
+                      if now - self._resent_at.get(t, -RESEND_INTERVAL_S) >= RESEND_INTERVAL_S}
+            self.resend -= resend
+            self._resent_at.update(dict.fromkeys(resend, now))
             static = None
             if self.static_changed or '/tf_static' in resend:
                 static = [(p, c, pose, s) for c, (p, pose, s) in self.static.items()]

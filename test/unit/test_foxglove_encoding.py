@@ -131,3 +131,25 @@ def test_a_bad_static_transform_is_dropped_alone_and_a_huge_description_not_rela
         feed.take_description(huge)
     assert feed.urdf is None and feed.counts['bad_input'] == 3
     assert len(lines) == 1 and 'not relayed' in lines[0] and len(lines[0]) < 200
+
+
+def test_toggled_subscriptions_resend_a_kept_message_at_most_once_a_second(monkeypatch):
+    from dq_fk_ros.description.meshes import MeshAssets
+    from dq_fk_ros.description.packages import PackageResolver
+    from dq_fk_ros.ros import foxglove_feed
+    feed = foxglove_feed.FoxgloveFeed(foxglove, MeshAssets(PackageResolver({}), []), print)
+    sent = []
+    feed.description = type('Sent', (), {'log': staticmethod(sent.append)})()
+    clock = [1000.0]
+    monkeypatch.setattr(foxglove_feed.time, 'monotonic', lambda: clock[0])
+    feed.take_description('<robot name="r"><link name="l"/></robot>')
+    feed.flush()
+    assert len(sent) == 1   # the new description itself
+    for _ in range(50):     # a client toggling its subscription at every flush (50 Hz, 1 s)
+        feed.subscribed('/robot_description')
+        clock[0] += 0.02
+        feed.flush()
+    assert len(sent) == 2, len(sent)   # 50 before: the URDF to every client at each flush
+    clock[0] += 1.0
+    feed.flush()            # the last toggle's subscriber still gets it, a second later
+    assert len(sent) == 3
