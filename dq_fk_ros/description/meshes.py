@@ -186,6 +186,15 @@ class MeshAssets:
             self._paths = {m.uri: m.path for m in meshes if m.path}
         return [m.problem for m in meshes if m.problem]
 
+    def size(self, uri: str) -> int:
+        """Return how many bytes :meth:`fetch` of ``uri`` returns now (0: none, or unknown)."""
+        with self._lock:
+            path = self._paths.get(uri) if isinstance(uri, str) else None
+        try:
+            return min(os.stat(path).st_size, MAX_MESH_BYTES) if path else 0
+        except OSError:
+            return 0
+
     def fetch(self, uri: str) -> bytes | None:
         """Return the bytes of the listed mesh ``uri``, or None (not listed, or unreadable)."""
         with self._lock:

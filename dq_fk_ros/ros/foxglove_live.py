@@ -2,7 +2,7 @@
 dq_fk_foxglove: the robot live in Foxglove on a pip-only ROS, without foxglove_bridge.
 
     dq_fk_foxglove [--host 127.0.0.1] [--port 8765] [--package NAME=DIR] [--mesh-dir DIR]
-                   [--rate 30]
+                   [--rate 30] [--allow-origin ORIGIN] [--allow-host NAME]
 
 An rclpy node on the same DDS domain takes ``/tf``, ``/tf_static`` (transient local),
 ``robot_description`` (transient local), ``joint_states`` and every pose topic
@@ -14,7 +14,10 @@ input rate. The Foxglove app fetches the URDF's meshes (``package://``) through 
 asset handler, which reads exactly the mesh files the current URDF names
 (:class:`~dq_fk_ros.description.meshes.MeshAssets`, the allow-list of ``dq_fk_view``). It
 listens on 127.0.0.1 unless ``--host`` says otherwise: anyone who reaches the port sees the
-robot and may fetch its meshes (docs/foxglove.md, "Security").
+robot and may fetch its meshes (docs/foxglove.md, "Security"). The SDK's server listens on a
+random loopback address behind :class:`~dq_fk_ros.ros.foxglove_gate.Gate`, which refuses
+foreign web pages (``Host``, ``Origin``), bounds connections and handshakes, and holds asset
+answers to a byte budget; the SDK's own log lines are rate-limited (:class:`LogRateLimit`).
 
 The ROS subscriptions of ``joint_states`` and of a pose topic exist only while a Foxglove
 client subscribes to their channel (``dq_fk_node`` publishes a pose topic only while
@@ -23,8 +26,10 @@ taken, every message, for each publisher's newest (an odometry's and a robot's).
 """
 
 import argparse
+import logging
 import sys
 import threading
+import time
 
 from dq_fk_ros.messages.outputs import ROBOT_DESCRIPTION, TF, TF_STATIC
 from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options, run_main
@@ -53,6 +58,13 @@ def parse_args(argv) -> argparse.Namespace:
     parser.add_argument('--rate', type=float, default=DEFAULT_RATE_HZ,
                         help=f'messages per second per channel at most, the newest '
                         f'(default {DEFAULT_RATE_HZ:g})')
+    parser.add_argument('--allow-origin', action='append', default=[], metavar='ORIGIN',
+                        help='a web page origin allowed besides the Foxglove app, loopback '
+                        "pages and local files, as browsers send it ('https://x.example'; "
+                        'repeatable)')
+    parser.add_argument('--allow-host', action='append', default=[], metavar='NAME',
+                        help='a host name clients may use besides loopback names, addresses '
+                        "and --host (this machine's DNS name; repeatable)")
     add_mesh_options(parser)
     args = parser.parse_args(argv)
     if not (0 <= args.port <= 65535):
@@ -61,6 +73,42 @@ def parse_args(argv) -> argparse.Namespace:
         parser.error(f'--rate {args.rate:g}: give more than 0 and at most 1000')
     check_mesh_options(parser, args)
     return args
+
+
+class LogRateLimit(logging.Filter):
+    """At most ``lines`` log records every ``period_s``; the number dropped said after."""
+
+    def __init__(self, lines=5, period_s=10.0):
+        """Pass ``lines`` records a period, then drop and count until the next."""
+        super().__init__()
+        self.lines, self.period_s = lines, period_s
+        self.window_start, self.passed, self.dropped = -1e9, 0, 0
+
+    def filter(self, record) -> bool:  # noqa: A003 (logging.Filter.filter)
+        """Return whether ``record`` is written (the SDK's threads call this under the GIL)."""
+        now = time.monotonic()
+        if now - self.window_start >= self.period_s:
+            if self.dropped:
+                record.msg = f'{record.msg} ({self.dropped} lines before were not written)'
+            self.window_start, self.passed, self.dropped = now, 0, 0
+        self.passed += 1
+        if self.passed > self.lines:
+            self.dropped += 1
+            return False
+        return True
+
+
+def route_sdk_log(foxglove) -> LogRateLimit:
+    """Send the SDK's log lines to stderr through a :class:`LogRateLimit`; return it."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter('dq_fk_foxglove: sdk: %(message)s'))
+    limit = LogRateLimit()
+    handler.addFilter(limit)
+    logger = logging.getLogger('foxglove')
+    logger.addHandler(handler)
+    logger.propagate = False
+    foxglove.set_log_level('WARNING')
+    return limit
 
 
 class RosInput:
@@ -211,11 +259,12 @@ def main(argv=None) -> int:
     from dq_fk_ros.description.meshes import MeshAssets
     from dq_fk_ros.description.packages import PackageResolver
     from dq_fk_ros.ros.foxglove_feed import FoxgloveFeed
+    from dq_fk_ros.ros.foxglove_gate import Gate, private_loopback_address
 
     def log(line):
         print(f'dq_fk_foxglove: {line}', file=sys.stderr, flush=True)
     rclpy.init(args=argv)
-    ros = server = None
+    ros = server = gate = None
     try:
         assets = MeshAssets(PackageResolver(args.packages), args.mesh_dir)
         feed = FoxgloveFeed(foxglove, assets, log)
@@ -223,11 +272,17 @@ def main(argv=None) -> int:
 
         def fetch(uri):
             return assets.fetch(uri)
+        route_sdk_log(foxglove)
+        private = private_loopback_address()
         try:
             server = foxglove.start_server(
-                name='dq_fk_foxglove', host=args.host, port=args.port, asset_handler=fetch,
+                name='dq_fk_foxglove', host=private, port=0, asset_handler=fetch,
                 server_listener=make_listener(foxglove, ros, feed),
                 message_backlog_size=MESSAGE_BACKLOG)
+            gate = Gate(args.host, args.port, (private, server.port), assets.size, log,
+                        allowed_hosts=args.allow_host, allowed_origins=args.allow_origin,
+                        on_failure=lambda _: rclpy.try_shutdown(context=ros.node.context))
+            port = gate.start()
         except Exception as exc:  # the port is taken, the address is not ours
             if isinstance(exc.__cause__, KeyboardInterrupt):
                 return 0  # Ctrl-C while it started (pyo3: a SystemError caused by it): a stop
@@ -236,19 +291,21 @@ def main(argv=None) -> int:
             return 1
         shown = f'[{args.host}]' if ':' in args.host else args.host
         print(f'dq_fk_foxglove: in Foxglove, Open connection > Foxglove WebSocket > '
-              f'ws://{shown}:{server.port}', flush=True)
+              f'ws://{shown}:{port}', flush=True)
         executor = SingleThreadedExecutor(context=ros.node.context)
         executor.add_node(ros.node)
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        if gate is not None:
+            gate.stop()
         if server is not None:
             server.stop()
         if ros is not None:
             ros.destroy()
         rclpy.try_shutdown()
-    return 0
+    return 1 if gate is not None and gate.failed else 0
 
 
 if __name__ == '__main__':

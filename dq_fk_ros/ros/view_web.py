@@ -56,7 +56,7 @@ def host_allowed(host, allowed=()) -> bool:
         return False
 
 
-def _split_host(value):
+def split_host(value: str) -> str:
     """Return the host of a ``Host`` header value (``name``, ``name:port``, ``[v6]:port``)."""
     value = value.strip()
     if value.startswith('['):
@@ -79,7 +79,7 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()) -> 'we
     @web.middleware
     async def guard(request, handler):
         """Refuse foreign hosts and origins (403); a failing request is a 404, not a 500."""
-        if not host_allowed(_split_host(request.headers.get('Host', '')), allowed_hosts):
+        if not host_allowed(split_host(request.headers.get('Host', '')), allowed_hosts):
             with state.lock:
                 state.counts['refused_hosts'] += 1
             return web.Response(status=403, text='forbidden host\n')

@@ -125,4 +125,6 @@ def test_a_shell_example_runs_as_written(place, script, ros_domain_id, tmp_path,
         stdout, stderr = out.read(), err.read()
     assert run.returncode == 0, f'{place}: exit {run.returncode}\n{stdout[-2000:]}\n' \
                                 f'{stderr[-2000:]}'
-    assert all(address == '0100007F' for address, _ in seen), (place, seen)
+    # loopback only: 127.0.0.1, or a 127.x.y.z (dq_fk_foxglove's SDK server behind its gate)
+    assert all(len(address) == 8 and int(address, 16) & 0xFF == 127
+               for address, _ in seen), (place, seen)

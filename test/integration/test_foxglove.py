@@ -312,7 +312,10 @@ def test_without_the_sdk_it_says_how_to_get_it(processes, tmp_path):
 def test_it_listens_on_loopback_only_by_default(processes):
     proc, url = start_foxglove(processes)
     port = int(url.rsplit(':', 1)[1])
-    assert listening([proc.pid]) == {('0100007F', port)}  # and on nothing else
+    sockets = listening([proc.pid])
+    # the gate on 127.0.0.1, the SDK's server behind it on a random 127.x.y.z, nothing else
+    assert ('0100007F', port) in sockets and len(sockets) == 2, sockets
+    assert all(int(address, 16) & 0xFF == 127 for address, _ in sockets), sockets
 
 
 def test_ctrl_c_while_the_server_starts_is_a_quiet_stop(monkeypatch, capsys):
@@ -334,3 +337,60 @@ def test_ctrl_c_while_the_server_starts_is_a_quiet_stop(monkeypatch, capsys):
     monkeypatch.setattr(foxglove, 'start_server', interrupted)
     assert foxglove_live.main(['dq_fk_foxglove']) == 0
     assert 'cannot listen' not in capsys.readouterr().err
+
+
+def test_a_thousand_half_open_connections_and_foreign_pages_leave_it_serving(processes):
+    import resource
+    import socket
+    import time
+    proc, url = start_foxglove(processes)
+    port = int(url.rsplit(':', 1)[1])
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    resource.setrlimit(resource.RLIMIT_NOFILE, (min(hard, 8192), hard))
+    idle = []
+    try:
+        # past the common 1024 descriptors: the SDK alone stopped listening for good here
+        for _ in range(1100):
+            idle.append(socket.create_connection(('127.0.0.1', port), timeout=20))
+        # the gate dropped them after its 10 s handshake bound: a client gets in again
+        upgrade = (f'GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n'
+                   'Connection: Upgrade\r\nSec-WebSocket-Key: AAAAAAAAAAAAAAAAAAAAAA==\r\n'
+                   'Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: foxglove.sdk.v1\r\n')
+        deadline = time.monotonic() + 40
+        answer = b''
+        while not answer.startswith(b'HTTP/1.1 101') and time.monotonic() < deadline:
+            try:
+                with socket.create_connection(('127.0.0.1', port), timeout=20) as probe:
+                    probe.sendall((upgrade + '\r\n').encode())
+                    answer = probe.recv(100)
+            except OSError:
+                answer = b''
+            if not answer.startswith(b'HTTP/1.1 101'):
+                time.sleep(1.0)
+        assert answer.startswith(b'HTTP/1.1 101'), answer
+        client = FoxgloveClient(url)
+        assert client.server_info
+        client.close()
+        evil = socket.create_connection(('127.0.0.1', port), timeout=20)
+        evil.sendall((upgrade + 'Origin: https://evil.example\r\n\r\n').encode())
+        assert evil.recv(100).startswith(b'HTTP/1.1 403')
+        assert proc.poll() is None
+    finally:
+        for sock in idle:
+            sock.close()
+        resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
+
+
+def test_invalid_client_messages_do_not_write_a_line_each(processes):
+    proc, url = start_foxglove(processes)
+    reader = process_lines(proc)
+    bad = FoxgloveClient(url)
+    try:
+        for k in range(500):  # the SDK logs each one ('Invalid message from ...')
+            bad.send('not json at all {{{' if k % 2 else b'\xff' * 16)
+        reader.until(lambda text: False, timeout_s=3)
+        sdk_lines = [line for line in reader.lines if 'sdk:' in line]
+        assert 1 <= len(sdk_lines) <= 5, sdk_lines[:8]
+        assert 'Invalid message' in sdk_lines[0]
+    finally:
+        bad.close()
