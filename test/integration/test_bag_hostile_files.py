@@ -266,8 +266,9 @@ def test_chunks_of_one_message_each_are_not_all_held_until_a_batch_fills(tmp_pat
     assert os.waitstatus_to_exitcode(status) == 0, err[-2000:]
     assert len((tmp_path / 'ee.csv').read_text().splitlines()) == 601
     peak_mib = usage.ru_maxrss / 1024
-    # 600 MiB of decompressed chunks: held whole before (1172 MiB), one at a time now
-    assert peak_mib < 250, peak_mib
+    # 600 MiB of decompressed chunks: all held before (647 MiB with this threshold), one at a
+    # time now (97 MiB here; 284 MiB seen in one CI run): the bound sits between the two
+    assert peak_mib < 400, peak_mib
 
 
 def test_qos_text_of_aliases_in_metadata_cannot_bypass_the_profile_bound(tmp_path):
