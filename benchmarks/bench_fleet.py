@@ -90,7 +90,7 @@ def run(argv):
 def fleet(inputs, out, *extra):
     shutil.rmtree(out, ignore_errors=True)
     return run(executable('dq_fk_bag') + ['process', *inputs, '--output-dir', out, '--robot',
-                                          'rl15', '--quiet', *extra])
+                                          'rl15', '--quiet', '--poses', 'all', *extra])
 
 
 def verdict(ok):
@@ -121,7 +121,7 @@ def main(argv=None):
         out = os.path.join(work, 'out')
         one_bag = run(executable('dq_fk_bag') + [
             'process', os.path.join(many, 'bag_0'), os.path.join(work, 'one'), '--robot',
-            'rl15', '--quiet'])
+            'rl15', '--quiet', '--poses', 'all'])
         m_many = args.bags * args.messages
         cases = {'many, --jobs 1': ([many], ['--jobs', '1'], m_many, args.bags),
                  'many, --jobs 2': ([many], ['--jobs', '2'], m_many, args.bags),

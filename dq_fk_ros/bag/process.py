@@ -193,7 +193,7 @@ class ProcessOptions:
     out_of_limits: str = 'warn'
     progress: bool = True
     chunk: int = CHUNK
-    poses: str = 'all'
+    poses: str = 'end'
     dh_frames: bool = None
     compression: str = 'none'
     reference_reader: bool = False

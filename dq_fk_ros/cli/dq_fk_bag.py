@@ -26,10 +26,25 @@ from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.errors import BagDamaged, BagError, RobotDescriptionError
 
 
+def output_bytes(path) -> int:
+    """Return the bytes of an output bag: a file's size, or the files' of a bag folder."""
+    if os.path.isfile(path):
+        return os.path.getsize(path)
+    total = 0
+    for folder, _, files in os.walk(path):
+        total += sum(os.path.getsize(os.path.join(folder, name)) for name in files
+                     if os.path.isfile(os.path.join(folder, name)))
+    return total
+
+
+def _megabytes(size):
+    return f'{size / 1e6:.1f} MB' if size >= 100_000 else f'{size / 1e3:.1f} kB'
+
+
 def summary_line(path, s) -> str:
     """One line saying what ``process`` read, wrote and skipped (a :class:`ProcessSummary`)."""
     parts = [f'{path}: {s.read} JointState messages, {s.written} written'
-             + (f' to {s.output}' if s.output else '')]
+             + (f' to {s.output} ({_megabytes(output_bytes(s.output))})' if s.output else '')]
     if s.incomplete:
         parts.append(f'{s.incomplete} incomplete (joints not all seen yet)')
     if s.rejected:
@@ -72,9 +87,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--pose-namespace', default='/dq_fk_node',
                    help='pose topics are <ns>/pose/<frame> (default /dq_fk_node, as the node)')
     p.add_argument('--frame-prefix', default='', help='as the node parameter frame_prefix')
-    p.add_argument('--poses', choices=('all', 'end', 'none'), default='all',
-                   help='pose topics written: every frame on TF (default), the end effector, '
-                   'none')
+    p.add_argument('--poses', choices=('all', 'end', 'none'), default='end',
+                   help='pose topics written besides /tf, /tf_static and /robot_description: '
+                   "the end effector's (default), every frame on TF (a bag many times the "
+                   'input), none')
     p.add_argument('--dh-frames', dest='dh_frames', action='store_true', default=None,
                    help="as the node's publish_dh_frames: /tf and poses carry the DH frames "
                    "too (a URDF robot's default is the URDF's links only, as "

@@ -502,15 +502,16 @@ def _description_text(tree, source, base, tip, convention, chains, links, skippe
 
 def _detach_orphan_mimics(tree):
     """
-    Return ``(tree, names)``: the mimic joints whose source is no moving joint made floating.
+    Return ``(tree, names)``: the mimic joints whose source is no moving joint made plain.
 
-    robot_state_publisher publishes such a joint once a JointState names its source, which
-    the URDF does not have; the links below it get their transforms all the same. As a
-    floating joint's child (computed at the joint's origin), the mimic's child roots a TF
-    tree of its own.
+    robot_state_publisher computes a mimic joint only when a JointState names its source;
+    otherwise the joint moves by its own value in the JointState (its mimic loop never
+    overwrites a value the message gave). A source the URDF does not have (example-robot-data's
+    alex_psyonic_hands: ``mimic joint="index_q1"`` for ``Left_index_q1``) is never named, so
+    such a joint is a joint of its own.
     """
     everything = set(tree.by_name)
-    orphans = {j.child: replace(j, kind='floating', mimic=None) for j in tree.joints.values()
+    orphans = {j.child: replace(j, mimic=None) for j in tree.joints.values()
                if j.mimic is not None and j.kind in MOVING
                and _mimic_source(tree, j, everything)[0] is None}
     if not orphans:
@@ -539,11 +540,10 @@ def _joint_kind_warnings(tree, source, base, published, orphans=()):
                 f'{listing(planar, 5)}',)
     shown = [comment(j.name)[:80] for j in joints if j.name in orphans]
     if shown:
-        out += (f'{source}: {len(shown)} mimic joint(s) of joints the URDF does not have get '
-                f'no transform (robot_state_publisher: not until a JointState names the '
-                f'source); each child roots a TF tree, the links below published relative to '
-                f'it: {listing(shown, 5)}',)
-    floating = [j for j in joints if j.kind == 'floating' and j.name not in orphans]
+        out += (f'{source}: {len(shown)} mimic joint(s) of joints the URDF does not have (or '
+                f'that do not move) move by their own joint state, as robot_state_publisher '
+                f'moves them: {listing(shown, 5)}',)
+    floating = [j for j in joints if j.kind == 'floating']
     if floating:
         parts = []
         for j in floating[:5]:

@@ -20,7 +20,7 @@ from urllib.parse import quote, unquote
 import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.packages import PackageNotFound, PackageResolver
-from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
+from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES, parse_xml
 from dq_fk_ros.errors import printable_line
 
 MESH_EXTENSIONS = ('.stl', '.dae', '.obj')
@@ -53,7 +53,7 @@ def visual_mesh_uris(urdf_text: str) -> list[str]:
     if len(urdf_text) > MAX_URDF_BYTES or '<!ENTITY' in urdf_text:
         return []
     try:
-        root = ElementTree.fromstring(urdf_text)
+        root = parse_xml(urdf_text)
     except ElementTree.ParseError:
         return []
     uris = []

@@ -12,6 +12,7 @@ from functools import cached_property
 import math
 import os
 import xml.etree.ElementTree as ElementTree
+from xml.parsers import expat
 
 from dq_fk_ros.description.robot_model import MAX_FILE_BYTES, MAX_LENGTH_M, rpy_matrix
 from dq_fk_ros.description.xacro_sandbox import (
@@ -104,6 +105,32 @@ def read_urdf_text(path: str | os.PathLike, read_roots: Sequence[str] | None = N
         raise RobotDescriptionError(f'{path}: cannot be read ({exc.strerror})') from None
 
 
+def parse_xml(text: str) -> ElementTree.Element:
+    """
+    Return the root element of ``text`` read as urdfdom reads it: without XML namespaces.
+
+    urdfdom's TinyXML2 takes a prefix as part of a name, declared or not
+    (``<limit drake:acceleration="2.5"/>``, as airo-models' UR5e ships); ElementTree's
+    namespace-aware reader refuses an undeclared one ("unbound prefix"). Here expat reads
+    names as written, so ``drake:acceleration`` is one more attribute no one looks up. Same
+    expat, same bounds (no external entities; callers refuse entity declarations).
+
+    :raises ElementTree.ParseError: when ``text`` is not well-formed XML
+    """
+    builder = ElementTree.TreeBuilder()
+    parser = expat.ParserCreate()
+    parser.StartElementHandler = builder.start
+    parser.EndElementHandler = builder.end
+    parser.CharacterDataHandler = builder.data
+    try:
+        parser.Parse(text, True)
+    except expat.ExpatError as exc:
+        error = ElementTree.ParseError(str(exc))
+        error.code, error.position = exc.code, (exc.lineno, exc.offset)
+        raise error from None
+    return builder.close()
+
+
 def parse_urdf(text: str, source: str = '<string>') -> UrdfTree:
     """Parse URDF XML into a :class:`UrdfTree`; any problem is one RobotDescriptionError."""
     if len(text) > MAX_URDF_BYTES:
@@ -113,7 +140,7 @@ def parse_urdf(text: str, source: str = '<string>') -> UrdfTree:
         raise RobotDescriptionError(f'{source}: XML entity declarations are not accepted in a '
                                     f'URDF')
     try:
-        root = ElementTree.fromstring(text)
+        root = parse_xml(text)
     except ElementTree.ParseError as exc:
         raise RobotDescriptionError(f'{source}: not valid XML: {exc}') from None
     if root.tag != 'robot':

@@ -86,7 +86,7 @@ def stamp_ns(msg_header):
 def test_offline_output_equals_core_fk(tmp_path, storage):
     q, stamps = valid_bag(tmp_path / 'in', storage=storage)
     summary = process_bag(tmp_path / 'in', tmp_path / 'out', RL15, storage=storage,
-                          csv_path=tmp_path / 'ee.csv', progress=False, chunk=64)
+                          csv_path=tmp_path / 'ee.csv', progress=False, chunk=64, poses='all')
     assert summary.read == summary.written == len(q) and not summary.rejected
     for k, frame in enumerate(MODEL.frame_names):
         poses = read_topic(tmp_path / 'out', f'/dq_fk_node/pose/{frame}')
@@ -150,7 +150,7 @@ def test_split_publishers_merge_as_the_node_does(tmp_path):
 def test_output_opens_in_the_official_mcap_reader(tmp_path):
     """Foxglove's mcap (CRCs checked) reads it and mcap_ros2 decodes it from its schemas."""
     q, stamps = valid_bag(tmp_path / 'in', n=150)
-    process_bag(tmp_path / 'in', tmp_path / 'out', RL15, progress=False, chunk=32)
+    process_bag(tmp_path / 'in', tmp_path / 'out', RL15, progress=False, chunk=32, poses='all')
     with open(tmp_path / 'out' / 'out.mcap', 'rb') as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()], validate_crcs=True)
         channels = {c.topic: c for c in reader.get_summary().channels.values()}
@@ -607,7 +607,7 @@ def test_a_floating_base_urdf_bag_has_robot_state_publishers_tf_and_poses_in_its
     for dh_frames in (False, True):
         out = tmp_path / f'out_{dh_frames}'
         rc, _, err = run_process(capsys, str(tmp_path / 'in'), str(out), '--robot', str(urdf),
-                                 *(['--dh-frames'] if dh_frames else []))
+                                 '--poses', 'all', *(['--dh-frames'] if dh_frames else []))
         assert rc == 0, err
         tf = read_topic(out, '/tf')
         static = read_topic(out, '/tf_static')
@@ -627,3 +627,28 @@ def test_a_floating_base_urdf_bag_has_robot_state_publishers_tf_and_poses_in_its
         transforms = tf[-1][1].transforms + static[0][1].transforms
         np.testing.assert_allclose(htf.pose_matrix(foot.pose),
                                    htf.compose(transforms, 'base_link', 'FL_FOOT'), atol=1e-12)
+
+
+def test_by_default_the_output_is_tf_and_the_end_effector_pose_and_says_its_size(
+        tmp_path, capsys):
+    valid_bag(tmp_path / 'in', n=200)
+    sizes = {}
+    for poses in ('end', 'all'):
+        out = tmp_path / poses
+        extra = ['--poses', 'all'] if poses == 'all' else []   # 'end': nothing given
+        rc, text, err = run_process(capsys, tmp_path / 'in', out, '--quiet',
+                                    *extra)
+        assert rc == 0, err
+        with Reader(out) as reader:
+            topics = {c.topic for c in reader.connections}
+        sizes[poses] = sum(f.stat().st_size for f in out.rglob('*') if f.is_file())
+        # the closing line says how big the output is, as the disk has it
+        shown = f'{sizes[poses] / 1e6:.1f} MB' if sizes[poses] >= 100_000 else \
+            f'{sizes[poses] / 1e3:.1f} kB'
+        assert f'written to {out} ({shown})' in text, text
+        if poses == 'end':
+            assert topics == {'/tf', '/tf_static', '/robot_description',
+                              '/dq_fk_node/pose/eeCarry_seg6'}
+        else:
+            assert topics >= {f'/dq_fk_node/pose/{f}' for f in MODEL.frame_names}
+    assert sizes['all'] > 1.5 * sizes['end']   # 7 frames; an iCub's 8.7 GB from 332 MB

@@ -179,7 +179,7 @@ def test_complete_outputs_are_skipped_and_changed_or_missing_ones_redone(tmp_pat
                            force=True)
     assert [b.status for b in forced.bags] == ['done'] * 3
     other = process_fleet([tmp_path / 'in'], out, 'rl15', ProcessOptions(
-        progress=False, poses='end'), jobs=1, progress=False)  # other options: redone
+        progress=False, poses='none'), jobs=1, progress=False)  # other options: redone
     assert [b.status for b in other.bags] == ['done'] * 3
 
 

@@ -140,7 +140,7 @@ def test_z1_gripper_is_a_side_branch_with_an_optional_joint():
     assert_matches_pinocchio(model, text, conversion.base, 200)
 
 
-def test_a_floating_child_and_a_mimic_of_it_are_kept_as_tree_roots():
+def test_a_floating_child_is_a_tree_root_and_a_mimic_of_it_moves_by_its_own_value():
     text = serial_urdf(DEGENERATE['skew axes'])[:-len('</robot>\n')] + (
         '  <link name="drone"/><joint name="free" type="floating"><parent link="l2"/>'
         '<child link="drone"/></joint>\n'
@@ -149,13 +149,23 @@ def test_a_floating_child_and_a_mimic_of_it_are_kept_as_tree_roots():
         '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>\n</robot>\n')
     conversion = urdf_to_description(text, 'mine.urdf', tip='l3')
     assert conversion.skipped == ()
-    assert 'mimic joint(s) of joints the URDF does not have get no transform' in \
-        conversion.warnings[0] and conversion.warnings[0].endswith(': pad_joint')
+    assert conversion.warnings[0] == (
+        'mine.urdf: 1 mimic joint(s) of joints the URDF does not have (or that do not move) '
+        'move by their own joint state, as robot_state_publisher moves them: pad_joint')
     model = parse_robot_description(conversion.text)
     links = {link.frame: link for link in model.links}
-    # robot_state_publisher never moves pad_joint (its source has no value): a TF root
     assert links['drone'].floating and links['drone'].tf_parent == 'l2'
-    assert links['pad'].floating and links['pad'].tf_parent == 'l3'
+    # robot_state_publisher: its source is never in a JointState, so pad_joint's own value
+    # moves it (the mimic loop only fills joints the message did not name)
+    assert not links['pad'].floating and links['pad'].tf_parent == 'l3'
+    assert model.joint_names[-1] == 'pad_joint'
+    q = np.array([0.3, -0.2, 0.5, 0.7])
+    frames = [homogeneous_from_dq(p) for p in model.forward_all(q)]
+    at = {name: frames[k] for k, name in enumerate(model.frame_names)}
+    relative = np.linalg.inv(at['l3']) @ at['pad']
+    c, s = math.cos(0.7), math.sin(0.7)
+    assert np.allclose(relative[:3, :3], [[c, -s, 0], [s, c, 0], [0, 0, 1]], atol=1e-12)
+    assert np.allclose(relative[:3, 3], 0, atol=1e-12)
 
 
 def test_converted_text_says_where_every_row_came_from():
@@ -843,3 +853,54 @@ def test_floating_and_planar_joints_are_as_robot_state_publisher_and_said_once()
     written = ElementTree.fromstring(robot_to_urdf(model))
     kinds = {j.find('child').get('link'): j.get('type') for j in written.findall('joint')}
     assert kinds['drone'] == 'floating' and kinds['puck'] == 'fixed'
+
+
+def test_undeclared_prefixes_are_read_as_urdfdom_reads_them():
+    plain = serial_urdf(DEGENERATE['skew axes'])
+    # airo-models' UR5e and Robotiq 2F-85: drake: attributes and elements, never declared
+    # (urdfdom's TinyXML2 takes the prefix as part of the name; ElementTree said "unbound
+    # prefix")
+    prefixed = plain.replace('<limit ', '<limit drake:acceleration="2.5" ', 1).replace(
+        '</robot>', '  <drake:collision_filter_group name="g"><drake:member link="l1"/>'
+        '</drake:collision_filter_group>\n</robot>').replace(
+        '<link name="l2"', '<link gz:self_collide="true" name="l2"', 1)
+    assert 'drake:acceleration' in prefixed and 'gz:self_collide' in prefixed
+    ours = urdf_to_description(prefixed, 'airo.urdf', tip='l3')
+    reference = urdf_to_description(plain, 'airo.urdf', tip='l3')
+    assert ours.text == reference.text and ours.warnings == reference.warnings
+    mesh = prefixed.replace('<link name="l1"', '<link name="l1"><visual><geometry>'
+                            '<mesh filename="package://p/a.stl" drake:x="1"/></geometry>'
+                            '</visual></link><link name="unused"', 1)
+    from dq_fk_ros.description.meshes import visual_mesh_uris
+    assert visual_mesh_uris(mesh) == ['package://p/a.stl']
+    with pytest.raises(RobotDescriptionError, match='not valid XML'):
+        urdf_to_description(prefixed.replace('</robot>', ''), 'airo.urdf')
+
+
+def test_a_mimic_of_a_joint_the_urdf_does_not_have_moves_by_its_own_value():
+    # example-robot-data's alex_psyonic_hands: mimic joint="index_q1" for Left_index_q1
+    path = os.path.join(robots_dir(), 'alex_description/urdf/alex_psyonic_hands.urdf')
+    tree = parse_urdf(read_urdf_text(path))
+    orphans = [j for j in tree.joints.values()
+               if j.mimic is not None and j.mimic[0] not in tree.by_name]
+    assert len(orphans) >= 8
+    conversion, _ = load_urdf_description(path)
+    model = parse_robot_description(conversion.text)
+    edges = {(link.tf_parent, link.frame) for link in model.links
+             if link.tf_parent and not link.floating}
+    # robot_state_publisher's TF edges: every joint's but floating ones (none dropped)
+    assert edges >= {(j.parent, j.child) for j in tree.joints.values() if j.kind != 'floating'}
+    joint = orphans[0]
+    assert joint.name in model.joint_names and joint.kind == 'revolute'
+    q = np.zeros(model.dof)
+    frames = lambda q: {name: homogeneous_from_dq(p) for name, p in  # noqa: E731
+                        zip(model.frame_names, model.forward_all(q))}
+    rest = frames(q)
+    q[model.joint_names.index(joint.name)] = 0.4
+    moved = frames(q)
+    before = np.linalg.inv(rest[joint.parent]) @ rest[joint.child]
+    after = np.linalg.inv(moved[joint.parent]) @ moved[joint.child]
+    axis = np.asarray(joint.axis, float) / np.linalg.norm(joint.axis)
+    turn = before[:3, :3].T @ after[:3, :3]   # about the joint's axis, by its own 0.4 rad
+    assert np.isclose(math.acos((np.trace(turn) - 1) / 2), 0.4, atol=1e-9)
+    assert np.allclose(turn @ axis, axis, atol=1e-9)
