@@ -65,19 +65,23 @@ def visual_mesh_uris(urdf_text: str) -> list[str]:
 
 
 def mesh_allow_list(urdf_text: str, resolver: PackageResolver,
-                    mesh_dirs: Sequence[str] = ()) -> tuple:
+                    mesh_dirs: Sequence[str] = (), urdf_dir: str | None = None) -> tuple:
     """
     Return a :class:`MeshFile` per mesh of the URDF's visuals: the files that may be served.
 
     :param resolver: a :class:`~dq_fk_ros.description.packages.PackageResolver`.
-    :param mesh_dirs: folders ``file://`` URIs and plain paths may name files in.
+    :param mesh_dirs: folders ``file://`` URIs and absolute paths may name files in.
+    :param urdf_dir: the folder of the URDF file the user chose, which relative paths
+        (``meshes/base.stl``, as pybullet_data's URDFs name them) are resolved against and
+        may not leave; None (a URDF from a peer on DDS): relative paths are refused.
     """
     allowed = [os.path.realpath(folder) for folder in mesh_dirs]
+    urdf_dir = None if urdf_dir is None else os.path.realpath(urdf_dir)
     out = []
     for index, uri in enumerate(visual_mesh_uris(urdf_text)):
         shown = printable_line(uri, 200)
         try:
-            path = _mesh_path(uri, resolver, allowed)
+            path = _mesh_path(uri, resolver, allowed, urdf_dir)
         except (PackageNotFound, ValueError) as exc:
             out.append(MeshFile(uri, problem=f'mesh {shown}: {printable_line(exc, 300)}'))
             continue
@@ -86,26 +90,29 @@ def mesh_allow_list(urdf_text: str, resolver: PackageResolver,
     return tuple(out)
 
 
-def _mesh_path(uri, resolver, allowed):
+def _mesh_path(uri, resolver, allowed, urdf_dir=None):
     """Return the real file ``uri`` names, or raise ValueError / PackageNotFound saying why."""
     if not uri.lower().endswith(MESH_EXTENSIONS):
         raise ValueError(f'not a mesh this page draws ({", ".join(MESH_EXTENSIONS)})')
     if uri.startswith('package://'):
         name = uri[len('package://'):].partition('/')[0]
         path = resolver.resolve(uri)
-        root = os.path.realpath(resolver.find(name))
-        roots = [root]
+        roots, where = [os.path.realpath(resolver.find(name))], 'its package'
     elif uri.startswith('file://') or '://' not in uri:
         path = unquote(uri[len('file://'):]) if uri.startswith('file://') else uri
-        if not os.path.isabs(path):
-            raise ValueError('a relative path; give package:// or file:// with --mesh-dir')
         roots = allowed
+        where = 'the --mesh-dir folders' if roots else \
+            'a folder given with --mesh-dir (none given)'
+        if not os.path.isabs(path):
+            if urdf_dir is None or uri.startswith('file://'):
+                raise ValueError('a relative path: resolved only against the folder of a URDF '
+                                 'file given on the command line, never for one from DDS')
+            path, roots = os.path.join(urdf_dir, path), [urdf_dir]
+            where = "the URDF's folder"
     else:
         raise ValueError('only package:// and file:// meshes are served')
     real = os.path.realpath(path)
     if not any(os.path.commonpath([real, root]) == root for root in roots):
-        where = 'its package' if uri.startswith('package://') else (
-            'the --mesh-dir folders' if roots else 'a folder given with --mesh-dir (none given)')
         raise ValueError(f'outside {where}')
     check_mesh_file(real)
     return real
@@ -172,16 +179,18 @@ class MeshAssets:
     None for any other URI (traversal, ``file://`` outside ``mesh_dirs``, unknown).
     """
 
-    def __init__(self, resolver: PackageResolver, mesh_dirs: Sequence[str] = ()):
-        """Start with no URDF: nothing is fetchable."""
+    def __init__(self, resolver: PackageResolver, mesh_dirs: Sequence[str] = (),
+                 urdf_dir: str | None = None):
+        """Start with no URDF: nothing is fetchable (``urdf_dir``: :func:`mesh_allow_list`)."""
         self.resolver = resolver
         self.mesh_dirs = tuple(mesh_dirs)
+        self.urdf_dir = urdf_dir
         self._paths = {}
         self._lock = threading.Lock()
 
     def replace(self, urdf_text: str) -> list[str]:
         """Make the meshes of ``urdf_text`` the only fetchable files; one line per refusal."""
-        meshes = mesh_allow_list(urdf_text, self.resolver, self.mesh_dirs)
+        meshes = mesh_allow_list(urdf_text, self.resolver, self.mesh_dirs, self.urdf_dir)
         with self._lock:
             self._paths = {m.uri: m.path for m in meshes if m.path}
         return [m.problem for m in meshes if m.problem]

@@ -14,15 +14,22 @@ for a robot's description package, and a URDF or xacro from a vendor still names
    and nothing below it is searched; a ``CATKIN_IGNORE`` or ``AMENT_IGNORE`` file hides a
    folder);
 4. above the URDF or xacro file: a folder of that name holding a ``package.xml`` (the file's
-   own package, or a sibling of one of its folders).
+   own package, or a sibling of one of its folders);
+5. the ament index of the running Python environment's own prefixes
+   (:func:`python_prefixes`: ``sys.prefix`` and every ``site-packages/*.prefix``, where
+   example-robot-data's cmeel wheel puts ``share/example-robot-data`` with its index): what
+   ``pip install`` put beside this package, found with nothing set.
 
 A package that is not found is :class:`PackageNotFound`, one line naming it and the places
 searched. Plain Python, no ROS.
 """
 
 from collections.abc import Mapping, Sequence
+from functools import lru_cache
 import os
 import re
+import sys
+import sysconfig
 import xml.etree.ElementTree as ElementTree
 
 MAX_SEARCH_DEPTH = 6          # folders below a ROS_PACKAGE_PATH entry
@@ -30,6 +37,33 @@ MAX_SEARCH_FOLDERS = 20_000   # folders looked at per ROS_PACKAGE_PATH entry
 MAX_PACKAGE_XML_BYTES = 1 << 20
 PACKAGE_NAME = re.compile(r'[A-Za-z0-9_][A-Za-z0-9_.-]*')  # REP 144, and names in the wild
 IGNORE_MARKERS = ('CATKIN_IGNORE', 'AMENT_IGNORE', 'COLCON_IGNORE')
+
+
+INDEX = os.path.join('share', 'ament_index', 'resource_index', 'packages')
+
+
+@lru_cache(maxsize=1)
+def python_prefixes() -> tuple[str, ...]:
+    """
+    Return the prefixes of the running Python environment that carry an ament index.
+
+    ``sys.prefix`` (a venv's ``share/``: ament_cmake's wheels) and each ``*.prefix`` folder
+    of its site-packages (cmeel's ``cmeel.prefix``: example-robot-data, pinocchio), those
+    holding ``share/ament_index/resource_index/packages``, in that order.
+    """
+    candidates = [sys.prefix]
+    folders = []
+    for key in ('purelib', 'platlib'):
+        folder = sysconfig.get_paths().get(key)
+        if folder and folder not in folders:
+            folders.append(folder)
+    for folder in folders:
+        try:
+            names = sorted(os.listdir(folder))
+        except OSError:
+            continue
+        candidates += [os.path.join(folder, n) for n in names if n.endswith('.prefix')]
+    return tuple(p for p in candidates if os.path.isdir(os.path.join(p, INDEX)))
 
 
 class PackageNotFound(LookupError):
@@ -73,11 +107,14 @@ class PackageResolver:
     :param within: folders rule 4 may not leave (a file named at run time), or None.
     :param environ: where ``AMENT_PREFIX_PATH`` and ``ROS_PACKAGE_PATH`` are read (default:
         this process's environment).
+    :param python: the Python environment's prefixes of rule 5 (default:
+        :func:`python_prefixes`; ``()``: none).
     """
 
     def __init__(self, packages: Mapping[str, str] | None = None, near: str | None = None,
                  within: Sequence[str] | None = None,
-                 environ: Mapping[str, str] | None = None):
+                 environ: Mapping[str, str] | None = None,
+                 python: Sequence[str] | None = None):
         """Note where to look; nothing is read until :meth:`find` is asked."""
         environ = os.environ if environ is None else environ
         self.packages = {name: os.path.abspath(folder)
@@ -87,6 +124,7 @@ class PackageResolver:
         self.prefixes = [p for p in environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
         self.ros_package_path = [p for p in environ.get('ROS_PACKAGE_PATH', '').split(os.pathsep)
                                  if p]
+        self.python = python_prefixes() if python is None else tuple(python)
         self._found = {}
         self._scanned = None
 
@@ -96,8 +134,9 @@ class PackageResolver:
             return self._found[name]
         if not PACKAGE_NAME.fullmatch(str(name)):
             raise PackageNotFound(f'package {str(name)[:80]!r}: not a package name')
-        folder = (self.packages.get(name) or self._ament(name) or self._ros_package_path(name)
-                  or self._above(name))
+        folder = (self.packages.get(name) or _ament(self.prefixes, name)
+                  or self._ros_package_path(name) or self._above(name)
+                  or _ament(self.python, name))
         if folder is None:
             raise PackageNotFound(f'package {name!r} not found; searched: {self.searched()}')
         self._found[name] = folder
@@ -114,6 +153,8 @@ class PackageResolver:
                                             if self.ros_package_path else ' (not set)'))
         if self.near is not None:
             places.append(f'the folders above {self.near}')
+        if self.python:
+            places.append(f'the ament index of this Python ({os.pathsep.join(self.python)})')
         return '; '.join(places)
 
     def resolve(self, uri: str) -> str:
@@ -138,15 +179,6 @@ class PackageResolver:
         return uri
 
     # -- the rules ---------------------------------------------------------------------------
-    def _ament(self, name):
-        for prefix in self.prefixes:
-            marker = os.path.join(prefix, 'share', 'ament_index', 'resource_index', 'packages',
-                                  name)
-            share = os.path.join(prefix, 'share', name)
-            if os.path.isfile(marker) and os.path.isdir(share):
-                return share
-        return None
-
     def _ros_package_path(self, name):
         if self._scanned is None:
             self._scanned = {}
@@ -178,6 +210,15 @@ class PackageResolver:
         return any(os.path.commonpath([real, w]) == w for w in self.within)
 
 
+def _ament(prefixes, name):
+    """Return ``share/NAME`` of the first prefix whose ament index lists ``name``, or None."""
+    for prefix in prefixes:
+        share = os.path.join(prefix, 'share', name)
+        if os.path.isfile(os.path.join(prefix, INDEX, name)) and os.path.isdir(share):
+            return share
+    return None
+
+
 def _package_folders(root):
     """Yield the package folders below ``root`` (ROS 1's crawl, bounded)."""
     stack, seen = [(os.path.abspath(root), 0)], 0
@@ -201,4 +242,5 @@ def _package_folders(root):
                     stack.append((path, depth + 1))
 
 
-__all__ = ['PackageNotFound', 'PackageResolver', 'package_xml_name', 'parse_package_option']
+__all__ = ['PackageNotFound', 'PackageResolver', 'package_xml_name', 'parse_package_option',
+           'python_prefixes']

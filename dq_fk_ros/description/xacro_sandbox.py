@@ -33,6 +33,8 @@ import subprocess
 import sys
 import time
 
+from dq_fk_ros.description.packages import python_prefixes
+
 TIME_LIMIT_S = 10.0            # wall clock for one expansion (tools, the node at start-up)
 MEMORY_LIMIT_BYTES = 1 << 30   # the child's address space
 MAX_OUTPUT_BYTES = 8 << 20     # a URDF is at most this big (as a .urdf file)
@@ -95,11 +97,17 @@ def package_root(path: str | os.PathLike) -> str:
 
 
 def ros_package_roots(environ: Mapping[str, str] | None = None) -> list[str]:
-    """Return the folders where ``$(find)`` looks: every ament prefix's share, ROS_PACKAGE_PATH."""
+    """
+    Return the folders where ``$(find)`` looks.
+
+    Every ament prefix's share, ROS_PACKAGE_PATH, and the shares of this Python's own
+    prefixes with an ament index (:func:`~dq_fk_ros.description.packages.python_prefixes`).
+    """
     environ = os.environ if environ is None else environ
     roots = [os.path.join(p, 'share') for p in
              environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
     roots += [p for p in environ.get('ROS_PACKAGE_PATH', '').split(os.pathsep) if p]
+    roots += [os.path.join(p, 'share') for p in python_prefixes()]
     return roots
 
 

@@ -158,7 +158,8 @@ def test_ur5_meshes_come_back_byte_for_byte_and_nothing_else(processes, listener
     static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
     secret = tmp_path / 'secret.stl'
     secret.write_bytes(b'solid not-yours\nendsolid\n')
-    _, url = start_foxglove(processes, '--package', f'example-robot-data={package}')
+    # no --package: example-robot-data is found in the venv (its cmeel prefix's ament index)
+    _, url = start_foxglove(processes)
     client = FoxgloveClient(url)
     try:
         client.subscribe('/tf', '/tf_static', '/robot_description')

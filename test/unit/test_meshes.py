@@ -3,7 +3,7 @@
 import os
 
 from dq_fk_ros.description.meshes import (
-    MAX_MESH_BYTES, mesh_allow_list, visual_mesh_uris)
+    MAX_MESH_BYTES, mesh_allow_list, MeshAssets, visual_mesh_uris)
 from dq_fk_ros.description.packages import PackageResolver
 from dq_fk_ros.ros.view_state import ViewState
 import pytest
@@ -168,3 +168,24 @@ def test_a_mesh_is_read_from_the_descriptor_it_was_checked_by(tmp_path):
         stop.set()
         thread.join()
     assert served > 0
+
+
+def test_relative_paths_resolve_in_the_folder_of_a_urdf_file_the_user_chose(tmp_path):
+    # pybullet_data's URDFs name meshes by paths relative to the URDF
+    folder = tmp_path / 'kuka'
+    (folder / 'meshes').mkdir(parents=True)
+    (folder / 'meshes' / 'link_0.stl').write_bytes(b'solid a\nendsolid a\n')
+    (tmp_path / 'secret.stl').write_bytes(b'solid secret\nendsolid\n')
+    text = robot('meshes/link_0.stl', '../secret.stl', 'meshes/%2e%2e/%2e%2e/secret.stl',
+                 'file://meshes/link_0.stl')
+    chosen = mesh_allow_list(text, PackageResolver(environ={}), urdf_dir=str(folder))
+    assert chosen[0].path == str(folder / 'meshes' / 'link_0.stl') and not chosen[0].problem
+    assert [m.path for m in chosen[1:]] == [None, None, None]
+    assert 'outside the URDF' in chosen[1].problem
+    # a URDF from DDS (no file the user chose): nothing relative is resolved
+    from_dds = mesh_allow_list(text, PackageResolver(environ={}), mesh_dirs=[str(folder)])
+    assert all(m.path is None and 'relative path' in m.problem for m in from_dds)
+    assets = MeshAssets(PackageResolver(environ={}), urdf_dir=str(folder))
+    assets.replace(text)
+    assert assets.fetch('meshes/link_0.stl') == b'solid a\nendsolid a\n'
+    assert assets.fetch('../secret.stl') is None

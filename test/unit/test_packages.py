@@ -182,3 +182,40 @@ def test_a_package_several_folders_above_the_file_is_found(tmp_path):
     assert PackageResolver(near=robot, environ={}).find('arm_description') == str(package)
     with pytest.raises(PackageNotFound):
         PackageResolver(near=robot, environ={}).find('gripper_description')
+
+
+def test_packages_this_python_carries_are_found_with_nothing_set(tmp_path, monkeypatch):
+    # example-robot-data's cmeel wheel: site-packages/cmeel.prefix/share/NAME and its index
+    import sys
+    import sysconfig
+    from dq_fk_ros.description import packages
+    site = tmp_path / 'venv' / 'lib' / 'site-packages'
+    prefix = site / 'cmeel.prefix'
+    (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages').mkdir(parents=True)
+    (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages' / 'robot-data').touch()
+    (prefix / 'share' / 'robot-data' / 'meshes').mkdir(parents=True)
+    (site / 'other.prefix' / 'share').mkdir(parents=True)   # no index: not a prefix of ours
+    monkeypatch.setattr(sys, 'prefix', str(tmp_path / 'venv'))
+    monkeypatch.setattr(sysconfig, 'get_paths', lambda: {'purelib': str(site)})
+    packages.python_prefixes.cache_clear()
+    try:
+        assert packages.python_prefixes() == (str(prefix),)
+        resolver = PackageResolver(environ={})
+        assert resolver.find('robot-data') == str(prefix / 'share' / 'robot-data')
+        assert 'the ament index of this Python' in resolver.searched()
+        # after the sources of today: a --package of that name comes first
+        assert PackageResolver({'robot-data': str(tmp_path)}, environ={}).find(
+            'robot-data') == str(tmp_path)
+        with pytest.raises(PackageNotFound):
+            PackageResolver(environ={}, python=()).find('robot-data')
+        from dq_fk_ros.description.xacro_sandbox import ros_package_roots
+        assert str(prefix / 'share') in ros_package_roots({})
+    finally:
+        packages.python_prefixes.cache_clear()
+
+
+def test_the_readme_ur5_resolves_from_this_venv_with_nothing_set():
+    resolver = PackageResolver(environ={})
+    folder = resolver.find('example-robot-data')   # the URDFs' name; the index's too
+    assert os.path.isfile(os.path.join(folder, 'robots', 'ur_description', 'urdf',
+                                       'ur5_robot.urdf'))
