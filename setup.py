@@ -18,7 +18,8 @@ KERNEL_SOURCES = ['dq_fk_ros/kinematics/_kernel.c', 'dq_fk_ros/kinematics/_kerne
                   'dq_fk_ros/kinematics/_kernel_model.c']
 # the node's publishes through rcl (many publishers a call): where rcl's headers are (PyPI
 # wheels or a sourced ROS 2), else the node calls rclpy's publish_raw
-RCL = runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)), 'scripts',
+# (realpath: colcon build --symlink-install runs a link to this file from build/dq_fk_ros)
+RCL = runpy.run_path(os.path.join(os.path.dirname(os.path.realpath(__file__)), 'scripts',
                                   'rcl_build.py'))['rcl_paths']()
 RCL_EXTENSIONS = [] if RCL is None else [
     Extension('dq_fk_ros.ros._rcl_publish', ['dq_fk_ros/ros/_rcl_publish.c'],

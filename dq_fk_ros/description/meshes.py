@@ -96,9 +96,14 @@ def _mesh_path(uri, resolver, allowed, urdf_dir=None):
         raise ValueError(f'not a mesh this page draws ({", ".join(MESH_EXTENSIONS)})')
     if uri.startswith('package://'):
         name = uri[len('package://'):].partition('/')[0]
-        path = resolver.resolve(uri)
-        roots, where = [os.path.realpath(resolver.find(name))], 'its package'
-    elif uri.startswith('file://') or '://' not in uri:
+        named = resolver.resolve(uri)   # inside its package as text ('..' refused)
+        real = os.path.realpath(named)
+        root = os.path.realpath(resolver.find(name))
+        if os.path.commonpath([real, root]) != root and not build_link(named, real):
+            raise ValueError('outside its package')
+        check_mesh_file(real)
+        return real
+    if uri.startswith('file://') or '://' not in uri:
         path = unquote(uri[len('file://'):]) if uri.startswith('file://') else uri
         roots = allowed
         where = 'the --mesh-dir folders' if roots else \
@@ -116,6 +121,18 @@ def _mesh_path(uri, resolver, allowed, urdf_dir=None):
         raise ValueError(f'outside {where}')
     check_mesh_file(real)
     return real
+
+
+def build_link(named: str, real: str) -> bool:
+    """
+    Whether ``named`` reaches ``real`` through links as a build makes them: the same file name.
+
+    ``colcon build --symlink-install`` installs ``share/PKG/meshes/a.stl`` as a link to
+    ``src/PKG/meshes/a.stl`` (and a workspace's ``src/PKG`` is often a link to a clone): the
+    file keeps its name. A link to another name (``link.stl`` -> ``secret.stl``) is not
+    followed out of its package.
+    """
+    return os.path.basename(named) == os.path.basename(real)
 
 
 def check_mesh_file(path: str) -> None:

@@ -13,7 +13,11 @@ xacro here (:func:`expand_xacro`), in a child process that:
 * may open files for reading only, and only under ``read_roots`` (the file's package or
   folder, the ROS package paths, the folders the user allowed) and in the packages
   ``$(find)`` finds (:class:`~dq_fk_ros.description.packages.PackageResolver`, also on a
-  pip-only install); never for writing;
+  pip-only install); never for writing. A file is under a root if the file it resolves to
+  is, or if its name, made absolute and normalized (``..`` removed as text), is and the
+  links keep the file's name: those ``colcon build --symlink-install`` puts in an install
+  space (``share/PKG/urdf/x.xacro`` -> ``src/PKG/urdf/x.xacro``) are followed, a name that
+  leaves its root as text is not;
 * sees an environment cut down to the ROS and locale variables (:data:`ENVIRONMENT`);
 * runs under a time limit (wall clock and CPU) and an address-space limit, in a session of
   its own: Ctrl-C reaches the caller, who kills it.
@@ -136,7 +140,8 @@ def expand_xacro(path: str | os.PathLike, read_roots: Sequence[str],
     """
     environment = {k: os.environ[k] for k in ENVIRONMENT if k in os.environ}
     request = json.dumps({'path': os.path.abspath(path),  # the child runs in its folder
-                          'roots': [os.path.realpath(r) for r in read_roots],
+                          'roots': sorted({form for r in read_roots for form in (
+                              os.path.realpath(r), os.path.normpath(os.path.abspath(r)))}),
                           'time_limit_s': time_limit_s, 'memory': memory_limit_bytes,
                           'packages': dict(packages or {}),
                           'within': None if within is None else [os.fspath(w) for w in within]})
@@ -207,7 +212,8 @@ def _confine(roots, time_limit_s, memory):
     roots = [r.rstrip(os.sep) + os.sep for r in roots]
 
     def allow(folder):
-        roots.append(os.path.realpath(folder).rstrip(os.sep) + os.sep)
+        for form in (os.path.realpath(folder), os.path.normpath(os.path.abspath(folder))):
+            roots.append(form.rstrip(os.sep) + os.sep)
 
     def confined_open(file, mode='r', *args, **kwargs):
         # (errno, strerror and filename all set: xacro builds its message from the last two)
@@ -216,8 +222,13 @@ def _confine(roots, time_limit_s, memory):
         shown = os.fsdecode(file)[:200]
         if any(c in str(mode) for c in 'wax+'):
             raise PermissionError(errno.EACCES, 'refused, xacro may not write files', shown)
-        path = os.path.realpath(os.fsdecode(file))
-        if not any(path.startswith(root) for root in roots):
+        named = os.path.normpath(os.path.abspath(os.fsdecode(file)))
+        path = os.path.realpath(named)
+        # under a root as resolved, or as named when the links keep the file's name (those a
+        # --symlink-install build makes: share/PKG/urdf/x.xacro -> src/PKG/urdf/x.xacro)
+        same_name = os.path.basename(named) == os.path.basename(path)
+        if not any(path.startswith(root) or (same_name and named.startswith(root))
+                   for root in roots):
             raise PermissionError(errno.EACCES, "refused, outside the robot's package and the "
                                   'allowed folders (--package, read_roots)', shown)
         return real_open(path, mode, *args, **kwargs)

@@ -24,14 +24,21 @@ NOT_SOURCES = shutil.ignore_patterns('.venv*', '.git', 'build', 'install', 'log'
 pytestmark = pytest.mark.integration
 
 
-@pytest.fixture(scope='module')
-def colcon_workspace(tmp_path_factory):
-    """Copy the package into ``src/`` of a fresh workspace and ``colcon build`` it."""
+@pytest.fixture(scope='module', params=['copied', 'symlink-install'])
+def colcon_workspace(request, tmp_path_factory):
+    """
+    Copy the package into ``src/`` of a fresh workspace and ``colcon build`` it.
+
+    Both ways ROS 2 developers build: plain (files copied into install/) and
+    ``--symlink-install`` (colcon runs a link to setup.py from build/dq_fk_ros and installs
+    in develop mode, links into src/).
+    """
     ws = tmp_path_factory.mktemp('ws')
     shutil.copytree(PACKAGE_ROOT, ws / 'src' / 'dq_fk_ros', ignore=NOT_SOURCES)
     listed = subprocess.run([COLCON, 'list', '--names-only'], cwd=ws, capture_output=True,
                             text=True, check=True)
-    build = subprocess.run([COLCON, 'build'], cwd=ws, capture_output=True, text=True)
+    extra = ['--symlink-install'] if request.param == 'symlink-install' else []
+    build = subprocess.run([COLCON, 'build', *extra], cwd=ws, capture_output=True, text=True)
     assert build.returncode == 0, build.stdout + build.stderr
     return ws, listed.stdout.split()
 
