@@ -98,9 +98,20 @@ class LogRateLimit(logging.Filter):
         return True
 
 
+class _StderrHandler(logging.Handler):
+    """Write to the ``sys.stderr`` of the moment (one replaced or closed since: no error)."""
+
+    def emit(self, record) -> None:
+        try:
+            sys.stderr.write(self.format(record) + '\n')
+            sys.stderr.flush()
+        except Exception:  # noqa: B902 (a log line must never raise into the SDK's thread)
+            pass
+
+
 def route_sdk_log(foxglove) -> LogRateLimit:
     """Send the SDK's log lines to stderr through a :class:`LogRateLimit`; return it."""
-    handler = logging.StreamHandler(sys.stderr)
+    handler = _StderrHandler()
     handler.setFormatter(logging.Formatter('dq_fk_foxglove: sdk: %(message)s'))
     limit = LogRateLimit()
     handler.addFilter(limit)

@@ -249,7 +249,8 @@ def test_a_bag_writes_a_side_branch_from_the_message_that_names_it(tmp_path):
             stamp = t0 + k * 10_000_000
             names = list(model.joint_names) if k >= 12 else list(model.joint_names[:6])
             writer.write(conn, stamp, joint_state(names, [0.01 * k] * len(names), stamp))
-    summary = process_bag(tmp_path / 'in', tmp_path / 'out', model, progress=False)
+    summary = process_bag(tmp_path / 'in', tmp_path / 'out', model, progress=False,
+                          poses='all')
     assert summary.written == 20
     with Reader(tmp_path / 'out') as reader:
         tf = [(t, store.deserialize_cdr(raw, c.msgtype)) for c, t, raw in reader.messages(
