@@ -290,7 +290,8 @@ def test_frames_it_cannot_read_one_way_only_end_the_connection(sdk, gates):
                        '"uri": "package://p/mesh.stl", "subscriptions": []}'))
     fetch(sock, 2)
     answers = asset_answers(read_frames(sock, lambda f: 2 in asset_answers(f)))
-    assert set(answers) == {2} and gate.counts['repeated_keys'] == 1, (answers, gate.counts, sdk.calls)
+    assert set(answers) == {2} and gate.counts['repeated_keys'] == 1, \
+        (answers, gate.counts, sdk.calls)
     sock.sendall(frame('{"op": "fetch', fin=False) + frame('Asset"}', opcode=0))
     assert read_frames(sock, lambda frames: False, timeout_s=3) == []
     assert sock.recv(10) == b''   # closed
