@@ -212,10 +212,14 @@ class MeshAssets:
             self._paths = {m.uri: m.path for m in meshes if m.path}
         return [m.problem for m in meshes if m.problem]
 
+    def _path(self, uri):
+        """Return the listed file of ``uri``, or None."""
+        with self._lock:
+            return self._paths.get(uri) if isinstance(uri, str) else None
+
     def size(self, uri: str) -> int:
         """Return how many bytes :meth:`fetch` of ``uri`` returns now (0: none, or unknown)."""
-        with self._lock:
-            path = self._paths.get(uri) if isinstance(uri, str) else None
+        path = self._path(uri)
         try:
             return min(os.stat(path).st_size, MAX_MESH_BYTES) if path else 0
         except OSError:
@@ -223,8 +227,7 @@ class MeshAssets:
 
     def fetch(self, uri: str) -> bytes | None:
         """Return the bytes of the listed mesh ``uri``, or None (not listed, or unreadable)."""
-        with self._lock:
-            path = self._paths.get(uri) if isinstance(uri, str) else None
+        path = self._path(uri)
         if path is None:
             return None
         try:
