@@ -129,6 +129,8 @@ def read_frames(sock, until, timeout_s=20):
         if not part:
             break
         buffer += part
+    if buffer:
+        LEFTOVER[sock] = buffer  # the start of a frame read with the last one
     return frames
 
 
