@@ -34,6 +34,10 @@ const view = {
   webgl: true,
   project,             // (frame name) -> {x, y}: where the camera puts its origin, in pixels
   select,
+  joints: {},          // the joint panel's sliders (dq_fk_view --joint-panel): name -> value
+  mimics: {},          // its mimic joints: name -> value, following their source
+  setJoint,            // (name, value) -> moves a slider as the user does; false: no such slider
+  resetJoints,         // () -> every slider back to its start
 };
 window.dqFkView = view;
 
@@ -488,8 +492,105 @@ function project(name) {
            y: rect.top + (1 - point.y) / 2 * rect.height };
 }
 
+// the joint panel (--joint-panel): a slider per moving joint; the server publishes their
+// JointState. Names come from the URDF (anyone's): written with textContent only.
+let socket = null;
+let panel = null;          // {joints: [[name, lower, upper, start, value]], mimics: [...]}
+let sendTimer = null;
+const sliders = {};        // name -> {input, value}
+
+function onPanel(spec) {
+  const box = document.getElementById('joints');
+  box.textContent = '';
+  panel = spec || null;
+  view.joints = {};
+  view.mimics = {};
+  for (const name of Object.keys(sliders)) delete sliders[name];
+  if (!panel || !panel.joints.length) { box.hidden = true; return; }
+  box.hidden = false;
+  const title = document.createElement('div');
+  title.textContent = `Joints (${panel.joints.length}; published on joint_states)`;
+  box.appendChild(title);
+  for (const [name, lower, upper, , value] of panel.joints) {
+    const row = document.createElement('div');
+    row.className = 'joint';
+    const label = document.createElement('label');
+    const input = document.createElement('input');
+    input.type = 'range';
+    input.min = String(lower);
+    input.max = String(upper);
+    input.step = 'any';   // the value as dragged, not snapped to a grid from the minimum
+    input.value = String(value);
+    input.dataset.joint = name;
+    const shown = document.createElement('span');
+    shown.className = 'joint-value';
+    label.append(name, ' ');
+    label.append(shown);
+    row.append(label, input);
+    box.appendChild(row);
+    sliders[name] = { input, shown, lower, upper };
+    input.addEventListener('input', () => setJoint(name, Number(input.value)));
+    view.joints[name] = value;
+    shown.textContent = value.toFixed(3);
+  }
+  for (const [name, source] of panel.mimics) {
+    const row = document.createElement('div');
+    row.className = 'mimic';
+    const shown = document.createElement('span');
+    shown.className = 'mimic-value';
+    shown.dataset.joint = name;
+    row.append(`${name} (follows ${source}) `, shown);
+    box.appendChild(row);
+  }
+  const reset = document.createElement('button');
+  reset.id = 'reset-joints';
+  reset.textContent = 'Reset';
+  reset.addEventListener('click', resetJoints);
+  box.appendChild(reset);
+  updateMimics();
+}
+
+function mimicValue(name, depth = 0) {
+  if (name in view.joints) return view.joints[name];
+  const mimic = panel.mimics.find((m) => m[0] === name);
+  if (!mimic || depth > 64) return 0;
+  return mimic[2] * mimicValue(mimic[1], depth + 1) + mimic[3];
+}
+
+function updateMimics() {
+  for (const [name] of panel.mimics) {
+    view.mimics[name] = mimicValue(name);
+    const shown = document.querySelector(`.mimic-value[data-joint="${CSS.escape(name)}"]`);
+    if (shown) shown.textContent = view.mimics[name].toFixed(3);
+  }
+}
+
+function setJoint(name, value) {
+  const slider = sliders[name];
+  if (!slider || !Number.isFinite(value)) return false;
+  const clamped = Math.min(Math.max(value, slider.lower), slider.upper);
+  view.joints[name] = clamped;
+  slider.input.value = String(clamped);
+  slider.shown.textContent = clamped.toFixed(3);
+  updateMimics();
+  if (sendTimer === null) {  // at most one message per 30 ms, the newest values
+    sendTimer = setTimeout(() => {
+      sendTimer = null;
+      if (socket && socket.readyState === WebSocket.OPEN) {
+        socket.send(JSON.stringify({ type: 'joints', positions: view.joints }));
+      }
+    }, 30);
+  }
+  return true;
+}
+
+function resetJoints() {
+  if (!panel) return;
+  for (const [name, , , start] of panel.joints) setJoint(name, start);
+}
+
 function connect() {
-  const socket = new WebSocket(`ws://${location.host}/ws`);
+  socket = new WebSocket(`ws://${location.host}/ws`);
   socket.addEventListener('open', () => {
     view.connected = true;
     document.getElementById('status').textContent = 'connected';
@@ -499,7 +600,10 @@ function connect() {
     view.messages += 1;
     const message = JSON.parse(event.data);
     if (message.type === 'frames') onFrames(message);
-    else if (message.type === 'robot') onRobot(message);
+    else if (message.type === 'robot') {
+      onRobot(message);
+      onPanel(message.panel);
+    }
   });
   socket.addEventListener('close', () => {
     view.connected = false;

@@ -1,10 +1,11 @@
 """
-``dq_fk``: the robot description on the command line, without any ROS process.
+``dq_fk``: the robot description on the command line.
 
 ``dq_fk validate FILE...``, ``dq_fk fk FILE --joints ...``, ``dq_fk urdf FILE``,
-``dq_fk plot FILE``, ``dq_fk from-urdf ROBOT.urdf -o robot.yaml``, ``dq_fk list``. FILE is a
-DH YAML file, a URDF or xacro file (converted on the way, as ``from-urdf`` does), or the name
-of a shipped robot (``rl15``, ``puma560``...).
+``dq_fk plot FILE``, ``dq_fk from-urdf ROBOT.urdf -o robot.yaml``, ``dq_fk list`` run no ROS
+process; ``dq_fk show ROBOT`` starts the node and the view (:mod:`dq_fk_ros.ros.show`).
+FILE is a DH YAML file, a URDF or xacro file (converted on the way, as ``from-urdf`` does),
+or the name of a shipped robot (``rl15``, ``puma560``...).
 """
 
 import argparse
@@ -261,6 +262,14 @@ def cmd_from_urdf(args) -> int:
     return 0
 
 
+def cmd_show(args) -> int:
+    from dq_fk_ros.ros.show import show  # rclpy's programs: imported only for this command
+    if not 0 <= args.port <= 65535:
+        raise UsageError(f'--port {args.port}: give a port 1 to 65535')
+    return show(args.robot, args.port, args.host, dict(args.package),
+                args.urdf_base or '', args.urdf_tip or '')
+
+
 def cmd_list(args) -> int:
     for name in shipped_robots():
         model = load_robot_description(shipped_robot_path(name))
@@ -332,6 +341,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help='output file (default: standard output)')
     add_package_option(p)
     p.set_defaults(func=cmd_from_urdf)
+    p = sub.add_parser('show', help='your robot in a browser with a slider per joint (node, '
+                       'view and joint panel, as urdf_tutorial display.launch.py)')
+    p.add_argument('robot', metavar='ROBOT', help='a URDF or xacro file, a DH YAML file or a '
+                   'shipped robot name')
+    p.add_argument('--port', type=int, default=8765, help="the page's port (default 8765)")
+    p.add_argument('--host', default='127.0.0.1',
+                   help='address the page listens on (default 127.0.0.1: this machine only)')
+    add_urdf_chain_options(p)
+    add_package_option(p)
+    p.set_defaults(func=cmd_show)
     p = sub.add_parser('list', help='list the shipped robots')
     p.add_argument('--verbose', '-v', action='store_true',
                    help='also say which FK path is active (the C kernel or numpy)')

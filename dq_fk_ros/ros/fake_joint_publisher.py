@@ -3,6 +3,11 @@ fake_joint_publisher: ``sensor_msgs/JointState`` for a robot description, for de
 
 Modes: ``zeros``; ``fixed`` (the ``positions`` parameter); ``sine`` (each joint sweeps
 within its limits with a period of its own); ``random_walk`` (seeded, reproducible).
+
+The robot comes, as joint_state_publisher takes it, from the ``robot_description``
+parameter (URDF XML), else from ``robot_description_file``, else, with ``from_topic:=true``,
+from the ``robot_description`` topic (transient local: the node's, robot_state_publisher's;
+a new description replaces the robot, nothing is published before the first), else rl15.
 ``fault_fraction`` mixes malformed messages (wrong lengths, NaN, unknown names) into the
 stream, for robustness tests. The motion itself is plain Python (:class:`JointMotion`).
 """
@@ -11,7 +16,7 @@ import math
 import sys
 
 from dq_fk_ros.description.from_urdf import NODE_OPTIONS
-from dq_fk_ros.description.loading import load_robot
+from dq_fk_ros.description.loading import load_robot, robot_from_urdf_text
 from dq_fk_ros.errors import DqFkError
 from dq_fk_ros.ros.executables import MATCH_SETTLE_S, run_main, spin_until_shutdown
 from dq_fk_ros.ros.package_paths import declare_package_paths
@@ -20,7 +25,9 @@ import numpy as np
 import rclpy
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 
 MODES = ('zeros', 'fixed', 'sine', 'random_walk')
 FAULTS = ('wrong_length', 'nan', 'unknown_names')
@@ -34,6 +41,12 @@ FAKE_PARAMETERS = (
     Param('robot_description_file', '',
           'the robot whose joints to publish (every joint of a tree): DH YAML, URDF/xacro or '
           'a shipped name; empty: rl15'),
+    Param('robot_description', '',
+          'URDF XML, as joint_state_publisher takes it; if set, used instead of '
+          'robot_description_file'),
+    Param('from_topic', False,
+          'with neither parameter set: take the robot from the robot_description topic, as '
+          'joint_state_publisher does (a new description replaces it)'),
     Param('urdf_base_link', '', 'for a URDF: the link the robot starts at'),
     Param('urdf_tip_link', '', 'for a URDF: the link the first DH chain ends at'),
     Param('mode', 'sine', f'one of {", ".join(MODES)}'),
@@ -132,21 +145,49 @@ class FakeJointPublisher(Node):
         if not rate_hz > 0.0:
             raise ValueError(f'rate_hz must be positive, got {rate_hz}')
         packages = declare_package_paths(self)
-        model = load_robot(path or 'rl15', base or None, tip or None, packages=packages,
-                           options=NODE_OPTIONS).model
-        self._names = list(model.joint_names)
-        self._motion = JointMotion(mode, model.limits,
-                                   fixed=positions if mode == 'fixed' else None,
-                                   amplitude=amplitude, seed=seed)
+        self._mode, self._positions = mode, positions
+        self._amplitude, self._seed, self._base, self._tip = amplitude, seed, base, tip
+        self._names, self._motion = None, None
         self._rng = np.random.default_rng(seed + 1)
         self._pub = self.create_publisher(JointState, 'joint_states', 10)
         self._start = self.get_clock().now()
         self.sent = {'valid': 0, 'malformed': 0}
+        if value['robot_description']:
+            self._use(robot_from_urdf_text(value['robot_description'], 'robot_description',
+                                           base or None, tip or None,
+                                           options=NODE_OPTIONS).model)
+        elif path or not value['from_topic']:
+            self._use(load_robot(path or 'rl15', base or None, tip or None,
+                                 packages=packages, options=NODE_OPTIONS).model)
+        else:
+            latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
+            self.create_subscription(String, 'robot_description', self._on_description,
+                                     latched)
+            self.get_logger().info('waiting for robot_description')
         self._timer = self.create_timer(1.0 / rate_hz, self._tick)
-        self.get_logger().info(f'publishing {mode} joint states of {model.name} at '
-                               f'{rate_hz:g} Hz on {self._pub.topic_name}')
+
+    def _use(self, model):
+        """Publish ``model``'s joints from now on."""
+        self._names = list(model.joint_names)
+        self._motion = JointMotion(self._mode, model.limits,
+                                   fixed=self._positions if self._mode == 'fixed' else None,
+                                   amplitude=self._amplitude, seed=self._seed)
+        self.get_logger().info(f'publishing {self._mode} joint states of {model.name} on '
+                               f'{self._pub.topic_name}')
+
+    def _on_description(self, msg):
+        """Take a robot_description from the topic as the robot from now on (a bad one: logged)."""
+        try:
+            self._use(robot_from_urdf_text(msg.data, 'robot_description',
+                                           self._base or None, self._tip or None,
+                                           options=NODE_OPTIONS).model)
+        except (DqFkError, ValueError) as exc:
+            self.get_logger().error(str(exc)[:300])
 
     def _tick(self):
+        if self._motion is None:
+            return  # no robot yet (from_topic)
         if self._wait_for:
             if self._pub.get_subscription_count() < self._wait_for:
                 return

@@ -8,6 +8,12 @@ and only the latest poses, whatever the TF rate. The page draws the URDF placed 
 frame's axes and name, a grid, and a panel with the selected frame's pose.
 
     dq_fk_view [--host 127.0.0.1] [--port 8765] [--fixed-frame F] [--select F] [--rate 30]
+               [--joint-panel] [--urdf-dir DIR]
+
+With ``--joint-panel`` (``dq_fk show`` starts it so) the page has a slider per moving joint
+and the view publishes ``sensor_msgs/JointState`` on ``joint_states`` from them,
+``PANEL_RATE_HZ`` times a second, as joint_state_publisher_gui
+(:mod:`dq_fk_ros.ros.view_panel`).
 
 Messages to the page are JSON: ``{"type": "robot", "urdf": ...}`` when the description
 changes, and ``{"type": "frames", "fixed_frame": ..., "select": ..., "stamp_ns": the
@@ -22,6 +28,7 @@ shows is :class:`~dq_fk_ros.ros.view_state.ViewState`, the web server
 
 import argparse
 import asyncio
+import os
 import signal
 import sys
 import threading
@@ -40,7 +47,9 @@ DEFAULT_PORT = 8765
 MAX_CONNECTIONS = 256        # open at once; one more is closed as it comes (fds stay free)
 HEADER_TIMEOUT_S = 10.0      # a connection's first request must have its headers by then
 KEEPALIVE_TIMEOUT_S = 15.0   # an idle connection between requests is closed after this
+SHUTDOWN_TIMEOUT_S = 3.0     # on SIGINT: requests in progress get this long (aiohttp: 60)
 TF_QUEUE_DEPTH = 1000  # /tf messages DDS keeps for the view between two takes
+PANEL_RATE_HZ = 10.0   # joint states from the panel a second (joint_state_publisher's rate)
 
 
 def make_node(state, context=None) -> 'Node':
@@ -77,6 +86,17 @@ def make_node(state, context=None) -> 'Node':
                                         durability=DurabilityPolicy.TRANSIENT_LOCAL))
     node.create_subscription(String, ROBOT_DESCRIPTION.topic,
                              lambda m: state.take_description(m.data), latched)
+    if state.panel is not None:
+        from sensor_msgs.msg import JointState
+        publisher = node.create_publisher(JointState, 'joint_states', 10)
+
+        def publish_panel():
+            names, positions = state.panel.joint_state()
+            if names:
+                msg = JointState(name=names, position=positions)
+                msg.header.stamp = node.get_clock().now().to_msg()
+                publisher.publish(msg)
+        node.create_timer(1.0 / PANEL_RATE_HZ, publish_panel)
     return node
 
 
@@ -98,6 +118,12 @@ def parse_args(argv) -> argparse.Namespace:
     parser.add_argument('--rate', type=float, default=DEFAULT_RATE_HZ,
                         help=f'poses sent to pages per second at most (default '
                         f'{DEFAULT_RATE_HZ:g})')
+    parser.add_argument('--joint-panel', action='store_true',
+                        help='a slider per moving joint; publish their JointState on '
+                        'joint_states (as joint_state_publisher_gui)')
+    parser.add_argument('--urdf-dir', metavar='DIR',
+                        help="the folder of the robot file you chose: the URDF's relative mesh "
+                        'paths resolve inside it (dq_fk show sets it)')
     add_mesh_options(parser)
     parser.add_argument('--stale-after', type=float, default=STALE_AFTER_S,
                         help='seconds without an update after which a frame is greyed')
@@ -109,6 +135,8 @@ def parse_args(argv) -> argparse.Namespace:
     if not (args.stale_after > 0):
         parser.error('--stale-after: give a positive number of seconds')
     check_mesh_options(parser, args)
+    if args.urdf_dir is not None and not os.path.isdir(args.urdf_dir):
+        parser.error(f'--urdf-dir {args.urdf_dir}: no such folder')
     return args
 
 
@@ -212,7 +240,8 @@ async def serve(args, state, ready=None):
     bound = [] if args.host in ('0.0.0.0', '::', '') else [args.host]
     app = make_app(state, args.rate, allowed_hosts=tuple(bound + args.allow_host))
     runner = web.AppRunner(app, handle_signals=False, keepalive_timeout=KEEPALIVE_TIMEOUT_S,
-                           max_line_size=8190, max_field_size=8190)
+                           max_line_size=8190, max_field_size=8190,
+                           shutdown_timeout=SHUTDOWN_TIMEOUT_S)
     await runner.setup()
     loop = asyncio.get_running_loop()
     server = None
@@ -248,8 +277,10 @@ def main(argv=None) -> int:
     except (FileNotFoundError, ImportError) as exc:
         print(f'dq_fk_view: {exc} (make setup installs what it needs)', file=sys.stderr)
         return 1
+    from dq_fk_ros.ros.view_panel import JointPanel
     state = ViewState(args.fixed_frame, args.select, args.stale_after,
-                      PackageResolver(args.packages), args.mesh_dir)
+                      PackageResolver(args.packages), args.mesh_dir,
+                      panel=JointPanel() if args.joint_panel else None, urdf_dir=args.urdf_dir)
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = make_node(state)
     executor = SingleThreadedExecutor()

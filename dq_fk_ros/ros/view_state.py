@@ -26,7 +26,7 @@ class ViewState:
     """What the page shows, shared by the ROS callbacks and the web server (under a lock)."""
 
     def __init__(self, fixed_frame='', select='', stale_after_s=STALE_AFTER_S, resolver=None,
-                 mesh_dirs=(), log=None):
+                 mesh_dirs=(), log=None, panel=None, urdf_dir=None):
         """
         Start empty; ``fixed_frame`` and ``select`` empty: chosen from the TF tree.
 
@@ -34,10 +34,17 @@ class ViewState:
             :class:`PackageResolver`; default: the ament index and ``ROS_PACKAGE_PATH``).
         :param mesh_dirs: folders ``file://`` meshes may be in.
         :param log: called with one line per mesh that cannot be served (default: stderr).
+        :param panel: a :class:`~dq_fk_ros.ros.view_panel.JointPanel` (``--joint-panel``)
+            fed each URDF, or None.
+        :param urdf_dir: the folder of the robot file the user chose, where relative mesh
+            paths resolve (``--urdf-dir``; see
+            :func:`~dq_fk_ros.description.meshes.mesh_allow_list`), or None.
         """
         self.lock = threading.Lock()
         self.resolver = resolver or PackageResolver()
         self.mesh_dirs = tuple(mesh_dirs)
+        self.panel = panel
+        self.urdf_dir = urdf_dir
         self.log = log or (lambda line: print(f'dq_fk_view: {line}', file=sys.stderr,
                                               flush=True))
         self.meshes = ()          # the MeshFiles of the current URDF: all that /mesh serves
@@ -79,7 +86,9 @@ class ViewState:
         with self.lock:
             if text == self.urdf:
                 return
-        meshes = mesh_allow_list(text, self.resolver, self.mesh_dirs)
+        meshes = mesh_allow_list(text, self.resolver, self.mesh_dirs, self.urdf_dir)
+        if self.panel is not None:
+            self.panel.take_description(text)
         for mesh in meshes:
             if mesh.problem:
                 self.log(f'{mesh.problem} (a grey box stands for it)')
@@ -92,8 +101,11 @@ class ViewState:
         """Return the JSON text of the robot: its URDF and where the page gets each mesh."""
         with self.lock:
             urdf, meshes = self.urdf, self.meshes
-        return json.dumps({'type': 'robot', 'urdf': urdf,
-                           'meshes': {m.uri: m.url or None for m in meshes}})
+        message = {'type': 'robot', 'urdf': urdf,
+                   'meshes': {m.uri: m.url or None for m in meshes}}
+        if self.panel is not None:
+            message['panel'] = self.panel.spec()
+        return json.dumps(message)
 
     def mesh_path(self, index, name) -> Optional[str]:
         """Return the file served as ``/mesh/<index>/<name>``, or None (not on the list)."""

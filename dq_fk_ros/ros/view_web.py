@@ -6,8 +6,10 @@ address the server listens on, or one given with ``--allow-host``) in its ``Host
 so a web page that points its own domain at 127.0.0.1 (DNS rebinding) is refused; and a
 WebSocket whose ``Origin`` is not the server's own is refused (another site's page open in
 the same browser). Both answer 403. Messages from pages are read and, but for
-``{"type": "hello"}``, ignored; anything else (not JSON, binary, too big, nested too
-deeply) is counted in ``/status``.
+``{"type": "hello"}`` and, with the joint panel (``--joint-panel``), ``{"type": "joints",
+...}`` (:class:`~dq_fk_ros.ros.view_panel.JointPanel` checks it), ignored; anything else
+(not JSON, binary, too big, nested too deeply, joints without a panel) is counted in
+``/status``.
 """
 
 import asyncio
@@ -24,6 +26,7 @@ if TYPE_CHECKING:  # aiohttp is imported where used
 
 DEFAULT_RATE_HZ = 30.0
 MAX_CLIENT_MESSAGE_BYTES = 64 * 1024
+CLOSE_TIMEOUT_S = 2.0  # on stop: how long open pages get to answer the WebSocket close
 LOOPBACK_NAMES = ('localhost', 'localhost.localdomain', 'ip6-localhost')
 VENDOR_PACKAGES = ('three', 'urdf-loader')
 
@@ -155,7 +158,10 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()) -> 'we
             async for msg in ws:
                 if msg.type == WSMsgType.ERROR:
                     break
-                if not _good_client_message(msg, WSMsgType):
+                kind = _client_message(msg, WSMsgType)
+                taken = kind == 'hello' or (kind is not None and state.panel is not None
+                                            and state.panel.take_page(kind))
+                if not taken:
                     with state.lock:
                         state.counts['bad_input'] += 1
         finally:
@@ -202,10 +208,13 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()) -> 'we
     async def start_broadcast(app):
         app['broadcast'] = asyncio.ensure_future(broadcast(app))
 
-    async def stop_broadcast(app):
+    async def close_pages(app):
+        # on_shutdown, before aiohttp waits for handlers: an open page holds its handler
         app['broadcast'].cancel()
-        for ws in list(clients):
-            await ws.close()
+        closing = [ws.close() for ws in list(clients)]
+        if closing:  # a page that never answers the close holds the stop CLOSE_TIMEOUT_S
+            await asyncio.wait([asyncio.ensure_future(c) for c in closing],
+                               timeout=CLOSE_TIMEOUT_S)
 
     app = web.Application(middlewares=[guard])
     app.router.add_get('/', index)
@@ -219,19 +228,27 @@ def make_app(state, rate_hz=DEFAULT_RATE_HZ, root=None, allowed_hosts=()) -> 'we
         if os.path.isdir(folder):
             app.router.add_static(f'/vendor/{package}/', folder)
     app.on_startup.append(start_broadcast)
-    app.on_cleanup.append(stop_broadcast)
+    app.on_shutdown.append(close_pages)
     return app
 
 
-def _good_client_message(msg, kinds):
-    """Whether a page's message is one the protocol has (``{"type": "hello"}``)."""
+def _client_message(msg, kinds):
+    """
+    Return a page's message the protocol has: ``'hello'``, or a ``joints`` message's dict.
+
+    None for anything else (binary, not JSON, another type).
+    """
     if msg.type != kinds.TEXT:
-        return False
+        return None
     try:
         data = json.loads(msg.data)
     except (ValueError, RecursionError):  # not JSON, or nested past Python's stack
-        return False
-    return isinstance(data, dict) and data.get('type') == 'hello'
+        return None
+    if not isinstance(data, dict):
+        return None
+    if data.get('type') == 'hello':
+        return 'hello'
+    return data if data.get('type') == 'joints' else None
 
 
 __all__ = ['DEFAULT_RATE_HZ', 'host_allowed', 'make_app', 'web_root']

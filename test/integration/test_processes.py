@@ -92,6 +92,35 @@ def test_fake_joint_publisher_drives_a_urdf_with_a_floating_or_planar_root(
     assert {(t.header.frame_id, t.child_frame_id) for t in static[-1].transforms} == fixed
 
 
+def test_fake_joint_publisher_takes_the_robot_as_joint_state_publisher_does(
+        processes, listener, tmp_path):
+    """From the robot_description parameter (URDF XML) and from the topic, as well as a file."""
+    import json
+    from dq_fk_ros.ros.executables import executable
+    from ros_harness import unique_node_name
+    panda = load_robot_description(shipped_robot_path('panda'))
+    urdf = ('<robot name="two"><link name="a"/><link name="b"/><link name="c"/>'
+            '<joint name="alpha" type="continuous"><parent link="a"/><child link="b"/></joint>'
+            '<joint name="beta" type="prismatic"><parent link="b"/><child link="c"/>'
+            '<limit lower="0" upper="1" effort="1" velocity="1"/></joint></robot>')
+    params = tmp_path / 'fake.yaml'
+    name = unique_node_name('fake_from_parameter')
+    params.write_text(json.dumps({name: {'ros__parameters': {
+        'robot_description': urdf, 'mode': 'zeros', 'rate_hz': 20.0}}}))
+    processes.start(executable('fake_joint_publisher') + [
+        '--ros-args', '-r', f'__node:={name}', '-r', 'joint_states:=from_parameter',
+        '--params-file', str(params)])
+    # the node publishes robot_description (latched); the publisher waits for it
+    start(processes, 'dq_fk_node', 'robot_description_file:=panda')
+    start(processes, 'fake_joint_publisher', 'from_topic:=true', 'mode:=zeros',
+          'rate_hz:=20.0')
+    by_parameter = listener.listen(JointState, '/from_parameter')
+    by_topic = listener.listen(JointState, '/joint_states')
+    assert listener.spin_until(lambda: by_parameter and by_topic, timeout_s=20)
+    assert list(by_parameter[-1].name) == ['alpha', 'beta']
+    assert list(by_topic[-1].name) == list(panda.joint_names)
+
+
 def test_tf_static_reaches_a_subscriber_that_starts_late(processes, listener):
     start(processes, 'dq_fk_node')
     time.sleep(2.0)

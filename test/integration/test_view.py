@@ -341,3 +341,26 @@ def test_half_sent_requests_cannot_take_the_server(processes):
     said = (out or '') + (err or '')  # (the harness may join stderr to stdout)
     assert 'Traceback' not in said and 'out of system resource' not in said, said[-2000:]
     assert len(said) < 2000, said[-2000:]
+
+
+def test_ctrl_c_stops_it_with_pages_open_even_one_that_never_reads(processes):
+    """Open pages held aiohttp's stop for its 60 s shutdown timeout (dq_fk show killed it)."""
+    import aiohttp
+    import signal
+    node = start(processes, 'dq_fk_node')
+    view, url = start_view(processes)
+
+    async def scenario():
+        async with aiohttp.ClientSession() as session:
+            reader, first = await _client(session, url)
+            assert first and first[0]['type'] == 'robot'
+            silent = await session.ws_connect(url.replace('http', 'ws') + '/ws',
+                                              autoclose=False)   # never answers a close
+            os.killpg(view.pid, signal.SIGINT)
+            loop = asyncio.get_running_loop()
+            code = await loop.run_in_executor(None, lambda: view.wait(timeout=8))
+            await silent.close()
+            return code
+
+    assert asyncio.run(scenario()) == 0
+    assert node.poll() is None

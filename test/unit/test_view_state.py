@@ -5,8 +5,9 @@ import time
 from types import SimpleNamespace
 
 from dq_fk_ros.ros.view import parse_args
+from dq_fk_ros.ros.view_panel import JointPanel
 from dq_fk_ros.ros.view_state import ViewState
-from dq_fk_ros.ros.view_web import _good_client_message, host_allowed
+from dq_fk_ros.ros.view_web import _client_message, host_allowed
 from hypothesis import given, strategies as st
 import pytest
 
@@ -118,8 +119,19 @@ def test_any_page_message_is_judged_without_an_exception(data):
     """A 64 KB nested JSON message raised RecursionError in the view."""
     kinds = SimpleNamespace(TEXT='text', BINARY='binary')
     kind = kinds.BINARY if isinstance(data, bytes) else kinds.TEXT
-    good = _good_client_message(SimpleNamespace(type=kind, data=data), kinds)
-    assert good is (kind == kinds.TEXT and data.replace(' ', '') == '{"type":"hello"}')
+    judged = _client_message(SimpleNamespace(type=kind, data=data), kinds)
+    hello = kind == kinds.TEXT and data.replace(' ', '') == '{"type":"hello"}'
+    assert (judged == 'hello') is hello
+    if isinstance(judged, dict):   # a joints message: the panel judges it, never raising
+        assert judged['type'] == 'joints'
+        panel = JointPanel()
+        panel.take_description('<robot name="r"><link name="a"/><link name="b"/>'
+                               '<joint name="j" type="continuous"><parent link="a"/>'
+                               '<child link="b"/></joint></robot>')
+        panel.take_page(judged)
+        assert -3.2 < panel.joint_state()[1][0] < 3.2
+    else:
+        assert judged in ('hello', None)
 
 
 @pytest.mark.parametrize('host, allowed', [
