@@ -122,10 +122,25 @@ def show(robot: str, port: int, host: str = '127.0.0.1', packages: dict | None =
     """
     Check ``robot``, start the node and the view, print the address; return on Ctrl-C.
 
-    :return: 0 after Ctrl-C or SIGTERM; 1 if the robot does not load (one line), a process
-        ends on its own (its lines above, then one saying which) or the page is not served
-        within ``START_TIMEOUT_S``.
+    :return: 0 after Ctrl-C or SIGTERM (130 if it came while the robot loads); 1 if the
+        robot does not load (one line), a process ends on its own (its lines above, then
+        one saying which) or the page is not served within ``START_TIMEOUT_S``.
     """
+    # Ctrl-C and SIGTERM raise KeyboardInterrupt, also where a script's `dq_fk show &`
+    # started with SIGINT ignored (bash does so for background jobs) or a parent blocked it
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    previous = (signal.signal(signal.SIGINT, signal.default_int_handler),
+                signal.signal(signal.SIGTERM, signal.default_int_handler))
+    try:
+        return _show(robot, port, host, packages, base, tip, out)
+    except KeyboardInterrupt:  # while loading the robot: nothing started yet
+        return 130
+    finally:
+        signal.signal(signal.SIGINT, previous[0])
+        signal.signal(signal.SIGTERM, previous[1])
+
+
+def _show(robot, port, host, packages, base, tip, out) -> int:
     try:
         loaded = load_robot(robot, base or None, tip or None, packages=packages,
                             options=NODE_OPTIONS)
@@ -138,7 +153,6 @@ def show(robot: str, port: int, host: str = '127.0.0.1', packages: dict | None =
     print(f'dq_fk show: {model.name}, {len(model.joint_names)} joints; starting dq_fk_node '
           f"and dq_fk_view (ROS_DOMAIN_ID={env.get('ROS_DOMAIN_ID', '0')}, discovery "
           f"{env['ROS_AUTOMATIC_DISCOVERY_RANGE']})", file=out, flush=True)
-    previous = signal.signal(signal.SIGTERM, signal.default_int_handler)
     procs, watcher, on_fork = [], None, _death_signal()
     try:
         for name, argv in commands(robot, port, host, packages, base, tip):
@@ -171,7 +185,6 @@ def show(robot: str, port: int, host: str = '127.0.0.1', packages: dict | None =
     except KeyboardInterrupt:
         return _stop(procs)
     finally:
-        signal.signal(signal.SIGTERM, previous)
         _stop(procs)  # nothing left running, whatever ended the loop
 
 
