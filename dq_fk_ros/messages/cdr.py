@@ -831,6 +831,46 @@ class TfLatest:
         return [(known.layout, raw) for known, raw in latest.items()]
 
 
+class TfReader:
+    """
+    Read every transform of serialized ``TFMessage`` s, each publisher's layout read once.
+
+    :meth:`read` matches a message against the layouts seen (as :class:`TfLatest`) and
+    unpacks its stamps and values; a new layout is read by :func:`tf_layout`. At most
+    ``max_layouts`` are remembered. Reference: rosbags' ``deserialize_cdr``
+    (test_cdr.py's ``test_tf_reader_reads_as_rosbags_reads_it``).
+    """
+
+    def __init__(self, max_layouts=64):
+        """Start with no layouts."""
+        self.max_layouts = max_layouts
+        self._by_size = {}
+        self._order = []
+
+    def read(self, raw) -> list:
+        """Return ``[(parent, child, stamp_ns, (x, y, z, qx, qy, qz, qw)), ...]`` (CdrError)."""
+        raw = raw if isinstance(raw, bytes) else bytes(raw)
+        known = None
+        for candidate in self._by_size.get(len(raw), ()):
+            if candidate.match(raw):
+                known = candidate
+                break
+        if known is None:
+            known = _KnownLayout(tf_layout(raw))
+            self._by_size.setdefault(known.layout.size, []).append(known)
+            self._order.append(known)
+            if len(self._order) > self.max_layouts:
+                old = self._order.pop(0)
+                self._by_size[old.layout.size].remove(old)
+        layout = known.layout
+        stamp, pose = _STAMP.unpack_from, _POSE7.unpack_from
+        out = []
+        for (parent, child), at, value_at in zip(layout.edges, layout.stamps, layout.values):
+            sec, nanosec = stamp(raw, at)
+            out.append((parent, child, sec * 1_000_000_000 + nanosec, pose(raw, value_at)))
+        return out
+
+
 MAX_POSE_STAMPED_BYTES = 4096  # a frame id longer than some 4000 bytes is refused
 
 

@@ -15,13 +15,16 @@ PACKAGE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
     os.path.abspath(__file__)))), 'dq_fk_ros')
 # bottom up: a layer may import its own modules and those of the layers before it; at the
 # bottom the package's errors (one module, dq_fk_ros/errors.py, that every layer imports)
-LAYERS = ('errors', 'kinematics', 'description', 'messages', 'bag', 'ros', 'cli')
+LAYERS = ('errors', 'kinematics', 'description', 'messages', 'transforms', 'bag', 'ros', 'cli')
+# modules beside the layers: the package's surfaces, which may import any layer
+SURFACES = ('__init__.py', 'tf.py')
 # what each layer may import from outside the standard library and the package
 THIRD_PARTY = {
     'errors': set(),
     'kinematics': {'numpy'},
     'description': {'numpy', 'yaml', 'ament_index_python', 'matplotlib', 'xacro'},
     'messages': {'numpy'},
+    'transforms': {'numpy'},
     # zstd (the stdlib's compression.zstd from 3.14, its backport before) and lz4: rosbags' own
     # decompressors, called directly to bound a chunk's size
     # zlib_ng: zlib's CRC-32 with SIMD (optional: zlib's is the fallback)
@@ -73,7 +76,7 @@ def imported(path, at_run_time_only=False):
 
 
 def test_every_module_is_in_a_layer():
-    stray = [rel for layer, rel in modules() if layer is None and rel != '__init__.py']
+    stray = [rel for layer, rel in modules() if layer is None and rel not in SURFACES]
     assert stray == []
     assert {layer for layer, _ in modules() if layer} == set(LAYERS)
 

@@ -574,3 +574,34 @@ def test_the_compiled_batch_match_is_the_numpy_compare(names, with_velocities, f
     assert got.tolist() == expected.tolist()
     with pytest.raises(ValueError, match='outside the buffer'):
         layout.runs.match_many(joined, starts + len(joined) + 1, lengths, layout.size)
+
+
+@settings(max_examples=60)
+@given(st.lists(st.tuples(st.text(min_size=1, max_size=9), st.text(min_size=1, max_size=9),
+                          st.integers(-2**31, 2**31 - 1), st.integers(0, 10**9 - 1),
+                          st.tuples(*[st.floats(allow_nan=False)] * 7)), max_size=6))
+def test_tf_reader_reads_as_rosbags_reads_it(transforms):
+    """Each transform's own stamp and values, as rosbags deserializes the same bytes."""
+    from dq_fk_ros.messages.cdr import TfReader
+    TransformStamped = TS.types['geometry_msgs/msg/TransformStamped']
+    Transform = TS.types['geometry_msgs/msg/Transform']
+    Vector3 = TS.types['geometry_msgs/msg/Vector3']
+    Quaternion = TS.types['geometry_msgs/msg/Quaternion']
+    message = TS.types['tf2_msgs/msg/TFMessage'](transforms=[TransformStamped(
+        header=Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=parent),
+        child_frame_id=child,
+        transform=Transform(translation=Vector3(x=v[0], y=v[1], z=v[2]),
+                            rotation=Quaternion(x=v[3], y=v[4], z=v[5], w=v[6])))
+        for parent, child, sec, nanosec, v in transforms])
+    raw = bytes(TS.serialize_cdr(message, 'tf2_msgs/msg/TFMessage'))
+    back = TS.deserialize_cdr(raw, 'tf2_msgs/msg/TFMessage')
+    expected = [(t.header.frame_id, t.child_frame_id,
+                 t.header.stamp.sec * 10**9 + t.header.stamp.nanosec,
+                 (t.transform.translation.x, t.transform.translation.y,
+                  t.transform.translation.z, t.transform.rotation.x, t.transform.rotation.y,
+                  t.transform.rotation.z, t.transform.rotation.w)) for t in back.transforms]
+    reader = TfReader()
+    assert reader.read(raw) == expected
+    assert reader.read(raw) == expected    # the second time from the layout it keeps
+    with pytest.raises(CdrError):
+        reader.read(raw[:len(raw) // 2] if transforms else b'\x01\x00')

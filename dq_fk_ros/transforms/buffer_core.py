@@ -1,0 +1,642 @@
+"""
+tf2's BufferCore without ROS: transforms per child frame in arrays, looked up by tf2's rules.
+
+The rules are those of ros2/geometry2's ``tf2/src/buffer_core.cpp`` and ``cache.cpp``
+(Jazzy), written here from their behaviour; times are integer nanoseconds, as tf2 keeps
+them. Each child frame has one cache of (stamp, parent, translation, rotation) samples:
+
+* **Insert** (``TimeCache::insertData``): samples older than ``cache_time_ns`` before the
+  newest are pruned first (by the newest before this insert); a sample older than that
+  bound is refused (tf2's ``TF_OLD_DATA``); an exact duplicate (stamp, parent and values) is
+  not stored twice; among equal stamps the latest insert counts as the newest. A static
+  transform is one sample valid at every time (``StaticCache``); a frame switching between
+  static and dynamic starts a new cache. Rejected, each with one log line: a frame id empty
+  after a leading ``/`` is stripped, a frame that is its own parent, a NaN, a quaternion
+  whose squared norm is off 1 by 0.01 or more. Stored quaternions are normalised.
+* **One edge at time t** (``TimeCache::findClosest``, ``getData``): t = 0 gives the newest
+  sample; one sample answers its own stamp only ("Lookup would require extrapolation at
+  time ..."); t after the newest or before the oldest raises (into the future / the past);
+  between two samples of one parent: translation interpolated linearly, rotation by slerp
+  on the shortest arc (tf2's ``Quaternion::slerp``); of two parents: the older sample (a
+  child's parent may change over time).
+* **A lookup** (``walkToTopParent``): from the source up to the root, then from the target
+  up to where it met the source's path; target == source is the identity for any name;
+  t = 0 is the latest time common to every moving edge of the path (``getLatestCommonTime``;
+  a path of static edges only: 0); more than 1000 steps is a loop (``LookupException``).
+
+``interpolation='sclerp'`` (not tf2's) interpolates an edge by the screw motion between its
+samples (``DualQuaternion.sclerp``, the screw interpolation of dual-quaternion kinematics);
+the default is tf2's.
+
+Why this file is long: tf2's BufferCore is one piece (the caches, the walk, the latest
+common time and the error texts belong together), and each rule here stands beside the
+tf2 function it follows.
+"""
+
+from array import array
+from bisect import bisect_left, bisect_right
+import math
+
+from dq_fk_ros.errors import printable_line
+from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
+                                             InvalidArgumentException, LookupException)
+
+MAX_GRAPH_DEPTH = 1000           # tf2's: a longer walk is a loop
+QUATERNION_TOLERANCE = 10e-3     # tf2's QUATERNION_NORMALIZATION_TOLERANCE (on the norm^2)
+DEFAULT_CACHE_TIME_NS = 10 * 10**9
+MAX_FRAMES = 10_000              # frame names held at most; more are refused (one log line)
+COMPACT_AFTER = 4096             # pruned samples dropped from the arrays in batches of this
+INTERPOLATIONS = ('slerp', 'sclerp')
+
+
+def display_time(stamp_ns: int) -> str:
+    """Return a time as tf2's ``displayTimePoint`` prints it (seconds, 6 decimals)."""
+    return f'{stamp_ns / 1e9:.6f}'
+
+
+class _Static:
+    """One transform valid at every time (tf2's ``StaticCache``)."""
+
+    __slots__ = ('parent', 'values')
+    static = True
+
+    def __init__(self, parent, values):
+        self.parent, self.values = parent, values
+
+    def get(self, time_ns):
+        return self.parent, self.values, None
+
+    def latest(self):
+        return 0, self.parent
+
+    def newest_stamp(self):
+        return 0
+
+    def oldest_stamp(self):
+        return 0
+
+    def __len__(self):
+        return 1
+
+
+class _Dynamic:
+    """A child frame's samples, oldest first, in arrays (tf2's ``TimeCache``)."""
+
+    __slots__ = ('stamps', 'parents', 'values', 'start', 'cache_ns')
+    static = False
+
+    def __init__(self, cache_ns):
+        self.stamps = array('q')     # ns, ascending; [start:] are live
+        self.parents = array('l')
+        self.values = array('d')     # 7 per sample: x y z qx qy qz qw
+        self.start = 0
+        self.cache_ns = cache_ns
+
+    def __len__(self):
+        return len(self.stamps) - self.start
+
+    def newest_stamp(self):
+        return self.stamps[-1] if len(self) else 0
+
+    def oldest_stamp(self):
+        return self.stamps[self.start] if len(self) else 0
+
+    def latest(self):
+        if not len(self):
+            return 0, 0
+        return self.stamps[-1], self.parents[-1]
+
+    def insert(self, stamp, parent, values) -> bool:
+        stamps = self.stamps
+        if len(self):
+            newest = stamps[-1]
+            self.start = bisect_left(stamps, newest - self.cache_ns, self.start)
+            if self.start >= COMPACT_AFTER and self.start * 2 >= len(stamps):
+                del stamps[:self.start]
+                del self.parents[:self.start]
+                del self.values[:7 * self.start]
+                self.start = 0
+            if stamp < newest - self.cache_ns:
+                return False
+            if stamp >= newest:   # the common case: in order
+                if stamp == newest:
+                    for k in range(bisect_left(stamps, stamp, self.start), len(stamps)):
+                        if self.parents[k] == parent and \
+                                tuple(self.values[7 * k:7 * k + 7]) == values:
+                            return True
+                stamps.append(stamp)
+                self.parents.append(parent)
+                self.values.extend(values)
+                return True
+            at = bisect_right(stamps, stamp, self.start)
+            for k in range(bisect_left(stamps, stamp, self.start), at):
+                if self.parents[k] == parent and tuple(self.values[7 * k:7 * k + 7]) == values:
+                    return True
+            stamps.insert(at, stamp)
+            self.parents.insert(at, parent)
+            self.values[7 * at:7 * at] = array('d', values)
+            return True
+        stamps.append(stamp)
+        self.parents.append(parent)
+        self.values.extend(values)
+        return True
+
+    def find(self, time_ns):
+        """
+        Return ``(k, k2, error)``: sample k alone (k2 None), or k and the newer k2 around t.
+
+        ``error`` is ``(kind, text)`` when no sample answers (k is None then).
+        """
+        n = len(self)
+        if not n:
+            return None, None, ('empty', '')
+        stamps = self.stamps
+        last = len(stamps) - 1
+        if time_ns == 0:
+            return last, None, None
+        if n == 1:
+            if stamps[last] == time_ns:
+                return last, None, None
+            return None, None, ('extrapolation', f'Lookup would require extrapolation at time '
+                                f'{display_time(time_ns)}, but only time '
+                                f'{display_time(stamps[last])} is in the buffer')
+        newest, oldest = stamps[last], stamps[self.start]
+        if time_ns == newest:
+            return last, None, None
+        if time_ns == oldest:
+            return self.start, None, None
+        if time_ns > newest:
+            return None, None, ('extrapolation', 'Lookup would require extrapolation into the '
+                                f'future.  Requested time {display_time(time_ns)} but the '
+                                f'latest data is at time {display_time(newest)}')
+        if time_ns < oldest:
+            return None, None, ('extrapolation', 'Lookup would require extrapolation into the '
+                                f'past.  Requested time {display_time(time_ns)} but the '
+                                f'earliest data is at time {display_time(oldest)}')
+        k = bisect_right(stamps, time_ns, self.start) - 1
+        return k, k + 1, None
+
+    def get(self, time_ns, sclerp=False):
+        """Return ``(parent, values, None)`` at ``time_ns``, or ``(0, None, error)``."""
+        k, k2, error = self.find(time_ns)
+        if k is None:
+            return 0, None, error
+        v = self.values
+        if k2 is None or self.parents[k] != self.parents[k2]:
+            return self.parents[k], tuple(v[7 * k:7 * k + 7]), None
+        t0, t1 = self.stamps[k], self.stamps[k2]
+        ratio = (time_ns - t0) / (t1 - t0)
+        a, b = v[7 * k:7 * k + 7], v[7 * k2:7 * k2 + 7]
+        if sclerp:
+            return self.parents[k], screw_interpolate(a, b, ratio), None
+        s = 1.0 - ratio
+        return self.parents[k], (s * a[0] + ratio * b[0], s * a[1] + ratio * b[1],
+                                 s * a[2] + ratio * b[2]) + slerp(a[3:], b[3:], ratio), None
+
+
+def slerp(q0, q1, ratio) -> tuple:
+    """Return the rotation ``ratio`` of the way from q0 to q1 (x y z w) as tf2's slerp does."""
+    x0, y0, z0, w0 = q0
+    x1, y1, z1, w1 = q1
+    dot = x0 * x1 + y0 * y1 + z0 * z1 + w0 * w1
+    norms = math.sqrt((x0 * x0 + y0 * y0 + z0 * z0 + w0 * w0) *
+                      (x1 * x1 + y1 * y1 + z1 * z1 + w1 * w1))
+    theta = math.acos(min(1.0, max(-1.0, abs(dot) / norms)))
+    if theta == 0.0:
+        return (x0, y0, z0, w0)
+    d = 1.0 / math.sin(theta)
+    s0 = math.sin((1.0 - ratio) * theta)
+    s1 = math.sin(ratio * theta)
+    if dot < 0:
+        s1 = -s1
+    return ((x0 * s0 + x1 * s1) * d, (y0 * s0 + y1 * s1) * d, (z0 * s0 + z1 * s1) * d,
+            (w0 * s0 + w1 * s1) * d)
+
+
+def screw_interpolate(a, b, ratio) -> tuple:
+    """Return the pose ``ratio`` of the way from ``a`` to ``b`` along their screw (ScLERP)."""
+    from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
+    import numpy as np
+    first = DualQuaternion.from_pose((a[6], a[3], a[4], a[5]), a[:3])
+    second = DualQuaternion.from_pose((b[6], b[3], b[4], b[5]), b[:3])
+    if float(np.dot(first.real, second.real)) < 0.0:
+        second = -second   # the same pose: the shorter screw, as slerp's shortest arc
+    pose = first.sclerp(second, ratio).to_pose_xyzw()
+    return tuple(float(x) for x in pose)
+
+
+def _rotate(q, v):
+    """Return ``q * v * conj(q)`` (tf2's ``quatRotate``) for q = (x y z w), v = (x y z)."""
+    qx, qy, qz, qw = q
+    vx, vy, vz = v
+    # t = 2 q_vec x v; v' = v + w t + q_vec x t (q normalised)
+    tx = 2.0 * (qy * vz - qz * vy)
+    ty = 2.0 * (qz * vx - qx * vz)
+    tz = 2.0 * (qx * vy - qy * vx)
+    return (vx + qw * tx + qy * tz - qz * ty, vy + qw * ty + qz * tx - qx * tz,
+            vz + qw * tz + qx * ty - qy * tx)
+
+
+def _multiply(a, b):
+    """Return the Hamilton product ``a * b`` of quaternions (x y z w)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def compose(a, b) -> tuple:
+    """Return the pose ``a * b`` (x y z qx qy qz qw): b expressed in a's parent."""
+    p = _rotate(a[3:], b[:3])
+    return (p[0] + a[0], p[1] + a[1], p[2] + a[2]) + _multiply(a[3:], b[3:])
+
+
+def inverse(a) -> tuple:
+    """Return the inverse of the pose ``a`` (x y z qx qy qz qw)."""
+    q = (-a[3], -a[4], -a[5], a[6])
+    p = _rotate(q, a[:3])
+    return (-p[0], -p[1], -p[2]) + q
+
+
+IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+
+
+class BufferCore:
+    """
+    tf2's BufferCore (module doc): ``set_transform`` in, ``lookup_transform`` out, ns times.
+
+    Poses are tuples ``(x, y, z, qx, qy, qz, qw)``. Thread-safety is the caller's
+    (:class:`dq_fk_ros.ros.tf_buffer.Buffer` holds a lock).
+    """
+
+    def __init__(self, cache_time_ns: int = DEFAULT_CACHE_TIME_NS, interpolation: str = 'slerp',
+                 max_frames: int = MAX_FRAMES, log=None):
+        """
+        Start empty.
+
+        :param cache_time_ns: how long before the newest sample an edge keeps its samples.
+        :param interpolation: ``'slerp'`` (tf2's) or ``'sclerp'`` (screw motion, not tf2's).
+        :param max_frames: frame names held at most; transforms naming more are refused.
+        :param log: called with one line for each refused transform (default: dropped).
+        """
+        if interpolation not in INTERPOLATIONS:
+            raise ValueError(f"interpolation must be one of {', '.join(INTERPOLATIONS)}, got "
+                             f'{printable_line(interpolation, 40)!r}')
+        if type(cache_time_ns) is not int or cache_time_ns < 0:
+            raise ValueError(f'cache_time_ns must be a non-negative integer, got '
+                             f'{cache_time_ns!r}')
+        self.cache_time_ns = cache_time_ns
+        self.sclerp = interpolation == 'sclerp'
+        self.max_frames = max_frames
+        self.log = log or (lambda line: None)
+        self.ids = {}            # frame name -> id (1...)
+        self.names = ['NO_PARENT']
+        self.caches = [None]     # id -> _Static | _Dynamic | None (a root, or a parent only)
+        self.authority = {}      # id -> the authority of its last accepted transform
+        self.refused_frames = 0
+
+    # -- in -------------------------------------------------------------------------------
+    def set_transform(self, parent: str, child: str, stamp_ns: int, values,
+                      authority: str = '', static: bool = False) -> bool:
+        """
+        Store one transform of ``child`` in ``parent`` at ``stamp_ns``; False if refused.
+
+        :param values: ``(x, y, z, qx, qy, qz, qw)``.
+        """
+        parent, child = _strip(parent), _strip(child)
+        problem = None
+        if child == parent:
+            problem = (f'TF_SELF_TRANSFORM: Ignoring transform from authority "{authority}" '
+                       f'with frame_id and child_frame_id "{child}" because they are the same')
+        elif not child:
+            problem = (f'TF_NO_CHILD_FRAME_ID: Ignoring transform from authority "{authority}"'
+                       ' because child_frame_id not set')
+        elif not parent:
+            problem = (f'TF_NO_FRAME_ID: Ignoring transform with child_frame_id "{child}" from '
+                       f'authority "{authority}" because frame_id not set')
+        x, y, z, qx, qy, qz, qw = (float(v) for v in values)
+        norm2 = qx * qx + qy * qy + qz * qz + qw * qw
+        if problem is None and any(v != v for v in (x, y, z, qx, qy, qz, qw)):
+            problem = (f'TF_NAN_INPUT: Ignoring transform for child_frame_id "{child}" from '
+                       f'authority "{authority}" because of a nan value in the transform')
+        elif problem is None and not abs(norm2 - 1.0) < QUATERNION_TOLERANCE:
+            problem = (f'TF_DENORMALIZED_QUATERNION: Ignoring transform for child_frame_id '
+                       f'"{child}" from authority "{authority}" because of an invalid '
+                       f'quaternion in the transform ({qx:f} {qy:f} {qz:f} {qw:f})')
+        elif problem is None and not all(math.isfinite(v) for v in (x, y, z)):
+            problem = (f'TF_INF_INPUT: Ignoring transform for child_frame_id "{child}" from '
+                       f'authority "{authority}" because of an infinite translation')
+        if problem is None:
+            child_id, parent_id = self._id(child), self._id(parent)
+            if not child_id or not parent_id:
+                self.refused_frames += 1
+                if self.refused_frames == 1:
+                    problem = (f'TF_TOO_MANY_FRAMES: Ignoring transforms naming new frames '
+                               f'past {self.max_frames} (first: "{child}" in "{parent}")')
+                else:
+                    return False
+        if problem is not None:
+            self.log(printable_line(problem, 400))
+            return False
+        n = math.sqrt(norm2)
+        values = (x, y, z, qx / n, qy / n, qz / n, qw / n)
+        cache = self.caches[child_id]
+        if static:
+            if cache is None or not cache.static:
+                cache = self.caches[child_id] = _Static(parent_id, values)
+            cache.parent, cache.values = parent_id, values
+            self.authority[child_id] = authority
+            return True
+        if cache is None or cache.static:
+            cache = self.caches[child_id] = _Dynamic(self.cache_time_ns)
+        if cache.insert(int(stamp_ns), parent_id, values):
+            self.authority[child_id] = authority
+            return True
+        self.log(printable_line(f'TF_OLD_DATA ignoring data from the past for frame {child} at '
+                                f'time {display_time(stamp_ns)} according to authority '
+                                f'{authority}', 400))
+        return False
+
+    def _id(self, name):
+        found = self.ids.get(name)
+        if found is not None:
+            return found
+        if len(self.names) > self.max_frames:
+            return 0
+        self.ids[name] = len(self.names)
+        self.names.append(name)
+        self.caches.append(None)
+        return self.ids[name]
+
+    def clear(self) -> None:
+        """Forget every sample (frame names stay, as tf2's ``clear``)."""
+        for k, cache in enumerate(self.caches):
+            if cache is not None and not cache.static:
+                self.caches[k] = _Dynamic(self.cache_time_ns)
+            elif cache is not None:
+                self.caches[k] = None
+
+    # -- out ------------------------------------------------------------------------------
+    def validate(self, name: str, what: str) -> int:
+        """Return the id of frame ``name``; raise as tf2's ``validateFrameId`` does."""
+        if not name:
+            raise InvalidArgumentException(f'Invalid argument "{name}" passed to {what} - in '
+                                           'tf2 frame_ids cannot be empty')
+        if name[0] == '/':
+            raise InvalidArgumentException(f'Invalid argument "{name}" passed to {what} - in '
+                                           "tf2 frame_ids cannot start with a '/'")
+        found = self.ids.get(name, 0)
+        if not found:
+            raise LookupException(f'"{name}" passed to {what} does not exist. ')
+        return found
+
+    def lookup(self, target: str, source: str, time_ns: int) -> tuple:
+        """Return ``(pose of source in target, time used in ns)``; raise tf2's exceptions."""
+        if target == source:
+            if time_ns == 0:
+                cache = self.caches[self.ids.get(target, 0)]
+                return IDENTITY, cache.newest_stamp() if cache is not None else 0
+            return IDENTITY, time_ns
+        target_id = self.validate(target, 'lookupTransform argument target_frame')
+        source_id = self.validate(source, 'lookupTransform argument source_frame')
+        error, pose, time_used = self._walk(time_ns, target_id, source_id, True)
+        if error is not None:
+            raise error
+        return pose, time_used
+
+    def lookup_full(self, target: str, target_ns: int, source: str, source_ns: int,
+                    fixed: str) -> tuple:
+        """Return ``(pose, time used)`` of source at source_ns in target at target_ns via fixed."""
+        self.validate(target, 'lookupTransform argument target_frame')
+        self.validate(source, 'lookupTransform argument source_frame')
+        self.validate(fixed, 'lookupTransform argument fixed_frame')
+        source_in_fixed, _ = self.lookup(fixed, source, source_ns)
+        fixed_in_target, time_used = self.lookup(target, fixed, target_ns)
+        return compose(fixed_in_target, source_in_fixed), time_used
+
+    def can_transform(self, target: str, source: str, time_ns: int) -> tuple:
+        """Return ``(True, '')`` or ``(False, why)`` as tf2's ``canTransform``."""
+        if target == source:
+            return True, ''
+        for name, what in ((target, 'target_frame'), (source, 'source_frame')):
+            why = self._invalid(name, f'canTransform argument {what}')
+            if why:
+                return False, why
+        error, _, _ = self._walk(time_ns, self.ids[target], self.ids[source], False)
+        return (True, '') if error is None else (False, str(error))
+
+    def can_transform_full(self, target, target_ns, source, source_ns, fixed) -> tuple:
+        """Return ``(True, '')`` or ``(False, why)`` as tf2's ``canTransform`` via ``fixed``."""
+        for name, what in ((target, 'target_frame'), (source, 'source_frame'),
+                           (fixed, 'fixed_frame')):
+            why = self._invalid(name, f'canTransform argument {what}')
+            if why:
+                return False, why
+        for a, b, t in ((target, fixed, target_ns), (fixed, source, source_ns)):
+            if a != b:
+                error, _, _ = self._walk(t, self.ids[a], self.ids[b], False)
+                if error is not None:
+                    return False, str(error)
+        return True, ''
+
+    def _invalid(self, name, what):
+        if not name:
+            return f'Invalid frame ID "{name}" passed to {what} - in tf2 frame_ids cannot be empty'
+        if name[0] == '/':
+            return (f'Invalid frame ID "{name}" passed to {what} - in tf2 frame_ids cannot '
+                    "start with a '/'")
+        if name not in self.ids:
+            return f'Invalid frame ID "{name}" passed to {what} - frame does not exist'
+        return ''
+
+    def _gather(self, frame, time_ns):
+        cache = self.caches[frame]
+        if cache.static:
+            return cache.parent, cache.values, None
+        return cache.get(time_ns, self.sclerp)
+
+    def _walk(self, time_ns, target, source, accumulate):
+        """tf2's ``walkToTopParent``: ``(error or None, pose of source in target, time)``."""
+        if source == target:
+            return None, IDENTITY, time_ns
+        if time_ns == 0:
+            error, time_ns = self.latest_common_time(target, source)
+            if error is not None:
+                return error, None, 0
+        caches = self.caches
+        frame, top = source, source
+        source_pose = IDENTITY
+        might_extrapolate, extrapolation_text = False, ''
+        depth = 0
+        while frame != 0:
+            if caches[frame] is None:
+                top = frame
+                break
+            parent, values, error = self._gather(frame, time_ns)
+            if parent == 0:
+                top = frame
+                might_extrapolate, extrapolation_text = True, error[1]
+                break
+            if frame == target:   # the target is above the source
+                return None, source_pose, time_ns
+            if accumulate:
+                source_pose = compose(values, source_pose)
+            top, frame = frame, parent
+            depth += 1
+            if depth > MAX_GRAPH_DEPTH:
+                return self._loop(), None, 0
+        frame, depth = target, 0
+        target_pose = IDENTITY
+        while frame != top:
+            if caches[frame] is None:
+                break
+            parent, values, error = self._gather(frame, time_ns)
+            if parent == 0:
+                return ExtrapolationException(
+                    f'{error[1]}, when looking up transform from frame '
+                    f'[{self.names[source]}] to frame [{self.names[target]}]'), None, 0
+            if frame == source:   # the source is above the target
+                return None, inverse(target_pose), time_ns
+            if accumulate:
+                target_pose = compose(values, target_pose)
+            frame = parent
+            depth += 1
+            if depth > MAX_GRAPH_DEPTH:
+                return self._loop(), None, 0
+        if frame != top:
+            if might_extrapolate:
+                return ExtrapolationException(
+                    f'{extrapolation_text}, when looking up transform from frame '
+                    f'[{self.names[source]}] to frame [{self.names[target]}]'), None, 0
+            return ConnectivityException(
+                f"Could not find a connection between '{self.names[target]}' and "
+                f"'{self.names[source]}' because they are not part of the same tree.Tf has "
+                'two or more unconnected trees.'), None, 0
+        if not accumulate:
+            return None, None, time_ns
+        return None, compose(inverse(target_pose), source_pose), time_ns
+
+    def _loop(self):
+        return LookupException('The tf tree is invalid because it contains a loop.\n'
+                               + self.all_frames_as_string())
+
+    def latest_common_time(self, target: int, source: int) -> tuple:
+        """tf2's ``getLatestCommonTime``: ``(error or None, ns)`` for the ids given."""
+        if source == 0 or target == 0:
+            return LookupException('Source or target frame is not yet defined'), 0
+        caches = self.caches
+        if source == target:
+            cache = caches[source]
+            return None, cache.newest_stamp() if cache is not None else 0
+        chain = []   # (latest stamp, parent) from the source up
+        frame, depth, common = source, 0, None
+        while frame != 0:
+            cache = caches[frame]
+            if cache is None:
+                break
+            stamp, parent = cache.latest()
+            if parent == 0:
+                break
+            if stamp != 0:
+                common = stamp if common is None else min(common, stamp)
+            chain.append((stamp, parent))
+            frame = parent
+            if frame == target:
+                return None, common or 0
+            depth += 1
+            if depth > MAX_GRAPH_DEPTH:
+                return self._loop(), 0
+        frame, depth, common, meet = target, 0, None, 0
+        parents = {p for _, p in chain}
+        while True:
+            cache = caches[frame]
+            if cache is None:
+                break
+            stamp, parent = cache.latest()
+            if parent == 0:
+                break
+            if stamp != 0:
+                common = stamp if common is None else min(common, stamp)
+            if parent in parents:
+                meet = parent
+                break
+            frame = parent
+            if frame == source:
+                return None, common or 0
+            depth += 1
+            if depth > MAX_GRAPH_DEPTH:
+                return self._loop(), 0
+        if meet == 0:
+            return ConnectivityException(
+                f"Could not find a connection between '{self.names[target]}' and "
+                f"'{self.names[source]}' because they are not part of the same tree.Tf has "
+                'two or more unconnected trees.'), 0
+        for stamp, parent in chain:
+            if stamp != 0:
+                common = stamp if common is None else min(common, stamp)
+            if parent == meet:
+                break
+        return None, common or 0
+
+    # -- what is known --------------------------------------------------------------------
+    def all_frames_as_string(self) -> str:
+        """Return tf2's ``allFramesAsString``: "Frame C exists with parent P." per line."""
+        lines = []
+        for k in range(1, len(self.names)):
+            cache = self.caches[k]
+            if cache is None:
+                continue
+            parent = cache.latest()[1] if len(cache) else 0
+            lines.append(f'Frame {self.names[k]} exists with parent {self.names[parent]}.\n')
+        return ''.join(lines)
+
+    def frames_info(self, now_ns: int = 0) -> list:
+        """
+        Return per child frame what view_frames and tf2_monitor show.
+
+        ``[{'frame', 'parent', 'broadcaster', 'rate', 'most_recent', 'oldest',
+        'buffer_length', 'delay'}]`` (times in ns; rate in Hz as tf2 computes it).
+        """
+        out = []
+        for k in range(1, len(self.names)):
+            cache = self.caches[k]
+            if cache is None or not len(cache):
+                continue
+            newest, oldest = cache.newest_stamp(), cache.oldest_stamp()
+            span = newest - oldest
+            rate = len(cache) * 1e9 / (span if span > 100_000 else 100_000)
+            out.append({'frame': self.names[k], 'parent': self.names[cache.latest()[1]],
+                        'broadcaster': self.authority.get(k, 'no recorded authority'),
+                        'rate': rate, 'most_recent': newest, 'oldest': oldest,
+                        'buffer_length': span,
+                        'delay': now_ns - newest if now_ns else None, 'static': cache.static})
+        return out
+
+    def all_frames_as_yaml(self, now_ns: int = 0) -> str:
+        """Return tf2's ``allFramesAsYAML`` (``now_ns``: also each frame's delay)."""
+        info = self.frames_info(now_ns)
+        if not info:
+            return '[]'
+        lines = []
+        for f in info:
+            lines += [f"{f['frame']}: ", f"  parent: '{f['parent']}'",
+                      f"  broadcaster: '{f['broadcaster']}'", f"  rate: {f['rate']:.3f}",
+                      f"  most_recent_transform: {display_time(f['most_recent'])}",
+                      f"  oldest_transform: {display_time(f['oldest'])}"]
+            if now_ns:
+                lines.append(f"  transform_delay: {f['delay'] / 1e9:.3f}")
+            lines.append(f"  buffer_length: {f['buffer_length'] / 1e9:.3f}")
+        return '\n'.join(lines) + '\n'
+
+    def frame_names(self) -> list:
+        """Return every frame name known, in the order first seen."""
+        return self.names[1:]
+
+
+def _strip(name):
+    name = str(name)
+    return name[1:] if name.startswith('/') else name
+
+
+__all__ = ['BufferCore', 'compose', 'DEFAULT_CACHE_TIME_NS', 'display_time', 'IDENTITY',
+           'inverse', 'MAX_FRAMES', 'MAX_GRAPH_DEPTH', 'slerp']

@@ -1,0 +1,87 @@
+"""
+dq_fk_ros.tf live over DDS: tf2_ros's Buffer and TransformListener beside dq_fk_node.
+
+dq_fk_node and fake_joint_publisher run as processes on this run's domain; the listener runs
+in a context of the test's own with its dedicated spin thread, as tf2_ros users write it.
+"""
+
+import math
+import time
+
+from dq_fk_ros import tf
+from geometry_msgs.msg import TransformStamped
+import pytest
+from rclpy.duration import Duration
+from rclpy.time import Time
+from ros_harness import own_node, start, unique_node_name, wait_until
+from tf2_msgs.msg import TFMessage
+
+pytestmark = pytest.mark.integration
+
+
+def test_the_end_effector_at_fig_4_and_a_late_listener_gets_tf_static(processes):
+    start(processes, 'dq_fk_node')
+    start(processes, 'fake_joint_publisher', 'mode:=zeros', 'rate_hz:=50.0')
+    with own_node(unique_node_name('tf_listener_test')) as node:
+        buffer = tf.Buffer()
+        listener = tf.TransformListener(buffer, node, spin_thread=True)
+        try:
+            ee = buffer.lookup_transform('world', 'eeCarry_seg6', Time(),
+                                         timeout=Duration(seconds=20))
+            # [Zivkovic2023] Fig. 4: (1.025, 0, 1.445), quaternion x y z w (0.707107, 0,
+            # 0.707107, 0)
+            t, r = ee.transform.translation, ee.transform.rotation
+            assert (t.x, t.y, t.z) == pytest.approx((1.025, 0.0, 1.445), abs=1e-9)
+            sign = 1.0 if r.x >= 0 else -1.0
+            assert [sign * v for v in (r.x, r.y, r.z, r.w)] == pytest.approx(
+                [math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0], abs=1e-9)
+            assert ee.header.frame_id == 'world' and ee.child_frame_id == 'eeCarry_seg6'
+            assert ee.header.stamp.sec > 0   # the latest common time, from the joint states
+            assert 'eeCarry_seg6: ' in buffer.all_frames_as_yaml()
+        finally:
+            listener.unregister()
+        # a listener that joins late: /tf_static is latched (transient local)
+        late = tf.Buffer()
+        static_only = tf.TransformListener(late, node, spin_thread=True, static_only=True)
+        try:
+            assert wait_until(lambda: late.can_transform('world', 'base_seg0', Time()), 20)
+            base = late.lookup_transform('world', 'base_seg0', Time())
+            assert base.transform.translation.z == pytest.approx(0.73, abs=1e-12)
+        finally:
+            static_only.unregister()
+
+
+def test_broadcasters_reach_a_listener_and_bytes_that_do_not_read_are_counted(
+        ros_domain_id):
+    with own_node(unique_node_name('tf_broadcast_test')) as node:
+        buffer = tf.Buffer()
+        listener = tf.TransformListener(buffer, node, spin_thread=True)
+        try:
+            static = tf.StaticTransformBroadcaster(node)
+            moving = tf.TransformBroadcaster(node)
+            a = TransformStamped()
+            a.header.frame_id, a.child_frame_id = 'test_map', 'test_odom'
+            a.transform.translation.x, a.transform.rotation.w = 2.0, 1.0
+            static.send_transform(a)
+            for k in (1, 2):
+                b = TransformStamped()
+                b.header.frame_id, b.child_frame_id = 'test_odom', 'test_robot'
+                b.header.stamp.sec = 100 + k
+                b.transform.translation.y, b.transform.rotation.w = float(k), 1.0
+                moving.send_transform([b])
+                time.sleep(0.05)
+            got = buffer.lookup_transform('test_map', 'test_robot', Time(seconds=101.5),
+                                          timeout=Duration(seconds=10))
+            assert (got.transform.translation.x, got.transform.translation.y) == \
+                pytest.approx((2.0, 1.5), abs=1e-12)
+            raw = node.create_publisher(TFMessage, '/tf', 10)
+            raw.publish(b'\x00\x01\x00\x00\xff\xff\xff\xff')   # a count no message can hold
+            assert wait_until(lambda: listener.counts['unreadable'] == 1, 10)
+            with pytest.raises(tf.ExtrapolationException):
+                buffer.lookup_transform('test_map', 'test_robot', Time(seconds=200))
+            with pytest.raises(tf.LookupException):
+                buffer.lookup_transform('test_map', 'nowhere', Time())
+            assert not buffer.can_transform('test_map', 'nowhere', Time(),
+                                            timeout=Duration(seconds=0.2))
+        finally:
+            listener.unregister()
