@@ -1,5 +1,5 @@
 """
-TF read back without tf2: tf2_ros's names, so ``from dq_fk_ros import tf as tf2_ros`` works.
+TF read back without tf2, under tf2_ros's names: ``from dq_fk_ros import tf as tf2_ros``.
 
 ``Buffer``, ``TransformListener``, ``TransformBroadcaster``, ``StaticTransformBroadcaster``
 (:mod:`dq_fk_ros.ros.tf_buffer`, rclpy types) and tf2's exceptions
@@ -8,14 +8,14 @@ TF read back without tf2: tf2_ros's names, so ``from dq_fk_ros import tf as tf2_
 has the tf2_ros -> dq_fk_ros.tf table.
 """
 
-from dq_fk_ros.ros.tf_buffer import (Buffer, StaticTransformBroadcaster, TransformBroadcaster,
-                                     TransformListener)
+from dq_fk_ros.ros.tf_buffer import (Buffer, buffer_from_bag, StaticTransformBroadcaster,
+                                     TransformBroadcaster, TransformListener)
 from dq_fk_ros.transforms.buffer_core import BufferCore
 from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
                                              InvalidArgumentException, LookupException,
                                              TimeoutException, TransformException)
 
-__all__ = ['Buffer', 'BufferCore', 'ConnectivityException', 'ExtrapolationException',
-           'InvalidArgumentException', 'LookupException', 'StaticTransformBroadcaster',
-           'TimeoutException', 'TransformBroadcaster', 'TransformException',
-           'TransformListener']
+__all__ = ['Buffer', 'buffer_from_bag', 'BufferCore', 'ConnectivityException',
+           'ExtrapolationException', 'InvalidArgumentException', 'LookupException',
+           'StaticTransformBroadcaster', 'TimeoutException', 'TransformBroadcaster',
+           'TransformException', 'TransformListener']

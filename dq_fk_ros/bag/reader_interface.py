@@ -14,6 +14,7 @@ from typing import Iterator, Optional, Protocol, runtime_checkable, Sequence
 import numpy as np
 
 JOINT_STATE = 'sensor_msgs/msg/JointState'
+TF_MESSAGE = 'tf2_msgs/msg/TFMessage'
 BATCH = 4096    # messages a batch
 
 

@@ -59,9 +59,9 @@ def _open_mcap_file(path: str) -> BagReader:
     return open_stream_bag([path], path, None)
 
 
-def _open_ros1(path: str) -> BagReader:
+def _open_ros1(path: str, msgtype: str = JOINT_STATE) -> BagReader:
     from dq_fk_ros.bag.ros1_bag import Ros1Bag
-    return Ros1Bag(path)
+    return Ros1Bag(path, msgtype=msgtype)
 
 
 def _open_rosbag2(path: str) -> BagReader:
@@ -88,7 +88,7 @@ def bag_format(path) -> BagFormat:
     return next(f for f in FORMATS if f.matches(path))
 
 
-def open_reader(path, reference=False) -> BagReader:
+def open_reader(path, reference=False, ros1_type=JOINT_STATE) -> BagReader:
     """
     Open a bag for reading with its format's adapter (:data:`FORMATS`).
 
@@ -100,7 +100,8 @@ def open_reader(path, reference=False) -> BagReader:
     recording that did not stop cleanly), one whose MCAP summary fails its CRC, and a bare
     ``.mcap`` file are read record by record, skipping damaged chunks; the reader's ``note``
     says so and its ``damage`` what was skipped. A ROS 1 ``.bag`` file is read with rosbags
-    and its JointStates converted to ROS 2 CDR. A bag that is or holds a FIFO or device
+    and its JointStates (or the messages of ``ros1_type``) converted to ROS 2 CDR. A bag
+    that is or holds a FIFO or device
     is refused before anything is opened (:func:`check_bag_files`). Raises :class:`BagError`.
     """
     path = os.fspath(path)
@@ -108,6 +109,8 @@ def open_reader(path, reference=False) -> BagReader:
         raise BagError(f'{path}: no such bag')
     check_bag_files(path)
     fmt = bag_format(path)
+    if fmt.name == 'ros1':
+        return _open_ros1(path, ros1_type)
     return (fmt.reference if reference and fmt.reference else fmt.opener)(path)
 
 

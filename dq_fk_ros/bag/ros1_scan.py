@@ -102,7 +102,8 @@ class Ros1ChunkScan:
             Connection(conn, topic, msgtype, None, '', counts.get(conn, 0),
                        ConnectionExtRosbag1(None, 0), None)
             for conn, (topic, msgtype) in sorted(self._topics.items())
-            if msgtype == joint_state_type]
+            if msgtype in (joint_state_type if isinstance(joint_state_type, tuple)
+                           else (joint_state_type,))]
         self.start_time = min(times) if times else 0
         self.end_time = max(times) + 1 if times else 0
         if self._problems:

@@ -8,6 +8,8 @@
 * ``dq_fk_bag process IN [IN ...] --output-dir OUT --robot FILE``: every bag under the IN
   paths, on every core (``--jobs``) or a Dask cluster (``--scheduler``), resumable
   (:mod:`dq_fk_ros.bag.fleet`); exit 1 if any bag failed.
+* ``dq_fk_bag tf BAG TARGET SOURCE --csv FILE (--rate HZ | --at-topic TOPIC)``: a frame's
+  pose in another over the bag's TF (:mod:`dq_fk_ros.bag.tf_export`).
 * ``dq_fk_bag play BAG``: publishes the bag's JointState messages with their recorded timing
   (``--rate``, ``--loop``, ``--start``, ``--duration``, ``--clock``) into a running node
   (:mod:`dq_fk_ros.ros.bag_play`).
@@ -129,6 +131,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
                    help='start once N subscriptions are matched (default 0: at once)')
     p.add_argument('--quiet', action='store_true', help='no progress output')
+    p = sub.add_parser('tf', help="one frame's pose in another over the bag's TF, as CSV "
+                       '(at a rate, or at the stamps of a topic)')
+    p.add_argument('bag', metavar='BAG')
+    p.add_argument('target', metavar='TARGET', help='the frame the pose is in (e.g. base_link)')
+    p.add_argument('source', metavar='SOURCE', help='the frame whose pose is written')
+    p.add_argument('--csv', required=True, metavar='FILE',
+                   help='output: stamp_ns,x,y,z,qx,qy,qz,qw (m; quaternion x y z w)')
+    when = p.add_mutually_exclusive_group(required=True)
+    when.add_argument('--rate', type=finite, metavar='HZ',
+                      help='a row every 1/HZ s over the span of /tf')
+    when.add_argument('--at-topic', metavar='TOPIC',
+                      help="a row at each message's header stamp (e.g. a camera's images)")
+    p.add_argument('--start', type=finite, default=0.0,
+                   help='seconds after the bag starts to read /tf from (default 0)')
+    p.add_argument('--end', type=finite, help='seconds after the bag starts to stop at')
     return parser
 
 
@@ -196,6 +213,25 @@ def write_example(args) -> int:
     return 0
 
 
+def export_tf_csv(args) -> int:
+    """Run ``dq_fk_bag tf``; print what was written and what TF could not answer."""
+    from dq_fk_ros.bag.reading import open_reader
+    from dq_fk_ros.bag.tf_export import export_tf
+    if args.start < 0 or (args.end is not None and args.end <= args.start):
+        raise BagError('--start must be 0 or more and --end after it')
+    reader = open_reader(args.bag)
+    origin = reader.start_time
+    reader.close()
+    start = origin + round(args.start * 1e9) if args.start else None
+    end = origin + round(args.end * 1e9) if args.end is not None else None
+    done = export_tf(args.bag, args.target, args.source, args.csv, rate_hz=args.rate,
+                     at_topic=args.at_topic, start=start, end=end)
+    print(f'{args.csv}: {done.rows} poses of {printable(args.source)} in '
+          f'{printable(args.target)}' + (f'; {done.unanswered} stamps TF could not answer, '
+                                         'left out' if done.unanswered else ''))
+    return 0
+
+
 def finite(text) -> float:
     """Parse a finite float for argparse (``nan`` and ``inf`` are refused)."""
     try:
@@ -235,6 +271,8 @@ def main(argv=None) -> int:
             print(summary_line(args.paths[0], s))
         elif args.command == 'example':
             return write_example(args)
+        elif args.command == 'tf':
+            return export_tf_csv(args)
         else:
             from dq_fk_ros.ros.bag_play import play_bag, PlayOptions  # rclpy only here
             s = play_bag(args.bag, PlayOptions(

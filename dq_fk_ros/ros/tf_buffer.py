@@ -19,6 +19,7 @@ Not here (tf2_ros has them): ``Buffer.transform`` (tf2_geometry_msgs's registrat
 import logging
 import threading
 import time as _time
+from typing import TYPE_CHECKING
 
 from builtin_interfaces.msg import Time as TimeMsg
 from dq_fk_ros.errors import CdrError
@@ -32,6 +33,9 @@ from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from tf2_msgs.msg import TFMessage
+
+if TYPE_CHECKING:
+    from numpy import ndarray
 
 # tf2_ros's DynamicListenerQoS, StaticListenerQoS and the broadcasters' QoS
 DYNAMIC_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST)
@@ -140,7 +144,9 @@ class Buffer:
         :class:`ExtrapolationException`, :class:`InvalidArgumentException`).
         """
         stamp = time_ns(time)
-        self._wait(lambda: self.core.can_transform(target_frame, source_frame, stamp), timeout)
+        if timeout is not None and duration_ns(timeout) > 0:
+            self._wait(lambda: self.core.can_transform(target_frame, source_frame, stamp),
+                       timeout)
         with self._lock:
             pose, used = self.core.lookup(target_frame, source_frame, stamp)
         return to_message(target_frame, source_frame, pose, used)
@@ -190,6 +196,19 @@ class Buffer:
         with self._lock:
             return self.core.lookup(target_frame, source_frame, stamp_ns)
 
+    def lookup_poses(self, target_frame: str, source_frame: str, stamps_ns) -> 'ndarray':
+        """
+        Return ``source_frame``'s pose in ``target_frame`` at each stamp: (N, 7) rows.
+
+        Rows x y z qx qy qz qw (m; quaternion x y z w).
+
+        A NaN row where TF cannot answer (``lookup_transform`` would raise); what
+        ``dq_fk_bag tf`` writes (:func:`dq_fk_ros.transforms.batch.lookup_poses`).
+        """
+        from dq_fk_ros.transforms.batch import lookup_poses
+        with self._lock:
+            return lookup_poses(self.core, target_frame, source_frame, stamps_ns)
+
     def all_frames_as_yaml(self, current_time=None) -> str:
         """Return tf2's ``allFramesAsYAML``."""
         with self._lock:
@@ -200,6 +219,27 @@ class Buffer:
         """Return tf2's ``allFramesAsString``."""
         with self._lock:
             return self.core.all_frames_as_string()
+
+
+def buffer_from_bag(path, start=None, end=None, interpolation: str = 'slerp') -> Buffer:
+    """
+    Return a :class:`Buffer` holding a bag's ``/tf`` and ``/tf_static`` (every format).
+
+    :param start: the first log time of ``/tf`` read (rclpy ``Time`` or int ns; None: the
+        bag's start); ``end``: the first not read. ``/tf_static`` is read whole.
+    :raises BagError: no TF in the bag, or more transforms than held (one line).
+    Details: :func:`dq_fk_ros.bag.tf_bag.core_from_bag`; ``buffer.bag_summary`` says what
+    was read and dropped.
+    """
+    from dq_fk_ros.bag.tf_bag import core_from_bag
+    core, summary = core_from_bag(path, None if start is None else time_ns(start),
+                                  None if end is None else time_ns(end),
+                                  interpolation=interpolation)
+    buffer = Buffer(interpolation=interpolation)
+    core.log = buffer.core.log
+    buffer.core = core
+    buffer.bag_summary = summary
+    return buffer
 
 
 class TransformListener:
@@ -318,7 +358,7 @@ class StaticTransformBroadcaster:
         self.pub_tf.publish(TFMessage(transforms=list(self._net.values())))
 
 
-__all__ = ['Buffer', 'ConnectivityException', 'ExtrapolationException',
+__all__ = ['Buffer', 'buffer_from_bag', 'ConnectivityException', 'ExtrapolationException',
            'InvalidArgumentException', 'LookupException', 'StaticTransformBroadcaster',
            'TimeoutException', 'TransformBroadcaster', 'TransformException',
            'TransformListener']

@@ -87,7 +87,7 @@ class _Dynamic:
 
     def __init__(self, cache_ns):
         self.stamps = array('q')     # ns, ascending; [start:] are live
-        self.parents = array('l')
+        self.parents = array('q')
         self.values = array('d')     # 7 per sample: x y z qx qy qz qw
         self.start = 0
         self.cache_ns = cache_ns
@@ -455,7 +455,27 @@ class BufferCore:
             return cache.parent, cache.values, None
         return cache.get(time_ns, self.sclerp)
 
-    def _walk(self, time_ns, target, source, accumulate):
+    def path(self, target: str, source: str, time_ns: int) -> tuple:
+        """
+        Return the edges a lookup composes: ``(up from source, up from target)``.
+
+        Each a list of ``(child id, parent id)``, edges both walks share (above where they
+        meet) left out; raises as :meth:`lookup`. What :mod:`dq_fk_ros.transforms.batch`
+        interpolates at many stamps.
+        """
+        target_id = self.validate(target, 'lookupTransform argument target_frame')
+        source_id = self.validate(source, 'lookupTransform argument source_frame')
+        edges = ([], [])
+        error, _, _ = self._walk(time_ns, target_id, source_id, True, edges)
+        if error is not None:
+            raise error
+        up, down = edges
+        while up and down and up[-1] == down[-1]:
+            up.pop()
+            down.pop()
+        return up, down
+
+    def _walk(self, time_ns, target, source, accumulate, edges=None):
         """tf2's ``walkToTopParent``: ``(error or None, pose of source in target, time)``."""
         if source == target:
             return None, IDENTITY, time_ns
@@ -481,6 +501,8 @@ class BufferCore:
                 return None, source_pose, time_ns
             if accumulate:
                 source_pose = compose(values, source_pose)
+                if edges is not None:
+                    edges[0].append((frame, parent))
             top, frame = frame, parent
             depth += 1
             if depth > MAX_GRAPH_DEPTH:
@@ -496,9 +518,13 @@ class BufferCore:
                     f'{error[1]}, when looking up transform from frame '
                     f'[{self.names[source]}] to frame [{self.names[target]}]'), None, 0
             if frame == source:   # the source is above the target
+                if edges is not None:
+                    edges[0].clear()   # (the source walk reached the top past the source)
                 return None, inverse(target_pose), time_ns
             if accumulate:
                 target_pose = compose(values, target_pose)
+                if edges is not None:
+                    edges[1].append((frame, parent))
             frame = parent
             depth += 1
             if depth > MAX_GRAPH_DEPTH:

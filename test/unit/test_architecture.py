@@ -78,6 +78,9 @@ def imported(path, at_run_time_only=False):
 def test_every_module_is_in_a_layer():
     stray = [rel for layer, rel in modules() if layer is None and rel not in SURFACES]
     assert stray == []
+    for surface in SURFACES:   # a surface gives the layers' names and imports nothing else
+        assert all(name.split('.')[0] == 'dq_fk_ros' or name in sys.stdlib_module_names
+                   for name in imported(surface)), surface
     assert {layer for layer, _ in modules() if layer} == set(LAYERS)
 
 

@@ -1,0 +1,113 @@
+"""
+``dq_fk_bag tf BAG TARGET SOURCE --csv FILE``: one frame's pose in another over a bag, as CSV.
+
+The bag's TF is read into arrays (:func:`~dq_fk_ros.bag.tf_bag.core_from_bag`) and looked
+up at many stamps at once (:func:`~dq_fk_ros.transforms.batch.lookup_poses`): every
+``1 / rate`` seconds over the span of ``/tf`` (``--rate``), or at the header stamp of each
+message of a topic (``--at-topic``, e.g. a camera's images: "the camera in the base frame at
+this image's stamp"). Columns ``stamp_ns,x,y,z,qx,qy,qz,qw`` (metres; quaternion x y z w).
+Stamps where TF cannot answer (before or after the data, frames not connected) are counted
+and left out, never invented.
+"""
+
+import csv
+import os
+import struct
+from typing import NamedTuple
+
+from dq_fk_ros.bag.reading import open_reader
+from dq_fk_ros.bag.text import printable
+from dq_fk_ros.bag.tf_bag import core_from_bag
+from dq_fk_ros.errors import BagError
+from dq_fk_ros.transforms.batch import lookup_poses
+import numpy as np
+
+MAX_ROWS = 50_000_000   # stamps asked at most (--rate over a long bag)
+_STAMP = struct.Struct('<iI')
+
+
+class TfExport(NamedTuple):
+    """What :func:`export_tf` did: rows written, stamps TF could not answer, the CSV."""
+
+    rows: int
+    unanswered: int
+    csv_path: str
+
+
+def stamps_at_rate(core, rate_hz: float) -> np.ndarray:
+    """Return stamps every ``1 / rate_hz`` s over the span of the core's moving samples."""
+    first, last = None, None
+    for cache in core.caches:
+        if cache is not None and not cache.static and len(cache):
+            a, b = cache.oldest_stamp(), cache.newest_stamp()
+            first = a if first is None else min(first, a)
+            last = b if last is None else max(last, b)
+    if first is None:
+        return np.zeros(0, np.int64)
+    step = 1e9 / rate_hz
+    count = int((last - first) // step) + 1
+    if count > MAX_ROWS:
+        raise BagError(f'--rate {rate_hz:g} over {(last - first) / 1e9:.1f} s is {count} rows, '
+                       f'more than {MAX_ROWS}; lower the rate or give --start/--end')
+    return first + np.round(np.arange(count) * step).astype(np.int64)
+
+
+def stamps_of_topic(path, topic, start=None, end=None) -> np.ndarray:
+    """Return the header stamps (ns) of the messages of ``topic`` (a type with a header)."""
+    from rosbags.typesys import get_typestore, Stores
+    store = get_typestore(Stores.ROS2_JAZZY)
+    reader = open_reader(path)
+    try:
+        conns = [c for c in reader.connections if c.topic == topic]
+        if not conns:
+            names = ', '.join(printable(t) for t, _ in reader.all_topics[:20]) or 'none'
+            raise BagError(f'{path} has no topic {printable(topic)!r}; its topics: {names}')
+        kind = conns[0].msgtype
+        fields = store.fielddefs.get(kind)
+        if fields is None or not fields[1] or fields[1][0][0] != 'header':
+            raise BagError(f'--at-topic {printable(topic)}: its type {printable(kind)} is not '
+                           'one whose first field is a std_msgs/Header (Image, PointCloud2, '
+                           'CameraInfo...)')
+        stamps = []
+        for _, _, raw in reader.messages(conns, start, end):
+            if len(raw) >= 12:
+                sec, nanosec = _STAMP.unpack_from(raw, 4)
+                stamps.append(sec * 1_000_000_000 + nanosec)
+        return np.asarray(stamps, np.int64)
+    finally:
+        reader.close()
+
+
+def export_tf(path, target: str, source: str, csv_path, rate_hz: float | None = None,
+              at_topic: str | None = None, start: int | None = None,
+              end: int | None = None) -> TfExport:
+    """
+    Write ``source``'s pose in ``target`` over the bag to ``csv_path`` (module doc).
+
+    :param start: the first log time (ns) read; ``end``: the first not read.
+    :raises BagError: one line (no TF, no such topic, too many rows, an output that exists).
+    """
+    if (rate_hz is None) == (at_topic is None):
+        raise BagError('give one of --rate HZ or --at-topic TOPIC')
+    if rate_hz is not None and not 0 < rate_hz <= 1e6:
+        raise BagError(f'--rate must be above 0 and at most 1e6 Hz, got {rate_hz:g}')
+    if os.path.lexists(csv_path):
+        raise BagError(f'{csv_path}: exists; choose another path')
+    core, _ = core_from_bag(path, start, end)
+    for frame in (target, source):
+        if frame not in core.ids:
+            raise BagError(f'{path}: no frame {printable(frame)!r} on /tf or /tf_static; its '
+                           f'frames: {", ".join(printable(f) for f in core.frame_names()[:30])}')
+    stamps = stamps_at_rate(core, rate_hz) if rate_hz is not None else \
+        stamps_of_topic(path, at_topic, start, end)
+    poses = lookup_poses(core, target, source, stamps)
+    answered = ~np.isnan(poses).any(axis=1)
+    with open(csv_path, 'x', newline='', encoding='utf-8') as stream:
+        writer = csv.writer(stream)
+        writer.writerow(['stamp_ns', 'x', 'y', 'z', 'qx', 'qy', 'qz', 'qw'])
+        for stamp, pose in zip(stamps[answered].tolist(), poses[answered].tolist()):
+            writer.writerow([stamp] + [repr(v) for v in pose])
+    return TfExport(int(answered.sum()), int((~answered).sum()), os.fspath(csv_path))
+
+
+__all__ = ['export_tf', 'MAX_ROWS', 'stamps_at_rate', 'stamps_of_topic', 'TfExport']
