@@ -15,7 +15,8 @@ DEMO_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 80) + 20 )))
 
 BENCH_VENV ?= .venv-bench
 
-.PHONY: help setup browser demo demo-live demo-foxglove test sanitize bench mutate screenshot clean
+# (graphviz: Debian's dot, for dq_fk tf frames and its test)
+.PHONY: help setup browser graphviz demo demo-live demo-foxglove test sanitize bench mutate screenshot clean
 
 help:
 	@echo 'make setup  create .venv with ROS 2 Jazzy (PyPI), tf2_msgs and dq_fk_ros'
@@ -87,7 +88,7 @@ demo-live: setup
 demo-foxglove: setup
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) -m dq_fk_ros.ros.demo --live --foxglove
 
-test: setup browser
+test: setup browser graphviz
 	@scripts/run_tests $(PY)
 
 # the C extensions built with -fsanitize=address,undefined, their unit tests and the
@@ -110,6 +111,21 @@ browser:
 	      exit 1; }; \
 	  else \
 	    echo 'setup FAILED: the browser tests need chromium and chromium-driver; run: sudo apt-get install chromium chromium-driver' >&2; \
+	    exit 1; \
+	  fi; \
+	fi
+
+graphviz:
+	@if ! command -v dot >/dev/null; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo 'setup: installing graphviz (apt-get; dot draws dq_fk tf frames)'; \
+	    mkdir -p $(LOGS); \
+	    { apt-get install -y -q graphviz || { apt-get update -q && \
+	      apt-get install -y -q graphviz; }; } > $(LOGS)/graphviz.log 2>&1 || \
+	    { echo "setup FAILED: apt-get install graphviz (see $(LOGS)/graphviz.log)" >&2; \
+	      exit 1; }; \
+	  else \
+	    echo 'setup FAILED: dq_fk tf frames and its test need Graphviz (dot); run: sudo apt-get install graphviz' >&2; \
 	    exit 1; \
 	  fi; \
 	fi

@@ -3,7 +3,8 @@
 
 ``dq_fk validate FILE...``, ``dq_fk fk FILE --joints ...``, ``dq_fk urdf FILE``,
 ``dq_fk plot FILE``, ``dq_fk from-urdf ROBOT.urdf -o robot.yaml``, ``dq_fk list`` run no ROS
-process; ``dq_fk show ROBOT`` starts the node and the view (:mod:`dq_fk_ros.ros.show`).
+process; ``dq_fk show ROBOT`` starts the node and the view (:mod:`dq_fk_ros.ros.show`);
+``dq_fk tf echo|frames|monitor`` read TF (:mod:`dq_fk_ros.ros.tf_tools`).
 FILE is a DH YAML file, a URDF or xacro file (converted on the way, as ``from-urdf`` does),
 or the name of a shipped robot (``rl15``, ``puma560``...).
 """
@@ -19,7 +20,7 @@ from dq_fk_ros.description.packages import parse_package_option
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.description.to_urdf import matrix_to_rpy, robot_to_urdf
-from dq_fk_ros.errors import RobotDescriptionError
+from dq_fk_ros.errors import DqFkError, RobotDescriptionError
 from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
 from dq_fk_ros.messages.output_plan import OutputPlan
 import numpy as np
@@ -270,6 +271,37 @@ def cmd_show(args) -> int:
                 args.urdf_base or '', args.urdf_tip or '')
 
 
+def cmd_tf(args) -> int:
+    import signal
+    from dq_fk_ros.ros import tf_tools  # rclpy's: imported only for this command
+    # Ctrl-C ends echo and monitor (exit 0), also as a script's background job, which
+    # starts with SIGINT ignored
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    try:
+        return _tf_command(tf_tools, args)
+    except KeyboardInterrupt:
+        return 0
+
+
+def _tf_command(tf_tools, args):
+    if args.tf_command == 'echo':
+        if not 0 < args.rate <= 1000:
+            raise UsageError(f'--rate {args.rate:g}: give 0 to 1000 Hz')
+        return tf_tools.echo(args.target, args.source, args.rate, args.count)
+    if args.tf_command == 'frames':
+        if args.bag is None and not 0 < args.seconds <= 3600:
+            raise UsageError(f'--seconds {args.seconds:g}: give 0 to 3600')
+        try:
+            return tf_tools.frames(args.output, args.bag, args.seconds)
+        except RuntimeError as exc:
+            raise UsageError(str(exc)) from None
+    if (args.target is None) != (args.source is None):
+        raise UsageError('monitor takes no frames, or TARGET and SOURCE')
+    return tf_tools.monitor(args.target, args.source, args.seconds)
+
+
 def cmd_list(args) -> int:
     for name in shipped_robots():
         model = load_robot_description(shipped_robot_path(name))
@@ -351,6 +383,24 @@ def build_parser() -> argparse.ArgumentParser:
     add_urdf_chain_options(p)
     add_package_option(p)
     p.set_defaults(func=cmd_show)
+    p = sub.add_parser('tf', help='TF without tf2: echo a transform, draw the frames, monitor '
+                       '(tf2_echo, view_frames, tf2_monitor)')
+    tf_sub = p.add_subparsers(dest='tf_command', required=True)
+    q = tf_sub.add_parser('echo', help="print SOURCE's pose in TARGET, as tf2_echo")
+    q.add_argument('target', metavar='TARGET')
+    q.add_argument('source', metavar='SOURCE')
+    q.add_argument('--rate', type=float, default=1.0, help='prints a second (default 1)')
+    q.add_argument('--count', type=int, help='stop after this many (default: Ctrl-C)')
+    q = tf_sub.add_parser('frames', help='write frames.gv and frames.pdf, as view_frames')
+    q.add_argument('--bag', help="a bag's TF instead of listening")
+    q.add_argument('-o', '--output', default='frames.pdf', help='the PDF (default frames.pdf; '
+                   'the .gv beside it)')
+    q.add_argument('--seconds', type=float, default=5.0, help='listen this long (default 5)')
+    q = tf_sub.add_parser('monitor', help='rate and delay per frame, as tf2_monitor')
+    q.add_argument('target', metavar='TARGET', nargs='?')
+    q.add_argument('source', metavar='SOURCE', nargs='?')
+    q.add_argument('--seconds', type=float, help='stop after this long (default: Ctrl-C)')
+    p.set_defaults(func=cmd_tf)
     p = sub.add_parser('list', help='list the shipped robots')
     p.add_argument('--verbose', '-v', action='store_true',
                    help='also say which FK path is active (the C kernel or numpy)')
@@ -372,7 +422,7 @@ def main(argv=None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 1
-    except (RobotDescriptionError, UsageError, ValueError, OSError) as exc:
+    except (DqFkError, UsageError, ValueError, OSError) as exc:
         print(f'dq_fk: {exc}', file=sys.stderr)
         return 1
 

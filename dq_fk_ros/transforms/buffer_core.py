@@ -654,6 +654,40 @@ class BufferCore:
             lines.append(f"  buffer_length: {f['buffer_length'] / 1e9:.3f}")
         return '\n'.join(lines) + '\n'
 
+    def all_frames_as_dot(self, now_ns: int = 0) -> str:
+        """
+        Return the Graphviz text of view_frames (tf2's ``_allFramesAsDot``).
+
+        Frame names and broadcasters are anyone's on the domain: quotes, backslashes and
+        line breaks in them are escaped so that they stay names in the DOT text.
+        """
+        def esc(text):
+            return printable_line(text, 200).replace('\\', '\\\\').replace('"', '\\"')
+
+        def q(text):
+            return f'"{esc(text)}"'
+        lines = ['digraph G {']
+        info = self.frames_info(now_ns)
+        if not info:
+            lines.append('"no tf data recieved"')
+        for f in info:
+            age = f" ( {f['delay'] / 1e9:.3f} sec old)" if now_ns else ''
+            label = (f"Broadcaster: {esc(f['broadcaster'])}\\nAverage rate: {f['rate']:.3f} "
+                     f"Hz\\nMost recent transform: {display_time(f['most_recent'])}{age}\\n"
+                     f"Buffer length: {f['buffer_length'] / 1e9:.3f} sec\\n")
+            lines.append(f'{q(f["parent"])} -> {q(f["frame"])}[label="{label}"];')
+        children = {f['frame'] for f in info}
+        for f in info:
+            if f['parent'] not in children:   # a root of a tree: the legend points at it
+                children.add(f['parent'])
+                legend = f'"Recorded at time: {display_time(now_ns)}"[ shape=plaintext ] ;\n ' \
+                    if now_ns else ''
+                lines += ['edge [style=invis];',
+                          ' subgraph cluster_legend { style=bold; color=black; label ='
+                          f'"view_frames Result";\n{legend}}}->{q(f["parent"])};']
+        lines.append('}')
+        return '\n'.join(lines)
+
     def frame_names(self) -> list:
         """Return every frame name known, in the order first seen."""
         return self.names[1:]

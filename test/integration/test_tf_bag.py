@@ -189,3 +189,16 @@ def test_dq_fk_bag_tf_writes_the_pose_at_a_rate_and_at_a_topics_stamps(tmp_path,
     assert main(['tf', str(images), 'base', 'hand', '--csv', str(tmp_path / 'c.csv'),
                  '--at-topic', '/tf']) == 2
     assert 'is not one whose first field is a std_msgs/Header' in capsys.readouterr().err
+
+
+def test_dq_fk_tf_frames_draws_a_bags_tree(tmp_path, capsys):
+    from dq_fk_ros.cli.dq_fk import main
+    path = write_bag(tmp_path / 'tf_bag', 'mcap')
+    assert main(['tf', 'frames', '--bag', str(path), '-o', str(tmp_path / 'f.pdf')]) == 0
+    text = open(tmp_path / 'f.gv').read()
+    for edge in ('"world" -> "base"', '"base" -> "arm"', '"arm" -> "hand"', '"map" -> "world"',
+                 '"hand" -> "camera"'):
+        assert edge in text
+    # tf2's rate: samples over the span, 201 (200 and one out of order) in 1.99 s
+    assert 'Average rate: 101.005 Hz' in text.split('"base" -> "arm"')[1].split('\n')[0]
+    assert open(tmp_path / 'f.pdf', 'rb').read(5) == b'%PDF-'

@@ -85,3 +85,29 @@ def test_broadcasters_reach_a_listener_and_bytes_that_do_not_read_are_counted(
                                             timeout=Duration(seconds=0.2))
         finally:
             listener.unregister()
+
+
+def test_dq_fk_tf_echo_frames_and_monitor_beside_the_node(processes, tmp_path):
+    from dq_fk_ros.ros.executables import executable
+    start(processes, 'dq_fk_node')
+    start(processes, 'fake_joint_publisher', 'mode:=zeros', 'rate_hz:=50.0')
+    echo = processes.start(executable('dq_fk') + ['tf', 'echo', 'world', 'eeCarry_seg6',
+                                                  '--count', '3', '--rate', '5'])
+    out, _ = echo.communicate(timeout=60)
+    blocks = [b for b in out.split('At time ') if b.strip()]
+    # the first may come before the first transform (a Failure block); the last have it
+    assert '- Translation: [1.025, 0.000, 1.445]' in blocks[-1].replace('-0.000', '0.000'), out
+    assert '- Rotation: in Quaternion (xyzw) [0.707, 0.000, 0.707, 0.000]' in blocks[-1], out
+    frames = processes.start(executable('dq_fk') + ['tf', 'frames', '--seconds', '4', '-o',
+                                                    str(tmp_path / 'frames.pdf')])
+    out, _ = frames.communicate(timeout=60)
+    assert frames.returncode == 0, out
+    text = open(tmp_path / 'frames.gv').read()
+    assert '"wrist_seg5" -> "eeCarry_seg6"' in text and '"world" -> "base_seg0"' in text
+    assert open(tmp_path / 'frames.pdf', 'rb').read(5) == b'%PDF-'
+    monitor = processes.start(executable('dq_fk') + ['tf', 'monitor', 'world', 'eeCarry_seg6',
+                                                     '--seconds', '3'])
+    out, _ = monitor.communicate(timeout=60)
+    assert monitor.returncode == 0, out
+    assert 'Chain is: eeCarry_seg6 -> wrist_seg5 -> forearm_seg4' in out, out
+    assert 'Frame: eeCarry_seg6, parent wrist_seg5' in out, out
