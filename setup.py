@@ -98,7 +98,14 @@ setup(
                  # (dq_fk_bag process; optional too: the numpy paths run without)
                  Extension('dq_fk_ros.bag._mcap', ['dq_fk_ros/bag/_mcap.c'],
                            depends=['dq_fk_ros/messages/c_arguments.h'],
-                           extra_compile_args=['-O2'], optional=True)] + RCL_EXTENSIONS,
+                           extra_compile_args=['-O2'], optional=True),
+                 # tf2's lookup walk over BufferCore's arrays (dq_fk_ros.tf; optional: the
+                 # Python reference runs without); the reference's operations, not contracted
+                 Extension('dq_fk_ros.transforms._tf', ['dq_fk_ros/transforms/_tf.c'],
+                           depends=['dq_fk_ros/transforms/tf_math.h',
+                                    'dq_fk_ros/transforms/tf_cache.h'],
+                           extra_compile_args=['-O2', '-ffp-contract=off', '-fno-fast-math'],
+                           optional=True)] + RCL_EXTENSIONS,
     install_requires=['setuptools', 'numpy', 'PyYAML'],
     # dq_fk_bag process --scheduler: a Dask cluster (pip install 'dq_fk_ros[cluster]')
     # dq_fk_foxglove: the Foxglove SDK's WebSocket server (pip install 'dq_fk_ros[foxglove]')

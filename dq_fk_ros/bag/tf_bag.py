@@ -19,7 +19,6 @@ line that says to give them. Reference: the same transforms given one by one to
 ``BufferCore.set_transform`` (``test_tf_bag.py``).
 """
 
-from array import array
 import os
 import struct
 
@@ -178,11 +177,10 @@ def _store(core, child, parts, summary):
     rows, orders = rows[first], orders[first]
     ordering = np.lexsort((orders, rows[:, 0].view(np.int64)))
     rows = rows[ordering]
-    cache = _Dynamic(core.cache_time_ns)
-    cache.stamps = array('q', np.ascontiguousarray(rows[:, 0]).view(np.int64).tobytes())
-    cache.parents = array('q', np.ascontiguousarray(rows[:, 1]).view(np.int64).tobytes())
-    cache.values = array('d', np.ascontiguousarray(rows[:, 2:]).tobytes())
-    core.caches[child_id] = cache
+    core.caches[child_id] = _Dynamic.of(
+        core.cache_time_ns, np.ascontiguousarray(rows[:, 0]).view(np.int64).tobytes(),
+        np.ascontiguousarray(rows[:, 1]).view(np.int64).tobytes(),
+        np.ascontiguousarray(rows[:, 2:]).tobytes())
     core.authority[child_id] = 'bag'
     summary.transforms += len(rows)
 

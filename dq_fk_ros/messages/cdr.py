@@ -850,6 +850,10 @@ class TfReader:
     def read(self, raw) -> list:
         """Return ``[(parent, child, stamp_ns, (x, y, z, qx, qy, qz, qw)), ...]`` (CdrError)."""
         raw = raw if isinstance(raw, bytes) else bytes(raw)
+        return self.unpack(raw, self.layout(raw))
+
+    def layout(self, raw: bytes) -> TfLayout:
+        """Return the layout of ``raw`` (one seen before, or read now; CdrError)."""
         known = None
         for candidate in self._by_size.get(len(raw), ()):
             if candidate.match(raw):
@@ -862,7 +866,11 @@ class TfReader:
             if len(self._order) > self.max_layouts:
                 old = self._order.pop(0)
                 self._by_size[old.layout.size].remove(old)
-        layout = known.layout
+        return known.layout
+
+    @staticmethod
+    def unpack(raw: bytes, layout: TfLayout) -> list:
+        """Return the transforms of ``raw``, a message of ``layout`` (as :meth:`read`)."""
         stamp, pose = _STAMP.unpack_from, _POSE7.unpack_from
         out = []
         for (parent, child), at, value_at in zip(layout.edges, layout.stamps, layout.values):

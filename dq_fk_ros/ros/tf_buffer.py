@@ -17,6 +17,7 @@ Not here (tf2_ros has them): ``Buffer.transform`` (tf2_geometry_msgs's registrat
 """
 
 import logging
+import struct
 import threading
 import time as _time
 from typing import TYPE_CHECKING
@@ -24,11 +25,13 @@ from typing import TYPE_CHECKING
 from builtin_interfaces.msg import Time as TimeMsg
 from dq_fk_ros.errors import CdrError
 from dq_fk_ros.messages.cdr import TfReader
-from dq_fk_ros.transforms.buffer_core import BufferCore, DEFAULT_CACHE_TIME_NS, MAX_FRAMES
+from dq_fk_ros.transforms.buffer_core import (BufferCore, COMPILED, DEFAULT_CACHE_TIME_NS,
+                                              MAX_FRAMES)
 from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
                                              InvalidArgumentException, LookupException,
                                              TimeoutException, TransformException)
 from geometry_msgs.msg import TransformStamped
+import numpy as np
 from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
@@ -46,6 +49,7 @@ STATIC_BROADCASTER_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                                     reliability=ReliabilityPolicy.RELIABLE,
                                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LOG_EVERY_S = 10.0    # a listener's refused transforms: one line per this many seconds
+AUTHORITY = 'default_authority'   # what tf2_ros's Python listener records
 
 
 def time_ns(value) -> int:
@@ -70,12 +74,22 @@ def duration_ns(value) -> int:
 
 
 def to_message(target, source, pose, stamp_ns) -> TransformStamped:
-    """Return a ``TransformStamped`` of ``pose`` (x y z qx qy qz qw) at ``stamp_ns``."""
+    """
+    Return a ``TransformStamped`` of ``pose`` (x y z qx qy qz qw) at ``stamp_ns``.
+
+    The fields are filled through the generated class's slots (``_x``...), as its
+    constructor does, without the setters' checks: the values are floats, ints in range and
+    str already, and the setters were a fifth of a lookup's time. ``test_tf_listener.py``
+    checks the message against one made through the setters.
+    """
     msg = TransformStamped()
-    msg.header.frame_id, msg.child_frame_id = target, source
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-    t, r = msg.transform.translation, msg.transform.rotation
-    t.x, t.y, t.z, r.x, r.y, r.z, r.w = pose
+    header = msg._header
+    header._frame_id, msg._child_frame_id = target, source
+    stamp = header._stamp
+    stamp._sec, stamp._nanosec = divmod(stamp_ns, 1_000_000_000)
+    t, r = msg._transform._translation, msg._transform._rotation
+    t._x, t._y, t._z = pose[0], pose[1], pose[2]
+    r._x, r._y, r._z, r._w = pose[3], pose[4], pose[5], pose[6]
     return msg
 
 
@@ -125,6 +139,50 @@ class Buffer:
         with self._changed:
             for parent, child, stamp, pose in transforms:
                 taken += self.core.set_transform(parent, child, stamp, pose, authority, static)
+            self._changed.notify_all()
+        return taken
+
+    def append_raw(self, raw: bytes, layout, plans: dict, authority: str) -> int:
+        """
+        Store a serialized ``/tf`` message of a known ``layout``; return how many were taken.
+
+        Fast path: ``_tf.append_many`` appends each transform newer than its edge's newest
+        (the common case) in C; every other one (a new frame, an older or equal stamp, a
+        refusal) goes through ``BufferCore.set_transform``, the reference
+        (``test_tf_listener.py``'s ``test_the_listener_stores_what_set_transform_stores``).
+        ``plans`` keeps each layout's frame ids and offsets (ids never change).
+        """
+        core = self.core
+        with self._changed:
+            plan = plans.get(id(layout))
+            if plan is None or plan[0] is not layout or plan[2]:
+                rows, incomplete = [], False
+                for (parent, child), at, value_at in zip(layout.edges, layout.stamps,
+                                                         layout.values):
+                    p, c = parent[1:] if parent[:1] == '/' else parent, \
+                        child[1:] if child[:1] == '/' else child
+                    named = p and c and p != c
+                    good = named and core.ids.get(c) and core.ids.get(p)
+                    incomplete |= bool(named and not good)   # frames not seen yet
+                    rows.append((core.ids[c] if good else 0, core.ids[p] if good else 0, at,
+                                 value_at))
+                plan = plans[id(layout)] = (layout, np.array(rows, np.int64).reshape(-1, 4),
+                                            incomplete and len(core.names) <= core.max_frames)
+                if len(plans) > 256:
+                    plans.pop(next(iter(plans)))
+            left = COMPILED.append_many(core.caches, plan[1], raw, core.cache_time_ns)
+            taken = len(layout.edges) - len(left)
+            skipped = set(left)
+            for i, child in enumerate(plan[1][:, 0].tolist()):
+                if child and i not in skipped:
+                    core.authority[child] = authority
+            if left:
+                stamp, pose = struct.Struct('<iI').unpack_from, struct.Struct('<7d').unpack_from
+                for i in left:
+                    parent, child = layout.edges[i]
+                    sec, nanosec = stamp(raw, layout.stamps[i])
+                    taken += core.set_transform(parent, child, sec * 1_000_000_000 + nanosec,
+                                                pose(raw, layout.values[i]), authority)
             self._changed.notify_all()
         return taken
 
@@ -258,6 +316,7 @@ class TransformListener:
         self.buffer, self.node = buffer, node
         self.counts = {'messages': 0, 'transforms': 0, 'refused': 0, 'unreadable': 0}
         self._reader, self._static_reader = TfReader(), TfReader()
+        self._plans = {}   # layout -> its transforms' ids and offsets (Buffer.append_raw)
         self._last_log = 0.0
         self._log_lock = threading.Lock()
         buffer.core.log = self._log
@@ -305,14 +364,18 @@ class TransformListener:
     def _take(self, raw, reader, static):
         self.counts['messages'] += 1
         try:
-            transforms = reader.read(raw)
+            layout = reader.layout(raw)
         except (CdrError, ValueError):
             self.counts['unreadable'] += 1
             self._log('a TFMessage that does not read as one (not CDR, truncated, or frame ids '
                       'that are not UTF-8)')
             return
-        self.counts['transforms'] += self.buffer.set_raw(
-            transforms, 'default_authority', static)
+        if static or COMPILED is None or self.buffer.core.sclerp:
+            self.counts['transforms'] += self.buffer.set_raw(
+                TfReader.unpack(raw, layout), AUTHORITY, static)
+            return
+        self.counts['transforms'] += self.buffer.append_raw(raw, layout, self._plans,
+                                                            AUTHORITY)
 
     def unregister(self) -> None:
         """Destroy the subscriptions (tf2_ros's ``unregister``)."""

@@ -7,10 +7,12 @@ of the path found at the first answerable stamp is interpolated at every stamp (
 rules: its samples around the stamp, translation linearly, rotation by slerp on the shortest
 arc, the older sample where the two name different parents), and the poses composed as
 arrays. Stamps where an edge of that path names another parent (a tree that changed shape)
-are looked up one by one; stamps TF cannot answer are NaN rows.
+are looked up one by one; stamps TF cannot answer are NaN rows. Fast path: the same walk in
+C (``_tf.lookup_many``); reference: the numpy edges here (``DQ_FK_PURE_PYTHON=1``), both
+held to ``BufferCore.lookup`` by ``test_tf_batch.py``.
 """
 
-from dq_fk_ros.transforms.buffer_core import IDENTITY
+from dq_fk_ros.transforms.buffer_core import COMPILED, IDENTITY
 from dq_fk_ros.transforms.exceptions import TransformException
 import numpy as np
 
@@ -65,9 +67,10 @@ def edge_rows(cache, stamps: np.ndarray) -> tuple:
 
     ``ok`` is False where the edge has no answer (extrapolation), by tf2's rules.
     """
-    s = np.frombuffer(cache.stamps, dtype=np.int64)[cache.start:]
-    p = np.frombuffer(cache.parents, dtype=np.int64)[cache.start:]
-    v = np.frombuffer(cache.values, dtype=np.float64).reshape(-1, 7)[cache.start:]
+    live = slice(cache.start, cache.count)
+    s = np.frombuffer(cache.stamps, dtype=np.int64)[live]
+    p = np.frombuffer(cache.parents, dtype=np.int64)[live]
+    v = np.frombuffer(cache.values, dtype=np.float64).reshape(-1, 7)[live]
     n = len(s)
     count = len(stamps)
     if n == 0:
@@ -131,6 +134,14 @@ def lookup_poses(core, target: str, source: str, stamps_ns) -> np.ndarray:
             break
         up, down = path   # [(child id, parent id)] from the source up, from the target up
         t = stamps[todo]
+        if COMPILED is not None:   # the same, in C (test_tf_batch.py holds them equal)
+            rows = np.empty((len(todo), 7))
+            ok = np.empty(len(todo), np.uint8)
+            COMPILED.lookup_many(core.caches, up, down, np.ascontiguousarray(t), rows, ok)
+            good = ok.view(bool)
+            out[todo[good]] = rows[good]
+            single[todo[~good]] = True
+            break
         good = np.ones(len(todo), bool)
         source_pose = np.tile(IDENTITY, (len(todo), 1))
         target_pose = np.tile(IDENTITY, (len(todo), 1))

@@ -38,6 +38,7 @@ from bisect import bisect_left, bisect_right
 import math
 
 from dq_fk_ros.errors import printable_line
+from dq_fk_ros.kinematics.kernel import load_compiled
 from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
                                              InvalidArgumentException, LookupException)
 
@@ -47,6 +48,8 @@ DEFAULT_CACHE_TIME_NS = 10 * 10**9
 MAX_FRAMES = 10_000              # frame names held at most; more are refused (one log line)
 COMPACT_AFTER = 4096             # pruned samples dropped from the arrays in batches of this
 INTERPOLATIONS = ('slerp', 'sclerp')
+# the walk in C (transforms/_tf.c): lookup's fast path, this module's _walk its reference
+COMPILED, COMPILED_WHY = load_compiled('dq_fk_ros.transforms._tf')
 
 
 def display_time(stamp_ns: int) -> str:
@@ -80,65 +83,90 @@ class _Static:
 
 
 class _Dynamic:
-    """A child frame's samples, oldest first, in arrays (tf2's ``TimeCache``)."""
+    """
+    A child frame's samples, oldest first, in arrays (tf2's ``TimeCache``).
 
-    __slots__ = ('stamps', 'parents', 'values', 'start', 'cache_ns')
+    The arrays have room beyond ``count`` (doubled when full), so that a sample appended in
+    order is a write into them (``_tf.append_many`` writes there too); samples
+    ``[start:count]`` are live, those before ``start`` pruned (dropped in batches).
+    """
+
+    __slots__ = ('stamps', 'parents', 'values', 'start', 'count', 'cache_ns')
     static = False
 
-    def __init__(self, cache_ns):
-        self.stamps = array('q')     # ns, ascending; [start:] are live
-        self.parents = array('q')
-        self.values = array('d')     # 7 per sample: x y z qx qy qz qw
+    def __init__(self, cache_ns, room=8):
+        self.stamps = array('q', bytes(8 * room))   # ns, ascending
+        self.parents = array('q', bytes(8 * room))
+        self.values = array('d', bytes(56 * room))  # 7 per sample: x y z qx qy qz qw
         self.start = 0
+        self.count = 0
         self.cache_ns = cache_ns
 
+    @classmethod
+    def of(cls, cache_ns, stamps: bytes, parents: bytes, values: bytes) -> '_Dynamic':
+        """Return a cache holding these samples (int64, int64, 7 float64 each; sorted)."""
+        made = cls(cache_ns, room=0)
+        made.stamps, made.parents, made.values = (array('q', stamps), array('q', parents),
+                                                  array('d', values))
+        made.count = len(made.stamps)
+        return made
+
     def __len__(self):
-        return len(self.stamps) - self.start
+        return self.count - self.start
 
     def newest_stamp(self):
-        return self.stamps[-1] if len(self) else 0
+        return self.stamps[self.count - 1] if self.count > self.start else 0
 
     def oldest_stamp(self):
-        return self.stamps[self.start] if len(self) else 0
+        return self.stamps[self.start] if self.count > self.start else 0
 
     def latest(self):
-        if not len(self):
+        if self.count <= self.start:
             return 0, 0
-        return self.stamps[-1], self.parents[-1]
+        return self.stamps[self.count - 1], self.parents[self.count - 1]
+
+    def _room(self):
+        """Make room for one more sample: drop pruned ones, or double the arrays."""
+        if self.start >= COMPACT_AFTER and self.start * 2 >= self.count:
+            live = self.count - self.start
+            self.stamps[:live] = self.stamps[self.start:self.count]
+            self.parents[:live] = self.parents[self.start:self.count]
+            self.values[:7 * live] = self.values[7 * self.start:7 * self.count]
+            self.start, self.count = 0, live
+        if self.count == len(self.stamps):
+            more = max(8, self.count)
+            self.stamps.frombytes(bytes(8 * more))
+            self.parents.frombytes(bytes(8 * more))
+            self.values.frombytes(bytes(56 * more))
+
+    def _same(self, k, parent, values):
+        return self.parents[k] == parent and tuple(self.values[7 * k:7 * k + 7]) == values
 
     def insert(self, stamp, parent, values) -> bool:
-        stamps = self.stamps
-        if len(self):
-            newest = stamps[-1]
-            self.start = bisect_left(stamps, newest - self.cache_ns, self.start)
-            if self.start >= COMPACT_AFTER and self.start * 2 >= len(stamps):
-                del stamps[:self.start]
-                del self.parents[:self.start]
-                del self.values[:7 * self.start]
-                self.start = 0
+        stamps, count = self.stamps, self.count
+        if count > self.start:
+            newest = stamps[count - 1]
+            self.start = bisect_left(stamps, newest - self.cache_ns, self.start, count)
             if stamp < newest - self.cache_ns:
                 return False
-            if stamp >= newest:   # the common case: in order
-                if stamp == newest:
-                    for k in range(bisect_left(stamps, stamp, self.start), len(stamps)):
-                        if self.parents[k] == parent and \
-                                tuple(self.values[7 * k:7 * k + 7]) == values:
-                            return True
-                stamps.append(stamp)
-                self.parents.append(parent)
-                self.values.extend(values)
-                return True
-            at = bisect_right(stamps, stamp, self.start)
-            for k in range(bisect_left(stamps, stamp, self.start), at):
-                if self.parents[k] == parent and tuple(self.values[7 * k:7 * k + 7]) == values:
-                    return True
-            stamps.insert(at, stamp)
-            self.parents.insert(at, parent)
-            self.values[7 * at:7 * at] = array('d', values)
-            return True
-        stamps.append(stamp)
-        self.parents.append(parent)
-        self.values.extend(values)
+            low = bisect_left(stamps, stamp, self.start, count)
+            at = bisect_right(stamps, stamp, low, count)
+            if any(self._same(k, parent, values) for k in range(low, at)):
+                return True   # an exact duplicate: stored once
+        else:
+            at = count
+        before = self.start
+        self._room()
+        at -= before - self.start   # compaction moved the live samples down by the pruned
+        stamps, count = self.stamps, self.count
+        if at < count:   # out of order: the later samples move up one
+            stamps[at + 1:count + 1] = stamps[at:count]
+            self.parents[at + 1:count + 1] = self.parents[at:count]
+            self.values[7 * at + 7:7 * count + 7] = self.values[7 * at:7 * count]
+        stamps[at] = stamp
+        self.parents[at] = parent
+        self.values[7 * at:7 * at + 7] = array('d', values)
+        self.count = count + 1
         return True
 
     def find(self, time_ns):
@@ -151,7 +179,7 @@ class _Dynamic:
         if not n:
             return None, None, ('empty', '')
         stamps = self.stamps
-        last = len(stamps) - 1
+        last = self.count - 1
         if time_ns == 0:
             return last, None, None
         if n == 1:
@@ -173,7 +201,7 @@ class _Dynamic:
             return None, None, ('extrapolation', 'Lookup would require extrapolation into the '
                                 f'past.  Requested time {display_time(time_ns)} but the '
                                 f'earliest data is at time {display_time(oldest)}')
-        k = bisect_right(stamps, time_ns, self.start) - 1
+        k = bisect_right(stamps, time_ns, self.start, self.count) - 1
         return k, k + 1, None
 
     def get(self, time_ns, sclerp=False):
@@ -391,7 +419,12 @@ class BufferCore:
         return found
 
     def lookup(self, target: str, source: str, time_ns: int) -> tuple:
-        """Return ``(pose of source in target, time used in ns)``; raise tf2's exceptions."""
+        """
+        Return ``(pose of source in target, time used in ns)``; raise tf2's exceptions.
+
+        Fast path: the walk in C (``_tf.lookup``, for slerp); reference: :meth:`_walk`,
+        which also says why when tf2 raises (``test_the_compiled_walk_is_the_reference``).
+        """
         if target == source:
             if time_ns == 0:
                 cache = self.caches[self.ids.get(target, 0)]
@@ -399,6 +432,10 @@ class BufferCore:
             return IDENTITY, time_ns
         target_id = self.validate(target, 'lookupTransform argument target_frame')
         source_id = self.validate(source, 'lookupTransform argument source_frame')
+        if COMPILED is not None and not self.sclerp:
+            found = COMPILED.lookup(self.caches, target_id, source_id, time_ns)
+            if found is not None:
+                return found[1:], found[0]
         error, pose, time_used = self._walk(time_ns, target_id, source_id, True)
         if error is not None:
             raise error

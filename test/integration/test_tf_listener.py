@@ -111,3 +111,18 @@ def test_dq_fk_tf_echo_frames_and_monitor_beside_the_node(processes, tmp_path):
     assert monitor.returncode == 0, out
     assert 'Chain is: eeCarry_seg6 -> wrist_seg5 -> forearm_seg4' in out, out
     assert 'Frame: eeCarry_seg6, parent wrist_seg5' in out, out
+
+
+def test_a_lookups_message_is_the_one_the_setters_make():
+    """to_message fills the slots directly; the same message as through the public setters."""
+    from dq_fk_ros.ros.tf_buffer import to_message
+    pose = (1.5, -2.0, 3.25, 0.0, 0.6, 0.0, 0.8)
+    made = to_message('world', 'tool', pose, 1_700_000_000_123_456_789)
+    expected = TransformStamped()
+    expected.header.frame_id, expected.child_frame_id = 'world', 'tool'
+    expected.header.stamp.sec, expected.header.stamp.nanosec = 1_700_000_000, 123_456_789
+    t, r = expected.transform.translation, expected.transform.rotation
+    t.x, t.y, t.z, r.x, r.y, r.z, r.w = pose
+    assert made == expected
+    from rclpy.serialization import serialize_message
+    assert serialize_message(made) == serialize_message(expected)

@@ -504,3 +504,105 @@ def test_runs_survive_any_arguments(data):
         if data.draw(st.booleans()):
             attempt(made.__init__, *args)
     assert _cdr.Runs([0, 4], [2, 3], b'abxyz').match(b'ab..xyz') is True
+
+
+# -- transforms/_tf: tf2's walk over BufferCore's caches ------------------------------------
+class HostileCache:
+    """A cache whose attributes are anything, and whose reading may change the caches list."""
+
+    def __init__(self, static, parent, values, stamps, parents, start, victim=None):
+        self._static, self._parent, self._values = static, parent, values
+        self._stamps, self._parents, self._start, self._victim = stamps, parents, start, victim
+        self.count = start
+
+    def _hit(self):
+        if self._victim is not None:
+            self._victim.clear()   # the caches list emptied while it is read
+
+    @property
+    def static(self):
+        self._hit()
+        return self._static
+
+    parent = property(lambda self: self._parent)
+    values = property(lambda self: self._values)
+    start = property(lambda self: self._start)
+
+    @property
+    def stamps(self):
+        self._hit()
+        return self._stamps
+
+    parents = property(lambda self: self._parents)
+
+
+@st.composite
+def tf_caches(draw):
+    """Draw a caches list of real caches, hostile ones and None, and how many frames."""
+    from array import array
+    from dq_fk_ros.transforms.buffer_core import _Dynamic, _Static
+    n = draw(st.integers(1, 8))
+    caches = [None]
+    for k in range(1, n):
+        kind = draw(st.sampled_from(['none', 'static', 'dynamic', 'hostile']))
+        parent = draw(st.integers(0, n)) if draw(st.booleans()) else max(0, k - 1)
+        if kind == 'none':
+            caches.append(None)
+        elif kind == 'static':
+            caches.append(_Static(parent, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)))
+        elif kind == 'dynamic':
+            cache = _Dynamic(10**9)
+            for j in range(draw(st.integers(0, 4))):
+                turn = draw(st.sampled_from([0.0, 1.0]))
+                cache.insert(draw(st.integers(-5, 5)), parent,
+                             (0.0, 1.0, 0.0, 0.0, 0.0, turn, 1.0))
+            if draw(st.booleans()):
+                cache.start = draw(st.sampled_from([-1, 0, 1, 3, 10, 2**62]))
+            caches.append(cache)
+        else:
+            length = draw(st.sampled_from([0, 1, 2, 3]))
+            stamps = draw(st.sampled_from([array('q', range(length)), array('d', [0.0] * length),
+                                           array('i', range(length)), b'\x00' * 8, None,
+                                           np.arange(length)[::-1], [1, 2]]))
+            parents = draw(st.sampled_from([array('q', [1] * length),
+                                            array('q', [1] * (length + 1)), 'x']))
+            values = draw(st.sampled_from([array('d', [0.0] * (7 * length)),
+                                           array('d', [0.0] * 6), (0.0,) * 7, (1,) * 7,
+                                           (0.0,) * 6, None]))
+            caches.append(HostileCache(
+                draw(st.sampled_from([True, False, 1, None, Mutator(1, lambda: None)])),
+                draw(st.sampled_from([1, -1, 2**70, 1.0, 'p', Mutator(1, lambda: None)])),
+                values, stamps, parents,
+                draw(st.sampled_from([0, -1, 1, 2**64, 1.5, None])),
+                caches if draw(st.booleans()) else None))
+    return caches, n
+
+
+@given(st.data())
+def test_the_tf_walk_survives_any_caches(data):
+    from dq_fk_ros.transforms.buffer_core import COMPILED
+    if COMPILED is None:
+        pytest.fail('transforms/_tf is not built')
+    caches, n = data.draw(tf_caches())
+    ids = st.one_of(st.integers(-2, n + 2), st.sampled_from([2**63, -2**63, 1.0, None, 'a']))
+    time = st.one_of(st.integers(-10, 10), st.sampled_from([2**63, -2**63 - 1, 0, 1.5, None]))
+    attempt(COMPILED.lookup, caches, data.draw(ids), data.draw(ids), data.draw(time))
+    attempt(COMPILED.lookup, data.draw(st.sampled_from([(), None, [1], caches])), 1, 2, 0)
+    # many stamps: edges of any ids, any arrays, out/ok/stamps overlapping (one buffer)
+    edges = st.lists(st.one_of(st.tuples(st.integers(-1, n + 1), st.integers(-1, n + 1)),
+                               st.sampled_from([(1,), (1, 2, 3), 'ab', None, (1.0, 2)])),
+                     max_size=4)
+    count = data.draw(st.sampled_from([0, 1, 3, 8]))
+    shared = np.zeros(8 * count + 8, np.uint8)
+    stamps = data.draw(st.sampled_from([
+        np.arange(count, dtype=np.int64), np.arange(count, dtype=np.int32),
+        shared[:8 * count].view(np.int64) if count else np.zeros(0, np.int64),
+        np.arange(2 * count, dtype=np.int64)[::2], None]))
+    out = data.draw(st.sampled_from([
+        np.zeros((count, 7)), np.zeros((count, 6)), np.zeros(count * 7, np.float32),
+        shared[:8 * count].view(np.float64) if count else np.zeros(0), np.zeros((count, 7))[::-1],
+        bytes(56 * count)]))
+    ok = data.draw(st.sampled_from([np.zeros(count, np.uint8), shared[:count],
+                                    np.zeros(count, np.int64), bytearray(count),
+                                    np.zeros(count + 1, np.uint8)]))
+    attempt(COMPILED.lookup_many, caches, data.draw(edges), data.draw(edges), stamps, out, ok)

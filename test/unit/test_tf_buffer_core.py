@@ -356,3 +356,29 @@ def test_yaml_and_string_say_what_tf2s_say():
     assert 'most_recent_transform: 3.000000\n  oldest_transform: 1.000000\n' \
         '  buffer_length: 2.000' in text
     assert BufferCore().all_frames_as_yaml() == '[]'
+
+
+@settings(max_examples=300, deadline=None)
+@given(scenes())
+def test_the_compiled_walk_is_the_reference(scene):
+    """_tf.lookup (C) answers as BufferCore._walk, to the last bit, and fails where it fails."""
+    from dq_fk_ros.transforms.buffer_core import COMPILED
+    if COMPILED is None:
+        pytest.fail('the C walk is not built (make setup builds it): nothing to compare')
+    inserts, queries = scene
+    core = BufferCore(cache_time_ns=100 * S)
+    for parent, child, stamp, pose, static in inserts:
+        core.set_transform(parent, child, stamp, pose, 'test', static)
+    for target, source, t in queries:
+        if target == source or target not in core.ids or source not in core.ids:
+            continue
+        ids = core.ids[target], core.ids[source]
+        error, pose, used = core._walk(t if t else core.latest_common_time(*ids)[1],
+                                       ids[0], ids[1], True)
+        if t == 0 and core.latest_common_time(*ids)[0] is not None:
+            error = core.latest_common_time(*ids)[0]
+        found = COMPILED.lookup(core.caches, ids[0], ids[1], t)
+        if error is not None:
+            assert found is None, (target, source, t, found)
+        else:
+            assert found == (used,) + pose, (target, source, t)
