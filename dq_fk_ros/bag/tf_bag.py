@@ -95,47 +95,76 @@ def _take_static(core, raw, summary):
             summary.refused += 1
 
 
+def _matches(known, data, starts, lengths):
+    """Return a bool array: which messages (spans of ``data``) have ``known``'s layout."""
+    if known.runs is not None:   # the compiled check, a memcmp per run
+        return np.frombuffer(known.runs.match_many(data, starts, lengths, known.layout.size),
+                             np.uint8).astype(bool)
+    size = known.layout.size
+    return np.array([n == size and known.match(data[s:s + n])
+                     for s, n in zip(starts.tolist(), lengths.tolist())], bool)
+
+
+def _columns(block, starts, offset, width):
+    """Return ``width`` bytes at ``starts + offset`` of each message, as (n, width) uint8."""
+    return block[(starts + offset)[:, None] + np.arange(width)]
+
+
 def _take_moving(core, reader, conns, start, end, max_transforms, summary, path):
-    """Read ``/tf`` by layout into columns, then store each edge's sorted samples."""
-    by_size, layouts = {}, []   # size -> [(_KnownLayout, [raw, ...], [order, ...])]
+    """Read ``/tf`` in batches, by layout, into columns; then store each edge sorted."""
+    layouts = []   # [_KnownLayout], and per layout [(stamps, values) per transform] parts
+    parts = {}     # id(layout) -> [(orders, stamps (n, T), values (n, T, 7))]
+    by_size = {}
     order = 0
     total = 0
-    for _, _, raw in reader.messages(conns, start, end):
-        summary.messages += 1
-        raw = bytes(raw)
-        group = None
-        for candidate in by_size.get(len(raw), ()):
-            if candidate[0].match(raw):
-                group = candidate
-                break
-        if group is None:
-            try:
-                known = _KnownLayout(tf_layout(raw))
-            except CdrError:
-                summary.unreadable += 1
-                continue
-            group = (known, [], [])
-            by_size.setdefault(len(raw), []).append(group)
-            layouts.append(group)
-        group[1].append(raw)
-        group[2].append(order)
-        order += 1
-        total += len(group[0].layout.edges)
-        if total > max_transforms:
-            raise BagError(f'{path}: more than {max_transforms} transforms on /tf between '
-                           f'start and end (about {max_transforms * 64 >> 20} MiB held); give '
-                           'start and end (--start/--end) to read a part of it')
+    for batch in reader.message_batches(conns, start, end):
+        summary.messages += len(batch.starts)
+        data = bytes(batch.data)
+        block = np.frombuffer(data, np.uint8)
+        left = np.arange(len(batch.starts))
+        while len(left):
+            first = int(left[0])
+            raw = data[batch.starts[first]:batch.starts[first] + batch.lengths[first]]
+            known = next((k for k in by_size.get(len(raw), ()) if k.match(raw)), None)
+            if known is None:
+                try:
+                    known = _KnownLayout(tf_layout(raw))
+                except CdrError:
+                    summary.unreadable += 1
+                    left = left[1:]
+                    continue
+                by_size.setdefault(len(raw), []).append(known)
+                layouts.append(known)
+                parts[id(known)] = []
+            same = _matches(known, data, batch.starts[left], batch.lengths[left])
+            taken = left[same]
+            left = left[~same]
+            total += len(taken) * len(known.layout.edges)
+            if total > max_transforms:
+                raise BagError(f'{path}: more than {max_transforms} transforms on /tf between '
+                               f'start and end (about {max_transforms * 64 >> 20} MiB held); '
+                               'give start and end (--start/--end) to read a part of it')
+            layout, starts = known.layout, batch.starts[taken]
+            stamps = np.stack([
+                _columns(block, starts, at, 4).view('<i4')[:, 0].astype(np.int64) * 10**9
+                + _columns(block, starts, at + 4, 4).view('<u4')[:, 0]
+                for at in layout.stamps], axis=1) if layout.edges else \
+                np.zeros((len(taken), 0), np.int64)
+            values = np.stack([_columns(block, starts, at, 56).view('<f8')
+                               for at in layout.values], axis=1) if layout.edges else \
+                np.zeros((len(taken), 0, 7))
+            parts[id(known)].append((order + taken, stamps, values))
+        order += len(batch.starts)
     columns = {}   # (parent, child) -> [(stamps, orders, values)]
-    for known, raws, orders in layouts:
-        layout = known.layout
-        block = np.frombuffer(b''.join(raws), np.uint8).reshape(len(raws), layout.size)
-        orders = np.asarray(orders, np.int64)
-        for (parent, child), at, value_at in zip(layout.edges, layout.stamps, layout.values):
-            sec = np.ascontiguousarray(block[:, at:at + 4]).view('<i4')[:, 0].astype(np.int64)
-            nsec = np.ascontiguousarray(block[:, at + 4:at + 8]).view('<u4')[:, 0]
-            values = np.ascontiguousarray(block[:, value_at:value_at + 56]).view('<f8')
+    for known in layouts:
+        if not parts[id(known)]:
+            continue
+        orders = np.concatenate([p[0] for p in parts[id(known)]])
+        stamps = np.concatenate([p[1] for p in parts[id(known)]])
+        values = np.concatenate([p[2] for p in parts[id(known)]])
+        for j, (parent, child) in enumerate(known.layout.edges):
             columns.setdefault((parent, child), []).append(
-                (sec * 1_000_000_000 + nsec, orders, values))
+                (stamps[:, j], orders, np.ascontiguousarray(values[:, j])))
     edges = {}   # child -> [(parent, stamps, orders, values)]
     for (parent, child), parts in columns.items():
         stamps = np.concatenate([p[0] for p in parts])
@@ -170,13 +199,18 @@ def _store(core, child, parts, summary):
     rows = np.concatenate((stamps[:, None].view(np.float64), parents[:, None].view(np.float64),
                            values), axis=1)[keep]
     orders = orders[keep]
-    # exact duplicates (stamp, parent, values): the first read is kept, as tf2 keeps it
-    _, first = np.unique(rows.view(np.dtype((np.void, rows.dtype.itemsize * 9))),
-                         return_index=True)
-    summary.duplicates += len(rows) - len(first)
-    rows, orders = rows[first], orders[first]
-    ordering = np.lexsort((orders, rows[:, 0].view(np.int64)))
-    rows = rows[ordering]
+    ordering = np.argsort(orders, kind='stable')
+    rows, orders = rows[ordering], orders[ordering]
+    in_time = rows[:, 0].view(np.int64)
+    if len(rows) > 1 and not (in_time[1:] > in_time[:-1]).all():
+        # recorded out of order or twice: exact duplicates (stamp, parent, values) kept once
+        # (the first read, as tf2 keeps it), then sorted by stamp, read order among equals
+        _, first = np.unique(rows.view(np.dtype((np.void, rows.dtype.itemsize * 9))),
+                             return_index=True)
+        summary.duplicates += len(rows) - len(first)
+        first.sort()
+        rows, orders = rows[first], orders[first]
+        rows = rows[np.lexsort((orders, rows[:, 0].view(np.int64)))]
     core.caches[child_id] = _Dynamic.of(
         core.cache_time_ns, np.ascontiguousarray(rows[:, 0]).view(np.int64).tobytes(),
         np.ascontiguousarray(rows[:, 1]).view(np.int64).tobytes(),

@@ -775,11 +775,11 @@ def _compiled_check(check):
 class _KnownLayout:
     """A layout :class:`TfLatest` has seen, and its check; hashed by identity (cheaply)."""
 
-    __slots__ = ('layout', 'check', 'match')
+    __slots__ = ('layout', 'check', 'match', 'runs')
 
     def __init__(self, layout):
         self.layout, self.check = layout, _layout_check(layout)
-        compiled = _compiled_check(self.check)
+        compiled = self.runs = _compiled_check(self.check)
         self.match = compiled.match if compiled is not None else \
             (lambda raw, check=self.check: _is_layout(raw, check))
 

@@ -92,10 +92,11 @@ class RawSubscriptionThread:
         taken as they come.
     """
 
-    def __init__(self, owner, msg_type, topic, qos, callback, batch_s=0.0, on_error=None):
-        """Create the helper node and its raw subscription, and start the thread."""
+    def __init__(self, owner, msg_type, topic, qos, callback, batch_s=0.0, on_error=None,
+                 role='input'):
+        """Create the helper node (``_<owner>_<role>``) and its raw subscription; start."""
         self._context = owner.context
-        self._node = rclpy.create_node(f'_{owner.get_name()}_input', context=self._context,
+        self._node = rclpy.create_node(f'_{owner.get_name()}_{role}', context=self._context,
                                        start_parameter_services=False, enable_rosout=False,
                                        use_global_arguments=False)
         self.subscription = self._node.create_subscription(

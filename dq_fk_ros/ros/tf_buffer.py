@@ -50,6 +50,7 @@ STATIC_BROADCASTER_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LOG_EVERY_S = 10.0    # a listener's refused transforms: one line per this many seconds
 AUTHORITY = 'default_authority'   # what tf2_ros's Python listener records
+INPUT_BATCH_S = 0.002   # the listener's /tf thread: messages this close share a wake-up
 
 
 def time_ns(value) -> int:
@@ -310,8 +311,16 @@ class TransformListener:
     """
 
     def __init__(self, buffer: Buffer, node, *, spin_thread: bool = False, qos=None,
-                 static_qos=None, static_only: bool = False):
-        """Subscribe on ``node``; with ``spin_thread``, spin it in a thread of its own."""
+                 static_qos=None, static_only: bool = False, input_thread: bool = True):
+        """
+        Subscribe on ``node``; with ``spin_thread``, spin it in a thread of its own.
+
+        :param input_thread: take ``/tf`` in a thread of its own (a hidden helper node
+            ``_<node>_tf`` and one wait set, as dq_fk_node takes joint states; every
+            message within ``INPUT_BATCH_S`` of the last is taken in the same wake-up), not
+            through the executor, whose wake-up per message cost more than the transforms;
+            False: a subscription on ``node`` as tf2_ros has it.
+        """
         from rclpy.callback_groups import ReentrantCallbackGroup
         self.buffer, self.node = buffer, node
         self.counts = {'messages': 0, 'transforms': 0, 'refused': 0, 'unreadable': 0}
@@ -321,8 +330,13 @@ class TransformListener:
         self._log_lock = threading.Lock()
         buffer.core.log = self._log
         group = ReentrantCallbackGroup()
-        self.tf_sub = None
-        if not static_only:
+        self.tf_sub = self.tf_thread = None
+        if not static_only and input_thread:
+            from dq_fk_ros.ros.raw_input import RawSubscriptionThread
+            self.tf_thread = RawSubscriptionThread(
+                node, TFMessage, '/tf', qos or DYNAMIC_QOS, lambda raw, _: self._on_tf(raw),
+                batch_s=INPUT_BATCH_S, role='tf')
+        elif not static_only:
             self.tf_sub = node.create_subscription(
                 TFMessage, '/tf', self._on_tf, qos or DYNAMIC_QOS, callback_group=group,
                 raw=True)
@@ -382,7 +396,9 @@ class TransformListener:
         for sub in (self.tf_sub, self.tf_static_sub):
             if sub is not None:
                 self.node.destroy_subscription(sub)
-        self.tf_sub = self.tf_static_sub = None
+        if self.tf_thread is not None:
+            self.tf_thread.close()
+        self.tf_sub = self.tf_static_sub = self.tf_thread = None
         if self.executor is not None:
             self.executor.shutdown()
             self.dedicated_listener_thread.join(timeout=2.0)

@@ -10,8 +10,8 @@
  *   append_many(caches, plan, raw, cache_ns) -> [indices of the plan's rows not taken]
  *       plan: int64 rows (child id, parent id, stamp offset, values offset) of a serialized
  *       TFMessage; each transform newer than its child's newest sample, valid, onto a
- *       dynamic cache is appended as _Dynamic.insert appends it (pruning included); the
- *       rest (new frames, old or equal stamps, refusals, compaction) are the caller's,
+ *       dynamic cache with room is appended as _Dynamic.insert appends it (pruning
+ *       included); the rest (new frames, old or equal stamps, refusals, a full cache) are the caller's,
  *       for BufferCore.set_transform (the reference; test_tf_listener_reads_as_set_transform).
  *   lookup_many(caches, up, down, stamps, out, ok) -> None
  *       the path's edges (child, parent) from the source up and from the target up, at each
@@ -394,7 +394,6 @@ static Py_ssize_t first_at(const int64_t *s, Py_ssize_t lo, Py_ssize_t n, int64_
     return lo;
 }
 
-#define COMPACT_AFTER 4096
 #define QUATERNION_TOLERANCE 10e-3
 
 /*
@@ -424,10 +423,6 @@ static int append_one(PyObject *caches, Py_ssize_t child, Py_ssize_t parent, int
         return 0;
     }
     Py_ssize_t start = first_at(c.s, c.start, c.n, c.s[c.n - 1] - cache_ns);
-    if (start >= COMPACT_AFTER && start * 2 >= c.n) {
-        release(&c);
-        return 0;   /* time to drop the pruned samples: the reference does it */
-    }
     double norm = sqrt(norm2);
     v[3] /= norm;
     v[4] /= norm;

@@ -46,7 +46,6 @@ MAX_GRAPH_DEPTH = 1000           # tf2's: a longer walk is a loop
 QUATERNION_TOLERANCE = 10e-3     # tf2's QUATERNION_NORMALIZATION_TOLERANCE (on the norm^2)
 DEFAULT_CACHE_TIME_NS = 10 * 10**9
 MAX_FRAMES = 10_000              # frame names held at most; more are refused (one log line)
-COMPACT_AFTER = 4096             # pruned samples dropped from the arrays in batches of this
 INTERPOLATIONS = ('slerp', 'sclerp')
 # the walk in C (transforms/_tf.c): lookup's fast path, this module's _walk its reference
 COMPILED, COMPILED_WHY = load_compiled('dq_fk_ros.transforms._tf')
@@ -86,9 +85,11 @@ class _Dynamic:
     """
     A child frame's samples, oldest first, in arrays (tf2's ``TimeCache``).
 
-    The arrays have room beyond ``count`` (doubled when full), so that a sample appended in
-    order is a write into them (``_tf.append_many`` writes there too); samples
-    ``[start:count]`` are live, those before ``start`` pruned (dropped in batches).
+    The arrays have room beyond ``count``, so that a sample appended in order is a write
+    into them (``_tf.append_many`` writes there too); samples ``[start:count]`` are live,
+    those before ``start`` pruned. When full, the pruned ones are dropped if they are a
+    quarter or more, else the arrays doubled: at most about 4/3 of the live samples' room
+    is held once the cache time is filled.
     """
 
     __slots__ = ('stamps', 'parents', 'values', 'start', 'count', 'cache_ns')
@@ -126,8 +127,10 @@ class _Dynamic:
         return self.stamps[self.count - 1], self.parents[self.count - 1]
 
     def _room(self):
-        """Make room for one more sample: drop pruned ones, or double the arrays."""
-        if self.start >= COMPACT_AFTER and self.start * 2 >= self.count:
+        """Make room for one more sample when full: drop pruned ones, or double the arrays."""
+        if self.count < len(self.stamps):
+            return
+        if self.start * 4 >= self.count:   # a quarter or more pruned: moved down, no growth
             live = self.count - self.start
             self.stamps[:live] = self.stamps[self.start:self.count]
             self.parents[:live] = self.parents[self.start:self.count]
@@ -376,7 +379,9 @@ class BufferCore:
             self.authority[child_id] = authority
             return True
         if cache is None or cache.static:
-            cache = self.caches[child_id] = _Dynamic(self.cache_time_ns)
+            # edges of one robot fill in step: rooms of 8 to 23 samples spread their growth
+            # over many messages (one message growing all of tiago's stalled 50 ms)
+            cache = self.caches[child_id] = _Dynamic(self.cache_time_ns, 8 + child_id % 16)
         if cache.insert(int(stamp_ns), parent_id, values):
             self.authority[child_id] = authority
             return True
@@ -400,7 +405,7 @@ class BufferCore:
         """Forget every sample (frame names stay, as tf2's ``clear``)."""
         for k, cache in enumerate(self.caches):
             if cache is not None and not cache.static:
-                self.caches[k] = _Dynamic(self.cache_time_ns)
+                self.caches[k] = _Dynamic(self.cache_time_ns, 8 + k % 16)
             elif cache is not None:
                 self.caches[k] = None
 
