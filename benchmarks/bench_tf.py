@@ -31,7 +31,7 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-from bench_e2e import cpu_seconds, start_node, start_publisher, stop  # noqa: E402
+from bench_e2e import start_node, start_publisher, stop  # noqa: E402
 from bench_node import example_robot_data  # noqa: E402
 from bench_results import figure  # noqa: E402
 import numpy as np  # noqa: E402
@@ -71,7 +71,7 @@ def per_call_us(call, seconds=1.0):
 def pytransform3d_us():
     """Return pytransform3d's get_transform on the same tree (static), from .venv-bench."""
     python = os.path.join(os.path.dirname(HERE), '.venv-bench', 'bin', 'python')
-    code = f'''
+    code = f"""
 import math, time
 from pytransform3d.transform_manager import TransformManager
 from pytransform3d.transformations import transform_from_pq
@@ -87,7 +87,7 @@ for _ in range(5):
         tm.get_transform('f100', 'f127')
     best = min(best, (time.perf_counter() - start) / 200 * 1e6)
 print(best)
-'''
+"""
     if not os.access(python, os.X_OK):
         return None
     done = subprocess.run([python, '-c', code], capture_output=True, text=True, timeout=300)
@@ -129,7 +129,7 @@ def bench_lookups():
 
 
 def listen(seconds):
-    """(this script with --listen) A TransformListener; print received, CPU, memory."""
+    """Run a TransformListener (this script with --listen); print received, CPU, memory."""
     import rclpy
     from dq_fk_ros.ros.tf_buffer import Buffer, TransformListener
     from rclpy.executors import SingleThreadedExecutor
@@ -237,7 +237,7 @@ def bench_bag(folder):
         ours = min(ours, time.perf_counter() - start)
     print(f'- rosbags bare read of {n} /tf messages: {bare:.2f} s; dq_fk_bag tf '
           f'({done.rows} rows): {ours:.2f} s')
-    figure(f'dq_fk_bag tf over {n} /tf messages against rosbags\' bare read', ours / bare,
+    figure(f"dq_fk_bag tf over {n} /tf messages against rosbags' bare read", ours / bare,
            'x', '<= 1.5x', ours / bare <= 1.5, group='tf')
 
 
