@@ -144,13 +144,14 @@ def _take_moving(core, reader, conns, start, end, max_transforms, summary, path)
                 raise BagError(f'{path}: more than {max_transforms} transforms on /tf between '
                                f'start and end (about {max_transforms * 64 >> 20} MiB held); '
                                'give start and end (--start/--end) to read a part of it')
-            layout, starts = known.layout, batch.starts[taken]
+            layout = known.layout
+            rows = _columns(block, batch.starts[taken], 0, layout.size)   # (n, size) bytes
             stamps = np.stack([
-                _columns(block, starts, at, 4).view('<i4')[:, 0].astype(np.int64) * 10**9
-                + _columns(block, starts, at + 4, 4).view('<u4')[:, 0]
+                np.ascontiguousarray(rows[:, at:at + 4]).view('<i4')[:, 0].astype(np.int64)
+                * 10**9 + np.ascontiguousarray(rows[:, at + 4:at + 8]).view('<u4')[:, 0]
                 for at in layout.stamps], axis=1) if layout.edges else \
                 np.zeros((len(taken), 0), np.int64)
-            values = np.stack([_columns(block, starts, at, 56).view('<f8')
+            values = np.stack([np.ascontiguousarray(rows[:, at:at + 56]).view('<f8')
                                for at in layout.values], axis=1) if layout.edges else \
                 np.zeros((len(taken), 0, 7))
             parts[id(known)].append((order + taken, stamps, values))
@@ -199,8 +200,9 @@ def _store(core, child, parts, summary):
     rows = np.concatenate((stamps[:, None].view(np.float64), parents[:, None].view(np.float64),
                            values), axis=1)[keep]
     orders = orders[keep]
-    ordering = np.argsort(orders, kind='stable')
-    rows, orders = rows[ordering], orders[ordering]
+    if len(orders) > 1 and not (orders[1:] > orders[:-1]).all():   # from several layouts
+        ordering = np.argsort(orders, kind='stable')
+        rows, orders = rows[ordering], orders[ordering]
     in_time = rows[:, 0].view(np.int64)
     if len(rows) > 1 and not (in_time[1:] > in_time[:-1]).all():
         # recorded out of order or twice: exact duplicates (stamp, parent, values) kept once

@@ -10,6 +10,7 @@ Stamps where TF cannot answer (before or after the data, frames not connected) a
 and left out, never invented.
 """
 
+import math
 import os
 import struct
 from typing import NamedTuple
@@ -19,6 +20,7 @@ from dq_fk_ros.bag.text import printable
 from dq_fk_ros.bag.tf_bag import core_from_bag
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.transforms.batch import lookup_poses
+from dq_fk_ros.transforms.buffer_core import COMPILED
 import numpy as np
 
 MAX_ROWS = 50_000_000   # stamps asked at most (--rate over a long bag)
@@ -78,6 +80,34 @@ def stamps_of_topic(path, topic, start=None, end=None) -> np.ndarray:
         reader.close()
 
 
+def fixed9(x: float) -> str:
+    """
+    Return ``x`` with 9 decimals (nanometres; a quaternion to 1e-9), as the CSV has it.
+
+    ``q = floor(|x| * 1e9 + 0.5)`` written as ``q // 10**9 . q % 10**9``, signed when x < 0
+    and q > 0; ``|x| >= 9e9`` or not finite: ``%.17g``.
+    """
+    if not math.isfinite(x) or abs(x) >= 9e9:
+        return '%.17g' % x
+    q = int(math.floor(abs(x) * 1e9 + 0.5))
+    return f"{'-' if x < 0 and q else ''}{q // 10**9}.{q % 10**9:09d}"
+
+
+def csv_rows(stamps: np.ndarray, poses: np.ndarray) -> str:
+    """
+    Return ``stamp,x,y,z,qx,qy,qz,qw`` lines, each float by :func:`fixed9`.
+
+    Fast path: ``_tf.csv_rows`` (C, the same characters); reference: :func:`fixed9` per
+    value (``test_tf_bag.py``'s ``test_csv_rows_are_the_python_ones``).
+    """
+    stamps = np.ascontiguousarray(stamps, dtype=np.int64)
+    poses = np.ascontiguousarray(poses, dtype=np.float64)
+    if COMPILED is not None:
+        return COMPILED.csv_rows(stamps, poses).decode('ascii')
+    return ''.join(f'{s},' + ','.join(fixed9(v) for v in p) + '\n'
+                   for s, p in zip(stamps.tolist(), poses.tolist()))
+
+
 def export_tf(path, target: str, source: str, csv_path, rate_hz: float | None = None,
               at_topic: str | None = None, start: int | None = None,
               end: int | None = None) -> TfExport:
@@ -102,14 +132,12 @@ def export_tf(path, target: str, source: str, csv_path, rate_hz: float | None = 
         stamps_of_topic(path, at_topic, start, end)
     poses = lookup_poses(core, target, source, stamps)
     answered = ~np.isnan(poses).any(axis=1)
-    row = '%d' + ',%r' * 7 + '\n'   # each float as repr writes it: read back exactly
     with open(csv_path, 'x', newline='', encoding='utf-8') as stream:
         stream.write('stamp_ns,x,y,z,qx,qy,qz,qw\n')
         kept_stamps, kept = stamps[answered], poses[answered]
         for at in range(0, len(kept_stamps), CSV_ROWS_AT_ONCE):
-            stream.write(''.join(row % (s, *p) for s, p in zip(
-                kept_stamps[at:at + CSV_ROWS_AT_ONCE].tolist(),
-                kept[at:at + CSV_ROWS_AT_ONCE].tolist())))
+            stream.write(csv_rows(kept_stamps[at:at + CSV_ROWS_AT_ONCE],
+                                  kept[at:at + CSV_ROWS_AT_ONCE]))
     return TfExport(int(answered.sum()), int((~answered).sum()), os.fspath(csv_path))
 
 

@@ -29,6 +29,7 @@
 #include <Python.h>
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <string.h>
 
 #define MAX_GRAPH_DEPTH 1000
@@ -518,11 +519,107 @@ done:
     return NULL;
 }
 
+/*
+ * csv_rows(stamps, poses) -> bytes: "stamp,x,y,z,qx,qy,qz,qw\n" per row, each float with
+ * 9 decimals (nanometres; a quaternion to 1e-9): q = floor(|x| * 1e9 + 0.5) written as
+ * q / 10^9 "." q % 10^9, a "-" before it when x < 0 and q > 0; |x| >= 9e9 or not finite:
+ * "%.17g". The reference is tf_export.fixed9 in Python (test_tf_bag.py's
+ * test_csv_rows_are_the_python_ones).
+ */
+static int fixed9(double x, char *out)
+{
+    if (isnan(x)) {
+        memcpy(out, "nan", 3);   /* (printf writes -nan for a NaN with its sign bit set) */
+        return 3;
+    }
+    if (!isfinite(x) || fabs(x) >= 9e9)
+        return snprintf(out, 32, "%.17g", x);
+    double scaled = floor(fabs(x) * 1e9 + 0.5);
+    uint64_t q = (uint64_t)scaled;
+    char digits[24];
+    int n = 0, at = 0;
+    uint64_t whole = q / 1000000000u, frac = q % 1000000000u;
+    if (x < 0 && q > 0)
+        out[at++] = '-';
+    do {
+        digits[n++] = (char)('0' + whole % 10);
+        whole /= 10;
+    } while (whole);
+    while (n)
+        out[at++] = digits[--n];
+    out[at++] = '.';
+    for (int k = 8; k >= 0; k--) {
+        out[at + k] = (char)('0' + frac % 10);
+        frac /= 10;
+    }
+    return at + 9;
+}
+
+static PyObject *tf_csv_rows(PyObject *self, PyObject *args)
+{
+    PyObject *stamps_obj, *poses_obj;
+    if (!PyArg_ParseTuple(args, "OO", &stamps_obj, &poses_obj))
+        return NULL;
+    Py_buffer sb = {0}, pb = {0};
+    PyObject *result = NULL;
+    char *text = NULL;
+    if (PyObject_GetBuffer(stamps_obj, &sb, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
+        return NULL;
+    if (PyObject_GetBuffer(poses_obj, &pb, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
+        goto done;
+    const char *sf = sb.format ? sb.format : "", *pf = pb.format ? pb.format : "";
+    if (sb.itemsize != 8 || (strcmp(sf, "q") && strcmp(sf, "l") && strcmp(sf, "<q") &&
+                             strcmp(sf, "=q"))) {
+        PyErr_SetString(PyExc_ValueError, "stamps: a C-contiguous int64 array");
+        goto done;
+    }
+    if (pb.itemsize != 8 || (strcmp(pf, "d") && strcmp(pf, "<d") && strcmp(pf, "=d"))) {
+        PyErr_SetString(PyExc_ValueError, "poses: a C-contiguous float64 array");
+        goto done;
+    }
+    Py_ssize_t n = sb.len / 8;
+    if (pb.len / 8 / 7 != n || pb.len / 8 % 7 != 0) {
+        PyErr_SetString(PyExc_ValueError, "poses must hold 7 floats per stamp");
+        goto done;
+    }
+    /* a row: at most 20 digits and a sign, 7 floats of at most 31 characters, 8 separators */
+    const Py_ssize_t row_max = 21 + 7 * 32 + 8;
+    if (n > PY_SSIZE_T_MAX / row_max - 1) {
+        PyErr_SetString(PyExc_OverflowError, "too many rows");
+        goto done;
+    }
+    text = PyMem_Malloc((size_t)(n * row_max + 1));
+    if (text == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    const int64_t *stamps = sb.buf;
+    const double *poses = pb.buf;
+    Py_ssize_t at = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        at += snprintf(text + at, 22, "%lld", (long long)stamps[i]);
+        for (int k = 0; k < 7; k++) {
+            text[at++] = ',';
+            at += fixed9(poses[7 * i + k], text + at);
+        }
+        text[at++] = '\n';
+    }
+    result = PyBytes_FromStringAndSize(text, at);
+done:
+    PyMem_Free(text);
+    if (pb.obj)
+        PyBuffer_Release(&pb);
+    PyBuffer_Release(&sb);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"lookup", tf_lookup, METH_VARARGS,
      "lookup(caches, target, source, time_ns) -> (time used, x, y, z, qx, qy, qz, qw) or None"},
     {"append_many", tf_append_many, METH_VARARGS,
      "append_many(caches, plan, raw, cache_ns) -> [rows not taken]: a TFMessage's transforms"},
+    {"csv_rows", tf_csv_rows, METH_VARARGS,
+     "csv_rows(stamps, poses) -> bytes: stamp,x,y,z,qx,qy,qz,qw lines, 9 decimals"},
     {"lookup_many", tf_lookup_many, METH_VARARGS,
      "lookup_many(caches, up, down, stamps, out, ok): the path's pose at each stamp"},
     {NULL, NULL, 0, NULL}};

@@ -606,3 +606,17 @@ def test_the_tf_walk_survives_any_caches(data):
                                     np.zeros(count, np.int64), bytearray(count),
                                     np.zeros(count + 1, np.uint8)]))
     attempt(COMPILED.lookup_many, caches, data.draw(edges), data.draw(edges), stamps, out, ok)
+
+
+@given(st.data())
+def test_the_csv_writer_survives_any_arguments(data):
+    from dq_fk_ros.transforms.buffer_core import COMPILED
+    if COMPILED is None:
+        pytest.fail('transforms/_tf is not built')
+    stamps = data.draw(hostile_arrays(like=np.zeros(3)))
+    if isinstance(stamps, np.ndarray) and stamps.dtype == np.float64 and data.draw(st.booleans()):
+        stamps = stamps.astype(np.int64)
+    poses = data.draw(hostile_arrays(like=np.zeros((3, 7))))
+    attempt(COMPILED.csv_rows, stamps, poses)
+    shared = np.zeros(64)
+    attempt(COMPILED.csv_rows, shared[:8].view(np.int64), shared.reshape(8, 8)[:, :7].copy())
