@@ -14,8 +14,8 @@ from dq_fk_ros.bag.tf_bag import core_from_bag
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.transforms.buffer_core import BufferCore
 from dq_fk_ros.transforms.exceptions import TransformException
-import numpy as np
 from hypothesis import given, strategies as st
+import numpy as np
 import pytest
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 
