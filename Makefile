@@ -172,6 +172,8 @@ bench: setup $(BENCH_VENV)/.stamp
 	@echo
 	@$(PY) benchmarks/bench_bag.py
 	@$(PY) benchmarks/bench_fleet.py
+	@echo
+	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_tf.py
 	@$(PY) scripts/performance_doc.py $(BENCH_RESULTS) docs/performance.md
 
 mutate: setup

@@ -41,6 +41,7 @@ TF2_ROS_LOOKUP_US = (70.0, 78.0)   # the real tf2_ros, measured when the issue w
 TREE_FRAMES = 130
 WARM_S = 25.0   # the listener: its 10 s cache filled and its arrays at their size
 QUIET_S = 3.0   # the listener stops once nothing came for this long
+GROUP = 'TF without tf2'   # its heading in docs/performance.md
 
 
 def tree_core():
@@ -106,15 +107,15 @@ def bench_lookups():
     floor = per_call_us(TransformStamped)
     figure('lookup_transform, two leaves of 130 frames, interpolated', lookup, 'us',
            f'<= 2x the empty TransformStamped ({2 * floor:.1f} us)', lookup <= 2 * floor,
-           group='tf')
-    figure('the floor: rclpy constructs an empty TransformStamped', floor, 'us', group='tf')
+           group=GROUP)
+    figure('the floor: rclpy constructs an empty TransformStamped', floor, 'us', group=GROUP)
     tf2 = 0.2 * TF2_ROS_LOOKUP_US[0]
     figure('lookup_transform against the real tf2_ros (70-78 us, issue)', lookup, 'us',
-           f'<= 0.2x tf2_ros ({tf2:.0f} us)', lookup <= tf2, group='tf')
+           f'<= 0.2x tf2_ros ({tf2:.0f} us)', lookup <= tf2, group=GROUP)
     peer = pytransform3d_us()
     if peer is not None:
         figure('pytransform3d TransformManager.get_transform, same tree, static', peer, 'us',
-               group='tf')
+               group=GROUP)
     else:
         print('- pytransform3d: not in .venv-bench (make bench installs it)')
     stamps = np.linspace(S + 1, S + 99 * 10_000_000, 100_000).astype(np.int64)
@@ -125,7 +126,7 @@ def bench_lookups():
         best = min(best, time.perf_counter() - start)
     assert not np.isnan(rows).any()
     figure('lookup_poses, 100 000 stamps, two leaves of 130 frames', best, 's', '<= 0.1 s',
-           best <= 0.1, group='tf')
+           best <= 0.1, group=GROUP)
 
 
 def listen(seconds):
@@ -202,12 +203,12 @@ def bench_listener(seconds):
     received, _, cpu, rss_start, rss_end = line.split()[1:]
     lost = count - int(received)
     figure('TransformListener, tiago_dual /tf at 1 kHz: lost', lost, 'messages', '0',
-           lost == 0, group='tf')
+           lost == 0, group=GROUP)
     figure('TransformListener, tiago_dual /tf at 1 kHz: CPU', float(cpu), '% of a core',
-           '<= 25 %', float(cpu) <= 25, group='tf')
+           '<= 25 %', float(cpu) <= 25, group=GROUP)
     growth = float(rss_end) - float(rss_start)
     figure(f'TransformListener memory over {seconds} s after the cache filled', growth,
-           'MiB more', '< 5 MiB (flat)', growth < 5, group='tf')
+           'MiB more', '< 5 MiB (flat)', growth < 5, group=GROUP)
 
 
 def bench_bag(folder):
@@ -235,10 +236,11 @@ def bench_bag(folder):
         start = time.perf_counter()
         done = export_tf(bag, 'world', 'eeCarry_seg6', out, rate_hz=100)
         ours = min(ours, time.perf_counter() - start)
+        os.remove(out)
     print(f'- rosbags bare read of {n} /tf messages: {bare:.2f} s; dq_fk_bag tf '
           f'({done.rows} rows): {ours:.2f} s')
     figure(f"dq_fk_bag tf over {n} /tf messages against rosbags' bare read", ours / bare,
-           'x', '<= 1.5x', ours / bare <= 1.5, group='tf')
+           'x', '<= 1.5x', ours / bare <= 1.5, group=GROUP)
 
 
 def main(argv=None):

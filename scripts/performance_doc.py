@@ -19,7 +19,7 @@ import re
 import sys
 
 GROUP_ORDER = ('the compiled kernel', 'the node', 'end to end', 'dq_fk_foxglove',
-               'dq_fk_bag process', 'the fleet')
+               'dq_fk_bag process', 'the fleet', 'TF without tf2')
 
 
 def read_results(path):

@@ -290,6 +290,7 @@ def inverse(a) -> tuple:
 
 
 IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+INT64 = (-(1 << 63), 1 << 63)   # times are int64 ns, as tf2's TimePoint
 
 
 class BufferCore:
@@ -357,6 +358,9 @@ class BufferCore:
         elif problem is None and not all(math.isfinite(v) for v in (x, y, z)):
             problem = (f'TF_INF_INPUT: Ignoring transform for child_frame_id "{child}" from '
                        f'authority "{authority}" because of an infinite translation')
+        elif problem is None and not (type(stamp_ns) is int and INT64[0] <= stamp_ns < INT64[1]):
+            problem = (f'TF_BAD_STAMP: Ignoring transform for child_frame_id "{child}" from '
+                       f'authority "{authority}" because its stamp is not an int64 of ns')
         if problem is None:
             child_id, parent_id = self._id(child), self._id(parent)
             if not child_id or not parent_id:
@@ -437,6 +441,7 @@ class BufferCore:
             return IDENTITY, time_ns
         target_id = self.validate(target, 'lookupTransform argument target_frame')
         source_id = self.validate(source, 'lookupTransform argument source_frame')
+        _check_time(time_ns)
         if COMPILED is not None and not self.sclerp:
             found = COMPILED.lookup(self.caches, target_id, source_id, time_ns)
             if found is not None:
@@ -460,6 +465,7 @@ class BufferCore:
         """Return ``(True, '')`` or ``(False, why)`` as tf2's ``canTransform``."""
         if target == source:
             return True, ''
+        _check_time(time_ns)
         for name, what in ((target, 'target_frame'), (source, 'source_frame')):
             why = self._invalid(name, f'canTransform argument {what}')
             if why:
@@ -733,6 +739,12 @@ class BufferCore:
     def frame_names(self) -> list:
         """Return every frame name known, in the order first seen."""
         return self.names[1:]
+
+
+def _check_time(time_ns):
+    if type(time_ns) is not int or not INT64[0] <= time_ns < INT64[1]:
+        raise InvalidArgumentException(f'a time must be int64 nanoseconds, got '
+                                       f'{printable_line(repr(time_ns), 40)}')
 
 
 def _strip(name):

@@ -382,3 +382,18 @@ def test_the_compiled_walk_is_the_reference(scene):
             assert found is None, (target, source, t, found)
         else:
             assert found == (used,) + pose, (target, source, t)
+
+
+def test_stamps_out_of_range_are_refused_and_times_out_of_range_are_tf2s_invalid_argument():
+    lines = []
+    core = BufferCore(log=lines.append)
+    core.set_transform('a', 'b', S, (0, 0, 0, 0, 0, 0, 1))
+    for stamp in (1 << 63, -(1 << 63) - 1, 2**200, 1.5):
+        assert not core.set_transform('a', 'b', stamp, (0, 0, 0, 0, 0, 0, 1))
+    assert len(lines) == 4 and all(line.startswith('TF_BAD_STAMP') for line in lines)
+    assert core.set_transform('a', 'b', -5 * S, (0, 0, 0, 0, 0, 0, 1))   # negative: a time
+    assert not core.set_transform('a', 'b', -10 * S, (0, 0, 0, 0, 0, 0, 1))   # 11 s old
+    for time in (1 << 63, 2**100, -(1 << 64), 0.5):
+        with pytest.raises(InvalidArgumentException, match='int64 nanoseconds'):
+            core.lookup('a', 'b', time)
+    assert core.lookup('a', 'b', S)[1] == S
