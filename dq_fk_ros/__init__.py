@@ -6,9 +6,13 @@ Layers, bottom up (a layer imports only those below it; docs/architecture.md):
 * :mod:`dq_fk_ros.kinematics`: dual quaternions and DH chains, numpy only.
 * :mod:`dq_fk_ros.description`: the YAML robot description, URDF output.
 * :mod:`dq_fk_ros.messages`: joint-state input rules and the CDR wire format, no rclpy.
+* :mod:`dq_fk_ros.transforms`: tf2's BufferCore over arrays (TF read back), no rclpy.
 * :mod:`dq_fk_ros.bag`: rosbag2 files (rosbags, mcap), no rclpy.
 * :mod:`dq_fk_ros.ros`: the rclpy nodes and message conversion.
 * :mod:`dq_fk_ros.cli`: the ``dq_fk`` and ``dq_fk_bag`` command lines.
+
+Beside them, :mod:`dq_fk_ros.tf`: tf2_ros's ``Buffer``, ``TransformListener`` and
+broadcasters without tf2 (``from dq_fk_ros import tf as tf2_ros``).
 
 The surface a user imports (``from dq_fk_ros import load_robot``); each name is loaded on
 first use, so ``import dq_fk_ros`` stays light (no ROS, no rosbags until asked):

@@ -35,14 +35,12 @@ from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk, MAX_CHUNK_B
 from dq_fk_ros.bag.mcap_format import OP_CHUNK
 from dq_fk_ros.bag.mcap_summary import read_summary, SummaryRefused
 from dq_fk_ros.bag.reader_interface import BagReader, BATCH, MessageBatch
+from dq_fk_ros.kinematics.kernel import load_compiled
 import numpy as np
 
-try:
-    from dq_fk_ros.bag import _mcap as COMPILED
-except ImportError:  # no C compiler at install: the reference runs
-    COMPILED = None
-if os.environ.get('DQ_FK_PURE_PYTHON'):
-    COMPILED = None
+# as every extension: None without a C compiler at install, or with DQ_FK_PURE_PYTHON set
+# (not empty, not 0)
+COMPILED, _ = load_compiled('dq_fk_ros.bag._mcap')
 
 _INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
 _CHUNK_HEAD = struct.Struct('<BQQQQI')   # opcode, length, start, end, size, crc

@@ -29,15 +29,13 @@ from dq_fk_ros.bag.mcap_format import (
     MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER, OP_HEADER, OP_MESSAGE,
     OP_METADATA, OP_METADATA_INDEX, OP_SCHEMA, OP_STATISTICS, OP_SUMMARY_OFFSET)
 from dq_fk_ros.bag.mcap_indexes import message_indexes, UniformIndex
+from dq_fk_ros.kinematics.kernel import load_compiled
 import numpy as np
 from rosbags.interfaces import MessageDefinitionFormat
 
-try:
-    from dq_fk_ros.bag import _mcap as COMPILED
-except ImportError:  # no C compiler at install: the numpy path runs
-    COMPILED = None
-if os.environ.get('DQ_FK_PURE_PYTHON'):
-    COMPILED = None
+# as every extension: None without a C compiler at install, or with DQ_FK_PURE_PYTHON set
+# (not empty, not 0)
+COMPILED, _ = load_compiled('dq_fk_ros.bag._mcap')
 
 CHUNK_BYTES = 1 << 20          # close a chunk once its records exceed this (rosbags: 1 MiB)
 RESERVE_BYTES = 64 << 20       # the file's blocks reserved ahead of the writes, at a time
