@@ -27,7 +27,8 @@ from dq_fk_ros.bag.reading import open_reader
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.errors import BagError, CdrError
 from dq_fk_ros.messages.cdr import _KnownLayout, tf_layout
-from dq_fk_ros.transforms.buffer_core import _Dynamic, BufferCore, QUATERNION_TOLERANCE
+from dq_fk_ros.transforms.buffer_core import BufferCore, QUATERNION_TOLERANCE
+from dq_fk_ros.transforms.edges import MovingEdge
 import numpy as np
 
 TF_TOPICS = ('/tf', '/tf_static')
@@ -213,7 +214,7 @@ def _store(core, child, parts, summary):
         first.sort()
         rows, orders = rows[first], orders[first]
         rows = rows[np.lexsort((orders, rows[:, 0].view(np.int64)))]
-    core.caches[child_id] = _Dynamic.of(
+    core.caches[child_id] = MovingEdge.of(
         core.cache_time_ns, np.ascontiguousarray(rows[:, 0]).view(np.int64).tobytes(),
         np.ascontiguousarray(rows[:, 1]).view(np.int64).tobytes(),
         np.ascontiguousarray(rows[:, 2:]).tobytes())

@@ -10,7 +10,7 @@
  *   append_many(caches, plan, raw, cache_ns) -> [indices of the plan's rows not taken]
  *       plan: int64 rows (child id, parent id, stamp offset, values offset) of a serialized
  *       TFMessage; each transform newer than its child's newest sample, valid, onto a
- *       dynamic cache with room is appended as _Dynamic.insert appends it (pruning
+ *       dynamic cache with room is appended as MovingEdge.insert appends it (pruning
  *       included); the rest (new frames, old or equal stamps, refusals, a full cache) are the caller's,
  *       for BufferCore.set_transform (the reference; test_tf_listener_reads_as_set_transform).
  *   lookup_many(caches, up, down, stamps, out, ok) -> None
@@ -398,7 +398,7 @@ static Py_ssize_t first_at(const int64_t *s, Py_ssize_t lo, Py_ssize_t n, int64_
 #define QUATERNION_TOLERANCE 10e-3
 
 /*
- * One transform onto its child's dynamic cache, as _Dynamic.insert does for a stamp newer
+ * One transform onto its child's dynamic cache, as MovingEdge.insert does for a stamp newer
  * than every other: 1 taken, 0 not the common case (the caller's reference takes it),
  * -1 an exception.
  */

@@ -12,8 +12,9 @@ C (``_tf.lookup_many``); reference: the numpy edges here (``DQ_FK_PURE_PYTHON=1`
 held to ``BufferCore.lookup`` by ``test_tf_batch.py``.
 """
 
-from dq_fk_ros.transforms.buffer_core import COMPILED, IDENTITY
+from dq_fk_ros.transforms.buffer_core import COMPILED
 from dq_fk_ros.transforms.exceptions import TransformException
+from dq_fk_ros.transforms.pose_math import IDENTITY
 import numpy as np
 
 

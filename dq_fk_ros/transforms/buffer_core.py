@@ -28,269 +28,28 @@ them. Each child frame has one cache of (stamp, parent, translation, rotation) s
 samples (``DualQuaternion.sclerp``, the screw interpolation of dual-quaternion kinematics);
 the default is tf2's.
 
-Why this file is long: tf2's BufferCore is one piece (the caches, the walk, the latest
-common time and the error texts belong together), and each rule here stands beside the
-tf2 function it follows.
+The edges (one child frame's samples) are :mod:`dq_fk_ros.transforms.edges`, the pose
+arithmetic :mod:`dq_fk_ros.transforms.pose_math`.
 """
 
-from array import array
-from bisect import bisect_left, bisect_right
 import math
 
 from dq_fk_ros.errors import printable_line
 from dq_fk_ros.kinematics.kernel import load_compiled
+from dq_fk_ros.transforms.edges import display_time, MovingEdge, StaticEdge
 from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
                                              InvalidArgumentException, LookupException)
+from dq_fk_ros.transforms.frames_text import frames_dot, frames_yaml
+from dq_fk_ros.transforms.pose_math import compose, IDENTITY, inverse
 
 MAX_GRAPH_DEPTH = 1000           # tf2's: a longer walk is a loop
 QUATERNION_TOLERANCE = 10e-3     # tf2's QUATERNION_NORMALIZATION_TOLERANCE (on the norm^2)
 DEFAULT_CACHE_TIME_NS = 10 * 10**9
 MAX_FRAMES = 10_000              # frame names held at most; more are refused (one log line)
 INTERPOLATIONS = ('slerp', 'sclerp')
+INT64 = (-(1 << 63), 1 << 63)    # times are int64 ns, as tf2's TimePoint
 # the walk in C (transforms/_tf.c): lookup's fast path, this module's _walk its reference
 COMPILED, COMPILED_WHY = load_compiled('dq_fk_ros.transforms._tf')
-
-
-def display_time(stamp_ns: int) -> str:
-    """Return a time as tf2's ``displayTimePoint`` prints it (seconds, 6 decimals)."""
-    return f'{stamp_ns / 1e9:.6f}'
-
-
-class _Static:
-    """One transform valid at every time (tf2's ``StaticCache``)."""
-
-    __slots__ = ('parent', 'values')
-    static = True
-
-    def __init__(self, parent, values):
-        self.parent, self.values = parent, values
-
-    def get(self, time_ns):
-        return self.parent, self.values, None
-
-    def latest(self):
-        return 0, self.parent
-
-    def newest_stamp(self):
-        return 0
-
-    def oldest_stamp(self):
-        return 0
-
-    def __len__(self):
-        return 1
-
-
-class _Dynamic:
-    """
-    A child frame's samples, oldest first, in arrays (tf2's ``TimeCache``).
-
-    The arrays have room beyond ``count``, so that a sample appended in order is a write
-    into them (``_tf.append_many`` writes there too); samples ``[start:count]`` are live,
-    those before ``start`` pruned. When full, the pruned ones are dropped if they are a
-    quarter or more, else the arrays doubled: at most about 4/3 of the live samples' room
-    is held once the cache time is filled.
-    """
-
-    __slots__ = ('stamps', 'parents', 'values', 'start', 'count', 'cache_ns')
-    static = False
-
-    def __init__(self, cache_ns, room=8):
-        self.stamps = array('q', bytes(8 * room))   # ns, ascending
-        self.parents = array('q', bytes(8 * room))
-        self.values = array('d', bytes(56 * room))  # 7 per sample: x y z qx qy qz qw
-        self.start = 0
-        self.count = 0
-        self.cache_ns = cache_ns
-
-    @classmethod
-    def of(cls, cache_ns, stamps: bytes, parents: bytes, values: bytes) -> '_Dynamic':
-        """Return a cache holding these samples (int64, int64, 7 float64 each; sorted)."""
-        made = cls(cache_ns, room=0)
-        made.stamps, made.parents, made.values = (array('q', stamps), array('q', parents),
-                                                  array('d', values))
-        made.count = len(made.stamps)
-        return made
-
-    def __len__(self):
-        return self.count - self.start
-
-    def newest_stamp(self):
-        return self.stamps[self.count - 1] if self.count > self.start else 0
-
-    def oldest_stamp(self):
-        return self.stamps[self.start] if self.count > self.start else 0
-
-    def latest(self):
-        if self.count <= self.start:
-            return 0, 0
-        return self.stamps[self.count - 1], self.parents[self.count - 1]
-
-    def _room(self):
-        """Make room for one more sample when full: drop pruned ones, or double the arrays."""
-        if self.count < len(self.stamps):
-            return
-        if self.start * 4 >= self.count:   # a quarter or more pruned: moved down, no growth
-            live = self.count - self.start
-            self.stamps[:live] = self.stamps[self.start:self.count]
-            self.parents[:live] = self.parents[self.start:self.count]
-            self.values[:7 * live] = self.values[7 * self.start:7 * self.count]
-            self.start, self.count = 0, live
-        if self.count == len(self.stamps):
-            more = max(8, self.count)
-            self.stamps.frombytes(bytes(8 * more))
-            self.parents.frombytes(bytes(8 * more))
-            self.values.frombytes(bytes(56 * more))
-
-    def _same(self, k, parent, values):
-        return self.parents[k] == parent and tuple(self.values[7 * k:7 * k + 7]) == values
-
-    def insert(self, stamp, parent, values) -> bool:
-        stamps, count = self.stamps, self.count
-        if count > self.start:
-            newest = stamps[count - 1]
-            self.start = bisect_left(stamps, newest - self.cache_ns, self.start, count)
-            if stamp < newest - self.cache_ns:
-                return False
-            low = bisect_left(stamps, stamp, self.start, count)
-            at = bisect_right(stamps, stamp, low, count)
-            if any(self._same(k, parent, values) for k in range(low, at)):
-                return True   # an exact duplicate: stored once
-        else:
-            at = count
-        before = self.start
-        self._room()
-        at -= before - self.start   # compaction moved the live samples down by the pruned
-        stamps, count = self.stamps, self.count
-        if at < count:   # out of order: the later samples move up one
-            stamps[at + 1:count + 1] = stamps[at:count]
-            self.parents[at + 1:count + 1] = self.parents[at:count]
-            self.values[7 * at + 7:7 * count + 7] = self.values[7 * at:7 * count]
-        stamps[at] = stamp
-        self.parents[at] = parent
-        self.values[7 * at:7 * at + 7] = array('d', values)
-        self.count = count + 1
-        return True
-
-    def find(self, time_ns):
-        """
-        Return ``(k, k2, error)``: sample k alone (k2 None), or k and the newer k2 around t.
-
-        ``error`` is ``(kind, text)`` when no sample answers (k is None then).
-        """
-        n = len(self)
-        if not n:
-            return None, None, ('empty', '')
-        stamps = self.stamps
-        last = self.count - 1
-        if time_ns == 0:
-            return last, None, None
-        if n == 1:
-            if stamps[last] == time_ns:
-                return last, None, None
-            return None, None, ('extrapolation', f'Lookup would require extrapolation at time '
-                                f'{display_time(time_ns)}, but only time '
-                                f'{display_time(stamps[last])} is in the buffer')
-        newest, oldest = stamps[last], stamps[self.start]
-        if time_ns == newest:
-            return last, None, None
-        if time_ns == oldest:
-            return self.start, None, None
-        if time_ns > newest:
-            return None, None, ('extrapolation', 'Lookup would require extrapolation into the '
-                                f'future.  Requested time {display_time(time_ns)} but the '
-                                f'latest data is at time {display_time(newest)}')
-        if time_ns < oldest:
-            return None, None, ('extrapolation', 'Lookup would require extrapolation into the '
-                                f'past.  Requested time {display_time(time_ns)} but the '
-                                f'earliest data is at time {display_time(oldest)}')
-        k = bisect_right(stamps, time_ns, self.start, self.count) - 1
-        return k, k + 1, None
-
-    def get(self, time_ns, sclerp=False):
-        """Return ``(parent, values, None)`` at ``time_ns``, or ``(0, None, error)``."""
-        k, k2, error = self.find(time_ns)
-        if k is None:
-            return 0, None, error
-        v = self.values
-        if k2 is None or self.parents[k] != self.parents[k2]:
-            return self.parents[k], tuple(v[7 * k:7 * k + 7]), None
-        t0, t1 = self.stamps[k], self.stamps[k2]
-        ratio = (time_ns - t0) / (t1 - t0)
-        a, b = v[7 * k:7 * k + 7], v[7 * k2:7 * k2 + 7]
-        if sclerp:
-            return self.parents[k], screw_interpolate(a, b, ratio), None
-        s = 1.0 - ratio
-        return self.parents[k], (s * a[0] + ratio * b[0], s * a[1] + ratio * b[1],
-                                 s * a[2] + ratio * b[2]) + slerp(a[3:], b[3:], ratio), None
-
-
-def slerp(q0, q1, ratio) -> tuple:
-    """Return the rotation ``ratio`` of the way from q0 to q1 (x y z w) as tf2's slerp does."""
-    x0, y0, z0, w0 = q0
-    x1, y1, z1, w1 = q1
-    dot = x0 * x1 + y0 * y1 + z0 * z1 + w0 * w1
-    norms = math.sqrt((x0 * x0 + y0 * y0 + z0 * z0 + w0 * w0) *
-                      (x1 * x1 + y1 * y1 + z1 * z1 + w1 * w1))
-    theta = math.acos(min(1.0, max(-1.0, abs(dot) / norms)))
-    if theta == 0.0:
-        return (x0, y0, z0, w0)
-    d = 1.0 / math.sin(theta)
-    s0 = math.sin((1.0 - ratio) * theta)
-    s1 = math.sin(ratio * theta)
-    if dot < 0:
-        s1 = -s1
-    return ((x0 * s0 + x1 * s1) * d, (y0 * s0 + y1 * s1) * d, (z0 * s0 + z1 * s1) * d,
-            (w0 * s0 + w1 * s1) * d)
-
-
-def screw_interpolate(a, b, ratio) -> tuple:
-    """Return the pose ``ratio`` of the way from ``a`` to ``b`` along their screw (ScLERP)."""
-    from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
-    import numpy as np
-    first = DualQuaternion.from_pose((a[6], a[3], a[4], a[5]), a[:3])
-    second = DualQuaternion.from_pose((b[6], b[3], b[4], b[5]), b[:3])
-    if float(np.dot(first.real, second.real)) < 0.0:
-        second = -second   # the same pose: the shorter screw, as slerp's shortest arc
-    pose = first.sclerp(second, ratio).to_pose_xyzw()
-    return tuple(float(x) for x in pose)
-
-
-def _rotate(q, v):
-    """Return ``q * v * conj(q)`` (tf2's ``quatRotate``) for q = (x y z w), v = (x y z)."""
-    qx, qy, qz, qw = q
-    vx, vy, vz = v
-    # t = 2 q_vec x v; v' = v + w t + q_vec x t (q normalised)
-    tx = 2.0 * (qy * vz - qz * vy)
-    ty = 2.0 * (qz * vx - qx * vz)
-    tz = 2.0 * (qx * vy - qy * vx)
-    return (vx + qw * tx + qy * tz - qz * ty, vy + qw * ty + qz * tx - qx * tz,
-            vz + qw * tz + qx * ty - qy * tx)
-
-
-def _multiply(a, b):
-    """Return the Hamilton product ``a * b`` of quaternions (x y z w)."""
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
-
-
-def compose(a, b) -> tuple:
-    """Return the pose ``a * b`` (x y z qx qy qz qw): b expressed in a's parent."""
-    p = _rotate(a[3:], b[:3])
-    return (p[0] + a[0], p[1] + a[1], p[2] + a[2]) + _multiply(a[3:], b[3:])
-
-
-def inverse(a) -> tuple:
-    """Return the inverse of the pose ``a`` (x y z qx qy qz qw)."""
-    q = (-a[3], -a[4], -a[5], a[6])
-    p = _rotate(q, a[:3])
-    return (-p[0], -p[1], -p[2]) + q
-
-
-IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
-INT64 = (-(1 << 63), 1 << 63)   # times are int64 ns, as tf2's TimePoint
 
 
 class BufferCore:
@@ -323,7 +82,7 @@ class BufferCore:
         self.log = log or (lambda line: None)
         self.ids = {}            # frame name -> id (1...)
         self.names = ['NO_PARENT']
-        self.caches = [None]     # id -> _Static | _Dynamic | None (a root, or a parent only)
+        self.caches = [None]     # id -> StaticEdge | MovingEdge | None (a root or a parent only)
         self.authority = {}      # id -> the authority of its last accepted transform
         self.refused_frames = 0
 
@@ -378,14 +137,14 @@ class BufferCore:
         cache = self.caches[child_id]
         if static:
             if cache is None or not cache.static:
-                cache = self.caches[child_id] = _Static(parent_id, values)
+                cache = self.caches[child_id] = StaticEdge(parent_id, values)
             cache.parent, cache.values = parent_id, values
             self.authority[child_id] = authority
             return True
         if cache is None or cache.static:
             # edges of one robot fill in step: rooms of 8 to 23 samples spread their growth
             # over many messages (one message growing all of tiago's stalled 50 ms)
-            cache = self.caches[child_id] = _Dynamic(self.cache_time_ns, 8 + child_id % 16)
+            cache = self.caches[child_id] = MovingEdge(self.cache_time_ns, 8 + child_id % 16)
         if cache.insert(int(stamp_ns), parent_id, values):
             self.authority[child_id] = authority
             return True
@@ -409,7 +168,7 @@ class BufferCore:
         """Forget every sample (frame names stay, as tf2's ``clear``)."""
         for k, cache in enumerate(self.caches):
             if cache is not None and not cache.static:
-                self.caches[k] = _Dynamic(self.cache_time_ns, 8 + k % 16)
+                self.caches[k] = MovingEdge(self.cache_time_ns, 8 + k % 16)
             elif cache is not None:
                 self.caches[k] = None
 
@@ -688,53 +447,11 @@ class BufferCore:
 
     def all_frames_as_yaml(self, now_ns: int = 0) -> str:
         """Return tf2's ``allFramesAsYAML`` (``now_ns``: also each frame's delay)."""
-        info = self.frames_info(now_ns)
-        if not info:
-            return '[]'
-        lines = []
-        for f in info:
-            lines += [f"{f['frame']}: ", f"  parent: '{f['parent']}'",
-                      f"  broadcaster: '{f['broadcaster']}'", f"  rate: {f['rate']:.3f}",
-                      f"  most_recent_transform: {display_time(f['most_recent'])}",
-                      f"  oldest_transform: {display_time(f['oldest'])}"]
-            if now_ns:
-                lines.append(f"  transform_delay: {f['delay'] / 1e9:.3f}")
-            lines.append(f"  buffer_length: {f['buffer_length'] / 1e9:.3f}")
-        return '\n'.join(lines) + '\n'
+        return frames_yaml(self.frames_info(now_ns), now_ns)
 
     def all_frames_as_dot(self, now_ns: int = 0) -> str:
-        """
-        Return the Graphviz text of view_frames (tf2's ``_allFramesAsDot``).
-
-        Frame names and broadcasters are anyone's on the domain: quotes, backslashes and
-        line breaks in them are escaped so that they stay names in the DOT text.
-        """
-        def esc(text):
-            return printable_line(text, 200).replace('\\', '\\\\').replace('"', '\\"')
-
-        def q(text):
-            return f'"{esc(text)}"'
-        lines = ['digraph G {']
-        info = self.frames_info(now_ns)
-        if not info:
-            lines.append('"no tf data recieved"')
-        for f in info:
-            age = f" ( {f['delay'] / 1e9:.3f} sec old)" if now_ns else ''
-            label = (f"Broadcaster: {esc(f['broadcaster'])}\\nAverage rate: {f['rate']:.3f} "
-                     f"Hz\\nMost recent transform: {display_time(f['most_recent'])}{age}\\n"
-                     f"Buffer length: {f['buffer_length'] / 1e9:.3f} sec\\n")
-            lines.append(f'{q(f["parent"])} -> {q(f["frame"])}[label="{label}"];')
-        children = {f['frame'] for f in info}
-        for f in info:
-            if f['parent'] not in children:   # a root of a tree: the legend points at it
-                children.add(f['parent'])
-                legend = f'"Recorded at time: {display_time(now_ns)}"[ shape=plaintext ] ;\n ' \
-                    if now_ns else ''
-                lines += ['edge [style=invis];',
-                          ' subgraph cluster_legend { style=bold; color=black; label ='
-                          f'"view_frames Result";\n{legend}}}->{q(f["parent"])};']
-        lines.append('}')
-        return '\n'.join(lines)
+        """Return the Graphviz text of view_frames (tf2's ``_allFramesAsDot``)."""
+        return frames_dot(self.frames_info(now_ns), now_ns)
 
     def frame_names(self) -> list:
         """Return every frame name known, in the order first seen."""
@@ -752,5 +469,5 @@ def _strip(name):
     return name[1:] if name.startswith('/') else name
 
 
-__all__ = ['BufferCore', 'compose', 'DEFAULT_CACHE_TIME_NS', 'display_time', 'IDENTITY',
-           'inverse', 'MAX_FRAMES', 'MAX_GRAPH_DEPTH', 'slerp']
+__all__ = ['BufferCore', 'DEFAULT_CACHE_TIME_NS', 'MAX_FRAMES', 'MAX_GRAPH_DEPTH',
+           'QUATERNION_TOLERANCE']

@@ -1,8 +1,8 @@
 /*
  * BufferCore's caches read from C for dq_fk_ros/transforms/_tf.c: each item of the caches
  * list held (a strong reference, its arrays' buffers) while it is read, every attribute
- * checked (TypeError, ValueError otherwise); an edge's sample at a time as _Dynamic.get and
- * _Static.get give it. Include after tf_math.h.
+ * checked (TypeError, ValueError otherwise); an edge's sample at a time as MovingEdge.get and
+ * StaticEdge.get give it. Include after tf_math.h.
  */
 #ifndef DQ_FK_TF_CACHE_H
 #define DQ_FK_TF_CACHE_H
@@ -180,7 +180,7 @@ static void latest(const Cache *c, int64_t *stamp, Py_ssize_t *parent)
     }
 }
 
-/* The edge at t, as _Dynamic.get / _Static.get: 1 (parent, v) or 0 no sample answers. */
+/* The edge at t, as MovingEdge.get / StaticEdge.get: 1 (parent, v) or 0 no sample answers. */
 static int get(Cache *c, int64_t t, Py_ssize_t *parent, double *v)
 {
     if (c->kind == 1) {

@@ -1,7 +1,7 @@
 /*
  * tf2's arithmetic for dq_fk_ros/transforms/_tf.c: poses (x y z qx qy qz qw) composed and
  * inverted, tf2's slerp, a sorted stamp array searched; the same operations, in the same
- * order, as dq_fk_ros/transforms/buffer_core.py's compose, inverse and slerp.
+ * order, as dq_fk_ros/transforms/pose_math.py's compose, inverse and slerp.
  */
 #ifndef DQ_FK_TF_MATH_H
 #define DQ_FK_TF_MATH_H

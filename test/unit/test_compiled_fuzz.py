@@ -540,7 +540,7 @@ class HostileCache:
 def tf_caches(draw):
     """Draw a caches list of real caches, hostile ones and None, and how many frames."""
     from array import array
-    from dq_fk_ros.transforms.buffer_core import _Dynamic, _Static
+    from dq_fk_ros.transforms.edges import MovingEdge, StaticEdge
     n = draw(st.integers(1, 8))
     caches = [None]
     for k in range(1, n):
@@ -549,9 +549,9 @@ def tf_caches(draw):
         if kind == 'none':
             caches.append(None)
         elif kind == 'static':
-            caches.append(_Static(parent, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)))
+            caches.append(StaticEdge(parent, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)))
         elif kind == 'dynamic':
-            cache = _Dynamic(10**9)
+            cache = MovingEdge(10**9)
             for j in range(draw(st.integers(0, 4))):
                 turn = draw(st.sampled_from([0.0, 1.0]))
                 cache.insert(draw(st.integers(-5, 5)), parent,

@@ -12,10 +12,11 @@ frames with no common ancestor are a ConnectivityException.
 
 import math
 
-from dq_fk_ros.transforms.buffer_core import BufferCore, compose, inverse
+from dq_fk_ros.transforms.buffer_core import BufferCore
 from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
                                              InvalidArgumentException, LookupException,
                                              TransformException)
+from dq_fk_ros.transforms.pose_math import compose, inverse
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
