@@ -4,7 +4,8 @@ MCAP files of a rosbag2 folder, encoded a chunk at a time (https://mcap.dev/spec
 :class:`McapChunkStorage` takes messages one at a time (``write``) or as whole arrays:
 N messages on each of K connections, given as K ``(N, size)`` uint8 arrays of serialized
 messages (:meth:`~McapChunkStorage.write_rows`; fixed size per connection, as
-:class:`~dq_fk_ros.messages.cdr.CdrTemplate` makes them), written interleaved in time order.
+:class:`~dq_fk_ros.messages.cdr_templates.CdrTemplate` makes them), written interleaved in
+time order.
 :meth:`~McapChunkStorage.write_templates` serializes a batch of fixed-layout messages
 straight into whole chunks in C (``_mcap.Rows``: message records from the templates and the
 values); its reference is the numpy path of :meth:`~McapChunkStorage.write_rows`
@@ -211,7 +212,7 @@ class McapChunkStorage:
         (``_mcap.Rows``) where it is built and every template's float runs have one width,
         no ``(N, size)`` array made per channel.
 
-        :param templates: K :class:`~dq_fk_ros.messages.cdr.CdrTemplate` s.
+        :param templates: K :class:`~dq_fk_ros.messages.cdr_templates.CdrTemplate` s.
         :param values: K ``(N, floats of template k)`` float64 arrays (rows at any stride).
         """
         rows = self._rows(channel_ids, templates)
@@ -401,7 +402,7 @@ class ArrayWrites:
         As :meth:`write_rows` of ``templates[k].fill(stamps_ns, values[k])``; an MCAP bag
         writes them into its chunks in C, without those arrays.
 
-        :param templates: K :class:`~dq_fk_ros.messages.cdr.CdrTemplate` s.
+        :param templates: K :class:`~dq_fk_ros.messages.cdr_templates.CdrTemplate` s.
         :param values: K ``(N, floats)`` float64 arrays.
         """
         if self.storage is None:

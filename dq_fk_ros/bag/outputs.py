@@ -11,7 +11,7 @@ frames, order, and a transform only where the message's state has named its join
 from dq_fk_ros.bag.output_types import OUTPUT_TYPES, string_cdr
 from dq_fk_ros.description.to_urdf import description_urdf
 from dq_fk_ros.errors import BagError
-from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
+from dq_fk_ros.messages.cdr_templates import pose_stamped_template, tf_message_template
 from dq_fk_ros.messages.output_plan import OutputPlan
 from dq_fk_ros.messages.outputs import POSE, ROBOT_DESCRIPTION, TF, TF_STATIC
 import numpy as np

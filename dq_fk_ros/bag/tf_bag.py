@@ -8,7 +8,7 @@ interface. ``/tf`` messages are read between ``start`` and ``end`` (log times, n
 ``/tf_static`` always whole (a static transform recorded at the start holds throughout).
 
 Messages of one publisher share a layout (their frame ids): each layout is read once
-(:func:`~dq_fk_ros.messages.cdr.tf_layout`), and its messages' stamps and values are taken
+(:func:`~dq_fk_ros.messages.cdr_tf.tf_layout`), and its messages' stamps and values are taken
 as numpy columns at fixed offsets, no object per transform. Each edge's samples are sorted
 by stamp (stable: of equal stamps the later-read counts as the newer, as tf2 inserts them),
 exact duplicates dropped, and stored as the core's arrays with no pruning (the whole bag is
@@ -26,7 +26,7 @@ from dq_fk_ros.bag.reader_interface import TF_MESSAGE
 from dq_fk_ros.bag.reading import open_reader
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.errors import BagError, CdrError
-from dq_fk_ros.messages.cdr import _KnownLayout, tf_layout
+from dq_fk_ros.messages.cdr_tf import KnownLayout as _KnownLayout, tf_layout
 from dq_fk_ros.transforms.buffer_core import BufferCore, QUATERNION_TOLERANCE
 from dq_fk_ros.transforms.edges import MovingEdge
 import numpy as np

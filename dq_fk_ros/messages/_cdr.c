@@ -1,7 +1,7 @@
 /*
  * dq_fk_ros.messages._cdr: fixed-layout CDR messages filled from float64 rows, in C.
  *
- * The compiled form of dq_fk_ros.messages.cdr.CdrPacker, the reference: a message's bytes
+ * The compiled form of dq_fk_ros.messages.cdr_templates.CdrPacker, the reference: a message's bytes
  * (header, frame ids, padding) are laid out once as a template; a call copies the
  * template into a new bytes object and writes the stamp (int32 sec, uint32 nanosec) at
  * every stamp offset and a row of float64 values at every slot offset, little-endian as
@@ -772,7 +772,7 @@ static PyTypeObject RunsType = {
 
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_cdr",
-    "Fixed-layout CDR messages filled in C (the reference: dq_fk_ros.messages.cdr.CdrPacker).",
+    "Fixed-layout CDR messages filled in C (the reference: dq_fk_ros.messages.cdr_templates.CdrPacker).",
     -1, NULL,
 };
 

@@ -13,8 +13,8 @@ byte).
 from typing import TYPE_CHECKING
 
 from builtin_interfaces.msg import Time
-from dq_fk_ros.messages.cdr import (
-    pose_stamped_template, tf_message_template, twist_stamped_template)
+from dq_fk_ros.messages.cdr_templates import (pose_stamped_template, tf_message_template,
+                                              twist_stamped_template)
 from dq_fk_ros.messages.output_plan import OutputPlan
 from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
 import numpy as np
@@ -165,7 +165,7 @@ class FrameBytes:
     with its stamp and float64 fields and hands ``bytes`` to ``Publisher.publish``. Poses
     given as the arrays of :meth:`RobotModel.frame_pose_arrays` go to the C writer
     (:meth:`CdrTemplate.compiled`: one call per message); lists of poses, or no C writer,
-    to :class:`~dq_fk_ros.messages.cdr.CdrPacker` (one ``struct`` call per message), its
+    to :class:`~dq_fk_ros.messages.cdr_templates.CdrPacker` (one ``struct`` call per message), its
     reference (``test_the_c_writer_equals_the_packer_byte_for_byte``).
     """
 

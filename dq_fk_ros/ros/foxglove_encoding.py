@@ -78,7 +78,7 @@ class FrameTransformsEncoder:
     """
     ``foxglove.FrameTransforms`` (protobuf) of one ``/tf`` layout, from its serialized messages.
 
-    :param layout: the message's :class:`~dq_fk_ros.messages.cdr.TfLayout` (its edges, where
+    :param layout: the message's :class:`~dq_fk_ros.messages.cdr_tf.TfLayout` (its edges, where
         each transform's 7 float64 are: translation x y z, rotation x y z w).
     """
 

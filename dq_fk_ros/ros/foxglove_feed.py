@@ -26,8 +26,8 @@ import time
 
 from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
 from dq_fk_ros.errors import CdrError
-from dq_fk_ros.messages.cdr import (
-    JointStateNames, parse_joint_state, parse_pose_stamped, tf_stamp, tf_values, TfLatest)
+from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
+from dq_fk_ros.messages.cdr_tf import parse_pose_stamped, tf_stamp, tf_values, TfLatest
 from dq_fk_ros.ros.foxglove_encoding import (
     FrameTransformsEncoder, joint_state_json, MAX_TEMPLATED_BYTES)
 

@@ -8,7 +8,7 @@ its import becomes ``from dq_fk_ros import tf as tf2_ros``. The rules of a looku
 (:mod:`dq_fk_ros.transforms.buffer_core`); times are integer nanoseconds inside.
 
 The listener takes ``/tf`` and ``/tf_static`` as serialized bytes and reads them with the
-package's own CDR reader (:class:`~dq_fk_ros.messages.cdr.TfReader`): no Python message
+package's own CDR reader (:class:`~dq_fk_ros.messages.cdr_tf.TfReader`): no Python message
 object per transform. QoS as tf2_ros's: ``/tf`` depth 100; ``/tf_static`` depth 100,
 reliable, transient local (a listener joining late gets every static transform).
 
@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 from builtin_interfaces.msg import Time as TimeMsg
 from dq_fk_ros.errors import CdrError
-from dq_fk_ros.messages.cdr import TfReader
+from dq_fk_ros.messages.cdr_tf import TfReader
 from dq_fk_ros.transforms.buffer_core import (BufferCore, COMPILED, DEFAULT_CACHE_TIME_NS,
                                               MAX_FRAMES)
 from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,

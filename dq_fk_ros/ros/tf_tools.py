@@ -26,7 +26,7 @@ import threading
 import time
 
 from dq_fk_ros.errors import printable_line
-from dq_fk_ros.messages.cdr import TfReader
+from dq_fk_ros.messages.cdr_tf import TfReader
 from dq_fk_ros.transforms.exceptions import TransformException
 
 MAX_LISTED = 200          # frames printed in one list

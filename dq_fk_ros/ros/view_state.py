@@ -17,7 +17,7 @@ from dq_fk_ros.description.packages import PackageResolver
 from dq_fk_ros.description.to_urdf import is_helper_frame
 from dq_fk_ros.errors import CdrError
 from dq_fk_ros.kinematics.tree import compose_tree, depths, roots
-from dq_fk_ros.messages.cdr import TfLatest
+from dq_fk_ros.messages.cdr_tf import TfLatest
 
 STALE_AFTER_S = 1.0
 

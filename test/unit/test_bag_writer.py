@@ -15,7 +15,7 @@ from dq_fk_ros.bag import mcap_indexes, mcap_writer as bag_writer
 from dq_fk_ros.bag.mcap_bag_writer import McapBagWriter
 from dq_fk_ros.bag.writer import BagWriter
 from dq_fk_ros.errors import BagError
-from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
+from dq_fk_ros.messages.cdr_templates import pose_stamped_template, tf_message_template
 from mcap.data_stream import RecordBuilder
 from mcap.reader import make_reader
 from mcap.records import Chunk, Message, MessageIndex

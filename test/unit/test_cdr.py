@@ -4,10 +4,12 @@ import random
 import re
 import struct
 
-from dq_fk_ros.messages.cdr import (
-    CDR_LE_HEADER, CdrError, group_joint_state_spans, JointStateNames, JointStateRun,
-    MalformedJointState, parse_joint_state, parse_joint_states, pose_stamped_template,
-    tf_layout, tf_message_template, twist_stamped_template)
+from dq_fk_ros.messages.cdr import (CDR_LE_HEADER, CdrError, group_joint_state_spans,
+                                    JointStateNames, JointStateRun, MalformedJointState,
+                                    parse_joint_state, parse_joint_states)
+from dq_fk_ros.messages.cdr_templates import (pose_stamped_template, tf_message_template,
+                                              twist_stamped_template)
+from dq_fk_ros.messages.cdr_tf import tf_layout
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
@@ -288,7 +290,7 @@ def tf_message_bytes(edges, stamp=(1, 2)):
 
 
 def test_tf_messages_read_as_rosbags_writes_them():
-    from dq_fk_ros.messages.cdr import tf_layout, tf_values
+    from dq_fk_ros.messages.cdr_tf import tf_layout, tf_values
     edges = [('world', 'b', (1.0, 2.0, 3.0, 0.0, 0.0, 0.6, 0.8)),
              ('b', 'odd_length', (-1.0, 0.5, 0.25, 0.6, 0.0, 0.0, 0.8)),
              ('odd_length', 'c', (0.0, 0.0, 9.0, 0.0, 1.0, 0.0, 0.0))]
@@ -304,7 +306,7 @@ def test_tf_messages_read_as_rosbags_writes_them():
 
 
 def test_the_newest_message_of_each_layout_is_kept():
-    from dq_fk_ros.messages.cdr import TfLatest
+    from dq_fk_ros.messages.cdr_tf import TfLatest
     latest = TfLatest(max_layouts=2)
     pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     ab = tf_message_bytes([('w', 'ab', pose)], stamp=(1, 0))
@@ -326,7 +328,7 @@ def test_the_newest_message_of_each_layout_is_kept():
 
 def test_garbage_in_alignment_padding_is_still_one_layout():
     """Padding is left unset by rclpy: only a layout's counts and strings are compared."""
-    from dq_fk_ros.messages.cdr import TfLatest, tf_layout
+    from dq_fk_ros.messages.cdr_tf import tf_layout, TfLatest
     pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     raw = tf_message_bytes([('w', 'xyz', pose)])
     layout = tf_layout(raw)
@@ -341,7 +343,7 @@ def test_garbage_in_alignment_padding_is_still_one_layout():
 
 
 def test_forgotten_layouts_and_their_messages_are_gone():
-    from dq_fk_ros.messages.cdr import TfLatest
+    from dq_fk_ros.messages.cdr_tf import TfLatest
     pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     ab1, cd1, ef1 = (tf_message_bytes([('w', n, pose)], stamp=(s, 0))
                      for n, s in (('ab', 1), ('cd', 2), ('ef', 3)))
@@ -384,7 +386,7 @@ def test_a_header_without_room_for_its_frame_id_says_so():
 
 
 def test_a_tf_count_beyond_64_bytes_a_transform_is_refused_at_once():
-    from dq_fk_ros.messages.cdr import tf_layout
+    from dq_fk_ros.messages.cdr_tf import tf_layout
     head = b'\x00\x01\x00\x00'
     for count, words in ((5, 'string runs past the end'),  # 5 x 64 bytes fit: parsed
                          (6, 'more transforms than the message can hold')):
@@ -394,7 +396,7 @@ def test_a_tf_count_beyond_64_bytes_a_transform_is_refused_at_once():
 
 
 def test_one_publishers_messages_are_one_layout_whatever_their_stamps():
-    from dq_fk_ros.messages.cdr import TfLatest
+    from dq_fk_ros.messages.cdr_tf import TfLatest
     pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     latest = TfLatest()
     for sec in (1, 2, 3):
@@ -458,8 +460,8 @@ def test_a_batch_with_undefined_padding_is_one_run():
 @given(st.integers(17, 60), st.data())
 def test_tf_latest_tells_layouts_apart(count, data):
     """A big robot's layout (one numpy gather) and run by run decide alike, padding aside."""
-    from dq_fk_ros.messages.cdr import (
-        _compiled_check, _is_layout, _layout_check, TfLatest, tf_layout, tf_values)
+    from dq_fk_ros.messages.cdr_tf import (_compiled_check, _is_layout, _layout_check, tf_layout,
+                                           tf_values, TfLatest)
     pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     edges = [(f'p{k % 5}', f'child_{k}', pose) for k in range(count)]
     raw = tf_message_bytes(edges, stamp=(1, 0))
@@ -495,7 +497,7 @@ def test_tf_latest_tells_layouts_apart(count, data):
 @given(st.text(max_size=40), st.integers(-2**31, 2**31 - 1), st.integers(0, 2**32 - 1),
        st.lists(st.floats(allow_nan=False), min_size=7, max_size=7))
 def test_pose_stamped_reads_as_rosbags_reads_it(frame_id, sec, nanosec, values):
-    from dq_fk_ros.messages.cdr import parse_pose_stamped
+    from dq_fk_ros.messages.cdr_tf import parse_pose_stamped
     msgs = TS.types
     pose = msgs['geometry_msgs/msg/Pose'](
         position=msgs['geometry_msgs/msg/Point'](*values[:3]),
@@ -515,7 +517,7 @@ def test_pose_stamped_reads_as_rosbags_reads_it(frame_id, sec, nanosec, values):
 
 
 def test_a_pose_stamped_of_no_sense_is_refused_in_one_line():
-    from dq_fk_ros.messages.cdr import parse_pose_stamped
+    from dq_fk_ros.messages.cdr_tf import parse_pose_stamped
     header = CDR_LE_HEADER + b'\x00' * 8
     for raw in (header + b'\xff\xff\xff\xff' + b'\x00' * 60,   # a frame id past the end
                 header + b'\x02\x00\x00\x00\xff\x00' + b'\x00' * 58,  # not UTF-8
@@ -582,7 +584,7 @@ def test_the_compiled_batch_match_is_the_numpy_compare(names, with_velocities, f
                           st.tuples(*[st.floats(allow_nan=False)] * 7)), max_size=6))
 def test_tf_reader_reads_as_rosbags_reads_it(transforms):
     """Each transform's own stamp and values, as rosbags deserializes the same bytes."""
-    from dq_fk_ros.messages.cdr import TfReader
+    from dq_fk_ros.messages.cdr_tf import TfReader
     TransformStamped = TS.types['geometry_msgs/msg/TransformStamped']
     Transform = TS.types['geometry_msgs/msg/Transform']
     Vector3 = TS.types['geometry_msgs/msg/Vector3']

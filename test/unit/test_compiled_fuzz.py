@@ -20,7 +20,8 @@ import tempfile
 from dq_fk_ros.description.schema import parse_robot_description
 from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
 from dq_fk_ros.kinematics.kernel import kernel_info
-from dq_fk_ros.messages.cdr import COMPILED, pose_stamped_template, tf_message_template
+from dq_fk_ros.messages.cdr import COMPILED
+from dq_fk_ros.messages.cdr_templates import pose_stamped_template, tf_message_template
 from hypothesis import given, strategies as st
 import numpy as np
 import pytest

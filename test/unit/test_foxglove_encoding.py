@@ -10,7 +10,8 @@ schema the SDK advertises; ``joint_state_json`` against ``json.dumps`` of the fi
 import json
 import math
 
-from dq_fk_ros.messages.cdr import tf_layout, tf_message_template, tf_values
+from dq_fk_ros.messages.cdr_templates import tf_message_template
+from dq_fk_ros.messages.cdr_tf import tf_layout, tf_values
 from dq_fk_ros.ros.foxglove_encoding import FrameTransformsEncoder, joint_state_json, varint
 from hypothesis import given, strategies as st
 import numpy as np

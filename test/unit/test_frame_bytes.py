@@ -6,7 +6,8 @@ import sys
 from builtin_interfaces.msg import Time
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
-from dq_fk_ros.messages.cdr import COMPILED, pose_stamped_template, tf_message_template
+from dq_fk_ros.messages.cdr import COMPILED
+from dq_fk_ros.messages.cdr_templates import pose_stamped_template, tf_message_template
 from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np

@@ -3,8 +3,8 @@
 import math
 import struct
 
-from dq_fk_ros.messages.cdr import (
-    _joint_state_spans, CdrError, COMPILED, JointStateNames, parse_joint_state)
+from dq_fk_ros.messages.cdr import (_joint_state_spans, CdrError, COMPILED, JointStateNames,
+                                    parse_joint_state)
 from dq_fk_ros.messages.joint_states import (
     INCOMPLETE, JointStateMerger, MAX_UNKNOWN_LISTED, PUBLISH, REJECTED, SequenceGaps,
     TIME_JUMP_BACK_NS)

@@ -13,7 +13,7 @@ import struct
 from dq_fk_ros.bag import mcap_chunks, mcap_writer as bag_writer
 from dq_fk_ros.bag.mcap_chunks import scan_records
 from dq_fk_ros.bag.writer import BagWriter
-from dq_fk_ros.messages.cdr import pose_stamped_template, tf_message_template
+from dq_fk_ros.messages.cdr_templates import pose_stamped_template, tf_message_template
 from hypothesis import given, settings, strategies as st
 from mcap.reader import make_reader
 import numpy as np

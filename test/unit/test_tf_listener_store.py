@@ -2,7 +2,7 @@
 
 import math
 
-from dq_fk_ros.messages.cdr import TfReader
+from dq_fk_ros.messages.cdr_tf import TfReader
 from dq_fk_ros.ros.tf_buffer import Buffer
 from dq_fk_ros.transforms.buffer_core import COMPILED
 from geometry_msgs.msg import TransformStamped
