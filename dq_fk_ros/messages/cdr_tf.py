@@ -144,6 +144,30 @@ class KnownLayout:
             (lambda raw, check=self.check: _is_layout(raw, check))
 
 
+class LayoutCache:
+    """The layouts of the serialized ``TFMessage`` s seen (by size); the oldest forgotten."""
+
+    def __init__(self, max_layouts=64):
+        """Remember at most ``max_layouts`` layouts."""
+        self.max_layouts = max_layouts
+        self._by_size = {}     # size -> [KnownLayout, ...]
+        self._order = []
+
+    def find(self, raw: bytes) -> tuple:
+        """Return ``(raw's KnownLayout, the one forgotten to make room or None)`` (CdrError)."""
+        for known in self._by_size.get(len(raw), ()):
+            if known.match(raw):
+                return known, None
+        known = KnownLayout(tf_layout(raw))
+        self._by_size.setdefault(known.layout.size, []).append(known)
+        self._order.append(known)
+        old = None
+        if len(self._order) > self.max_layouts:
+            old = self._order.pop(0)
+            self._by_size[old.layout.size].remove(old)
+        return known, old
+
+
 class TfLatest:
     """
     Keep the newest serialized ``TFMessage`` of each layout (publisher), unread.
@@ -159,25 +183,15 @@ class TfLatest:
 
     def __init__(self, max_layouts=64):
         """Start with no layouts."""
-        self.max_layouts = max_layouts
-        self._by_size = {}     # size -> [KnownLayout, ...]
+        self._layouts = LayoutCache(max_layouts)
         self._latest = {}      # KnownLayout -> newest raw since pop()
-        self._order = []
 
     def take(self, raw) -> None:
         """Note ``raw`` as its layout's newest message (CdrError: unreadable)."""
         raw = raw if isinstance(raw, bytes) else bytes(raw)
-        for known in self._by_size.get(len(raw), ()):
-            if known.match(raw):
-                self._latest[known] = raw
-                return
-        known = KnownLayout(tf_layout(raw))
-        self._by_size.setdefault(known.layout.size, []).append(known)
-        self._order.append(known)
-        if len(self._order) > self.max_layouts:
-            old = self._order.pop(0)
-            self._by_size[old.layout.size].remove(old)
-            self._latest.pop(old, None)
+        known, forgotten = self._layouts.find(raw)
+        if forgotten is not None:
+            self._latest.pop(forgotten, None)
         self._latest[known] = raw
 
     def pop(self) -> list:
@@ -203,9 +217,7 @@ class TfReader:
 
     def __init__(self, max_layouts=64):
         """Start with no layouts."""
-        self.max_layouts = max_layouts
-        self._by_size = {}
-        self._order = []
+        self._layouts = LayoutCache(max_layouts)
 
     def read(self, raw) -> list:
         """Return ``[(parent, child, stamp_ns, (x, y, z, qx, qy, qz, qw)), ...]`` (CdrError)."""
@@ -214,19 +226,7 @@ class TfReader:
 
     def layout(self, raw: bytes) -> TfLayout:
         """Return the layout of ``raw`` (one seen before, or read now; CdrError)."""
-        known = None
-        for candidate in self._by_size.get(len(raw), ()):
-            if candidate.match(raw):
-                known = candidate
-                break
-        if known is None:
-            known = KnownLayout(tf_layout(raw))
-            self._by_size.setdefault(known.layout.size, []).append(known)
-            self._order.append(known)
-            if len(self._order) > self.max_layouts:
-                old = self._order.pop(0)
-                self._by_size[old.layout.size].remove(old)
-        return known.layout
+        return self._layouts.find(raw)[0].layout
 
     @staticmethod
     def unpack(raw: bytes, layout: TfLayout) -> list:
@@ -273,5 +273,5 @@ def parse_pose_stamped(raw) -> tuple:
     return sec * 1_000_000_000 + nanosec, frame_id, _POSE7.unpack_from(raw, cursor.pos)
 
 
-__all__ = ['KnownLayout', 'MAX_POSE_STAMPED_BYTES', 'parse_pose_stamped', 'TfLatest',
+        """Return ``[(parent, child, stamp_ns, (x, y, z, qx, qy, qz, qw))]`` (CdrError)."""
            'TfLayout', 'tf_layout', 'TfReader', 'tf_stamp', 'tf_values']
