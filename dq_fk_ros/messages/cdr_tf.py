@@ -273,5 +273,5 @@ def parse_pose_stamped(raw) -> tuple:
     return sec * 1_000_000_000 + nanosec, frame_id, _POSE7.unpack_from(raw, cursor.pos)
 
 
-        """Return ``[(parent, child, stamp_ns, (x, y, z, qx, qy, qz, qw))]`` (CdrError)."""
-           'TfLayout', 'tf_layout', 'TfReader', 'tf_stamp', 'tf_values']
+__all__ = ['KnownLayout', 'LayoutCache', 'MAX_POSE_STAMPED_BYTES', 'parse_pose_stamped',
+           'TfLatest', 'TfLayout', 'tf_layout', 'TfReader', 'tf_stamp', 'tf_values']
