@@ -100,35 +100,29 @@ sanitize: setup
 
 # the browser tests need Debian's Chromium and its driver (system packages, like cmake):
 # installed with apt when missing and this runs as root, else one line saying how
-browser:
-	@if ! command -v chromium >/dev/null || ! command -v chromedriver >/dev/null; then \
+# $(call apt_need,COMMANDS,PACKAGES,NAME,WHAT FOR): when a command is missing, install the
+# Debian packages with apt-get (as root; the log in $(LOGS)/NAME.log), else say the command
+define apt_need
+	@if ! { $(foreach c,$(1),command -v $(c) >/dev/null &&) true; }; then \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
-	    echo 'setup: installing chromium and chromium-driver (apt-get; for the browser tests)'; \
+	    echo 'setup: installing $(2) (apt-get; $(4))'; \
 	    mkdir -p $(LOGS); \
-	    { apt-get install -y -q chromium chromium-driver || { apt-get update -q && \
-	      apt-get install -y -q chromium chromium-driver; }; } > $(LOGS)/browser.log 2>&1 || \
-	    { echo "setup FAILED: apt-get install chromium chromium-driver (see $(LOGS)/browser.log)" >&2; \
+	    { apt-get install -y -q $(2) || { apt-get update -q && \
+	      apt-get install -y -q $(2); }; } > $(LOGS)/$(3).log 2>&1 || \
+	    { echo "setup FAILED: apt-get install $(2) (see $(LOGS)/$(3).log)" >&2; \
 	      exit 1; }; \
 	  else \
-	    echo 'setup FAILED: the browser tests need chromium and chromium-driver; run: sudo apt-get install chromium chromium-driver' >&2; \
+	    echo 'setup FAILED: $(4) need Debian packages $(2); run: sudo apt-get install $(2)' >&2; \
 	    exit 1; \
 	  fi; \
 	fi
+endef
+
+browser:
+	$(call apt_need,chromium chromedriver,chromium chromium-driver,browser,the browser tests)
 
 graphviz:
-	@if ! command -v dot >/dev/null; then \
-	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
-	    echo 'setup: installing graphviz (apt-get; dot draws dq_fk tf frames)'; \
-	    mkdir -p $(LOGS); \
-	    { apt-get install -y -q graphviz || { apt-get update -q && \
-	      apt-get install -y -q graphviz; }; } > $(LOGS)/graphviz.log 2>&1 || \
-	    { echo "setup FAILED: apt-get install graphviz (see $(LOGS)/graphviz.log)" >&2; \
-	      exit 1; }; \
-	  else \
-	    echo 'setup FAILED: dq_fk tf frames and its test need Graphviz (dot); run: sudo apt-get install graphviz' >&2; \
-	    exit 1; \
-	  fi; \
-	fi
+	$(call apt_need,dot,graphviz,graphviz,dq_fk tf frames and its test)
 
 $(BENCH_VENV)/.stamp: requirements/bench.txt setup.py
 	@echo 'bench: installing benchmark peers into $(BENCH_VENV) (requirements/bench.txt)'

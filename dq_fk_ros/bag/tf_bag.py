@@ -26,8 +26,8 @@ from dq_fk_ros.bag.reader_interface import TF_MESSAGE
 from dq_fk_ros.bag.reading import open_reader
 from dq_fk_ros.bag.text import printable
 from dq_fk_ros.errors import BagError, CdrError
-from dq_fk_ros.messages.cdr_tf import KnownLayout as _KnownLayout, tf_layout
-from dq_fk_ros.transforms.buffer_core import BufferCore, QUATERNION_TOLERANCE
+from dq_fk_ros.messages.cdr_tf import LayoutCache, tf_layout
+from dq_fk_ros.transforms.buffer_core import BufferCore, QUATERNION_TOLERANCE, strip_slash
 from dq_fk_ros.transforms.edges import MovingEdge
 import numpy as np
 
@@ -35,6 +35,7 @@ TF_TOPICS = ('/tf', '/tf_static')
 TF_TYPES = (TF_MESSAGE, 'tf/msg/tfMessage')   # the second: older ROS 1 bags (tf's)
 MAX_TRANSFORMS = 20_000_000   # samples held (64 bytes each: about 1.3 GB)
 WHOLE_BAG_NS = 1 << 62        # the cache time of a bag's core: nothing pruned
+MAX_LAYOUTS = 4096            # message layouts (publishers' frame-id sets) recognised at once
 
 
 class TfBagSummary:
@@ -106,16 +107,11 @@ def _matches(known, data, starts, lengths):
                      for s, n in zip(starts.tolist(), lengths.tolist())], bool)
 
 
-def _columns(block, starts, offset, width):
-    """Return ``width`` bytes at ``starts + offset`` of each message, as (n, width) uint8."""
-    return block[(starts + offset)[:, None] + np.arange(width)]
-
-
 def _take_moving(core, reader, conns, start, end, max_transforms, summary, path):
     """Read ``/tf`` in batches, by layout, into columns; then store each edge sorted."""
-    layouts = []   # [_KnownLayout], and per layout [(stamps, values) per transform] parts
-    parts = {}     # id(layout) -> [(orders, stamps (n, T), values (n, T, 7))]
-    by_size = {}
+    layouts = []   # [KnownLayout] in the order first seen
+    parts = {}     # id(KnownLayout) -> [(orders, stamps (n, T), values (n, T, 7))]
+    known_layouts = LayoutCache(MAX_LAYOUTS)
     order = 0
     total = 0
     for batch in reader.message_batches(conns, start, end):
@@ -126,15 +122,13 @@ def _take_moving(core, reader, conns, start, end, max_transforms, summary, path)
         while len(left):
             first = int(left[0])
             raw = data[batch.starts[first]:batch.starts[first] + batch.lengths[first]]
-            known = next((k for k in by_size.get(len(raw), ()) if k.match(raw)), None)
-            if known is None:
-                try:
-                    known = _KnownLayout(tf_layout(raw))
-                except CdrError:
-                    summary.unreadable += 1
-                    left = left[1:]
-                    continue
-                by_size.setdefault(len(raw), []).append(known)
+            try:
+                known, _ = known_layouts.find(raw)
+            except CdrError:
+                summary.unreadable += 1
+                left = left[1:]
+                continue
+            if id(known) not in parts:   # (a forgotten layout stays here, held by layouts)
                 layouts.append(known)
                 parts[id(known)] = []
             same = _matches(known, data, batch.starts[left], batch.lengths[left])
@@ -146,7 +140,7 @@ def _take_moving(core, reader, conns, start, end, max_transforms, summary, path)
                                f'start and end (about {max_transforms * 64 >> 20} MiB held); '
                                'give start and end (--start/--end) to read a part of it')
             layout = known.layout
-            rows = _columns(block, batch.starts[taken], 0, layout.size)   # (n, size) bytes
+            rows = block[batch.starts[taken][:, None] + np.arange(layout.size)]   # (n, size)
             stamps = np.stack([
                 np.ascontiguousarray(rows[:, at:at + 4]).view('<i4')[:, 0].astype(np.int64)
                 * 10**9 + np.ascontiguousarray(rows[:, at + 4:at + 8]).view('<u4')[:, 0]
@@ -172,8 +166,7 @@ def _take_moving(core, reader, conns, start, end, max_transforms, summary, path)
         stamps = np.concatenate([p[0] for p in parts])
         orders = np.concatenate([p[1] for p in parts])
         values = np.concatenate([p[2] for p in parts])
-        p = parent[1:] if parent[:1] == '/' else parent   # tf2 strips one leading '/'
-        c = child[1:] if child[:1] == '/' else child
+        p, c = strip_slash(parent), strip_slash(child)
         if not p or not c or p == c:
             summary.refused += len(stamps)
             continue

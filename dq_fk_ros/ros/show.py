@@ -164,28 +164,34 @@ def _show(robot, port, host, packages, base, tip, out) -> int:
             procs.append((name, proc))
             if view:
                 watcher = AddressWatcher(proc.stdout, out)
-        deadline = time.monotonic() + START_TIMEOUT_S
-        announced = False
-        while True:
-            for name, proc in procs:
-                if proc.poll() is not None:
-                    print(f'dq_fk show: {name} ended (exit code {proc.returncode}); stopping',
-                          file=sys.stderr)
-                    return 1
-            if not announced:
-                if watcher.address:
-                    print(f'dq_fk show: open {watcher.address} (a slider per moving joint; '
-                          'Ctrl-C stops)', file=out, flush=True)
-                    announced = True
-                elif time.monotonic() > deadline:
-                    print(f'dq_fk show: dq_fk_view did not start within {START_TIMEOUT_S:g} '
-                          's; stopping', file=sys.stderr)
-                    return 1
-            time.sleep(0.1)
+        code = _watch(procs, watcher, out)
     except KeyboardInterrupt:
-        return _stop(procs)
+        code = 0
     finally:
-        _stop(procs)  # nothing left running, whatever ended the loop
+        killed = _stop(procs)   # nothing left running, whatever ended it
+    return code or killed
+
+
+def _watch(procs, watcher, out) -> int:
+    """Print the address once the page is served; return 1 when a process ends or it is late."""
+    deadline = time.monotonic() + START_TIMEOUT_S
+    announced = False
+    while True:
+        for name, proc in procs:
+            if proc.poll() is not None:
+                print(f'dq_fk show: {name} ended (exit code {proc.returncode}); stopping',
+                      file=sys.stderr)
+                return 1
+        if not announced:
+            if watcher.address:
+                print(f'dq_fk show: open {watcher.address} (a slider per moving joint; '
+                      'Ctrl-C stops)', file=out, flush=True)
+                announced = True
+            elif time.monotonic() > deadline:
+                print(f'dq_fk show: dq_fk_view did not start within {START_TIMEOUT_S:g} '
+                      's; stopping', file=sys.stderr)
+                return 1
+        time.sleep(0.1)
 
 
 __all__ = ['commands', 'show', 'START_TIMEOUT_S']

@@ -26,7 +26,7 @@ from builtin_interfaces.msg import Time as TimeMsg
 from dq_fk_ros.errors import CdrError
 from dq_fk_ros.messages.cdr_tf import TfReader
 from dq_fk_ros.transforms.buffer_core import (BufferCore, COMPILED, DEFAULT_CACHE_TIME_NS,
-                                              MAX_FRAMES)
+                                              MAX_FRAMES, strip_slash)
 from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
                                              InvalidArgumentException, LookupException,
                                              TimeoutException, TransformException)
@@ -49,6 +49,7 @@ STATIC_BROADCASTER_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                                     reliability=ReliabilityPolicy.RELIABLE,
                                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LOG_EVERY_S = 10.0    # a listener's refused transforms: one line per this many seconds
+_STAMP, _POSE7 = struct.Struct('<iI'), struct.Struct('<7d')
 AUTHORITY = 'default_authority'   # what tf2_ros's Python listener records
 INPUT_BATCH_S = 0.002   # the listener's /tf thread: messages this close share a wake-up
 
@@ -160,8 +161,7 @@ class Buffer:
                 rows, incomplete = [], False
                 for (parent, child), at, value_at in zip(layout.edges, layout.stamps,
                                                          layout.values):
-                    p, c = parent[1:] if parent[:1] == '/' else parent, \
-                        child[1:] if child[:1] == '/' else child
+                    p, c = strip_slash(parent), strip_slash(child)
                     named = p and c and p != c
                     good = named and core.ids.get(c) and core.ids.get(p)
                     incomplete |= bool(named and not good)   # frames not seen yet
@@ -178,7 +178,7 @@ class Buffer:
                 if child and i not in skipped:
                     core.authority[child] = authority
             if left:
-                stamp, pose = struct.Struct('<iI').unpack_from, struct.Struct('<7d').unpack_from
+                stamp, pose = _STAMP.unpack_from, _POSE7.unpack_from
                 for i in left:
                     parent, child = layout.edges[i]
                     sec, nanosec = stamp(raw, layout.stamps[i])
@@ -249,11 +249,6 @@ class Buffer:
                 if answer[0] or left <= 0:
                     return answer
                 self._changed.wait(min(left, 0.1))
-
-    def lookup_pose(self, target_frame: str, source_frame: str, stamp_ns: int) -> tuple:
-        """Return ``((x, y, z, qx, qy, qz, qw), time used ns)``: no message made."""
-        with self._lock:
-            return self.core.lookup(target_frame, source_frame, stamp_ns)
 
     def lookup_poses(self, target_frame: str, source_frame: str, stamps_ns) -> 'ndarray':
         """

@@ -56,6 +56,15 @@ static int gather(PyObject *caches, Py_ssize_t frame, int64_t t, int want_latest
     return r;
 }
 
+/* Fold an edge's newest stamp into the common time (0, a static edge, counts for nothing). */
+static void earliest(int64_t stamp, int64_t *common, int *have)
+{
+    if (stamp != 0) {
+        *common = *have && *common < stamp ? *common : stamp;
+        *have = 1;
+    }
+}
+
 /* BufferCore.latest_common_time: 1 found (*t), 0 tf2 raises, -1 exception. */
 static int common_time(PyObject *caches, Py_ssize_t target, Py_ssize_t source, int64_t *t)
 {
@@ -71,10 +80,7 @@ static int common_time(PyObject *caches, Py_ssize_t target, Py_ssize_t source, i
             return -1;
         if (r != 1)
             break;
-        if (stamp != 0) {
-            common = have ? (stamp < common ? stamp : common) : stamp;
-            have = 1;
-        }
+        earliest(stamp, &common, &have);
         chain_stamp[count] = stamp;
         chain_parent[count++] = parent;
         frame = parent;
@@ -95,10 +101,7 @@ static int common_time(PyObject *caches, Py_ssize_t target, Py_ssize_t source, i
             return -1;
         if (r != 1)
             break;
-        if (stamp != 0) {
-            common = have ? (stamp < common ? stamp : common) : stamp;
-            have = 1;
-        }
+        earliest(stamp, &common, &have);
         int found = 0;
         for (Py_ssize_t k = 0; k < count && !found; k++)
             found = chain_parent[k] == parent;
@@ -117,11 +120,7 @@ static int common_time(PyObject *caches, Py_ssize_t target, Py_ssize_t source, i
     if (meet == 0)
         return 0;
     for (Py_ssize_t k = 0; k < count; k++) {
-        if (chain_stamp[k] != 0) {
-            common = have ? (chain_stamp[k] < common ? chain_stamp[k] : common)
-                          : chain_stamp[k];
-            have = 1;
-        }
+        earliest(chain_stamp[k], &common, &have);
         if (chain_parent[k] == meet)
             break;
     }

@@ -94,7 +94,7 @@ class BufferCore:
 
         :param values: ``(x, y, z, qx, qy, qz, qw)``.
         """
-        parent, child = _strip(parent), _strip(child)
+        parent, child = strip_slash(parent), strip_slash(child)
         problem = None
         if child == parent:
             problem = (f'TF_SELF_TRANSFORM: Ignoring transform from authority "{authority}" '
@@ -363,16 +363,10 @@ class BufferCore:
             return None, cache.newest_stamp() if cache is not None else 0
         chain = []   # (latest stamp, parent) from the source up
         frame, depth, common = source, 0, None
-        while frame != 0:
-            cache = caches[frame]
-            if cache is None:
-                break
-            stamp, parent = cache.latest()
-            if parent == 0:
-                break
-            if stamp != 0:
-                common = stamp if common is None else min(common, stamp)
-            chain.append((stamp, parent))
+        while (edge := self._latest_edge(frame)) is not None:
+            stamp, parent = edge
+            common = _earliest(common, stamp)
+            chain.append(edge)
             frame = parent
             if frame == target:
                 return None, common or 0
@@ -381,15 +375,9 @@ class BufferCore:
                 return self._loop(), 0
         frame, depth, common, meet = target, 0, None, 0
         parents = {p for _, p in chain}
-        while True:
-            cache = caches[frame]
-            if cache is None:
-                break
-            stamp, parent = cache.latest()
-            if parent == 0:
-                break
-            if stamp != 0:
-                common = stamp if common is None else min(common, stamp)
+        while (edge := self._latest_edge(frame)) is not None:
+            stamp, parent = edge
+            common = _earliest(common, stamp)
             if parent in parents:
                 meet = parent
                 break
@@ -405,11 +393,18 @@ class BufferCore:
                 f"'{self.names[source]}' because they are not part of the same tree.Tf has "
                 'two or more unconnected trees.'), 0
         for stamp, parent in chain:
-            if stamp != 0:
-                common = stamp if common is None else min(common, stamp)
+            common = _earliest(common, stamp)
             if parent == meet:
                 break
         return None, common or 0
+
+    def _latest_edge(self, frame):
+        """Return ``(newest stamp, parent)`` of ``frame``'s edge, None at a root or empty."""
+        cache = self.caches[frame] if frame else None
+        if cache is None:
+            return None
+        edge = cache.latest()
+        return edge if edge[1] else None
 
     # -- what is known --------------------------------------------------------------------
     def all_frames_as_string(self) -> str:
@@ -458,16 +453,22 @@ class BufferCore:
         return self.names[1:]
 
 
+def _earliest(common, stamp):
+    """Fold an edge's newest stamp into the common time (None: none yet; 0, static: none)."""
+    return common if stamp == 0 else stamp if common is None else min(common, stamp)
+
+
+def strip_slash(name: str) -> str:
+    """Return a frame id as tf2 stores it: one leading ``/`` taken off."""
+    name = str(name)
+    return name[1:] if name.startswith('/') else name
+
+
 def _check_time(time_ns):
     if type(time_ns) is not int or not INT64[0] <= time_ns < INT64[1]:
         raise InvalidArgumentException(f'a time must be int64 nanoseconds, got '
                                        f'{printable_line(repr(time_ns), 40)}')
 
 
-def _strip(name):
-    name = str(name)
-    return name[1:] if name.startswith('/') else name
-
-
 __all__ = ['BufferCore', 'DEFAULT_CACHE_TIME_NS', 'MAX_FRAMES', 'MAX_GRAPH_DEPTH',
-           'QUATERNION_TOLERANCE']
+           'QUATERNION_TOLERANCE', 'strip_slash']
