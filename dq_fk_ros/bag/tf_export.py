@@ -54,8 +54,12 @@ def stamps_at_rate(core, rate_hz: float) -> np.ndarray:
     return first + np.round(np.arange(count) * step).astype(np.int64)
 
 
-def stamps_of_topic(path, topic, start=None, end=None) -> np.ndarray:
-    """Return the header stamps (ns) of the messages of ``topic`` (a type with a header)."""
+def stamps_of_topic(path, topic, start=None, end=None, max_rows: int = MAX_ROWS) -> np.ndarray:
+    """
+    Return the header stamps (ns) of the messages of ``topic`` (a type with a header).
+
+    More than ``max_rows`` messages between ``start`` and ``end``: a one-line BagError.
+    """
     from rosbags.typesys import get_typestore, Stores
     store = get_typestore(Stores.ROS2_JAZZY)
     reader = open_reader(path)
@@ -72,6 +76,9 @@ def stamps_of_topic(path, topic, start=None, end=None) -> np.ndarray:
                            'CameraInfo...)')
         stamps = []
         for _, _, raw in reader.messages(conns, start, end):
+            if len(stamps) >= max_rows:
+                raise BagError(f'--at-topic {printable(topic)}: more than {max_rows} messages '
+                               'between start and end; give --start/--end')
             if len(raw) >= 12:
                 sec, nanosec = _STAMP.unpack_from(raw, 4)
                 stamps.append(sec * 1_000_000_000 + nanosec)

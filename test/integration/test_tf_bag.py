@@ -220,3 +220,24 @@ def test_csv_rows_are_the_python_ones(rows):
         for text, value in zip(line.split(',')[1:], pose):
             if math.isfinite(value) and abs(value) < 9e9:   # (a float near 9e9 is 1e-6 apart)
                 assert abs(float(text) - value) <= 5e-10 + abs(value) * 2e-16
+
+
+def test_at_topic_holds_at_most_max_rows_stamps(tmp_path):
+    """A bag with more messages on the topic than rows allowed is refused in one line."""
+    from dq_fk_ros.bag.tf_export import stamps_of_topic
+    from rosbags.rosbag2 import Writer
+    images = tmp_path / 'images'
+    with Writer(images, version=9) as writer:
+        conn = writer.add_connection('/camera/image', 'sensor_msgs/msg/Image', typestore=TS2)
+        image = TS2.types['sensor_msgs/msg/Image']
+        header = TS2.types['std_msgs/msg/Header']
+        time = TS2.types['builtin_interfaces/msg/Time']
+        for k in range(20):
+            msg = image(header=header(stamp=time(sec=k, nanosec=0), frame_id='camera'),
+                        height=0, width=0, encoding='mono8', is_bigendian=0, step=0,
+                        data=np.zeros(0, np.uint8))
+            writer.write(conn, T0 + k, bytes(TS2.serialize_cdr(msg, 'sensor_msgs/msg/Image')))
+    assert len(stamps_of_topic(images, '/camera/image', max_rows=20)) == 20
+    with pytest.raises(BagError, match='more than 19 messages') as info:
+        stamps_of_topic(images, '/camera/image', max_rows=19)
+    assert '\n' not in str(info.value)
