@@ -63,13 +63,13 @@ def format_echo(stamp_ns: int, pose) -> str:
     sec, nanosec = divmod(stamp_ns, 1_000_000_000)
     x, y, z, qx, qy, qz, qw = pose
     r = rpy(qx, qy, qz, qw)
-    lines = [f'At time {sec}.{nanosec}',   # (tf2_echo prints the nanoseconds unpadded)
+    lines = [f'At time {sec}.{nanosec:09d}',
              f'- Translation: [{x:.3f}, {y:.3f}, {z:.3f}]',
              f'- Rotation: in Quaternion (xyzw) [{qx:.3f}, {qy:.3f}, {qz:.3f}, {qw:.3f}]',
              f'- Rotation: in RPY (radian) [{r[0]:.3f}, {r[1]:.3f}, {r[2]:.3f}]',
              '- Rotation: in RPY (degree) [' + ', '.join(f'{math.degrees(a):.3f}' for a in r)
              + ']', '- Matrix:']
-    lines += [' ' + ''.join(f'{v:7.3f}' for v in row) for row in matrix_rows(pose)]
+    lines += [''.join(f'{v:7.3f}' for v in row) for row in matrix_rows(pose)]
     return '\n'.join(lines) + '\n'
 
 

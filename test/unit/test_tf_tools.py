@@ -10,16 +10,25 @@ import numpy as np
 import pytest
 
 
-def test_echo_prints_tf2_echos_lines_for_the_fig_4_pose():
-    h = math.sqrt(0.5)
-    text = tf_tools.format_echo(1_700_000_000_000_000_005, (1.025, 0.0, 1.445, h, 0.0, h, 0.0))
-    assert text.splitlines()[:3] == [
-        'At time 1700000000.5',   # tf2_echo prints the nanoseconds as an unpadded integer
-        '- Translation: [1.025, 0.000, 1.445]',
-        '- Rotation: in Quaternion (xyzw) [0.707, 0.000, 0.707, 0.000]']
-    assert text.splitlines()[5] == '- Matrix:'
-    rows = [[float(v) for v in line.split()] for line in text.splitlines()[6:10]]
-    assert rows == [[0, 0, 1, 1.025], [0, -1, 0, 0], [1, 0, 0, 1.445], [0, 0, 0, 1]]
+def test_echo_prints_what_tf2_echo_printed_for_the_same_transform():
+    """
+    Lines of a real tf2_echo run (Jazzy), quoted in a public calibration guide for a pose it
+    also gives to six decimals: p = (0.048601, -0.054869, 0.019026), q (xyzw) =
+    (-0.287173, -0.120993, 0.346576, 0.884747); the time line as another run printed
+    "At time 1101.270000000" (nanoseconds to nine digits).
+    """
+    pose = (0.048601, -0.054869, 0.019026, -0.287173, -0.120993, 0.346576, 0.884747)
+    text = tf_tools.format_echo(1101_270_000_000, pose)
+    assert text == ('At time 1101.270000000\n'
+                    '- Translation: [0.049, -0.055, 0.019]\n'
+                    '- Rotation: in Quaternion (xyzw) [-0.287, -0.121, 0.347, 0.885]\n'
+                    '- Rotation: in RPY (radian) [-0.634, -0.015, 0.752]\n'
+                    '- Rotation: in RPY (degree) [-36.305, -0.862, 43.065]\n'
+                    '- Matrix:\n'
+                    '  0.730 -0.544 -0.413  0.049\n'
+                    '  0.683  0.595  0.424 -0.055\n'
+                    '  0.015 -0.592  0.806  0.019\n'
+                    '  0.000  0.000  0.000  1.000\n')
 
 
 def rotation(roll, pitch, yaw):
