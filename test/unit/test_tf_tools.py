@@ -12,10 +12,11 @@ import pytest
 
 def test_echo_prints_what_tf2_echo_printed_for_the_same_transform():
     """
-    Lines of a real tf2_echo run (Jazzy), quoted in a public calibration guide for a pose it
-    also gives to six decimals: p = (0.048601, -0.054869, 0.019026), q (xyzw) =
-    (-0.287173, -0.120993, 0.346576, 0.884747); the time line as another run printed
-    "At time 1101.270000000" (nanoseconds to nine digits).
+    Hold the lines to a real tf2_echo run (Jazzy) quoted in a public calibration guide.
+
+    The guide also gives the pose to six decimals: p = (0.048601, -0.054869, 0.019026),
+    q (xyzw) = (-0.287173, -0.120993, 0.346576, 0.884747); the time line as another run
+    printed it, "At time 1101.270000000" (nanoseconds to nine digits).
     """
     pose = (0.048601, -0.054869, 0.019026, -0.287173, -0.120993, 0.346576, 0.884747)
     text = tf_tools.format_echo(1101_270_000_000, pose)
