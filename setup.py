@@ -96,7 +96,7 @@ setup(
                            extra_compile_args=['-O2'], optional=True),
                  # MCAP chunks read and written without a Python object per record
                  # (dq_fk_bag process; optional too: the numpy paths run without)
-                 Extension('dq_fk_ros.bag._mcap', ['dq_fk_ros/bag/_mcap.c'],
+                 Extension('dq_fk_ros.storage._mcap', ['dq_fk_ros/storage/_mcap.c'],
                            depends=['dq_fk_ros/messages/c_arguments.h'],
                            extra_compile_args=['-O2'], optional=True),
                  # tf2's lookup walk over BufferCore's arrays (dq_fk_ros.tf; optional: the

@@ -63,7 +63,7 @@ print(n)
 # block, written and CRC-32ed as the writer does a chunk
 WRITE_FLOOR = """
 import sys
-from dq_fk_ros.bag.crc import crc32   # the writer's (zlib-ng's where installed)
+from dq_fk_ros.storage.crc import crc32   # the writer's (zlib-ng's where installed)
 block, left = bytes(range(256)) * 4096, int(sys.argv[2])
 with open(sys.argv[1], 'wb') as f:
     while left > 0:

@@ -23,8 +23,8 @@ import tempfile
 import time
 
 from bench_results import figure
-from dq_fk_ros.bag.writer import BagWriter
 from dq_fk_ros.ros.executables import executable
+from dq_fk_ros.storage.rosbags_writer import RosbagsWriter
 import numpy as np
 from rosbags.typesys import get_typestore, Stores
 
@@ -57,7 +57,7 @@ def joint_state_rows(n, phase=0.0, first=0):
 def write_bag(path, n, phase=0.0, block=200_000):
     """Write an MCAP rosbag2 of ``n`` JointStates on /joint_states (blocks of ``block``)."""
     ts = get_typestore(Stores.ROS2_JAZZY)
-    writer = BagWriter(path, 'mcap')
+    writer = RosbagsWriter(path, 'mcap')
     writer.open()
     conn = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState', typestore=ts)
     for lo in range(0, n, block):

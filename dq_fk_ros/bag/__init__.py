@@ -1,1 +1,1 @@
-"""Bag layer: reading, processing and writing rosbag2 files with rosbags; no rclpy."""
+"""Bag layer: processing bags (one, a window, a fleet), discovery of work, progress; no rclpy."""

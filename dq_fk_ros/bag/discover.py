@@ -1,8 +1,10 @@
 """
 Finding the bags of a fleet: every bag under the paths a user names, and where its output goes.
 
-A path is a bag (a rosbag2 folder: ``metadata.yaml`` or ``.mcap``/``.db3`` files in it; a
-``.mcap``, ``.db3`` or ROS 1 ``.bag`` file) or a folder holding bags at any depth. Each bag
+A path is a bag (a file or folder that a row of :data:`~dq_fk_ros.storage.formats.FORMATS`
+finds: a rosbag2 folder, ``metadata.yaml`` or ``.mcap``/``.db3`` files in it; a ``.mcap`` or
+ROS 1 ``.bag`` file; any other file named is taken as a bag and its reader says what it is)
+or a folder holding bags at any depth. Each bag
 keeps its place under the named folder in the output folder: ``IN/site_a/run_3`` ->
 ``OUT/site_a/run_3``; a bag named directly lands at ``OUT/<its name>`` (a file bag without its
 extension: the output is a rosbag2 folder). Symbolic links to folders are not followed (a
@@ -13,9 +15,9 @@ from dataclasses import dataclass
 import os
 
 from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.formats import is_bag_file, is_bag_folder, strip_suffix
 
 
-BAG_FILES = ('.mcap', '.db3', '.bag')
 MAX_BAGS = 1_000_000  # a walk that finds more is refused (a wrong folder, say)
 
 
@@ -25,17 +27,6 @@ class FoundBag:
 
     path: str
     name: str
-
-
-def is_bag_folder(folder) -> bool:
-    """Say whether ``folder`` is a rosbag2 bag (metadata.yaml, or storage files in it)."""
-    try:
-        names = os.listdir(folder)
-    except OSError:
-        return False
-    return 'metadata.yaml' in names or any(
-        n.endswith(('.mcap', '.db3')) and os.path.isfile(os.path.join(folder, n))
-        for n in names)
 
 
 def find_bags(paths) -> list:
@@ -56,7 +47,7 @@ def find_bags(paths) -> list:
             raise BagError(f'{path}: no such bag or folder')
         top = os.path.basename(os.path.abspath(path))  # '.' and 'in/..' by their own names
         if os.path.isfile(path):
-            found.append(FoundBag(path, _strip_extension(top)))
+            found.append(FoundBag(path, strip_suffix(top)))
         elif is_bag_folder(path):
             found.append(FoundBag(path, top))
         else:
@@ -93,20 +84,13 @@ def _walk(root):
             dirs[:] = []  # a bag's own files are not bags of their own
             continue
         for name in sorted(files):
-            if name.endswith('.bag'):  # a ROS 1 bag: one file (.mcap/.db3 make a bag folder)
-                path = os.path.join(folder, name)
+            path = os.path.join(folder, name)
+            if is_bag_file(path):  # a ROS 1 bag: one file (.mcap/.db3 make a bag folder)
                 out.append(FoundBag(path, os.path.normpath(
-                    os.path.join(rel, _strip_extension(name)))))
+                    os.path.join(rel, strip_suffix(name)))))
         if len(out) > MAX_BAGS:
             break
     return out
 
 
-def _strip_extension(name):
-    for ext in BAG_FILES:
-        if name.endswith(ext):
-            return name[:-len(ext)]
-    return name
-
-
-__all__ = ['find_bags', 'FoundBag', 'is_bag_folder']
+__all__ = ['find_bags', 'FoundBag']

@@ -36,10 +36,10 @@ from dq_fk_ros.bag.join import join_bags
 from dq_fk_ros.bag.manifest import check_bag_name, FleetState
 from dq_fk_ros.bag.process import ProcessOptions, set_progress_counter
 from dq_fk_ros.bag.progress import Progress
-from dq_fk_ros.bag.reading import joint_state_connections, open_reader
-from dq_fk_ros.bag.text import one_line, printable
 from dq_fk_ros.bag.windows import chunk_counts, plan_windows
 from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.reading import joint_state_connections, open_reader
+from dq_fk_ros.storage.text import one_line, printable
 
 MIN_WINDOW_MESSAGES = 100_000  # a bag is cut into windows of at least this many JointStates
 MAX_TRIES = 2                  # a unit whose worker died is run once more, then reported

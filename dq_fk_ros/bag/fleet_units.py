@@ -12,9 +12,9 @@ from dataclasses import dataclass, replace
 import time
 
 from dq_fk_ros.bag.process import process_bag, process_window, ProcessOptions, ProcessSummary
-from dq_fk_ros.bag.text import one_line
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.errors import DqFkError
+from dq_fk_ros.storage.text import one_line
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,8 @@ reads as the one-bag command's output, message for message.
 
 import os
 
-from dq_fk_ros.bag.rosbag2_metadata import NotTaken, read_information
 from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.rosbag2_metadata import NotTaken, read_information
 import yaml
 
 INFO = 'rosbag2_bagfile_information'
@@ -21,7 +21,7 @@ def read_metadata(folder) -> dict:
     """
     Return the ``rosbag2_bagfile_information`` of a bag folder's metadata.yaml.
 
-    Read as any bag's (:func:`~dq_fk_ros.bag.rosbag2_metadata.read_information`: at most
+    Read as any bag's (:func:`~dq_fk_ros.storage.rosbag2_metadata.read_information`: at most
     16 MiB, bounded lists); a file that is not such a mapping raises
     :class:`~dq_fk_ros.errors.BagError` in one line. An earlier output's file is found
     damaged this way, and its bag redone (``Manifest.complete``).

@@ -26,8 +26,8 @@ import struct
 import time
 
 from dq_fk_ros.bag.join import topic_counts
-from dq_fk_ros.bag.reader_interface import check_bag_files
 from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.reader_interface import check_bag_files
 
 STATE = '.dq_fk_fleet'
 VERSION = 1

@@ -15,13 +15,13 @@ import shutil
 
 from dq_fk_ros.bag.outputs import BagOutputs
 from dq_fk_ros.bag.progress import Progress
-from dq_fk_ros.bag.reading import joint_state_connections, open_reader
-from dq_fk_ros.bag.text import printable
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
 from dq_fk_ros.messages.cdr import group_joint_state_spans, JointStateNames
 from dq_fk_ros.messages.joint_states import JointStateMerger
+from dq_fk_ros.storage.reading import joint_state_connections, open_reader
+from dq_fk_ros.storage.text import printable
 import numpy as np
 
 CHUNK = 4096
@@ -277,7 +277,7 @@ def process_window(in_path, out_path, model, options, window) -> ProcessSummary:
 
 def check_compression(options) -> None:
     """Refuse a compression that is not one, or one for a storage that has none."""
-    from dq_fk_ros.bag.mcap_writer import COMPRESSIONS
+    from dq_fk_ros.storage.mcap_writer import COMPRESSIONS
     if options.compression not in COMPRESSIONS:
         raise BagError(f'--compression {printable(str(options.compression), 20)}: one of '
                        f'{", ".join(COMPRESSIONS)}')
@@ -311,7 +311,7 @@ def _process_with(reader, model, in_path, out_path, o, window=None):
     if not csv_only:
         if os.path.lexists(out_path):  # checked: --overwrite given, or our own first try
             _remove(out_path)
-        from dq_fk_ros.bag.mcap_bag_writer import open_bag_writer
+        from dq_fk_ros.storage.formats import open_bag_writer
         writer = open_bag_writer(out_path, storage, o.compression)
     copy_from = list(reader.connections) if copy_input else []
     try:

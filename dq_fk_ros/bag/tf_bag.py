@@ -2,8 +2,8 @@
 A bag's TF as a :class:`~dq_fk_ros.transforms.buffer_core.BufferCore`: arrays per edge.
 
 :func:`core_from_bag` reads ``/tf`` and ``/tf_static`` (``tf2_msgs/msg/TFMessage``) of a bag
-of any format :func:`~dq_fk_ros.bag.reading.open_reader` opens (rosbag2 MCAP or sqlite3, a
-bare ``.mcap``, ROS 1) through the :class:`~dq_fk_ros.bag.reader_interface.BagReader`
+of any format :func:`~dq_fk_ros.storage.reading.open_reader` opens (rosbag2 MCAP or sqlite3, a
+bare ``.mcap``, ROS 1) through the :class:`~dq_fk_ros.storage.reader_interface.BagReader`
 interface. ``/tf`` messages are read between ``start`` and ``end`` (log times, ns);
 ``/tf_static`` always whole (a static transform recorded at the start holds throughout).
 
@@ -22,11 +22,11 @@ line that says to give them. Reference: the same transforms given one by one to
 import os
 import struct
 
-from dq_fk_ros.bag.reader_interface import TF_MESSAGE
-from dq_fk_ros.bag.reading import open_reader
-from dq_fk_ros.bag.text import printable
 from dq_fk_ros.errors import BagError, CdrError
 from dq_fk_ros.messages.cdr_tf import LayoutCache, tf_layout
+from dq_fk_ros.storage.reader_interface import TF_MESSAGE
+from dq_fk_ros.storage.reading import open_reader
+from dq_fk_ros.storage.text import printable
 from dq_fk_ros.transforms.buffer_core import BufferCore, QUATERNION_TOLERANCE, strip_slash
 from dq_fk_ros.transforms.edges import MovingEdge
 import numpy as np

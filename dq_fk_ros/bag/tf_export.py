@@ -15,10 +15,10 @@ import os
 import struct
 from typing import NamedTuple
 
-from dq_fk_ros.bag.reading import open_reader
-from dq_fk_ros.bag.text import printable
 from dq_fk_ros.bag.tf_bag import core_from_bag
 from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.reading import open_reader
+from dq_fk_ros.storage.text import printable
 from dq_fk_ros.transforms.batch import lookup_poses
 from dq_fk_ros.transforms.buffer_core import COMPILED
 import numpy as np

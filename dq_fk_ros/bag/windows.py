@@ -15,12 +15,11 @@ unit of work, processed as the one-bag command does.
 
 from dataclasses import dataclass
 import os
-import struct
 from typing import Optional
 
+from dq_fk_ros.storage.formats import bag_format
+from dq_fk_ros.storage.mcap_indexes import ChunkCounts
 import numpy as np
-
-OP_MESSAGE_INDEX = 0x07
 
 
 @dataclass(frozen=True)
@@ -41,84 +40,15 @@ class Window:
     lookback_ns: tuple = (None,)
 
 
-def mcap_files(path) -> list:
-    """Return the MCAP files of a bag (a rosbag2 folder's, split order; or the file)."""
-    from dq_fk_ros.bag.reader_interface import mcap_folder_files
-    if os.path.isfile(path):
-        return [path] if path.endswith('.mcap') else []
-    return mcap_folder_files(path)
-
-
-@dataclass(frozen=True)
-class ChunkCounts:
-    """
-    Where a bag may be cut: its chunk start times and the topic's messages before each.
-
-    ``starts``: sorted chunk start times (ns); ``before[i]``: messages of the topic with a
-    log time before ``starts[i]``; ``total``: all of them.
-    """
-
-    starts: np.ndarray
-    before: np.ndarray
-    total: int
-
-    def count_before(self, time_ns) -> int:
-        """Return the messages before ``time_ns`` (a chunk start, or None: the bag's end)."""
-        if time_ns is None:
-            return self.total
-        return int(self.before[np.searchsorted(self.starts, time_ns)])
-
-
 def chunk_counts(path, topic) -> Optional[ChunkCounts]:
     """
-    Return the :class:`ChunkCounts` of ``topic`` in an MCAP bag, or None if it cannot be cut.
+    Return where the bag ``path`` may be cut (:class:`ChunkCounts` of ``topic``), or None.
 
-    Read from the MCAP summaries and message indexes only (no message is decoded, one
-    chunk's index in memory at a time); None when a file has no summary, no chunk index or
-    no message index for the topic.
+    Its format's row says (:data:`~dq_fk_ros.storage.formats.FORMATS`' ``chunk_counts``):
+    an MCAP bag from its summaries and message indexes; None for a bag never cut.
     """
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-    files = mcap_files(path)
-    if not files:
-        return None
-    chunks = []  # (start time, the topic's message index offsets) of every chunk
-    try:
-        for name in files:
-            with open(name, 'rb') as stream:
-                summary = make_reader(stream).get_summary()
-            if summary is None or not summary.chunk_indexes:
-                return None
-            ids = {i for i, c in summary.channels.items() if c.topic == topic}
-            for chunk in summary.chunk_indexes:
-                if ids and not chunk.message_index_offsets:
-                    return None  # written without message indexes
-                offsets = [chunk.message_index_offsets[i] for i in ids
-                           if i in chunk.message_index_offsets]
-                if offsets:
-                    chunks.append((name, chunk.message_start_time, offsets))
-        starts = np.unique(np.array([c[1] for c in chunks], dtype=np.int64))
-        before = np.zeros(len(starts), np.int64)
-        total = 0
-        for name, _, offsets in chunks:
-            with open(name, 'rb') as stream:
-                for at in offsets:
-                    times = np.sort(_index_times(stream, at))
-                    before += np.searchsorted(times, starts, side='left')
-                    total += len(times)
-    except (OSError, McapError, struct.error, ValueError):
-        return None
-    return ChunkCounts(starts, before, total)
-
-
-def _index_times(stream, offset):
-    """Return the log times of one MessageIndex record at ``offset``."""
-    stream.seek(offset)
-    head = stream.read(15)
-    opcode, length, _, size = struct.unpack('<BQHI', head)
-    if opcode != OP_MESSAGE_INDEX or size % 16 or size + 6 > length:
-        raise ValueError('not a message index')
-    return np.frombuffer(stream.read(size), dtype='<u8')[0::2].astype(np.int64)
+    plan = bag_format(path).chunk_counts
+    return plan(os.fspath(path), topic) if plan is not None else None
 
 
 def plan_windows(counts, windows) -> list:
@@ -151,4 +81,4 @@ def plan_windows(counts, windows) -> list:
     return out
 
 
-__all__ = ['chunk_counts', 'ChunkCounts', 'mcap_files', 'plan_windows', 'Window']
+__all__ = ['chunk_counts', 'ChunkCounts', 'plan_windows', 'Window']

@@ -21,11 +21,12 @@ import os
 import sys
 
 from dq_fk_ros.bag.process import check_compression, process_bag, ProcessOptions
-from dq_fk_ros.bag.text import printable
 from dq_fk_ros.cli.dq_fk import add_package_option, add_urdf_chain_options
 from dq_fk_ros.cli.interrupts import interrupted_code, take_signals
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.errors import BagDamaged, BagError, RobotDescriptionError
+from dq_fk_ros.storage.formats import STORAGES
+from dq_fk_ros.storage.text import printable
 
 
 def output_bytes(path) -> int:
@@ -75,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_urdf_chain_options(p)
     add_package_option(p)
     p.add_argument('--topic', help='JointState topic (default: the only one in the bag)')
-    p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
+    p.add_argument('--storage', choices=STORAGES, default='mcap')
     p.add_argument('--compression', choices=('none', 'zstd', 'lz4'), default='none',
                    help='MCAP chunks compressed (default none: the fastest; zstd: the '
                    'smallest)')
@@ -215,7 +216,7 @@ def write_example(args) -> int:
 
 def export_tf_csv(args) -> int:
     """Run ``dq_fk_bag tf``; print what was written and what TF could not answer."""
-    from dq_fk_ros.bag.reading import open_reader
+    from dq_fk_ros.storage.reading import open_reader
     from dq_fk_ros.bag.tf_export import export_tf
     if args.start < 0 or (args.end is not None and args.end <= args.start):
         raise BagError('--start must be 0 or more and --end after it')

@@ -1,6 +1,6 @@
 /*
  * Python ints converted to C and checked, for the package's C extensions (messages/_cdr.c,
- * bag/_mcap.c): one int in a range, and a sequence of them copied first into a tuple of
+ * storage/_mcap.c): one int in a range, and a sequence of them copied first into a tuple of
  * our own (an item's __index__ cannot change the others while they are read); an int64
  * array's buffer.
  */

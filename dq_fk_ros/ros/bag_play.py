@@ -5,9 +5,9 @@ import math
 import time
 
 from dq_fk_ros.bag.progress import Progress
-from dq_fk_ros.bag.reading import joint_state_connections, open_reader
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.ros.executables import MATCH_SETTLE_S
+from dq_fk_ros.storage.reading import joint_state_connections, open_reader
 
 ACK_TIMEOUT_S = 5.0  # play: longest wait for reliable subscribers to acknowledge the end
 

@@ -331,7 +331,7 @@ def test_recovered_recording_replays(tmp_path, capsys):
     expected = messages_in_chunks_before(data, len(data) * 2 // 3)
     mcap.write_bytes(data[:len(data) * 2 // 3])
     (tmp_path / 'in' / 'metadata.yaml').unlink()
-    from dq_fk_ros.bag.reading import open_reader
+    from dq_fk_ros.storage.reading import open_reader
     reader = open_reader(tmp_path / 'in')
     assert [t for _, t, _ in reader.messages()] == expected
     conn = reader.connections[0]

@@ -9,9 +9,9 @@ import io
 import os
 import sys
 
-from dq_fk_ros.bag import mcap_writer as bag_writer
-from dq_fk_ros.bag.writer import BagWriter
 from dq_fk_ros.cli.dq_fk_bag import main as bag_main
+from dq_fk_ros.storage import mcap_writer as bag_writer
+from dq_fk_ros.storage.rosbags_writer import RosbagsWriter
 from hypothesis import given, HealthCheck, settings, strategies as st
 from mcap.reader import make_reader
 import numpy as np
@@ -183,7 +183,7 @@ def small_mcap(tmp_path_factory):
     try:
         q = trajectory(240)
         stamps = [T0 + k * 10**7 for k in range(240)]
-        writer = BagWriter(folder, 'mcap')
+        writer = RosbagsWriter(folder, 'mcap')
         writer.open()
         conn = writer.add_connection('/joint_states', JS_TYPE, typestore=TS)
         for s, row in zip(stamps, q):
@@ -507,7 +507,7 @@ def test_a_ros1_bag_with_a_damaged_index_is_read_chunk_by_chunk(tmp_path, capsys
 
 def test_a_ros1_chunk_is_decompressed_within_the_limit():
     import bz2
-    from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
+    from dq_fk_ros.storage.decompress import ChunkRefused, decompress_chunk
     bomb = bz2.compress(bytes(64 << 20))
     with pytest.raises(ChunkRefused, match='more bytes than the 1024 it declares'):
         decompress_chunk(bomb, 'bz2', 1024)
@@ -531,7 +531,7 @@ def test_rosbags_decompresses_through_the_bound_once_it_opens_a_bag(tmp_path, co
     (tmp_path / 'bomb').write_bytes(bomb)
     code = ('import resource\n'
             'resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))\n'
-            'from dq_fk_ros.bag.reading import open_reader\n'
+            'from dq_fk_ros.storage.reading import open_reader\n'
             'from rosbags.rosbag2 import storage_mcap\n'
             f'open_reader({str(tmp_path / "in")!r}, reference=True).close()\n'
             f'data = open({str(tmp_path / "bomb")!r}, "rb").read()\n'

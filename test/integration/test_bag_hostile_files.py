@@ -107,7 +107,7 @@ def test_hostile_qos_text_in_an_mcap_channel_crashes_nothing(tmp_path, qos, read
 
 def test_rosbags_parses_no_qos_text_over_the_bounds():
     """Every rosbags reader of QoS text refuses text over the bounds before ruamel sees it."""
-    code = ('from dq_fk_ros.bag.decompress import bound_rosbags; bound_rosbags()\n'
+    code = ('from dq_fk_ros.storage.decompress import bound_rosbags; bound_rosbags()\n'
             'from rosbags.rosbag2 import reader, storage_mcap, storage_sqlite3\n'
             'from rosbags.rosbag2.errors import ReaderError\n'
             'import sys\n'
@@ -221,7 +221,7 @@ def test_records_of_opcodes_reserved_for_extensions_are_skipped(tmp_path, opcode
 
 def test_a_damage_line_is_bounded_however_much_is_damaged(tmp_path):
     """2000 damaged parts (the issue's file had 2000 records, 291 294 characters): one line."""
-    from dq_fk_ros.bag.mcap_stream import open_stream_bag
+    from dq_fk_ros.storage.mcap_stream import open_stream_bag
     valid_bag(tmp_path / 'in', n=20)
     mcap = str(next((tmp_path / 'in').glob('*.mcap')))
     bag = open_stream_bag([mcap], mcap, None)

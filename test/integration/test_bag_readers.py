@@ -8,16 +8,16 @@ the same batches (``message_batches``) as messages.
 
 import shutil
 
-from dq_fk_ros.bag import mcap_writer as bag_writer
-from dq_fk_ros.bag.mcap_chunks import McapChunkReader
-from dq_fk_ros.bag.mcap_stream import McapStreamBag
 from dq_fk_ros.bag.process import process_bag
-from dq_fk_ros.bag.reading import bag_format, BagReader, FORMATS, open_reader
-from dq_fk_ros.bag.ros1_bag import Ros1Bag
-from dq_fk_ros.bag.rosbag2_reader import Rosbag2Reader
-from dq_fk_ros.bag.writer import BagWriter
 from dq_fk_ros.cli.dq_fk_bag import main as bag_main
 from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage import mcap_writer as bag_writer
+from dq_fk_ros.storage.mcap_chunks import McapChunkReader
+from dq_fk_ros.storage.mcap_stream import McapStreamBag
+from dq_fk_ros.storage.reading import bag_format, BagReader, FORMATS, open_reader
+from dq_fk_ros.storage.ros1_bag import Ros1Bag
+from dq_fk_ros.storage.rosbag2_reader import Rosbag2Reader
+from dq_fk_ros.storage.rosbags_writer import RosbagsWriter
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
@@ -127,7 +127,7 @@ def scrambled_bag(path, n, seed):
     """
     Write a rosbag2 MCAP whose chunks overlap in time, messages out of order, with ties.
 
-    Written through BagWriter's single writes with small chunks: log times go back and
+    Written through RosbagsWriter's single writes with small chunks: log times go back and
     forth, some repeat (within a chunk and across chunks), two topics interleave.
     """
     rng = np.random.default_rng(seed)
@@ -136,7 +136,7 @@ def scrambled_bag(path, n, seed):
     old = bag_writer.CHUNK_BYTES
     bag_writer.CHUNK_BYTES = 3000
     try:
-        writer = BagWriter(path, 'mcap')
+        writer = RosbagsWriter(path, 'mcap')
         writer.open()
         joints = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState',
                                        typestore=TS)

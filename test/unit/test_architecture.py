@@ -15,7 +15,8 @@ PACKAGE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
     os.path.abspath(__file__)))), 'dq_fk_ros')
 # bottom up: a layer may import its own modules and those of the layers before it; at the
 # bottom the package's errors (one module, dq_fk_ros/errors.py, that every layer imports)
-LAYERS = ('errors', 'kinematics', 'description', 'messages', 'transforms', 'bag', 'ros', 'cli')
+LAYERS = ('errors', 'kinematics', 'description', 'messages', 'transforms', 'storage', 'bag',
+          'ros', 'cli')
 # modules beside the layers: the package's surfaces, which may import any layer
 SURFACES = ('__init__.py', 'tf.py')
 # what each layer may import from outside the standard library and the package
@@ -28,8 +29,9 @@ THIRD_PARTY = {
     # zstd (the stdlib's compression.zstd from 3.14, its backport before) and lz4: rosbags' own
     # decompressors, called directly to bound a chunk's size
     # zlib_ng: zlib's CRC-32 with SIMD (optional: zlib's is the fallback)
-    'bag': {'numpy', 'rosbags', 'mcap', 'compression', 'backports', 'lz4', 'yaml',
-            'distributed', 'zlib_ng'},
+    'storage': {'numpy', 'rosbags', 'mcap', 'compression', 'backports', 'lz4', 'yaml',
+                'zlib_ng'},
+    'bag': {'numpy', 'rosbags', 'mcap', 'yaml', 'distributed'},
     'ros': {'numpy', 'rclpy', 'aiohttp', 'foxglove', 'ament_index_python', 'builtin_interfaces',
             'diagnostic_msgs', 'geometry_msgs',
             'rcl_interfaces', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'tf2_msgs'},
@@ -248,11 +250,11 @@ def test_a_missing_hint_would_be_found(tmp_path, monkeypatch):
     assert list(unannotated('kinematics/bare.py')) == ['kinematics/bare.py:1 forward (q, return)']
 
 
-# the bag reader interface (bag/reader_interface.py's BagReader): only the adapters know the
+# the bag reader interface (storage/reader_interface.py's BagReader): only the adapters know the
 # classes
-READER_ADAPTERS = ('bag/reading.py', 'bag/reader_interface.py', 'bag/rosbag2_reader.py',
-                   'bag/mcap_chunks.py', 'bag/mcap_stream.py', 'bag/ros1_bag.py',
-                   'bag/ros1_scan.py')
+READER_ADAPTERS = ('storage/reading.py', 'storage/reader_interface.py', 'storage/formats.py',
+                   'storage/rosbag2_reader.py', 'storage/mcap_chunks.py',
+                   'storage/mcap_stream.py', 'storage/ros1_bag.py', 'storage/ros1_scan.py')
 READER_CLASSES = {'Reader', 'Rosbag2Reader', 'McapChunkReader', 'McapStreamBag', 'Ros1Bag',
                   'Ros1ChunkScan'}
 READER_MEMBERS = {'connections', 'all_topics', 'start_time', 'end_time', 'note', 'damage',

@@ -1,7 +1,7 @@
 """
 BagWriter: array writes read back by rosbags, and by the official MCAP library (Foxglove).
 
-McapBagWriter (no rosbags module) writes the same bytes as BagWriter (rosbags' Writer).
+McapBagWriter (no rosbags module) writes the same bytes as RosbagsWriter (rosbags' Writer).
 
 The MCAP checks use ``mcap`` (chunk and data-section CRCs validated, summary statistics) and
 ``mcap_ros2`` (decodes every message from the schema the bag carries): readers that share
@@ -11,11 +11,11 @@ no code with the writer.
 import struct
 import zlib
 
-from dq_fk_ros.bag import mcap_indexes, mcap_writer as bag_writer
-from dq_fk_ros.bag.mcap_bag_writer import McapBagWriter
-from dq_fk_ros.bag.writer import BagWriter
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.messages.cdr_templates import pose_stamped_template, tf_message_template
+from dq_fk_ros.storage import mcap_indexes, mcap_writer as bag_writer
+from dq_fk_ros.storage.mcap_bag_writer import McapBagWriter
+from dq_fk_ros.storage.rosbags_writer import RosbagsWriter
 from mcap.data_stream import RecordBuilder
 from mcap.reader import make_reader
 from mcap.records import Chunk, Message, MessageIndex
@@ -56,7 +56,7 @@ def write_sample(path, storage, n, bulk=True):
     """
     One static message, then N (pose, tf) pairs; then a chatter message at the last time.
 
-    ``bulk``: the pairs through :meth:`BagWriter.write_rows`; otherwise one ``write`` each
+    ``bulk``: the pairs through :meth:`RosbagsWriter.write_rows`; otherwise one ``write`` each
     (rosbags' own storages when ``storage`` is a rosbags StoragePlugin).
     """
     times, pose_values, tf_values = content(n)
@@ -65,7 +65,7 @@ def write_sample(path, storage, n, bulk=True):
     if isinstance(storage, StoragePlugin):
         writer = Writer(path, version=9, storage_plugin=storage)
     else:
-        writer = BagWriter(path, storage)
+        writer = RosbagsWriter(path, storage)
     writer.open()
     static, pose, tf = sample_connections(writer)
     chat = writer.add_connection('/chatter', 'std_msgs/msg/String', typestore=TS)
@@ -257,7 +257,7 @@ def test_reserving_stops_once_the_file_system_refuses(tmp_path, monkeypatch):
 
 def test_an_aborted_bag_keeps_no_reserved_blocks(tmp_path, monkeypatch):
     monkeypatch.setattr(bag_writer, 'RESERVE_BYTES', 8 << 20)
-    writer = BagWriter(tmp_path / 'cut', 'mcap')
+    writer = RosbagsWriter(tmp_path / 'cut', 'mcap')
     writer.open()
     tf = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
     times, _, tf_values = content(300)
@@ -287,7 +287,7 @@ def test_mcap_summary_crc(tmp_path):
 
 
 def test_an_empty_bag_is_valid(tmp_path):
-    writer = BagWriter(tmp_path / 'empty')
+    writer = RosbagsWriter(tmp_path / 'empty')
     writer.open()
     conn = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
     writer.write_rows([conn], np.zeros(0, np.int64), [np.zeros((0, 40), np.uint8)])
@@ -299,13 +299,13 @@ def test_an_empty_bag_is_valid(tmp_path):
 
 
 def test_write_rows_refuses_what_it_cannot_write(tmp_path):
-    writer = BagWriter(tmp_path / 'bag')
+    writer = RosbagsWriter(tmp_path / 'bag')
     rows = np.zeros((3, 8), np.uint8)
     with pytest.raises(WriterError, match='not opened'):
         writer.write_rows([], np.arange(3), [])
     writer.open()
     conn = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
-    other = BagWriter(tmp_path / 'other')
+    other = RosbagsWriter(tmp_path / 'other')
     other.open()
     stranger = other.add_connection('/x', 'std_msgs/msg/String', typestore=TS)
     with pytest.raises(WriterError, match='unknown connection'):
@@ -341,9 +341,9 @@ def write_both_ways(folder, make, compression, mode, n=3000):
 @pytest.mark.parametrize('compression', ['none', 'zstd', 'lz4'])
 @pytest.mark.parametrize('mode', ['rows', 'templates', 'singles'])
 def test_the_bag_without_rosbags_is_byte_for_byte_rosbags_writers(tmp_path, compression, mode):
-    """Hold McapBagWriter (dq_fk_bag process's MCAP output) to BagWriter (rosbags' Writer)."""
+    """Hold McapBagWriter (dq_fk_bag process's MCAP output) to RosbagsWriter (rosbags' Writer)."""
     write_both_ways(tmp_path / 'ours' / 'bag', McapBagWriter, compression, mode)
-    write_both_ways(tmp_path / 'ref' / 'bag', lambda p, c: BagWriter(p, 'mcap', c),
+    write_both_ways(tmp_path / 'ref' / 'bag', lambda p, c: RosbagsWriter(p, 'mcap', c),
                     compression, mode)
     for name in ('bag.mcap', 'metadata.yaml'):
         ours = (tmp_path / 'ours' / 'bag' / name).read_bytes()

@@ -348,7 +348,7 @@ def test_a_joint_state_reader_survives_any_arguments(data):
 
 
 try:
-    from dq_fk_ros.bag import _mcap as MCAP
+    from dq_fk_ros.storage import _mcap as MCAP
 except ImportError:  # not built: nothing of it to fuzz
     MCAP = None
 needs_mcap = pytest.mark.skipif(MCAP is None, reason='the C extension _mcap is not built')

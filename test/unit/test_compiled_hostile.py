@@ -127,7 +127,7 @@ print(reader.read(raw, None, [0.0] * 3, [0.0] * 3, out, np.empty(3)))
 """,
     # gather re-read the spans it had checked while copying into a dst overlapping them
     'gather into a dst overlapping its lengths': """
-from dq_fk_ros.bag import _mcap
+from dq_fk_ros.storage import _mcap
 buf = bytearray(64)
 lens = np.ndarray((2,), np.int64, buffer=buf, offset=0)
 offs = np.ndarray((2,), np.int64, buffer=buf, offset=16)

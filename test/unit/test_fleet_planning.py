@@ -3,8 +3,8 @@
 import os
 
 from dq_fk_ros.bag.discover import find_bags
-from dq_fk_ros.bag.reading import BagError
 from dq_fk_ros.bag.windows import ChunkCounts, plan_windows
+from dq_fk_ros.storage.reading import BagError
 import numpy as np
 import pytest
 

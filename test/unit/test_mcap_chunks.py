@@ -1,19 +1,19 @@
 """
-MCAP chunks in C (``bag/_mcap.c``) against their references, and what the writer makes of them.
+MCAP chunks in C (``storage/_mcap.c``) against their references, and what the writer makes of them.
 
-``_mcap.scan`` against :func:`~dq_fk_ros.bag.mcap_chunks.scan_records` on random record
+``_mcap.scan`` against :func:`~dq_fk_ros.storage.mcap_chunks.scan_records` on random record
 streams (valid and broken); ``_mcap.gather`` against slicing; ``_mcap.Rows`` through
-:meth:`BagWriter.write_templates` against the numpy path (``CdrTemplate.fill`` and
+:meth:`RosbagsWriter.write_templates` against the numpy path (``CdrTemplate.fill`` and
 ``write_rows``): the two files are equal byte for byte. Compressed chunks read back in rosbags
 and in the official ``mcap`` library with every CRC checked.
 """
 
 import struct
 
-from dq_fk_ros.bag import mcap_chunks, mcap_writer as bag_writer
-from dq_fk_ros.bag.mcap_chunks import scan_records
-from dq_fk_ros.bag.writer import BagWriter
 from dq_fk_ros.messages.cdr_templates import pose_stamped_template, tf_message_template
+from dq_fk_ros.storage import mcap_chunks, mcap_writer as bag_writer
+from dq_fk_ros.storage.mcap_chunks import scan_records
+from dq_fk_ros.storage.rosbags_writer import RosbagsWriter
 from hypothesis import given, settings, strategies as st
 from mcap.reader import make_reader
 import numpy as np
@@ -139,7 +139,7 @@ def write_outputs(path, n, compression='none', compiled=True, split=False):
     saved = bag_writer.COMPILED
     bag_writer.COMPILED = saved if compiled else None
     try:
-        writer = BagWriter(path, 'mcap', compression)
+        writer = RosbagsWriter(path, 'mcap', compression)
         writer.open()
         tf = writer.add_connection('/tf', 'tf2_msgs/msg/TFMessage', typestore=TS)
         pose = writer.add_connection('/pose', 'geometry_msgs/msg/PoseStamped', typestore=TS)
@@ -217,9 +217,9 @@ def test_chunks_read_back_in_the_mcap_library_and_rosbags(tmp_path, compression)
 
 def test_a_compression_that_is_not_one_is_refused(tmp_path):
     with pytest.raises(WriterError, match="compression 'brotli': one of none, zstd, lz4"):
-        BagWriter(tmp_path / 'a', 'mcap', 'brotli')
+        RosbagsWriter(tmp_path / 'a', 'mcap', 'brotli')
     with pytest.raises(WriterError, match='sqlite3 bags are written uncompressed'):
-        BagWriter(tmp_path / 'b', 'sqlite3', 'zstd')
+        RosbagsWriter(tmp_path / 'b', 'sqlite3', 'zstd')
 
 
 @needs_c
@@ -248,7 +248,7 @@ def test_rows_refuse_what_does_not_fit():
 
 def test_the_fast_crc_is_zlibs():
     import zlib
-    from dq_fk_ros.bag.crc import crc32
+    from dq_fk_ros.storage.crc import crc32
     rng = np.random.default_rng(5)
     for size in (0, 1, 7, 64, 1000, 1 << 20):
         data = rng.integers(0, 256, size, np.uint8).tobytes()

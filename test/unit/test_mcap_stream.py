@@ -3,7 +3,7 @@
 import struct
 import zlib
 
-from dq_fk_ros.bag.mcap_stream import summary_intact
+from dq_fk_ros.storage.mcap_summary import summary_intact
 import pytest
 
 MAGIC = b'\x89MCAP0\r\n'

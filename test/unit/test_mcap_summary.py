@@ -8,8 +8,8 @@ footer, the CRC switched off so that the records themselves are parsed) gives a 
 
 import struct
 
-from dq_fk_ros.bag.mcap_summary import read_summary, SummaryRefused
-from dq_fk_ros.bag.mcap_writer import McapChunkStorage
+from dq_fk_ros.storage.mcap_summary import read_summary, SummaryRefused
+from dq_fk_ros.storage.mcap_writer import McapChunkStorage
 from hypothesis import given, HealthCheck, settings, strategies as st
 from mcap.reader import make_reader
 from mcap.writer import Writer as LibraryWriter
@@ -132,7 +132,7 @@ def test_the_fuzzed_file_reads_whole_without_damage(small_file, tmp_path):
 
 
 def test_a_summary_larger_than_the_bound_is_refused(tmp_path, monkeypatch):
-    from dq_fk_ros.bag import mcap_summary
+    from dq_fk_ros.storage import mcap_summary
     path = library(tmp_path / 'lib.mcap')
     read_summary(path)
     monkeypatch.setattr(mcap_summary, 'MAX_SUMMARY_BYTES', 100)
@@ -142,8 +142,8 @@ def test_a_summary_larger_than_the_bound_is_refused(tmp_path, monkeypatch):
 
 def test_a_summary_of_more_channels_than_a_bag_is_read_with_is_refused(tmp_path, monkeypatch):
     """Each channel's QoS text is parsed: their number bounds the time (one line by the bag)."""
-    from dq_fk_ros.bag import mcap_summary
-    from dq_fk_ros.bag.mcap_folder import open_mcap_folder
+    from dq_fk_ros.storage import mcap_summary
+    from dq_fk_ros.storage.mcap_folder import open_mcap_folder
     from dq_fk_ros.errors import BagError
     from test_rosbag2_metadata import write_bag
     path = write_bag(tmp_path / 'bag')   # three channels

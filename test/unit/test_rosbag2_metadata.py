@@ -12,14 +12,14 @@ import shutil
 import subprocess
 import sys
 
-from dq_fk_ros.bag.mcap_chunks import McapChunkReader
-from dq_fk_ros.bag.mcap_folder import McapFolder, open_mcap_folder
-from dq_fk_ros.bag.reading import open_reader
-from dq_fk_ros.bag.rosbag2_metadata import (
-    MAX_METADATA_BYTES, MAX_QOS_PROFILES, MAX_TOPICS, mcap_folder, NotTaken, parse_qos,
-    read_information)
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.mcap_chunks import McapChunkReader
+from dq_fk_ros.storage.mcap_folder import McapFolder, open_mcap_folder
+from dq_fk_ros.storage.reading import open_reader
+from dq_fk_ros.storage.rosbag2_metadata import (
+    MAX_METADATA_BYTES, MAX_QOS_PROFILES, MAX_TOPICS, mcap_folder, NotTaken, parse_qos,
+    read_information)
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest

@@ -2,16 +2,17 @@
 An intact rosbag2 MCAP folder read a whole chunk at a time, without a Python object per record.
 
 :class:`McapChunkReader` is the fast adapter of a rosbag2 folder whose MCAP files' summaries
-pass their checks (:func:`~dq_fk_ros.bag.mcap_summary.read_summary`), opened without rosbags
-(:func:`~dq_fk_ros.bag.mcap_folder.open_mcap_folder`) or, where that is not taken, by rosbags'
+pass their checks (:func:`~dq_fk_ros.storage.mcap_summary.read_summary`), opened without rosbags
+(:func:`~dq_fk_ros.storage.mcap_folder.open_mcap_folder`) or, where that is not taken, by rosbags'
 ``Reader``. It walks the summary's chunk index, takes each
 chunk whole (uncompressed: the bytes read; ``zstd``/``lz4``: decompressed within
-its declared size, :mod:`dq_fk_ros.bag.decompress`), checks its CRC and finds its message
+its declared size, :mod:`dq_fk_ros.storage.decompress`), checks its CRC and finds its message
 records with the compiled :func:`scan` (``_mcap.scan``; the reference :func:`scan_records`,
 test_mcap_chunks.py holds them equal). Its :meth:`McapChunkReader.message_batches` hands
 the messages on as :class:`MessageBatch` arrays: their bytes back to back in one buffer.
 
-The order is rosbags' (the reference reader, :class:`~dq_fk_ros.bag.rosbag2_reader.Rosbag2Reader`):
+The order is rosbags' (the reference reader,
+:class:`~dq_fk_ros.storage.rosbag2_reader.Rosbag2Reader`):
 file by file; in a file, by log time, a tie going to the chunk that comes first in the file,
 then to the record that comes first in the chunk (rosbags' heap merge of its chunks, each
 sorted by log time). Chunks that do not overlap in time, holding their messages in time
@@ -30,17 +31,17 @@ import os
 import struct
 from typing import Iterator, Optional
 
-from dq_fk_ros.bag.crc import crc32
-from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk, MAX_CHUNK_BYTES
-from dq_fk_ros.bag.mcap_format import OP_CHUNK
-from dq_fk_ros.bag.mcap_summary import read_summary, SummaryRefused
-from dq_fk_ros.bag.reader_interface import BagReader, BATCH, MessageBatch
 from dq_fk_ros.kinematics.kernel import load_compiled
+from dq_fk_ros.storage.crc import crc32
+from dq_fk_ros.storage.decompress import ChunkRefused, decompress_chunk, MAX_CHUNK_BYTES
+from dq_fk_ros.storage.mcap_format import OP_CHUNK
+from dq_fk_ros.storage.mcap_summary import read_summary, SummaryRefused
+from dq_fk_ros.storage.reader_interface import BagReader, BATCH, MessageBatch
 import numpy as np
 
 # as every extension: None without a C compiler at install, or with DQ_FK_PURE_PYTHON set
 # (not empty, not 0)
-COMPILED, _ = load_compiled('dq_fk_ros.bag._mcap')
+COMPILED, _ = load_compiled('dq_fk_ros.storage._mcap')
 
 _INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
 _CHUNK_HEAD = struct.Struct('<BQQQQI')   # opcode, length, start, end, size, crc
@@ -141,7 +142,7 @@ class _FileChunks:
     """One MCAP file of the bag: its chunk index and its channels as connections."""
 
     def __init__(self, path, connections, summary=None):
-        """Open ``path``; ``summary``: its :func:`~dq_fk_ros.bag.mcap_summary.read_summary`."""
+        """Open ``path``; ``summary``: its :func:`~dq_fk_ros.storage.mcap_summary.read_summary`."""
         self.path = path
         if summary is None:
             try:
@@ -205,8 +206,8 @@ class McapChunkReader:
     """
     A rosbag2 folder of intact MCAP files, read a chunk at a time (a ``BagReader``).
 
-    :param reference: the folder's :class:`~dq_fk_ros.bag.mcap_folder.McapFolder` or
-        :class:`~dq_fk_ros.bag.rosbag2_reader.Rosbag2Reader`,
+    :param reference: the folder's :class:`~dq_fk_ros.storage.mcap_folder.McapFolder` or
+        :class:`~dq_fk_ros.storage.rosbag2_reader.Rosbag2Reader`,
         whose connections, times and fallback this reader takes.
     """
 

@@ -1,21 +1,23 @@
 """
 A rosbag2 folder (MCAP or sqlite3) read with rosbags: the reference reader.
 
-:func:`open_rosbag2` opens it as a :class:`~dq_fk_ros.bag.reader_interface.BagReader`. An
-intact MCAP folder is read a chunk at a time (:class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`)
+:func:`open_rosbag2` opens it as a :class:`~dq_fk_ros.storage.reader_interface.BagReader`. An
+intact MCAP folder is read a chunk at a time
+(:class:`~dq_fk_ros.storage.mcap_chunks.McapChunkReader`)
 unless the reference is asked for, opened without rosbags where
-:func:`~dq_fk_ros.bag.mcap_folder.open_mcap_folder` takes it; a folder rosbags cannot open,
+:func:`~dq_fk_ros.storage.mcap_folder.open_mcap_folder` takes it; a folder rosbags cannot open,
 or whose MCAP summary fails its CRC, is read record by record instead
-(:class:`~dq_fk_ros.bag.mcap_stream.McapStreamBag`), with a note saying so.
+(:class:`~dq_fk_ros.storage.mcap_stream.McapStreamBag`), with a note saying so.
 """
 
 import os
 from typing import Iterator, Optional
 
-from dq_fk_ros.bag.mcap_stream import open_stream_bag, summary_intact
-from dq_fk_ros.bag.reader_interface import BagReader, BatchesFromMessages, mcap_folder_files
-from dq_fk_ros.bag.text import one_line
 from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.mcap_stream import open_stream_bag
+from dq_fk_ros.storage.mcap_summary import summary_intact
+from dq_fk_ros.storage.reader_interface import BagReader, BatchesFromMessages, mcap_folder_files
+from dq_fk_ros.storage.text import one_line
 
 
 def open_rosbag2(path: str, reference: bool = False) -> BagReader:
@@ -23,15 +25,15 @@ def open_rosbag2(path: str, reference: bool = False) -> BagReader:
     Open a rosbag2 folder with rosbags, or record by record where rosbags cannot.
 
     :param reference: read an intact MCAP folder with rosbags' reader itself (else a chunk
-        at a time, :class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`, in rosbags' order).
+        at a time, :class:`~dq_fk_ros.storage.mcap_chunks.McapChunkReader`, in rosbags' order).
     """
     info = _information(path)   # (its bounds checked before rosbags makes a connection
     if not reference and info is not None:   # of every topic)
-        from dq_fk_ros.bag.mcap_folder import open_mcap_folder
+        from dq_fk_ros.storage.mcap_folder import open_mcap_folder
         fast = open_mcap_folder(path, info)
         if fast is not None:
             return fast
-    from dq_fk_ros.bag.decompress import bound_rosbags
+    from dq_fk_ros.storage.decompress import bound_rosbags
     bound_rosbags()
     from rosbags.rosbag2 import Reader
     try:
@@ -56,7 +58,7 @@ def open_rosbag2(path: str, reference: bool = False) -> BagReader:
     files = None if reference else _chunked_files(reader)
     if not files:
         return rosbags
-    from dq_fk_ros.bag.mcap_chunks import ChunkDamaged, McapChunkReader
+    from dq_fk_ros.storage.mcap_chunks import ChunkDamaged, McapChunkReader
     try:
         return McapChunkReader(rosbags, files)
     except (ChunkDamaged, OSError, ValueError):  # left to rosbags, which says what it finds
@@ -69,7 +71,7 @@ def _information(path):
 
     Raises BagError for a ``metadata.yaml`` larger than rosbag2 writes.
     """
-    from dq_fk_ros.bag.rosbag2_metadata import NotTaken, read_information
+    from dq_fk_ros.storage.rosbag2_metadata import NotTaken, read_information
     try:
         return read_information(path)
     except NotTaken:   # (none, not YAML...): rosbags says what it finds

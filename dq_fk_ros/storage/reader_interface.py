@@ -2,7 +2,7 @@
 What every bag reader offers (:class:`BagReader`), below the adapters that implement it.
 
 The adapters (``rosbag2_reader``, ``mcap_stream``, ``ros1_bag``) import this module; the
-registry of formats that picks one (:mod:`dq_fk_ros.bag.reading`) imports them.
+registry of formats that picks one (:mod:`dq_fk_ros.storage.reading`) imports them.
 """
 
 from dataclasses import dataclass
@@ -82,7 +82,8 @@ class BatchesFromMessages:
     """
     ``message_batches`` made from ``messages``: for the adapters that read a message at a time.
 
-    The reference of a reader's own batches (:class:`~dq_fk_ros.bag.mcap_chunks.McapChunkReader`).
+    The reference of a reader's own batches
+    (:class:`~dq_fk_ros.storage.mcap_chunks.McapChunkReader`).
     """
 
     def message_batches(self, connections=None, start=None, stop=None,

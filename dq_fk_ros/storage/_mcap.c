@@ -1,5 +1,5 @@
 /*
- * dq_fk_ros.bag._mcap: an MCAP chunk's records read and written in C, without a Python
+ * dq_fk_ros.storage._mcap: an MCAP chunk's records read and written in C, without a Python
  * object per record (https://mcap.dev/spec: a record is opcode u8, length u64, body; a
  * message body is channel u16, sequence u32, log time u64, publish time u64, data).
  *
@@ -10,7 +10,7 @@
  *     caller's int64 arrays, in record order. Records that are not messages are stepped
  *     over. A record that runs past the end, or a message record shorter than its header,
  *     raises ValueError naming its byte: the chunk is damaged.
- *     The reference: dq_fk_ros.bag.mcap_chunks.scan_records (test_mcap_chunks.py).
+ *     The reference: dq_fk_ros.storage.mcap_chunks.scan_records (test_mcap_chunks.py).
  * gather(src, offsets, lengths, dst) -> total
  *     Copy src[offsets[i]:offsets[i] + lengths[i]] for every i, back to back, into dst;
  *     every span is checked to lie in src and the whole to fit dst before a byte is copied.
@@ -512,7 +512,7 @@ static PyGetSetDef rows_getset[] = {
 
 static PyTypeObject RowsType = {
     PyVarObject_HEAD_INIT(NULL, 0)
-    .tp_name = "dq_fk_ros.bag._mcap.Rows",
+    .tp_name = "dq_fk_ros.storage._mcap.Rows",
     .tp_doc = "Rows(ids, templates, stamps, slots, widths): K fixed-layout messages a row, "
               "written as MCAP message records (immutable)",
     .tp_basicsize = sizeof(RowsObject),
@@ -558,7 +558,7 @@ static PyMethodDef module_methods[] = {
 
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_mcap",
-    "MCAP chunk records read and written in C (the reference: dq_fk_ros.bag.mcap_chunks).",
+    "MCAP chunk records read and written in C (the reference: dq_fk_ros.storage.mcap_chunks).",
     -1, module_methods,
 };
 

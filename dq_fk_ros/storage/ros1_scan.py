@@ -8,7 +8,7 @@ in file order instead ([ROS bag format 2.0]: a record is ``header_len, header, d
 data``; a chunk holds connection and message records): connections come from the chunks
 themselves, a damaged chunk is skipped and reported, and after a damaged record the scan
 resynchronises on the next intact chunk. Chunks are decompressed within their declared
-size (:func:`~dq_fk_ros.bag.decompress.decompress_chunk`).
+size (:func:`~dq_fk_ros.storage.decompress.decompress_chunk`).
 """
 
 import mmap
@@ -17,7 +17,7 @@ import re
 import struct
 from typing import Iterator
 
-from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
+from dq_fk_ros.storage.decompress import ChunkRefused, decompress_chunk
 
 OP_MESSAGE, OP_BAG_HEADER, OP_INDEX, OP_CHUNK, OP_CHUNK_INFO, OP_CONNECTION = \
     0x02, 0x03, 0x04, 0x05, 0x06, 0x07
@@ -78,7 +78,7 @@ class Ros1ChunkScan:
     """
     The JointState messages of a ROS 1 bag, read chunk by chunk (no index needed).
 
-    Offers what :class:`~dq_fk_ros.bag.ros1_bag.Ros1Bag` offers; messages are yielded as ROS 1
+    Offers what :class:`~dq_fk_ros.storage.ros1_bag.Ros1Bag` offers; messages are yielded as ROS 1
     bytes and converted by the caller (``convert``). Opening scans the file once.
     """
 

@@ -3,15 +3,19 @@ The message index records of an MCAP chunk (https://mcap.dev/spec): one a channe
 
 A record is a 15-byte head (opcode, length, channel id, bytes of pairs) and the channel's
 ``(log time, offset in the chunk's records)`` pairs, little-endian uint64. The MCAP writer
-(:mod:`~dq_fk_ros.bag.mcap_writer`) writes them after each chunk; readers find a chunk's
+(:mod:`~dq_fk_ros.storage.mcap_writer`) writes them after each chunk; readers find a chunk's
 channels through them. :func:`message_indexes` lays out any chunk's; :class:`UniformIndex`
 a chunk of rows (every channel one message a row), once a layout, its times written per
 chunk; test_bag_writer.py holds both to the ``mcap`` library's ``MessageIndex`` records.
+:func:`mcap_chunk_counts` reads them back: where a bag may be cut for the fleet's workers.
 """
 
+from dataclasses import dataclass
 import struct
+from typing import Optional
 
-from dq_fk_ros.bag.mcap_format import OP_MESSAGE_INDEX
+from dq_fk_ros.storage.mcap_format import OP_MESSAGE_INDEX
+from dq_fk_ros.storage.mcap_summary import read_summary, SummaryRefused
 import numpy as np
 
 _U16, _U32, _U64 = struct.Struct('<H'), struct.Struct('<I'), struct.Struct('<Q')
@@ -93,4 +97,71 @@ class UniformIndex:
                 [(cid, at + row * self.size) for row, cid in enumerate(self.channel_ids)])
 
 
-__all__ = ['message_indexes', 'UniformIndex']
+@dataclass(frozen=True)
+class ChunkCounts:
+    """
+    Where a bag may be cut: its chunk start times and the topic's messages before each.
+
+    ``starts``: sorted chunk start times (ns); ``before[i]``: messages of the topic with a
+    log time before ``starts[i]``; ``total``: all of them.
+    """
+
+    starts: np.ndarray
+    before: np.ndarray
+    total: int
+
+    def count_before(self, time_ns) -> int:
+        """Return the messages before ``time_ns`` (a chunk start, or None: the bag's end)."""
+        if time_ns is None:
+            return self.total
+        return int(self.before[np.searchsorted(self.starts, time_ns)])
+
+
+def mcap_chunk_counts(files, topic) -> Optional[ChunkCounts]:
+    """
+    Return the :class:`ChunkCounts` of ``topic`` over MCAP ``files``, or None if not cut.
+
+    Read from the summaries (:func:`~dq_fk_ros.storage.mcap_summary.read_summary`) and the
+    message indexes only (no message is decoded, one chunk's index in memory at a time);
+    None when a file's summary is refused or has no chunk index, or a chunk holding the
+    topic has no message index for it.
+    """
+    chunks = []  # (file, start time, the topic's message index offsets) of every chunk
+    try:
+        for name in files:
+            summary = read_summary(name)
+            if not summary.chunk_index:
+                return None
+            ids = {i for i, c in summary.channels.items() if c.topic == topic}
+            for chunk in summary.chunk_index.values():
+                if ids and not chunk.message_index_offsets:
+                    return None  # written without message indexes
+                offsets = [chunk.message_index_offsets[i] for i in ids
+                           if i in chunk.message_index_offsets]
+                if offsets:
+                    chunks.append((name, chunk.message_start_time, offsets))
+        starts = np.unique(np.array([c[1] for c in chunks], dtype=np.int64))
+        before = np.zeros(len(starts), np.int64)
+        total = 0
+        for name, _, offsets in chunks:
+            with open(name, 'rb') as stream:
+                for at in offsets:
+                    times = np.sort(_index_times(stream, at))
+                    before += np.searchsorted(times, starts, side='left')
+                    total += len(times)
+    except (OSError, SummaryRefused, struct.error, ValueError):
+        return None
+    return ChunkCounts(starts, before, total)
+
+
+def _index_times(stream, offset):
+    """Return the log times of one MessageIndex record at ``offset``."""
+    stream.seek(offset)
+    head = stream.read(15)
+    opcode, length, _, size = struct.unpack('<BQHI', head)
+    if opcode != OP_MESSAGE_INDEX or size % 16 or size + 6 > length:
+        raise ValueError('not a message index')
+    return np.frombuffer(stream.read(size), dtype='<u8')[0::2].astype(np.int64)
+
+
+__all__ = ['ChunkCounts', 'mcap_chunk_counts', 'message_indexes', 'UniformIndex']

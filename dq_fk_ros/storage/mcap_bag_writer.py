@@ -3,20 +3,21 @@ A rosbag2 MCAP bag written without rosbags' modules: ``dq_fk_bag process``'s out
 
 :class:`McapBagWriter` is rosbags' ``Writer`` (version 9, MCAP storage, the surface
 ``dq_fk_bag`` uses: ``open``, ``add_connection``, ``write``, ``close``, ``abort``) with
-:class:`~dq_fk_ros.bag.mcap_writer.ArrayWrites` (arrays of messages) over
-:class:`~dq_fk_ros.bag.mcap_writer.McapChunkStorage`, its ``metadata.yaml`` from
-:mod:`~dq_fk_ros.bag.rosbag2_metadata`. Importing ``rosbags.rosbag2`` costs ~40 ms of every
-command and its YAML dumps ~15 ms; the reference is :class:`~dq_fk_ros.bag.writer.BagWriter`
-(rosbags' ``Writer`` over the same storage): test_bag_writer.py holds the two bags equal
+:class:`~dq_fk_ros.storage.mcap_writer.ArrayWrites` (arrays of messages) over
+:class:`~dq_fk_ros.storage.mcap_writer.McapChunkStorage`, its ``metadata.yaml`` from
+:mod:`~dq_fk_ros.storage.rosbag2_metadata`. Importing ``rosbags.rosbag2`` costs ~40 ms of every
+command and its YAML dumps ~15 ms; the reference is
+:class:`~dq_fk_ros.storage.rosbags_writer.RosbagsWriter` (rosbags' ``Writer`` over the same
+storage): test_bag_writer.py holds the two bags equal
 byte for byte.
 """
 
 import os
 from pathlib import Path
 
-from dq_fk_ros.bag.mcap_writer import ArrayWrites, COMPRESSIONS, McapChunkStorage
-from dq_fk_ros.bag.rosbag2_metadata import dump_qos, information, to_yaml
 from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.mcap_writer import ArrayWrites, COMPRESSIONS, McapChunkStorage
+from dq_fk_ros.storage.rosbag2_metadata import dump_qos, information, to_yaml
 from rosbags.interfaces import (
     Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat)
 
@@ -120,27 +121,5 @@ class McapBagWriter(ArrayWrites):
         part.write_text(to_yaml({'rosbag2_bagfile_information': info}), 'utf8')
         os.replace(part, metadata)
 
-    def abort(self) -> None:
-        """Close the MCAP file without a summary, and write no metadata (a cut bag)."""
-        storage, self.storage = self.storage, None
-        if storage is not None:
-            storage.abort()
 
-
-def open_bag_writer(path, storage: str = 'mcap', compression: str = 'none') -> object:
-    """
-    Return an open writer of the new bag ``path``: MCAP here, sqlite3 through rosbags.
-
-    :param storage: ``'mcap'`` (:class:`McapBagWriter`) or ``'sqlite3'``
-        (:class:`~dq_fk_ros.bag.writer.BagWriter`, rosbags' ``Writer``).
-    """
-    if storage == 'mcap':
-        writer = McapBagWriter(path, compression)
-    else:
-        from dq_fk_ros.bag.writer import BagWriter
-        writer = BagWriter(path, storage, compression)
-    writer.open()
-    return writer
-
-
-__all__ = ['McapBagWriter', 'open_bag_writer']
+__all__ = ['McapBagWriter']

@@ -86,7 +86,7 @@ def bound_rosbags(ros1: bool = False) -> None:
     Its rosbag2 storages parse each topic's ``offered_qos_profiles`` text with ruamel, whose
     C composer recurses (a few KiB of ``[[[`` crash the process): they are given
     :func:`bounded_parse_qos`, which refuses text over the bounds of
-    :func:`~dq_fk_ros.bag.rosbag2_metadata.parse_qos` first (rosbags' ``ReaderError``).
+    :func:`~dq_fk_ros.storage.rosbag2_metadata.parse_qos` first (rosbags' ``ReaderError``).
     """
     from rosbags.rosbag2 import reader, storage_mcap, storage_sqlite3
     for module in (reader, storage_mcap, storage_sqlite3):
@@ -102,7 +102,7 @@ def bound_rosbags(ros1: bool = False) -> None:
 
 def bounded_parse_qos(profiles: 'list | str') -> list:
     """Return rosbags' ``parse_qos(profiles)``, text over the QoS bounds refused first."""
-    from dq_fk_ros.bag.rosbag2_metadata import check_qos_text
+    from dq_fk_ros.storage.rosbag2_metadata import check_qos_text
     from dq_fk_ros.description.yaml_bounds import YamlTooLarge
     from rosbags.rosbag2.errors import ReaderError
     from rosbags.rosbag2.metadata import parse_qos

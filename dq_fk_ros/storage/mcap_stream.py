@@ -13,7 +13,8 @@ reads such files itself, with Foxglove's ``mcap`` record classes, in file order:
   so one damaged byte costs one chunk, not the rest of the file;
 * channels and schemas come from the data section and, where its CRC holds, the summary.
 
-It is a :class:`~dq_fk_ros.bag.reader_interface.BagReader` (:func:`open_stream_bag`), and says in
+It is a :class:`~dq_fk_ros.storage.reader_interface.BagReader` (:func:`open_stream_bag`),
+and says in
 :attr:`McapStreamBag.damage` what was skipped.
 """
 
@@ -26,14 +27,14 @@ import struct
 from typing import Iterator
 import zlib
 
-from dq_fk_ros.bag.decompress import ChunkRefused, decompress_chunk
-from dq_fk_ros.bag.mcap_format import (
+from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.decompress import ChunkRefused, decompress_chunk
+from dq_fk_ros.storage.mcap_format import (
     MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER,
     OP_HEADER, OP_MESSAGE, OP_MESSAGE_INDEX, OP_METADATA, OP_SCHEMA)
-from dq_fk_ros.bag.reader_interface import BatchesFromMessages
-from dq_fk_ros.bag.rosbag2_metadata import parse_qos
-from dq_fk_ros.bag.text import printable
-from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.reader_interface import BatchesFromMessages
+from dq_fk_ros.storage.rosbag2_metadata import parse_qos
+from dq_fk_ros.storage.text import printable
 from rosbags.interfaces import (
     Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat)
 
@@ -50,36 +51,6 @@ SCHEMA_ENCODINGS = ('ros2msg', 'ros2idl', 'ros1msg', 'omgidl', 'jsonschema', 'pr
 MESSAGE_ENCODINGS = ('cdr', 'ros1', 'json', 'protobuf', 'flatbuffer', 'cbor', 'msgpack')
 _U64 = struct.Struct('<Q')
 _CHUNK_HEAD = struct.Struct('<QQQII')  # start, end, uncompressed size, crc, compression len
-
-
-def summary_intact(path) -> bool:
-    """
-    Whether an MCAP file's summary can be trusted: its CRC holds, or it has none to check.
-
-    A file without a footer (cut short) has no summary and passes: readers find that out
-    themselves. Raises ``OSError`` if the file cannot be read.
-    """
-    with open(path, 'rb') as f:
-        size = os.fstat(f.fileno()).st_size
-        if size < 8 + 29 + 8:
-            return True
-        f.seek(size - 8 - 29)
-        tail = f.read(29 + 8)
-        if tail[0] != OP_FOOTER or tail[29:] != MAGIC:
-            return True
-        summary_start, _, crc = struct.unpack_from('<QQI', tail, 9)
-        if not crc or not summary_start:
-            return True
-        if summary_start > size - 8 - 29:
-            return False
-        f.seek(summary_start)
-        computed, left = 0, size - 8 - 4 - summary_start
-        while left > 0:  # in blocks: a footer may name a summary as long as the file
-            block = f.read(min(left, 1 << 20))
-            if not block:
-                return False
-            computed, left = zlib.crc32(block, computed), left - len(block)
-        return computed == crc
 
 
 def open_stream_bag(files, path, why) -> 'McapStreamBag':

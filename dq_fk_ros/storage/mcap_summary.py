@@ -16,8 +16,8 @@ from collections import namedtuple
 import os
 import struct
 
-from dq_fk_ros.bag.crc import crc32
-from dq_fk_ros.bag.mcap_format import (
+from dq_fk_ros.storage.crc import crc32
+from dq_fk_ros.storage.mcap_format import (
     MAGIC, OP_CHANNEL, OP_CHUNK_INDEX, OP_FOOTER, OP_HEADER, OP_SCHEMA, OP_STATISTICS,
     OP_SUMMARY_OFFSET)
 
@@ -119,6 +119,36 @@ def read_summary(path, qos=None) -> Summary:
     return _records(memoryview(data), footer_at - summary_start, qos)
 
 
+def summary_intact(path) -> bool:
+    """
+    Whether an MCAP file's summary can be trusted: its CRC holds, or it has none to check.
+
+    A file without a footer (cut short) has no summary and passes: readers find that out
+    themselves. Raises ``OSError`` if the file cannot be read.
+    """
+    with open(path, 'rb') as f:
+        size = os.fstat(f.fileno()).st_size
+        if size < 8 + 29 + 8:
+            return True
+        f.seek(size - 8 - 29)
+        tail = f.read(29 + 8)
+        if tail[0] != OP_FOOTER or tail[29:] != MAGIC:
+            return True
+        summary_start, _, crc = struct.unpack_from('<QQI', tail, 9)
+        if not crc or not summary_start:
+            return True
+        if summary_start > size - 8 - 29:
+            return False
+        f.seek(summary_start)
+        computed, left = 0, size - 8 - 4 - summary_start
+        while left > 0:  # in blocks: a footer may name a summary as long as the file
+            block = f.read(min(left, 1 << 20))
+            if not block:
+                return False
+            computed, left = crc32(block, computed), left - len(block)
+        return computed == crc
+
+
 def _records(data, end, qos):
     schemas, channels, chunk_index = {}, {}, {}
     pos = 0
@@ -173,4 +203,4 @@ def _records(data, end, qos):
 
 
 __all__ = ['Channel', 'ChunkIndex', 'MAX_CHANNELS', 'MAX_SUMMARY_BYTES', 'read_summary',
-           'Schema', 'Summary', 'SummaryRefused', 'SummaryTooLarge']
+           'Schema', 'Summary', 'summary_intact', 'SummaryRefused', 'SummaryTooLarge']

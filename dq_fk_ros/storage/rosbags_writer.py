@@ -4,19 +4,19 @@ rosbag2 bags written through rosbags' ``Writer``: sqlite3 output, and the MCAP r
 rosbags' :class:`~rosbags.rosbag2.Writer` does its part (connections, QoS profiles, message
 definitions and type hashes, ``metadata.yaml``, version 9); what it cannot do fast is one
 Python call per message: ``dq_fk_bag process`` writes eight messages per joint state.
-:class:`BagWriter` adds ``write_rows`` and ``write_templates`` (arrays of messages,
-:class:`~dq_fk_ros.bag.mcap_writer.ArrayWrites`) on two storages that take them:
-:class:`~dq_fk_ros.bag.mcap_writer.McapChunkStorage` (MCAP) and :class:`Sqlite3BulkStorage`
+:class:`RosbagsWriter` adds ``write_rows`` and ``write_templates`` (arrays of messages,
+:class:`~dq_fk_ros.storage.mcap_writer.ArrayWrites`) on two storages that take them:
+:class:`~dq_fk_ros.storage.mcap_writer.McapChunkStorage` (MCAP) and :class:`Sqlite3BulkStorage`
 (rosbags' sqlite3 storage with ``executemany``).
 
 ``dq_fk_bag process`` writes sqlite3 bags with it, MCAP bags with
-:class:`~dq_fk_ros.bag.mcap_bag_writer.McapBagWriter` (the same storage, without importing
+:class:`~dq_fk_ros.storage.mcap_bag_writer.McapBagWriter` (the same storage, without importing
 rosbags' rosbag2 modules); test_bag_writer.py holds the two MCAP bags equal byte for byte.
 """
 
 from functools import partial
 
-from dq_fk_ros.bag.mcap_writer import ArrayWrites, COMPRESSIONS, McapChunkStorage
+from dq_fk_ros.storage.mcap_writer import ArrayWrites, COMPRESSIONS, McapChunkStorage
 from rosbags.rosbag2 import CompressionMode, StoragePlugin, Writer, WriterError
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
@@ -38,7 +38,7 @@ class Sqlite3BulkStorage(Sqlite3Writer):
                         [t.fill(stamps_ns, v) for t, v in zip(templates, values)])
 
 
-class BagWriter(ArrayWrites, Writer):
+class RosbagsWriter(ArrayWrites, Writer):
     """
     rosbags' rosbag2 ``Writer`` (version 9) with arrays of messages (:class:`ArrayWrites`).
 

@@ -1,11 +1,11 @@
-"""A ROS 1 bag as a :class:`~dq_fk_ros.bag.reader_interface.BagReader`, in ROS 2 CDR."""
+"""A ROS 1 bag as a :class:`~dq_fk_ros.storage.reader_interface.BagReader`, in ROS 2 CDR."""
 
 import struct
 from typing import Iterator, Optional
 
-from dq_fk_ros.bag.reader_interface import BatchesFromMessages, JOINT_STATE, TF_MESSAGE
-from dq_fk_ros.bag.text import one_line
 from dq_fk_ros.errors import BagError
+from dq_fk_ros.storage.reader_interface import BatchesFromMessages, JOINT_STATE, TF_MESSAGE
+from dq_fk_ros.storage.text import one_line
 
 ROS1_TF_TYPES = (TF_MESSAGE, 'tf/msg/tfMessage')   # tf2's, and tf's in older bags
 
@@ -14,7 +14,7 @@ class Ros1Bag(BatchesFromMessages):
     """
     A ROS 1 bag, with its messages of one type converted to ROS 2 CDR as they are read.
 
-    A :class:`~dq_fk_ros.bag.reader_interface.BagReader`. The topics of ``msgtype`` only
+    A :class:`~dq_fk_ros.storage.reader_interface.BagReader`. The topics of ``msgtype`` only
     (JointState, or ``tf2_msgs/msg/TFMessage`` for TF): other ROS 1 types would need a
     conversion of their own (``rosbags-convert``, installed with rosbags, converts a whole
     ROS 1 bag to rosbag2).
@@ -29,10 +29,10 @@ class Ros1Bag(BatchesFromMessages):
 
         Through its index with rosbags; if that fails (a damaged, cut-off or misplaced
         index), or with ``scan``, chunk by chunk from the start
-        (:class:`~dq_fk_ros.bag.ros1_scan.Ros1ChunkScan`).
+        (:class:`~dq_fk_ros.storage.ros1_scan.Ros1ChunkScan`).
         """
-        from dq_fk_ros.bag.decompress import bound_rosbags
-        from dq_fk_ros.bag.ros1_scan import Ros1ChunkScan
+        from dq_fk_ros.storage.decompress import bound_rosbags
+        from dq_fk_ros.storage.ros1_scan import Ros1ChunkScan
         from rosbags.rosbag1 import Reader, ReaderError
         from rosbags.typesys import get_typestore, Stores
         bound_rosbags(ros1=True)

@@ -16,27 +16,27 @@ rosbag2's own MCAP writer leaves). The summary has schemas, channels, chunk inde
 statistics and the ``rosbag2`` metadata record, as rosbag2's MCAP storage writes them.
 Channels carry ``offered_qos_profiles`` and ``topic_type_hash``, which rosbag2 reads back.
 
-It is the storage of both bag writers: :class:`~dq_fk_ros.bag.mcap_bag_writer.McapBagWriter`
+It is the storage of both bag writers: :class:`~dq_fk_ros.storage.mcap_bag_writer.McapBagWriter`
 (``dq_fk_bag process``, without rosbags' modules) and rosbags' ``Writer`` in
-:class:`~dq_fk_ros.bag.writer.BagWriter` (the reference; its storage protocol:
+:class:`~dq_fk_ros.storage.rosbags_writer.RosbagsWriter` (the reference; its storage protocol:
 ``add_msgtype``, ``add_connection``, ``write``, ``close``, ``abort``).
 """
 
 import os
 import struct
 
-from dq_fk_ros.bag.crc import crc32
-from dq_fk_ros.bag.mcap_format import (
+from dq_fk_ros.kinematics.kernel import load_compiled
+from dq_fk_ros.storage.crc import crc32
+from dq_fk_ros.storage.mcap_format import (
     MAGIC, OP_CHANNEL, OP_CHUNK, OP_CHUNK_INDEX, OP_DATA_END, OP_FOOTER, OP_HEADER, OP_MESSAGE,
     OP_METADATA, OP_METADATA_INDEX, OP_SCHEMA, OP_STATISTICS, OP_SUMMARY_OFFSET)
-from dq_fk_ros.bag.mcap_indexes import message_indexes, UniformIndex
-from dq_fk_ros.kinematics.kernel import load_compiled
+from dq_fk_ros.storage.mcap_indexes import message_indexes, UniformIndex
 import numpy as np
 from rosbags.interfaces import MessageDefinitionFormat
 
 # as every extension: None without a C compiler at install, or with DQ_FK_PURE_PYTHON set
 # (not empty, not 0)
-COMPILED, _ = load_compiled('dq_fk_ros.bag._mcap')
+COMPILED, _ = load_compiled('dq_fk_ros.storage._mcap')
 
 CHUNK_BYTES = 1 << 20          # close a chunk once its records exceed this (rosbags: 1 MiB)
 RESERVE_BYTES = 64 << 20       # the file's blocks reserved ahead of the writes, at a time
@@ -417,6 +417,12 @@ class ArrayWrites:
         self.storage.write_templates([c.id for c in connections], log_times_ns, stamps_ns,
                                      templates, values)
         self._count(connections, log_times_ns)
+
+    def abort(self) -> None:
+        """Close the storage without a summary or metadata (a cut bag)."""
+        storage, self.storage = self.storage, None
+        if storage is not None:
+            storage.abort()
 
     def _count(self, connections, log_times_ns):
         n = len(log_times_ns)
