@@ -24,6 +24,7 @@ import time
 
 from bench_results import figure
 from dq_fk_ros.kinematics.chain_batches import forward_all_batch_reference, forward_batch_reference
+from dq_fk_ros.kinematics.chain_engines import ReferenceEngine
 from dq_fk_ros.kinematics.dh import DHJoint, homogeneous_from_dq, KinematicChain
 from dq_fk_ros.kinematics.kernel import kernel_info
 import numpy as np
@@ -105,13 +106,14 @@ def make_dq_fk_ros_reference(rows):
     if kernel_info()['active'] != 'c':
         raise ImportError('the kernel is not active: the row above is the numpy path')
     chain = KinematicChain([DHJoint(a=a, alpha=al, d=d, theta=off) for a, al, d, off in rows])
+    reference = ReferenceEngine(chain.table)
     return {
         'name': 'dq_fk_ros (numpy reference path)',
-        'end': lambda q: chain._forward_all_reference(q)[-1],
-        'all': chain._forward_all_reference,
-        'batch_end': functools.partial(forward_batch_reference, chain),
-        'batch_all': functools.partial(forward_all_batch_reference, chain),
-        'end_matrix': lambda q: homogeneous_from_dq(chain._forward_all_reference(q)[-1]),
+        'end': reference.end,
+        'all': reference.frames,
+        'batch_end': functools.partial(forward_batch_reference, chain.table),
+        'batch_all': functools.partial(forward_all_batch_reference, chain.table),
+        'end_matrix': lambda q: homogeneous_from_dq(reference.end(q)),
     }
 
 

@@ -30,7 +30,7 @@ def _paths(model: 'RobotModel') -> tuple[dict, dict]:
             if joint.joint_type != 'fixed':
                 reads[(c, i)] = frozenset(
                     chain.joint_names[int(k)] for k in
-                    (chain._theta_index[i], chain._d_index[i]) if k >= 0)
+                    (chain.table.theta_index[i], chain.table.d_index[i]) if k >= 0)
                 here = here | {(c, i)}
             paths[model.frame_names[start + i + 1]] = here
         if chain.tool is not None:

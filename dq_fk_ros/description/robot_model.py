@@ -201,7 +201,7 @@ class RobotModel:
         mask = np.zeros(len(index), dtype=bool)
         for branch, (_, chain, _) in zip((None,) + self.branches, self.chains):
             external = branch.external if branch is not None else ()
-            for name, angle in zip(chain.joint_names, chain._angular):
+            for name, angle in zip(chain.joint_names, chain.table.angular):
                 if angle and name not in external:
                     mask[index[name]] = True
         for link in self.links:

@@ -3,53 +3,42 @@ A DH chain for N configurations at once, with numpy: the references of the kerne
 
 ``KinematicChain.forward_all_batch`` and ``forward_batch`` run the C kernel's batch loops;
 :func:`forward_all_batch_reference` and :func:`forward_batch_reference` are what they are
-held equal to (test_kernel.py, 1e-12), and what runs without the kernel: the chain's factor
-program (``dh_code.run_program``) on columns of configurations, chunk by chunk.
+held equal to (test_kernel.py, 1e-12), and what runs without the kernel (the
+``ReferenceEngine`` of :mod:`~dq_fk_ros.kinematics.chain_engines`): the table's factor
+program (``dh_program.run_program``) on columns of configurations, chunk by chunk.
 :func:`relative_all_batch` is the rows' closed form, [Radavelli2014] eq. (3).
 """
 
 from collections.abc import Iterator
-from typing import TYPE_CHECKING
 
-from dq_fk_ros.kinematics.dh_code import run_program
+from dq_fk_ros.kinematics.chain_table import ChainTable
+from dq_fk_ros.kinematics.dh_program import run_program
 from dq_fk_ros.kinematics.dual_quaternion import dq_multiply_coeffs
 import numpy as np
 from numpy.typing import ArrayLike
-
-if TYPE_CHECKING:  # (dh.py imports this module)
-    from dq_fk_ros.kinematics.dh import KinematicChain
 
 # configurations per step of the batch paths: small enough for the working set to stay in cache
 BATCH_CHUNK = 4096
 
 
-def q_batch(chain: 'KinematicChain', q: ArrayLike) -> np.ndarray:
-    """Return ``q`` as a contiguous ``(N, dof)`` float64 array (``ValueError`` if not)."""
-    q = np.ascontiguousarray(q, dtype=float)
-    if q.ndim != 2 or q.shape[1] != chain.dof:
-        raise ValueError(f'expected an (N, {chain.dof}) array of joint values, '
-                         f'got shape {q.shape}')
-    return q
-
-
-def row_params_batch(chain: 'KinematicChain', q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+def row_params_batch(table: ChainTable, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Return every row's ``(theta, d)`` for N configurations: two ``(N, rows)`` arrays."""
-    q = q_batch(chain, q)
+    q = table.q_batch(q)
     qe = np.concatenate([q, np.zeros((q.shape[0], 1))], axis=1)
-    theta = chain._theta0 + np.where(chain._theta_index >= 0,
-                                     chain._scale * qe[:, chain._theta_index], 0.0)
-    d = chain._d0 + np.where(chain._d_index >= 0, chain._scale * qe[:, chain._d_index], 0.0)
+    theta = table.theta0 + np.where(table.theta_index >= 0,
+                                    table.scale * qe[:, table.theta_index], 0.0)
+    d = table.d0 + np.where(table.d_index >= 0, table.scale * qe[:, table.d_index], 0.0)
     return theta, d
 
 
-def relative_all_batch(chain: 'KinematicChain', q: ArrayLike) -> np.ndarray:
+def relative_all_batch(table: ChainTable, q: ArrayLike) -> np.ndarray:
     """Relative transforms of every row for N configurations: ``(N, n, 8)``."""
-    theta, d = row_params_batch(chain, q)
+    theta, d = row_params_batch(table, q)
     half_t = 0.5 * theta
     ct, st = np.cos(half_t), np.sin(half_t)
-    ca, sa = np.cos(0.5 * chain._alpha), np.sin(0.5 * chain._alpha)
-    ha, hd = 0.5 * chain._a, 0.5 * d
-    if chain.convention == 'standard':
+    ca, sa = np.cos(0.5 * table.alpha), np.sin(0.5 * table.alpha)
+    ha, hd = 0.5 * table.a, 0.5 * d
+    if not table.modified:
         comps = (ca * ct, sa * ct, sa * st, ca * st,
                  -ha * sa * ct - hd * ca * st, ha * ca * ct - hd * sa * st,
                  ha * ca * st + hd * sa * ct, -ha * sa * st + hd * ca * ct)
@@ -60,32 +49,34 @@ def relative_all_batch(chain: 'KinematicChain', q: ArrayLike) -> np.ndarray:
     return np.stack(comps, axis=-1)
 
 
-def _batches(chain: 'KinematicChain', q: ArrayLike) -> Iterator[tuple]:
+def _batches(table: ChainTable, q: ArrayLike) -> Iterator[tuple]:
     """Yield ``(slice, frames)`` per chunk; frames are 8-tuples of arrays (or floats)."""
-    q = q_batch(chain, q)
+    q = table.q_batch(q)
     for start in range(0, q.shape[0], BATCH_CHUNK):
         part = slice(start, min(start + BATCH_CHUNK, q.shape[0]))
         cols = np.ascontiguousarray(q[part].T)
-        frames = run_program(chain._program, chain._base_t, cols, np.cos, np.sin)
-        if chain._tool_t is not None:
-            frames.append(dq_multiply_coeffs(frames[-1], chain._tool_t))
+        frames = run_program(table.program, table.base, cols, np.cos, np.sin)
+        if table.tool is not None:
+            frames.append(dq_multiply_coeffs(frames[-1], table.tool))
         yield part, frames
 
 
-def forward_all_batch_reference(chain: 'KinematicChain', q: ArrayLike) -> np.ndarray:
+def forward_all_batch_reference(table: ChainTable, q: ArrayLike) -> np.ndarray:
     """``KinematicChain.forward_all_batch`` with numpy, chunk by chunk: the reference."""
-    out = np.empty((len(q), chain.n_frames, 8))
-    for part, frames in _batches(chain, q):
+    q = table.q_batch(q)
+    out = np.empty((len(q), table.n_frames, 8))
+    for part, frames in _batches(table, q):
         for i, frame in enumerate(frames):
             for k in range(8):
                 out[part, i, k] = frame[k]
     return canonical_inplace(out)
 
 
-def forward_batch_reference(chain: 'KinematicChain', q: ArrayLike) -> np.ndarray:
+def forward_batch_reference(table: ChainTable, q: ArrayLike) -> np.ndarray:
     """``KinematicChain.forward_batch`` with numpy, chunk by chunk: the reference."""
+    q = table.q_batch(q)
     out = np.empty((len(q), 8))
-    for part, frames in _batches(chain, q):
+    for part, frames in _batches(table, q):
         for k in range(8):
             out[part, k] = frames[-1][k]
     return canonical_inplace(out)

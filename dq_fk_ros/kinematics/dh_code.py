@@ -1,12 +1,11 @@
 """
-A robot's DH rows compiled: the factor program run in loops, and straight-line code.
+A robot's DH tables as straight-line code, and a chain's factor program run with its tool.
 
 Two ways to the same frames, to the bit:
 
-* :func:`run_program` (the reference, under :meth:`KinematicChain.frame_poses_general` and
-  the batches): each row compiled once into its sparse z and x factors (:class:`ZStep`,
-  :class:`XStep`, [Zivkovic2023] eqs. (13)-(15)) and run in a loop, on floats or on numpy
-  columns; :func:`run_chain_program` adds the tool.
+* :func:`run_chain_program` (the reference, under :meth:`KinematicChain.frame_poses_general`
+  and the batches): the table's factor program (:func:`~.dh_program.run_program`,
+  [Zivkovic2023] eqs. (13)-(15)) run in a loop, on floats or on numpy columns, then the tool.
 * :func:`unrolled_frame_poses` (fast): the same operations written out as Python source,
   constants in place, and compiled once per robot (``f.source`` prints it; ``dq_fk fk
   --code`` too). test_dh.py's ``test_the_unrolled_frame_poses_are_the_general_path_to_the_bit``
@@ -19,98 +18,11 @@ the real part is ``aw, ax, ay, az``, the dual part ``bw, bx, by, bz``.
 
 from collections.abc import Callable, Sequence
 import math
-from typing import NamedTuple, TYPE_CHECKING
 
+from dq_fk_ros.kinematics.chain_table import ChainTable
+from dq_fk_ros.kinematics.dh_program import row_program, run_program, Z
 from dq_fk_ros.kinematics.dual_quaternion import (
     dq_inverse_coeffs, dq_multiply_coeffs, pose_xyzw_from_coeffs)
-
-if TYPE_CHECKING:  # for the annotations only: dh imports this module
-    from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
-
-# The sparse factorisation of a DH row ([Zivkovic2023] eqs. (13)-(15)): the z factor
-# Rz(theta) Tz(d) = (c + s k)(1 + eps d/2 k) and the x factor Tx(a) Rx(alpha) =
-# (1 + eps a/2 i)(c + s i) each touch a few coefficients only, so applying them costs a
-# fraction of a full product with the row's eq. (3) operator.
-_Z, _X = 0, 1
-
-
-class ZStep(NamedTuple):
-    """
-    A row's z factor ``Rz(theta) Tz(d)``: theta = theta + scale q[ti], d = d + scale q[di].
-
-    An index of -1 means constant; ``mark``: the row's frame is complete after this step.
-    """
-
-    kind: int          # _Z
-    theta: float
-    scale: float
-    ti: int
-    d: float
-    di: int
-    mark: bool
-
-
-class XStep(NamedTuple):
-    """A row's x factor ``Tx(a) Rx(alpha)``, constant; ``mark`` as for :class:`ZStep`."""
-
-    kind: int          # _X
-    half_a: float
-    cos_half_alpha: float
-    sin_half_alpha: float
-    has_rotation: bool
-    unused: int        # (the same length as ZStep: the loops unpack both alike)
-    mark: bool
-
-
-def row_program(joint: 'DHJoint', ti: int, di: int, modified: bool) -> list[ZStep | XStep]:
-    """
-    Compile one DH row into its z and x factors (:class:`ZStep`, :class:`XStep`).
-
-    Standard: ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``; modified: ``Rx(alpha) Tx(a) Rz(theta)
-    Tz(d)``; the last factor marks the row's frame.
-    """
-    ops = [[_Z, joint.theta, joint.scale, ti, joint.d, di, False]]
-    if joint.a or joint.alpha:
-        ops.append([_X, 0.5 * joint.a, math.cos(0.5 * joint.alpha),
-                    math.sin(0.5 * joint.alpha), bool(joint.alpha), 0, False])
-        if modified:
-            ops.reverse()
-    ops[-1][-1] = True
-    return [ZStep(*op) if op[0] == _Z else XStep(*op) for op in ops]
-
-
-def run_program(program: Sequence[ZStep | XStep], base: Sequence, q: Sequence,
-                cos: Callable, sin: Callable) -> list[tuple]:
-    """
-    Multiply ``base`` by the compiled factors; return the frames marked along the way.
-
-    Works on floats (``q`` a list, ``cos``/``sin`` from math) and on numpy arrays (``q`` a
-    sequence of columns, one per joint variable, ``cos``/``sin`` from numpy) alike.
-    The real part is ``(aw, ax, ay, az)``, the dual part ``(bw, bx, by, bz)``.
-    """
-    aw, ax, ay, az, bw, bx, by, bz = base
-    frames = [base]
-    for op, p1, p2, p3, p4, p5, mark in program:
-        if op == _Z:  # h (c + s k) (1 + eps hd k)
-            half = 0.5 * p1 if p3 < 0 else 0.5 * (p1 + p2 * q[p3])
-            c, s = cos(half), sin(half)
-            aw, ax, ay, az, bw, bx, by, bz = (
-                aw * c - az * s, ax * c + ay * s, ay * c - ax * s, az * c + aw * s,
-                bw * c - bz * s, bx * c + by * s, by * c - bx * s, bz * c + bw * s)
-            if p5 >= 0 or p4:
-                hd = 0.5 * p4 if p5 < 0 else 0.5 * (p4 + p2 * q[p5])
-                bw, bx, by, bz = bw - hd * az, bx + hd * ay, by - hd * ax, bz + hd * aw
-        else:  # h (1 + eps ha i) (c + s i), constant
-            if p1:
-                bw, bx, by, bz = bw - p1 * ax, bx + p1 * aw, by + p1 * az, bz - p1 * ay
-            if p4:
-                aw, ax, ay, az, bw, bx, by, bz = (
-                    aw * p2 - ax * p3, ax * p2 + aw * p3, ay * p2 + az * p3, az * p2 - ay * p3,
-                    bw * p2 - bx * p3, bx * p2 + bw * p3, by * p2 + bz * p3, bz * p2 - by * p3)
-        if mark:
-            frames.append((aw, ax, ay, az, bw, bx, by, bz))
-    return frames
-
 
 _DQ = 'aw, ax, ay, az, bw, bx, by, bz'
 _Z_STEP = (f'{_DQ} = (aw * c - az * s, ax * c + ay * s, ay * c - ax * s, az * c + aw * s, '
@@ -162,21 +74,21 @@ def _product_code(a, b):
     return out
 
 
-def run_chain_program(chain: 'KinematicChain', base: Sequence, q: Sequence, cos: Callable,
+def run_chain_program(table: ChainTable, base: Sequence, q: Sequence, cos: Callable,
                       sin: Callable) -> list[tuple]:
     """
-    Return the frames of ``chain`` (frame 0..n, then the tool) starting from ``base``.
+    Return the frames of a chain's ``table`` (frame 0..n, then the tool) from ``base``.
 
     ``base`` is frame 0 (8 coefficients: floats, or arrays for a batch); a branch of a tree
     starts from its parent frame times its base transform. ``q``: the chain's variables.
     """
-    frames = run_program(chain._program, base, q, cos, sin)
-    if chain._tool_t is not None:
-        frames.append(dq_multiply_coeffs(frames[-1], chain._tool_t))
+    frames = run_program(table.program, base, q, cos, sin)
+    if table.tool is not None:
+        frames.append(dq_multiply_coeffs(frames[-1], table.tool))
     return frames
 
 
-def _chain_code(chain, q_index, first, keep, mark=_MARK):
+def _chain_code(table, q_index, first, keep, mark=_MARK):
     """
     Write the straight-line code of one chain, starting from the frame 0 in ``aw..bz``.
 
@@ -188,10 +100,10 @@ def _chain_code(chain, q_index, first, keep, mark=_MARK):
     lines = list(mark)
     if keep:
         lines.append(f'f{first} = ({_DQ})')
-    modified = chain.convention == 'modified'
-    for i, joint in enumerate(chain.joints):
-        ti, di = int(chain._theta_index[i]), int(chain._d_index[i])
-        ca, sa, a, theta, d, scale, _, _, s_alpha, c_alpha = chain._pose_rows[i]
+    modified = table.modified
+    for i, joint in enumerate(table.joints):
+        ti, di = int(table.theta_index[i]), int(table.d_index[i])
+        ca, sa, a, theta, d, scale, _, _, s_alpha, c_alpha = table.pose_rows[i]
         if ti >= 0:
             lines += [f'half = 0.5 * ({r(theta)} + {r(scale)} * q[{q_index[ti]}])',
                       'ct, st = cos(half), sin(half)']
@@ -200,7 +112,7 @@ def _chain_code(chain, q_index, first, keep, mark=_MARK):
         lines.append(f'd = {r(d)} + {r(scale)} * q[{q_index[di]}]' if di >= 0 else
                      f'd = {r(d)}')
         for op, p1, _, _, p4, p5, _ in row_program(joint, ti, di, modified):
-            if op == _Z:
+            if op == Z:
                 lines += ['c, s = ct, st', _Z_STEP]
                 if p5 >= 0 or p4:
                     lines += ['hd = 0.5 * d',
@@ -224,18 +136,18 @@ def _chain_code(chain, q_index, first, keep, mark=_MARK):
                       f'x, y, z = {r(a)} * (1.0 - 2.0 * st * st), 2.0 * {r(a)} * st * ct, d']
         lines += ['if qw < 0.0:', '    qx, qy, qz, qw = -qx, -qy, -qz, -qw',
                   'relative.append((x, y, z, qx, qy, qz, qw))']
-    if chain._tool_t is not None:
-        lines += [f'{_DQ} = multiply(({_DQ}), {chain._tool_t!r})'] + list(mark)
+    if table.tool is not None:
+        lines += [f'{_DQ} = multiply(({_DQ}), {table.tool!r})'] + list(mark)
         if keep:
-            lines.append(f'f{first + chain.n_frames - 1} = ({_DQ})')
+            lines.append(f'f{first + table.n_frames - 1} = ({_DQ})')
     return lines
 
 
-def unrolled_frame_poses(chain: 'KinematicChain', links: Sequence[tuple] = (),
+def unrolled_frame_poses(table: ChainTable, links: Sequence[tuple] = (),
                          motion: Callable | None = None, branches: Sequence[tuple] = (),
                          absolute: bool = True) -> Callable[[list[float]], tuple[list, list]]:
     """
-    Write and compile ``frame_poses`` as straight-line code for a chain (its branches, links).
+    Write and compile ``frame_poses`` as straight-line code of a chain's table (and more).
 
     The loops of :func:`run_program` and :meth:`KinematicChain.row_poses` unrolled, with
     each row's constants in place and the half-angle cosine and sine shared by the row's
@@ -247,7 +159,7 @@ def unrolled_frame_poses(chain: 'KinematicChain', links: Sequence[tuple] = (),
         index, TF-parent index, offset 8-tuple, motion)`` (index -1: the fixed frame); a
         constant offset is multiplied in with its zero terms left out.
     :param motion: ``motion(motion, q, cos, sin) -> 8-tuple`` for links that move.
-    :param branches: the other chains of a tree, ``(chain, index of the frame it hangs from
+    :param branches: the other chains of a tree, ``(table, index of the frame it hangs from
         (-1: the fixed frame), index in q of each of its variables)``, in order; their
         frames follow the chain's, their rows' transforms its rows'.
     :param absolute: False: the TF transforms alone (``absolute`` is returned empty; the
@@ -257,16 +169,16 @@ def unrolled_frame_poses(chain: 'KinematicChain', links: Sequence[tuple] = (),
     """
     keep = bool(links or branches)  # keep the frames the links and branches hang from
     mark = _MARK if absolute else ()
-    lines = ['def frame_poses(q):', 'absolute, relative = [], []', f'{_DQ} = {chain._base_t!r}']
-    lines += _chain_code(chain, range(chain.dof), 0, keep, mark)
-    n_frames = chain.n_frames
+    lines = ['def frame_poses(q):', 'absolute, relative = [], []', f'{_DQ} = {table.base!r}']
+    lines += _chain_code(table, range(table.dof), 0, keep, mark)
+    n_frames = table.n_frames
     for branch, parent, q_index in branches:
         if parent >= 0:
             lines += [f'{_PARENT} = f{parent}',
                       f'{_DQ} = (' + ', '.join(_product_code(_PARENT.split(', '),
-                                                             branch._base_t)) + ')']
+                                                             branch.base)) + ')']
         else:
-            lines.append(f'{_DQ} = {branch._base_t!r}')
+            lines.append(f'{_DQ} = {branch.base!r}')
         lines += _chain_code(branch, q_index, n_frames, keep, mark)
         n_frames += branch.n_frames
     for j, (attach, tf_parent, offset, moves) in enumerate(links):
@@ -292,7 +204,7 @@ def unrolled_frame_poses(chain: 'KinematicChain', links: Sequence[tuple] = (),
     namespace = {'cos': math.cos, 'sin': math.sin, 'multiply': dq_multiply_coeffs,
                  'inverse': dq_inverse_coeffs, 'pose': pose_xyzw_from_coeffs,
                  'motion': motion}
-    rows = len(chain.joints) + sum(len(b.joints) for b, _, _ in branches)
+    rows = len(table.joints) + sum(len(b.joints) for b, _, _ in branches)
     exec(compile(source, f'<frame_poses of {1 + len(branches)} chain(s), {rows} rows, '
                          f'{len(links)} links>', 'exec'), namespace)
     function = namespace['frame_poses']
@@ -300,5 +212,4 @@ def unrolled_frame_poses(chain: 'KinematicChain', links: Sequence[tuple] = (),
     return function
 
 
-__all__ = ['row_program', 'run_chain_program', 'run_program', 'unrolled_frame_poses', 'XStep',
-           'ZStep']
+__all__ = ['run_chain_program', 'unrolled_frame_poses']

@@ -10,12 +10,9 @@ compiled twin, test_kernel.py).
 
 from collections.abc import Sequence
 import math
-from typing import TYPE_CHECKING
 
+from dq_fk_ros.kinematics.chain_table import ChainTable
 from dq_fk_ros.kinematics.dual_quaternion import Coeffs, Pose
-
-if TYPE_CHECKING:  # (dh.py imports this module)
-    from dq_fk_ros.kinematics.dh import KinematicChain
 
 
 def row_standard(ca: float, sa: float, a: float, theta: float, d: float) -> Coeffs:
@@ -40,11 +37,11 @@ def row_modified(ca: float, sa: float, a: float, theta: float, d: float) -> Coef
             -hd * sa * ct - ha * ca * st, hd * ca * ct - ha * sa * st)
 
 
-def relative_tuples(chain: 'KinematicChain', q: Sequence[float]) -> list[Coeffs]:
+def relative_tuples(table: ChainTable, q: Sequence[float]) -> list[Coeffs]:
     """Return every row's transform frame i-1 -> frame i as 8 coefficients, at ``q``."""
-    row = row_standard if chain.convention == 'standard' else row_modified
+    row = row_modified if table.modified else row_standard
     out = []
-    for ca, sa, a, theta, d, scale, ti, di in chain._rows:
+    for ca, sa, a, theta, d, scale, ti, di in table.rows:
         if ti >= 0:
             theta = theta + scale * q[ti]
         if di >= 0:
@@ -53,7 +50,7 @@ def relative_tuples(chain: 'KinematicChain', q: Sequence[float]) -> list[Coeffs]
     return out
 
 
-def row_poses(chain: 'KinematicChain', q: Sequence[float]) -> list[Pose]:
+def row_poses(table: ChainTable, q: Sequence[float]) -> list[Pose]:
     """
     Every row's transform frame i-1 -> frame i as ``(x, y, z, qx, qy, qz, qw)``, ``qw >= 0``.
 
@@ -67,8 +64,8 @@ def row_poses(chain: 'KinematicChain', q: Sequence[float]) -> list[Pose]:
     cos, sin = math.cos, math.sin
     out = []
     append = out.append
-    standard = chain.convention == 'standard'
-    for ca, sa, a, theta, d, scale, ti, di, s_alpha, c_alpha in chain._pose_rows:
+    standard = not table.modified
+    for ca, sa, a, theta, d, scale, ti, di, s_alpha, c_alpha in table.pose_rows:
         if ti >= 0:
             theta = theta + scale * q[ti]
         if di >= 0:

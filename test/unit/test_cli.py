@@ -124,7 +124,7 @@ def test_fk_code_prints_the_code_the_node_runs(robot, capsys):
     assert source.startswith('def frame_poses(q):')
     model = load_robot_description(shipped_robot_path(robot))
     namespace = {}
-    code = model.kinematics._unrolled if model.branches else model.chain._unrolled
+    code = model.kinematics.unrolled if model.branches else model.chain.frame_poses_code
     exec(compile(source, 'printed', 'exec'), code.__globals__, namespace)
     q = np.linspace(-0.5, 0.5, model.dof).tolist()
     assert namespace['frame_poses'](q) == model.frame_poses(q)  # the same function, printed

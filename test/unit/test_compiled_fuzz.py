@@ -18,6 +18,7 @@ import os
 import tempfile
 
 from dq_fk_ros.description.schema import parse_robot_description
+from dq_fk_ros.kinematics.chain_engines import kernel_chain_args
 from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
 from dq_fk_ros.kinematics.kernel import kernel_info
 from dq_fk_ros.messages.cdr import COMPILED
@@ -140,8 +141,7 @@ def hostile_arrays(draw, like=None):
 
 def chain_parts(chain):
     """Return the arguments a KinematicChain gives _kernel.Chain."""
-    program, base, tool = chain._kernel_args
-    return program, base, tool, chain._dof, chain._jacobian_rows, chain.convention == 'modified'
+    return kernel_chain_args(chain.table)
 
 
 CHAINS = [
@@ -201,12 +201,12 @@ DUAL_ARM = parse_robot_description(open('config/dual_arm.yaml', encoding='utf-8'
 
 def model_parts(model):
     """Return the arguments RobotModel gives _kernel.Model, as lists one can break."""
-    kernel = model.kinematics._kernel_model
+    kernel = model.kinematics.engine.model
     assert kernel is not None
     index = {name: k for k, name in enumerate(model.frame_names)}
     index[model.fixed_frame] = -1
-    chains = [[chain._kernel_chain, index[parent], np.array(q_map, dtype=float),
-               np.array(chain._pose_rows, dtype=float).reshape(-1, 10),
+    chains = [[chain.engine.kernel_chain, index[parent], np.array(q_map, dtype=float),
+               np.array(chain.table.pose_rows, dtype=float).reshape(-1, 10),
                chain.convention == 'standard']
               for (parent, chain, _), q_map in zip(model.chains, model._q_maps)]
     return chains, kernel
@@ -254,7 +254,7 @@ def test_a_model_survives_any_arguments(data):
     relative = np.empty((kernel.n_relative, 7))
     kernel.poses(np.zeros(model.dof), None, relative)  # the robot's own model is unchanged
     expected = np.empty_like(relative)
-    model.kinematics._kernel_model.poses(np.zeros(model.dof), None, expected)
+    model.kinematics.engine.model.poses(np.zeros(model.dof), None, expected)
     np.testing.assert_array_equal(relative, expected)
 
 

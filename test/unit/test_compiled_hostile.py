@@ -23,6 +23,7 @@ pytestmark = pytest.mark.skipif(
 PRELUDE = """
 import numpy as np
 from dq_fk_ros.kinematics import _kernel
+from dq_fk_ros.kinematics.chain_engines import kernel_chain_args
 from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
 def refused(call, *args, **kwargs):
     try:
@@ -33,9 +34,9 @@ def refused(call, *args, **kwargs):
 def fixed_chain(n):
     return KinematicChain([DHJoint(a=.1, d=.01 * i, joint_type='fixed') for i in range(n)])
 def model_of(chain, n_links=0):
-    parts = (chain._kernel_chain, -1, np.zeros(chain._dof),
-             np.array(chain._pose_rows, dtype=float).reshape(-1, 10), True)
-    return _kernel.Model([parts], np.zeros((n_links, 17)), chain._dof), parts
+    parts = (chain.engine.kernel_chain, -1, np.zeros(chain.dof),
+             np.array(chain.table.pose_rows, dtype=float).reshape(-1, 10), True)
+    return _kernel.Model([parts], np.zeros((n_links, 17)), chain.dof), parts
 """
 
 READER = """
@@ -63,7 +64,7 @@ print(refused(model.poses_batch, np.empty((2**59, 0)), np.empty((0, 7)), np.empt
     'a chain re-initialised under its model': """
 chain = KinematicChain([DHJoint(a=.2, name=f'j{i}') for i in range(6)])
 model, parts = model_of(chain)
-small = fixed_chain(1)._kernel_args
+small = kernel_chain_args(fixed_chain(1).table)
 print(refused(parts[0].__init__, small[0], small[1], None, 0))
 relative = np.empty((model.n_relative, 7))
 model.poses(np.zeros(6), None, relative)

@@ -272,7 +272,7 @@ def test_the_unrolled_frame_poses_are_the_general_path_to_the_bit(convention):
         for q in rng.uniform(-4, 4, size=(200, chain.dof)):
             assert chain.frame_poses(q) == chain.frame_poses_general(q)
             assert chain.frame_poses(q.tolist()) == chain.frame_poses_general(q)
-        assert chain._unrolled.source.startswith('def frame_poses(q):')
+        assert chain.frame_poses_code.source.startswith('def frame_poses(q):')
         with pytest.raises(ValueError, match=f'expected {chain.dof} joint values'):
             chain.frame_poses([0.0] * (chain.dof + 1))
 

@@ -1,7 +1,7 @@
 """
 The compiled kernel equals the numpy reference on any DH chain, and refuses what it refuses.
 
-The reference is KinematicChain's numpy path (``_forward_all_reference``...); hypothesis
+The reference is a chain's numpy engine (``ReferenceEngine``...); hypothesis
 draws chains (standard and modified, every row type, mimic rows, base and tool, degenerate
 ones: prismatic only, fixed only, a base turned half a turn so that w = 0), joint values and
 batches. The whole kinematics suite also runs with ``DQ_FK_PURE_PYTHON=1``
@@ -16,6 +16,8 @@ import sys
 
 from dq_fk_ros.kinematics.chain_batches import (
     forward_all_batch_reference, forward_batch_reference)
+from dq_fk_ros.kinematics.chain_engines import (
+    CompiledEngine, kernel_chain_args, ReferenceEngine)
 from dq_fk_ros.kinematics.chain_jacobians import jacobian_geometric_reference
 from dq_fk_ros.kinematics.dh import DHJoint, KinematicChain
 from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
@@ -57,48 +59,53 @@ def chains(draw):
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(chains(), st.data())
 def test_the_kernel_equals_the_numpy_reference_on_any_chain(chain, data):
+    """The two engines of the same table, method by method; the chain runs the compiled one."""
+    compiled, reference = CompiledEngine(chain.table), ReferenceEngine(chain.table)
+    assert type(chain.engine) is CompiledEngine
     q = np.array(data.draw(st.lists(finite, min_size=chain.dof, max_size=chain.dof)))
-    np.testing.assert_allclose(chain.forward_all(q), chain._forward_all_reference(q),
-                               rtol=0, atol=1e-12)
-    np.testing.assert_allclose(chain.forward(q).coeffs,
-                               chain._forward_all_reference(q)[-1], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(chain.jacobian_geometric(q),
-                               jacobian_geometric_reference(chain, q), rtol=0, atol=1e-12)
+    for method in ('frames', 'end', 'jacobian'):
+        np.testing.assert_allclose(getattr(compiled, method)(q), getattr(reference, method)(q),
+                                   rtol=0, atol=1e-12, err_msg=method)
+    np.testing.assert_array_equal(chain.forward_all(q), compiled.frames(q))
+    np.testing.assert_array_equal(chain.forward(q).coeffs, compiled.end(q))
+    np.testing.assert_array_equal(chain.jacobian_geometric(q), compiled.jacobian(q))
     rows = data.draw(st.lists(st.lists(finite, min_size=chain.dof, max_size=chain.dof),
                               max_size=9))
     batch = np.array(rows, dtype=float).reshape(len(rows), chain.dof)
-    np.testing.assert_allclose(chain.forward_all_batch(batch),
-                               forward_all_batch_reference(chain, batch), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(chain.forward_batch(batch),
-                               forward_batch_reference(chain, batch), rtol=0, atol=1e-12)
+    for method in ('frames_batch', 'end_batch'):
+        np.testing.assert_allclose(getattr(compiled, method)(batch),
+                                   getattr(reference, method)(batch), rtol=0, atol=1e-12,
+                                   err_msg=method)
+    np.testing.assert_array_equal(chain.forward_all_batch(batch), compiled.frames_batch(batch))
+    np.testing.assert_array_equal(chain.forward_batch(batch), compiled.end_batch(batch))
 
 
 @needs_kernel
 def test_fixed_only_and_prismatic_only_chains():
     fixed = KinematicChain([DHJoint(a=0.3, alpha=1.0, joint_type='fixed')] * 3)
     assert fixed.dof == 0
-    np.testing.assert_array_equal(fixed.forward_all([]), fixed._forward_all_reference([]))
+    np.testing.assert_array_equal(fixed.forward_all([]), ReferenceEngine(fixed.table).frames([]))
     assert fixed.forward_all_batch(np.zeros((4, 0))).shape == (4, 4, 8)
     slide = KinematicChain([DHJoint(d=0.1, joint_type='prismatic', name=f'p{i}')
                             for i in range(3)], 'modified')
     q = [0.1, -0.2, 0.3]
-    np.testing.assert_array_equal(slide.forward_all(q), slide._forward_all_reference(q))
+    np.testing.assert_array_equal(slide.forward_all(q), ReferenceEngine(slide.table).frames(q))
 
 
 @needs_kernel
 def test_bad_input_is_refused_as_the_numpy_path_refuses_it():
     chain = KinematicChain([DHJoint(a=0.2, name='a'), DHJoint(d=0.1, name='b')])
     for bad in ([0.1], [0.1, 0.2, 0.3], np.zeros((2, 1))):
-        for path in (chain.forward_all, chain._forward_all_reference, chain.forward,
-                     chain.jacobian_geometric, partial(jacobian_geometric_reference, chain)):
+        for path in (chain.forward_all, ReferenceEngine(chain.table).frames, chain.forward,
+                     chain.jacobian_geometric, partial(jacobian_geometric_reference, chain.table)):
             with pytest.raises(ValueError, match='expected 2 joint values'):
                 path(bad)
     with pytest.raises(ValueError):
         chain.forward_all(['x', 'y'])
     with pytest.raises(ValueError):
-        chain._forward_all_reference(['x', 'y'])
+        ReferenceEngine(chain.table).frames(['x', 'y'])
     for bad in (np.zeros(2), np.zeros((3, 3))):
-        for path in (chain.forward_all_batch, partial(forward_all_batch_reference, chain)):
+        for path in (chain.forward_all_batch, partial(forward_all_batch_reference, chain.table)):
             with pytest.raises(ValueError, match=r'expected an \(N, 2\) array'):
                 path(bad)
     # NaN in, NaN out on both paths; non-contiguous and read-only inputs are taken
@@ -106,16 +113,17 @@ def test_bad_input_is_refused_as_the_numpy_path_refuses_it():
     q = np.zeros((4, 4))[::2, ::2]
     q.setflags(write=False)
     np.testing.assert_array_equal(chain.forward_all_batch(q),
-                                  forward_all_batch_reference(chain, q))
-    np.testing.assert_array_equal(chain.forward_all(q[0]), chain._forward_all_reference(q[0]))
+                                  forward_all_batch_reference(chain.table, q))
+    np.testing.assert_array_equal(chain.forward_all(q[0]),
+                                  ReferenceEngine(chain.table).frames(q[0]))
 
 
 @needs_kernel
 def test_the_kernel_chain_refuses_buffers_it_cannot_use():
     from dq_fk_ros.kinematics import _kernel
     chain = KinematicChain([DHJoint(a=0.2, name='a')])
-    program, base, tool = chain._kernel_args
-    rows = chain._jacobian_rows
+    program, base, tool = kernel_chain_args(chain.table)[:3]
+    rows = chain.table.jacobian_rows
     good_out = np.empty((2, 8))
     made = [
         (program[:, :5].copy(), base, tool, 1),      # not (n, 7)
@@ -168,18 +176,18 @@ def test_the_kernel_chain_is_set_once():
     """A second __init__ is refused and changes nothing; __new__ alone checks everything."""
     from dq_fk_ros.kinematics import _kernel
     chain = KinematicChain([DHJoint(a=0.2, name='a')])
-    program, base, tool = chain._kernel_args
+    program, base, tool = kernel_chain_args(chain.table)[:3]
     kernel_chain = _kernel.Chain(program, base, tool, 1)
     with pytest.raises(TypeError, match='set once'):
         kernel_chain.__init__(program[:0].copy(), base, None, 0)
     out = np.empty((2, 8))
     kernel_chain.frames(np.zeros(1), out)
-    np.testing.assert_array_equal(out, chain._forward_all_reference([0.0]))
+    np.testing.assert_array_equal(out, ReferenceEngine(chain.table).frames([0.0]))
     with pytest.raises(TypeError):
         _kernel.Chain.__new__(_kernel.Chain)  # no state without its arguments
     made = _kernel.Chain.__new__(_kernel.Chain, program, base, tool, 1)  # no __init__ needed
     made.frames(np.zeros(1), out)
-    np.testing.assert_array_equal(out, chain._forward_all_reference([0.0]))
+    np.testing.assert_array_equal(out, ReferenceEngine(chain.table).frames([0.0]))
     with pytest.raises(TypeError):
         kernel_chain.end(np.zeros(1))
 
@@ -196,10 +204,10 @@ def test_batches_fill_the_callers_buffers():
     q = np.random.default_rng(3).uniform(-2, 2, (5, 2))
     out = np.full((5, 8), np.nan)
     assert chain.forward_batch(q, out=out) is out
-    np.testing.assert_allclose(out, forward_batch_reference(chain, q), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(out, forward_batch_reference(chain.table, q), rtol=0, atol=1e-12)
     frames = np.full((5, chain.n_frames, 8), np.nan)
     assert chain.forward_all_batch(q, out=frames) is frames
-    np.testing.assert_allclose(frames, forward_all_batch_reference(chain, q), rtol=0,
+    np.testing.assert_allclose(frames, forward_all_batch_reference(chain.table, q), rtol=0,
                                atol=1e-12)
     for bad in (np.empty((4, 8)), np.empty((5, 8), np.float32), np.empty((5, 16))[:, ::2]):
         with pytest.raises(ValueError):

@@ -39,9 +39,9 @@ def test_the_kernel_exports_each_layout_once_with_unique_names():
 def test_every_record_python_builds_names_each_field_of_its_layout():
     model = parse_robot_description(ARM)
     kin = model.kinematics
-    for op in model.chain._program:
+    for op in model.chain.table.program:
         assert program_record(op).keys() == set(KERNEL.LAYOUTS['op'])
-    for row in model.chain._pose_rows:
+    for row in model.chain.table.pose_rows:
         assert pose_row_record(row).keys() == set(KERNEL.LAYOUTS['row'])
     for link in kin.links:
         assert link_record(*link).keys() == set(KERNEL.LAYOUTS['link'])
@@ -70,9 +70,9 @@ def test_a_link_field_packed_in_the_wrong_place_changes_the_poses(swap):
     names[i], names[j] = b, a
     wrong = {**KERNEL.LAYOUTS, 'link': tuple(names)}
     links = pack(wrong, 'link', [link_record(*link) for link in kin.links])
-    chains = [(model.chain._kernel_chain, -1, np.arange(model.chain.dof, dtype=float),
+    chains = [(model.chain.engine.kernel_chain, -1, np.arange(model.chain.dof, dtype=float),
                pack(KERNEL.LAYOUTS, 'row',
-                    [pose_row_record(r) for r in model.chain._pose_rows]), True)]
+                    [pose_row_record(r) for r in model.chain.table.pose_rows]), True)]
     try:
         broken = KERNEL.Model(chains, links, model.dof)
     except ValueError:

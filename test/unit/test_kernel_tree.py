@@ -18,6 +18,7 @@ import sysconfig
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.description.schema import parse_robot_description
 from dq_fk_ros.kinematics.kernel import kernel_info
+from dq_fk_ros.kinematics.tree_engines import ReferenceTreeEngine
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
@@ -167,11 +168,11 @@ def test_bad_input_is_refused_as_the_numpy_path_refuses_it():
 def test_the_kernel_model_refuses_what_it_cannot_use():
     from dq_fk_ros.kinematics import _kernel
     model = parse_robot_description(open('config/dual_arm.yaml', encoding='utf-8').read())
-    kernel = model.kinematics._kernel_model
+    kernel = model.kinematics.engine.model
     assert (kernel.n_frames, kernel.n_relative) == (len(model.frame_names), model.n_transforms)
     chain = model.chain
-    good = (chain._kernel_chain, -1, np.array([0.0]),
-            np.array(chain._pose_rows, dtype=float).reshape(-1, 10), True)
+    good = (chain.engine.kernel_chain, -1, np.array([0.0]),
+            np.array(chain.table.pose_rows, dtype=float).reshape(-1, 10), True)
     no_links = np.zeros((0, 17))
     _kernel.Model([good], no_links, 1)
     link = np.array([[0.0, -1.0, 1, 0, 0, 0, 0, 0, 0, 0, 0.0, 0, 0, 1, 0.0, 1.0, 0.0]])
@@ -264,7 +265,9 @@ def test_a_batch_into_kept_arrays_equals_a_fresh_one(compiled, monkeypatch):
     """The bag tool's reused FK arrays: the first N rows written, the rest left alone."""
     model = parse_robot_description(open('config/dual_arm.yaml', encoding='utf-8').read())
     if not compiled:
-        monkeypatch.setattr(model.kinematics, '_kernel_model', None)
+        tree = model.kinematics
+        monkeypatch.setattr(tree, 'engine', ReferenceTreeEngine(
+            tree.layout, tree.frame_poses, tree.transform_poses))
     rng = np.random.default_rng(7)
     kept = (np.full((5, len(model.frame_names), 7), 7.0),
             np.full((5, model.n_transforms, 7), 7.0))

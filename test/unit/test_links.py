@@ -249,7 +249,7 @@ def test_the_unrolled_frame_poses_with_links_are_the_general_path(robot):
     for q in np.random.default_rng(12).uniform(-2.5, 2.5, size=(300, model.dof)):
         assert model.frame_poses(q) == model.frame_poses_general(q)
     assert model.frame_poses(q.tolist()) == model.frame_poses_general(q)
-    assert 'u0, u1, u2' in model.kinematics._unrolled.source  # constant offsets multiplied inline
+    assert 'u0, u1, u2' in model.kinematics.unrolled.source  # constant offsets multiplied inline
     with pytest.raises(ValueError, match=f'expected {model.dof} joint values'):
         model.frame_poses(np.zeros(model.dof + 1))
 

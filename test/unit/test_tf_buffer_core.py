@@ -37,20 +37,27 @@ def matrix(pose):
     return m
 
 
-def rotation_between(r0, r1, ratio):
-    """Return the rotation ``ratio`` of the way from r0 to r1 on the shorter arc (axis, angle)."""
-    relative = r0.T @ r1
-    angle = math.acos(max(-1.0, min(1.0, (np.trace(relative) - 1) / 2)))
-    if angle < 1e-12:
-        return r0
-    axis = np.array([relative[2, 1] - relative[1, 2], relative[0, 2] - relative[2, 0],
-                     relative[1, 0] - relative[0, 1]]) / (2 * math.sin(angle))
-    if abs(math.pi - angle) < 1e-6:   # half a turn: the axis from the symmetric part
-        w, v = np.linalg.eigh((relative + np.eye(3)) / 2)
-        axis = v[:, np.argmax(w)]
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    a = ratio * angle
-    return r0 @ (np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * k @ k)
+def rotation_between(q0, q1, ratio):
+    """
+    Return the rotation matrix ``ratio`` of the way from q0 to q1 (x y z w), the shorter arc.
+
+    Geodesic interpolation in axis-angle form: the relative rotation ``conj(q0) q1``
+    (``q1`` negated when the dot product is negative, only then: tf2's rule, which also
+    settles a half turn), its angle by ``atan2`` (exact near a half turn), ``ratio`` of it
+    turned about its axis after q0.
+    """
+    q0, q1 = np.array(q0, dtype=float), np.array(q1, dtype=float)
+    if np.dot(q0, q1) < 0:
+        q1 = -q1
+    v0, v1, w0, w1 = q0[:3], q1[:3], q0[3], q1[3]
+    v = w0 * v1 - w1 * v0 - np.cross(v0, v1)          # conj(q0) q1, vector part
+    w = w0 * w1 + np.dot(v0, v1)                      # and its scalar part
+    half = math.atan2(np.linalg.norm(v), w) * ratio
+    axis = v / np.linalg.norm(v) if np.linalg.norm(v) > 0 else np.zeros(3)
+    step = np.concatenate([axis * math.sin(half), [math.cos(half)]])
+    x, y, z, qw = (w0 * step[:3] + step[3] * v0 + np.cross(v0, step[:3])).tolist() + \
+        [w0 * step[3] - np.dot(v0, step[:3])]
+    return matrix((0, 0, 0, x, y, z, qw))[:3, :3]
 
 
 class Reference:
@@ -66,8 +73,11 @@ class Reference:
             self.samples.pop(child, None)
         else:
             self.static.pop(child, None)
-            self.samples.setdefault(child, []).append((stamp, len(self.samples.get(child, [])),
-                                                       parent, pose))
+            samples = self.samples.setdefault(child, [])
+            # tf2 stores an exact duplicate (stamp, parent, values) once: a repeat of an
+            # earlier sample of its stamp does not make that sample the newest again
+            if not any(s[0] == stamp and s[2] == parent and s[3] == pose for s in samples):
+                samples.append((stamp, len(samples), parent, pose))
 
     def edge(self, child, t):
         """Return ``(parent, 4x4)`` at t, None for a root, or raise ExtrapolationException."""
@@ -94,7 +104,7 @@ class Reference:
         ratio = (t - older[0]) / (newer[0] - older[0])
         m0, m1 = matrix(older[3]), matrix(newer[3])
         m = np.eye(4)
-        m[:3, :3] = rotation_between(m0[:3, :3], m1[:3, :3], ratio)
+        m[:3, :3] = rotation_between(older[3][3:], newer[3][3:], ratio)
         m[:3, 3] = (1 - ratio) * m0[:3, 3] + ratio * m1[:3, 3]
         return older[2], m
 
