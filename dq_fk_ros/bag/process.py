@@ -7,7 +7,6 @@ written as /tf, /tf_static and the node's pose topics to a new bag (MCAP by defa
 ``csv_path`` gets the end-effector pose per message.
 """
 
-from collections import Counter
 from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 import os
@@ -18,7 +17,7 @@ from dq_fk_ros.bag.progress import Progress
 from dq_fk_ros.description.loading import load_robot
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.kinematics.dual_quaternion import dq_to_pose_xyzw
-from dq_fk_ros.messages.cdr import group_joint_state_spans, JointStateNames
+from dq_fk_ros.messages.joint_state_input import JointStateInput
 from dq_fk_ros.messages.joint_states import JointStateMerger
 from dq_fk_ros.storage.reading import joint_state_connections, open_reader
 from dq_fk_ros.storage.text import printable
@@ -336,32 +335,6 @@ def _process_with(reader, model, in_path, out_path, o, window=None):
     return summary
 
 
-def _merge_spans(merger, cache, data, starts, lengths):
-    """
-    Parse and merge serialized JointStates (the node's rules), one group per layout.
-
-    Returns ``(groups, valid, stamps, (published, q, qdot))``: the layouts' groups, the
-    batch indices of the readable messages in order, their stamps in that order, and the
-    merge, whose ``published`` indexes ``valid``.
-    """
-    groups, malformed = group_joint_state_spans(data, starts, lengths, cache)
-    merger.counts['received'] += len(malformed)
-    merger.count_rejected('malformed_cdr', len(malformed))
-    if len(groups) == 1:   # one layout (the usual bag): its rows ascend, in order
-        g = groups[0]
-        merged = merger.merge_many([(g.names, g.positions, g.velocities, g.stamps_ns)])
-        return groups, g.rows, g.stamps_ns, merged
-    valid = np.sort(np.concatenate([g.rows for g in groups])) if groups else \
-        np.zeros(0, np.int64)
-    places = [np.searchsorted(valid, g.rows) for g in groups]
-    stamps = np.zeros(len(valid), np.int64)
-    for g, at in zip(groups, places):
-        stamps[at] = g.stamps_ns
-    merged = merger.merge_many([(g.names, g.positions, g.velocities, g.stamps_ns, at)
-                                for g, at in zip(groups, places)])
-    return groups, valid, stamps, merged
-
-
 class _Pending:
     """JointStates read and not yet computed: pieces of batches, joined when flushed."""
 
@@ -401,14 +374,14 @@ def _look_back(reader, conns, model, out_of_limits, chunk, window):
     for start in window.lookback_ns:
         merger = JointStateMerger(model.joint_names, model.limits, out_of_limits,
                                   required=len(model.required_joints))
-        cache = JointStateNames()
+        taken = JointStateInput(merger)
         for batch in reader.message_batches(connections=conns, start=start,
                                             stop=window.start_ns, size=chunk):
-            _merge_spans(merger, cache, batch.data, batch.starts, batch.lengths)
+            taken.take_many(batch.data, batch.starts, batch.lengths)
         if not merger.never_seen_any:
             break
     jumps = merger.counts['time_jumps']
-    merger.counts, merger.unknown = Counter(), set()
+    merger.clear_counts()
     return merger, jumps
 
 
@@ -421,7 +394,7 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
     else:
         merger = JointStateMerger(model.joint_names, model.limits, out_of_limits,
                                   required=len(model.required_joints))
-    cache = JointStateNames()
+    taken = JointStateInput(merger)
     ids = np.array(sorted(c.id for c in conns), np.int64)
     meter = Progress(sum(c.msgcount for c in conns), 'dq_fk_bag process', enabled=progress)
     # the CSV file is closed whatever happens (an exception from a damaged bag included)
@@ -441,8 +414,9 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
                 return
             counted = pending.count
             data, starts, lengths, log_times = pending.take()
-            merged = _merge_spans(merger, cache, data, starts, lengths)
-            groups, valid, stamps, (published, q, _) = merged
+            merged = taken.take_many(data, starts, lengths)
+            groups, valid, stamps = merged.groups, merged.valid, merged.stamps
+            published, q = merged.published, merged.q
             for group in groups:
                 if len(names_seen) < 50:
                     names_seen.extend(n for n in group.names if n not in names_seen)

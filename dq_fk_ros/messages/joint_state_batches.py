@@ -9,18 +9,15 @@ forward with numpy, time jumps found in the stamps and the state reset there.
 
 from collections.abc import Sequence
 import math
-from typing import TYPE_CHECKING
 
 from dq_fk_ros.messages.joint_state_rules import INCOMPLETE, PUBLISH, TIME_JUMP_BACK_NS
+from dq_fk_ros.messages.merge_state import MergeState
 import numpy as np
 
-if TYPE_CHECKING:  # (joint_states.py imports this module)
-    from dq_fk_ros.messages.joint_states import JointStateMerger
 
-
-def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
+def merge_many(state: MergeState, runs: Sequence[tuple]) -> tuple:
     """
-    Merge runs of messages, in order: the outcome of one ``merge`` per message.
+    Merge runs of messages into ``state``, in order: the outcome of one ``merge`` per message.
 
     A run is ``(names, positions, velocities, stamps_ns)`` for k messages that share
     ``names``: ``(k, len(names))`` positions, ``(k, len(names))`` or ``(k, 0)``
@@ -36,7 +33,7 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
     the merged state are updated as ``merge`` would; ``last_seen`` is then the
     ``(p, dof)`` mask of joints that had a value at each published message.
     """
-    n = len(merger.joint_names)
+    n = len(state.joint_names)
     total = sum(len(run[3]) for run in runs)
     given = np.zeros((total, n), bool)      # joint values an accepted message sets
     values = np.zeros((total, n))
@@ -54,23 +51,23 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
         layouts.setdefault(key, []).append((places, positions, velocities))
         stamps[places] = run_stamps
         at += k
-    merger.counts['received'] += total
+    state.counts['received'] += total
     for (names, _, n_vel), members in layouts.items():
         rows = np.concatenate([places for places, _, _ in members])
-        columns, joints = _run_columns(merger, names, members[0][1], members[0][2], len(rows))
+        columns, joints = _run_columns(state, names, members[0][1], members[0][2], len(rows))
         if columns is None:
             continue
         # (a range of columns or joints in order, the usual case, as a slice: no copies)
         columns, joints = _as_slice(columns), _as_slice(joints)
         q = np.concatenate([np.asarray(p, dtype=float) for _, p, _ in members])[:, columns]
         ok = _rows_all(np.isfinite(q))
-        merger.count_rejected('non_finite', len(rows) - int(ok.sum()))
-        lower, upper = merger.limits[joints, 0], merger.limits[joints, 1]
-        if merger.out_of_limits == 'reject':
+        state.count_rejected('non_finite', len(rows) - int(ok.sum()))
+        lower, upper = state.limits[joints, 0], state.limits[joints, 1]
+        if state.out_of_limits == 'reject':
             inside = ((q >= lower) & (q <= upper)).all(axis=1)
-            merger.count_rejected('out_of_limits', int((ok & ~inside).sum()))
+            state.count_rejected('out_of_limits', int((ok & ~inside).sum()))
             ok &= inside
-        elif merger.out_of_limits == 'clamp':
+        elif state.out_of_limits == 'clamp':
             q = np.clip(q, lower, upper)
         accepted[rows] = ok
         if len(rows) == total and ok.all() and (rows[1:] > rows[:-1]).all():
@@ -86,11 +83,11 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
             qdot = np.concatenate([np.asarray(v, dtype=float) for _, _, v in members])
             qdot = qdot[:, columns]
             bad_rate = ~_rows_all(np.isfinite(qdot))  # dropped for the whole message
-            merger.counts['velocities_non_finite'] += int((ok & bad_rate).sum())
+            state.counts['velocities_non_finite'] += int((ok & bad_rate).sum())
             rated = np.where(bad_rate[:, None], math.nan, qdot)
             rates[taken, joints] = rated if isinstance(taken, slice) else rated[ok]
     stamped = np.flatnonzero(accepted & (stamps != 0))
-    jumps, last_stamp = _track_stamps(merger, stamps[stamped])
+    jumps, last_stamp = _track_stamps(state, stamps[stamped])
     resets = stamped[jumps]
     q_out, qdot_out = np.empty((total, n)), np.empty((total, n))
     complete = np.zeros(total, bool)
@@ -98,24 +95,24 @@ def merge_many(merger: 'JointStateMerger', runs: Sequence[tuple]) -> tuple:
     bounds = zip(np.concatenate([[0], resets]), np.concatenate([resets, [total]]))
     for segment, (a, b) in enumerate(bounds):
         if segment:
-            merger.reset()  # a time jump: merge() forgets everything first
-        _carry_forward(merger, given[a:b], values[a:b], rates[a:b], q_out[a:b],
+            state.reset()  # a time jump: merge() forgets everything first
+        _carry_forward(state, given[a:b], values[a:b], rates[a:b], q_out[a:b],
                        qdot_out[a:b], complete[a:b], seen_rows)
-    merger._last_stamp_ns = last_stamp
+    state.last_stamp_ns = last_stamp
     published = np.flatnonzero(accepted & complete)
-    merger.counts[PUBLISH] += len(published)
-    merger.counts[INCOMPLETE] += int((accepted & ~complete).sum())
+    state.counts[PUBLISH] += len(published)
+    state.counts[INCOMPLETE] += int((accepted & ~complete).sum())
     every = slice(None) if len(published) == total else published  # (all: no copies)
     qdot = qdot_out[every]
     # as merge: every required joint's velocity, or none
-    finite = np.isfinite(qdot[:, :merger.required])
+    finite = np.isfinite(qdot[:, :state.required])
     if not finite.any():   # no message with them (no velocities at all: the usual case)
         qdot[:] = math.nan
     elif not finite.all():
         qdot[~finite.all(axis=1)] = math.nan
     seen_rows = np.concatenate(seen_rows) if seen_rows else \
         np.zeros((0, n), bool)
-    merger.last_seen = seen_rows[every]
+    state.last_seen = seen_rows[every]
     return published, q_out[every], qdot
 
 
@@ -148,7 +145,7 @@ def _as_slice(indices):
     return indices
 
 
-def _run_columns(merger, names, positions, velocities, k):
+def _run_columns(state, names, positions, velocities, k):
     """
     Columns of the chain's joints in k messages' arrays, and their chain indices.
 
@@ -164,24 +161,24 @@ def _run_columns(merger, names, positions, velocities, k):
     elif len(set(names)) != n_msg:
         reason = 'duplicate_name'
     else:
-        merger._note_unknown(names, times=k)
-        columns = [c for c, name in enumerate(names) if name in merger._index]
-        if not columns and merger._index:  # (a robot without joints takes any message)
+        state.note_unknown(names, times=k)
+        columns = [c for c, name in enumerate(names) if name in state.index]
+        if not columns and state.index:  # (a robot without joints takes any message)
             reason = 'no_known_joint'
     if reason is not None:
-        merger.count_rejected(reason, k)
+        state.count_rejected(reason, k)
         return None, None
-    return columns, [merger._index[names[c]] for c in columns]
+    return columns, [state.index[names[c]] for c in columns]
 
 
-def _track_stamps(merger, stamps):
+def _track_stamps(state, stamps):
     """
     Follow the last stamp through non-zero ``stamps`` as ``JointStateMerger.merge`` does.
 
     Returns the positions in ``stamps`` of time jumps back (where merge resets) and
     the last stamp after them all.
     """
-    last = merger._last_stamp_ns
+    last = state.last_stamp_ns
     jumps = []
     at = 0
     while at < len(stamps):
@@ -194,14 +191,14 @@ def _track_stamps(merger, stamps):
         if not len(back):
             last = int(max(before[-1], rest[-1]))
             break
-        merger.counts['time_jumps'] += 1
+        state.counts['time_jumps'] += 1
         at += int(back[0])
         jumps.append(at)
         last = None
     return np.array(jumps, dtype=np.int64), last
 
 
-def _carry_forward(merger, given, values, rates, q_out, qdot_out, complete, seen_rows):
+def _carry_forward(state, given, values, rates, q_out, qdot_out, complete, seen_rows):
     """Fill each message's joint vector with the last given values, from the state."""
     if not len(given):
         return
@@ -210,17 +207,17 @@ def _carry_forward(merger, given, values, rates, q_out, qdot_out, complete, seen
         seen = np.ones(given.shape, bool)
         complete[:] = True
         seen_rows.append(seen)
-        merger._q, merger._qdot, merger._seen = q_out[-1].tolist(), qdot_out[-1].tolist(), \
+        state.q, state.qdot, state.seen = q_out[-1].tolist(), qdot_out[-1].tolist(), \
             seen[-1].tolist()
         return
     steps = np.arange(len(given))[:, None]
     last = np.maximum.accumulate(np.where(given, steps, -1), axis=0)
     has = last >= 0
     pick = (np.where(has, last, 0), np.arange(given.shape[1]))
-    q_out[:] = np.where(has, values[pick], merger._q)
-    qdot_out[:] = np.where(has, rates[pick], merger._qdot)
-    seen = has | np.array(merger._seen, dtype=bool)
-    complete[:] = seen[:, :merger.required].all(axis=1)
+    q_out[:] = np.where(has, values[pick], state.q)
+    qdot_out[:] = np.where(has, rates[pick], state.qdot)
+    seen = has | np.array(state.seen, dtype=bool)
+    complete[:] = seen[:, :state.required].all(axis=1)
     seen_rows.append(seen)
-    merger._q, merger._qdot, merger._seen = q_out[-1].tolist(), qdot_out[-1].tolist(), \
+    state.q, state.qdot, state.seen = q_out[-1].tolist(), qdot_out[-1].tolist(), \
         seen[-1].tolist()

@@ -9,16 +9,14 @@ bytes. The reference is ``JointStateMerger.merge`` (test_joint_states.py's
 """
 
 import math
-from typing import Optional, TYPE_CHECKING
+from typing import Optional
 
 from dq_fk_ros.messages.cdr import COMPILED
 from dq_fk_ros.messages.joint_state_rules import PUBLISH, TIME_JUMP_BACK_NS
-
-if TYPE_CHECKING:  # (joint_states.py imports this module)
-    from dq_fk_ros.messages.joint_states import JointStateMerger
+from dq_fk_ros.messages.merge_state import MergeState
 
 
-def learn_layout(merger: 'JointStateMerger', layout: object) -> None:
+def learn_layout(state: MergeState, layout: object) -> None:
     """
     Take messages of ``layout`` by the compiled short path from now on (:func:`merge_raw`).
 
@@ -26,18 +24,18 @@ def learn_layout(merger: 'JointStateMerger', layout: object) -> None:
         (``JointStateNames.layout``); nothing happens unless it names the complete set
         of joints ``JointStateMerger.merge`` takes its own short path for.
     """
-    complete = merger._complete_names
-    if COMPILED is None or layout is None or complete is None or layout.names != complete:
+    complete = state.complete
+    if COMPILED is None or layout is None or complete is None or \
+            layout.names != complete.names:
         return  # (without the C reader every message takes merge())
-    order = merger._complete_order
-    lower, upper = merger._complete_bounds
+    order, lower, upper = complete.order, complete.lower, complete.upper
     if lower is None:
         lower, upper = [-math.inf] * len(order), [math.inf] * len(order)
-    merger.raw_reader = layout.compiled_reader(order, lower, upper, TIME_JUMP_BACK_NS)
-    merger._raw_velocities = layout.velocities[1] > 0
+    state.raw_reader = layout.compiled_reader(order, lower, upper, TIME_JUMP_BACK_NS)
+    state.raw_velocities = layout.velocities[1] > 0
 
 
-def merge_raw(merger: 'JointStateMerger', raw: bytes) -> Optional[tuple]:
+def merge_raw(state: MergeState, raw: bytes) -> Optional[tuple]:
     """
     Merge a serialized JointState of the learnt layout: ``(stamp_ns, q, qdot)`` or None.
 
@@ -46,19 +44,19 @@ def merge_raw(merger: 'JointStateMerger', raw: bytes) -> Optional[tuple]:
     ``merge`` would publish it with nothing to report (the same frame id, names and
     array lengths as the learnt layout; every position finite and within its limits,
     every velocity finite; no jump back in time). None: nothing was done, call
-    ``JointStateMerger.merge``. ``q`` and ``qdot`` (None without velocities) are the merger's
+    ``JointStateMerger.merge``. ``q`` and ``qdot`` (None without velocities) are the state's
     buffers, valid until the next merge.
     """
-    reader = merger.raw_reader
+    reader = state.raw_reader
     if reader is None:
         return None
-    last = merger._last_stamp_ns
-    stamp_ns = reader.read(raw, last, merger._q, merger._qdot, merger._q_out, merger._qdot_out)
+    last = state.last_stamp_ns
+    stamp_ns = reader.read(raw, last, state.q, state.qdot, state.q_out, state.qdot_out)
     if stamp_ns is None:
         return None
     if stamp_ns:
-        merger._last_stamp_ns = stamp_ns if last is None else max(stamp_ns, last)
-    counts = merger.counts
+        state.last_stamp_ns = stamp_ns if last is None else max(stamp_ns, last)
+    counts = state.counts
     counts['received'] += 1
     counts[PUBLISH] += 1
-    return stamp_ns, merger._q_out, merger._qdot_out if merger._raw_velocities else None
+    return stamp_ns, state.q_out, state.qdot_out if state.raw_velocities else None

@@ -14,7 +14,7 @@ as constants in :mod:`.joint_state_rules`.
 """
 
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 import math
 import operator
 from typing import Optional
@@ -24,6 +24,7 @@ from dq_fk_ros.messages.joint_state_raw import learn_layout, merge_raw
 from dq_fk_ros.messages.joint_state_rules import (  # noqa: F401 (the module's surface too)
     INCOMPLETE, MAX_UNKNOWN_LISTED, OUT_OF_LIMITS_POLICIES, PUBLISH, REJECT_REASONS, REJECTED,
     TIME_JUMP_BACK_NS)
+from dq_fk_ros.messages.merge_state import MergeState
 import numpy as np
 
 
@@ -43,15 +44,22 @@ class MergeResult:
     out_of_limits: tuple = ()            # joints outside their limits (warn/clamp)
     time_jump: bool = False              # the stamp jumped back; state was reset first
 
+    @property
+    def clean(self) -> bool:
+        """Say whether it is a ``PUBLISH`` with nothing to report (nothing to log)."""
+        return self.status == PUBLISH and not (self.new_unknown or self.time_jump or
+                                               self.out_of_limits or self.unknown_overflow)
 
-@dataclass
+
 class JointStateMerger:
     """
     Keep the latest value of every joint of a chain, from partial or complete messages.
 
     Velocities that are NaN or infinite are dropped (the message has no velocities then)
     and counted in ``counts['velocities_non_finite']``; positions decide acceptance.
-    ``unknown`` holds at most :data:`MAX_UNKNOWN_LISTED` names not of this robot.
+    ``unknown`` holds at most :data:`MAX_UNKNOWN_LISTED` names not of this robot. What it
+    knows between messages is one :class:`~.merge_state.MergeState` (``state``), which
+    :meth:`merge`, :meth:`merge_many` and :meth:`merge_raw` share.
 
     :param joint_names: the robot's joint names, in the order ``q`` is returned.
     :param limits: ``(dof, 2)`` lower/upper limits (+-inf for none).
@@ -59,65 +67,45 @@ class JointStateMerger:
     :param required: how many of the first ``joint_names`` must have a value before a
         message completes the vector (default: all); the others are optional (side-branch
         joints): 0.0 until given, see :attr:`seen_optional`.
+    :param counts: the counter to count into (default: a new one).
+    :param unknown: names known not to be joints of this robot (default: none).
     """
 
-    joint_names: tuple
-    limits: np.ndarray
-    out_of_limits: str = 'warn'
-    counts: Counter = field(default_factory=Counter)
-    unknown: set = field(default_factory=set)
-    required: int = None
-
-    def __post_init__(self):
+    def __init__(self, joint_names: tuple, limits: np.ndarray, out_of_limits: str = 'warn',
+                 counts: Counter = None, unknown: set = None, required: int = None):
         """Set up the per-joint state."""
-        if self.out_of_limits not in OUT_OF_LIMITS_POLICIES:
+        if out_of_limits not in OUT_OF_LIMITS_POLICIES:
             raise ValueError(f'out_of_limits must be one of {OUT_OF_LIMITS_POLICIES}, '
-                             f'got {self.out_of_limits!r}')
-        self._index = {name: k for k, name in enumerate(self.joint_names)}
-        if self.required is None:
-            self.required = len(self.joint_names)
-        # the last message layout that names every joint once and nothing else, and where
-        # each of its values goes: such messages take the short path (_merge_complete)
-        self._complete_names = None
-        self._complete_order = ()
-        self.limits = np.asarray(self.limits, dtype=float).reshape(len(self.joint_names), 2)
-        self._limit_list = self.limits.tolist()
-        self._nan = [math.nan] * len(self.joint_names)
-        self._true = [True] * len(self.joint_names)
-        self.reset()
+                             f'got {out_of_limits!r}')
+        joint_names = tuple(joint_names)
+        limits = np.asarray(limits, dtype=float).reshape(len(joint_names), 2)
+        self.state = MergeState(joint_names, limits, out_of_limits,
+                                len(joint_names) if required is None else required,
+                                Counter() if counts is None else counts,
+                                set() if unknown is None else unknown)
+        self.joint_names, self.limits, self.out_of_limits = joint_names, limits, out_of_limits
+        self.required = self.state.required
+        self._nan = [math.nan] * len(joint_names)
+        self._true = [True] * len(joint_names)
 
-    def _note_unknown(self, names, times=1):
-        """
-        Record names that are not joints of this robot, up to the listing limit.
-
-        Returns ``(new names listed, True the first time the list overflows)``; names beyond
-        the list are counted ``times`` each (once per message that carries them).
-        """
-        index, unknown = self._index, self.unknown
-        fresh = [n for n in dict.fromkeys(names) if n not in index and n not in unknown]
-        room = max(MAX_UNKNOWN_LISTED - len(unknown), 0)
-        listed, unlisted = fresh[:room], len(fresh) - min(len(fresh), room)
-        unknown.update(listed)
-        overflow = False
-        if unlisted:
-            overflow = not self.counts['unknown_names_unlisted']
-            self.counts['unknown_names_unlisted'] += unlisted * times
-        return listed, overflow
+    counts = property(lambda self: self.state.counts, doc='What happened, by outcome.')
+    unknown = property(lambda self: self.state.unknown, doc='Names not of this robot.')
+    raw_reader = property(lambda self: self.state.raw_reader,
+                          doc='The compiled reader of the learnt layout (None: none).')
+    last_seen = property(lambda self: self.state.last_seen,
+                         doc="``merge_many``'s mask of joints with a value, per message.")
 
     def reset(self) -> None:
         """Forget all joint values and the last stamp (after a time jump)."""
-        n = len(self.joint_names)
-        self._q = [0.0] * n
-        self._qdot = [math.nan] * n
-        self._seen = [False] * n
-        self._seen_optional_mask, self._seen_optional = None, ()
-        self._last_stamp_ns = None
-        self.raw_reader = None  # learnt again from the next complete message
-        self._q_out, self._qdot_out = np.empty(n), np.empty(n)
+        self.state.reset()
+
+    def clear_counts(self) -> None:
+        """Start the counts and the unknown names afresh; the merged state is kept."""
+        self.state.counts, self.state.unknown = Counter(), set()
 
     def learn_layout(self, layout) -> None:
         """Take messages of ``layout`` by the compiled short path (``joint_state_raw``)."""
-        learn_layout(self, layout)
+        learn_layout(self.state, layout)
 
     def merge_raw(self, raw) -> Optional[tuple]:
         """
@@ -126,28 +114,29 @@ class JointStateMerger:
         The compiled short path of :meth:`merge` (:func:`.joint_state_raw.merge_raw`; None:
         nothing was done, call :meth:`merge`).
         """
-        return merge_raw(self, raw)
+        return merge_raw(self.state, raw)
 
     @property
     def never_seen(self) -> tuple:
         """Name the required joints that no accepted message has given a value yet."""
-        return tuple(n for n, s in zip(self.joint_names[:self.required], self._seen) if not s)
+        return tuple(n for n, s in zip(self.joint_names[:self.required], self.state.seen)
+                     if not s)
 
     @property
     def never_seen_any(self) -> tuple:
         """Name every joint, required or optional, that no accepted message has given yet."""
-        return tuple(n for n, s in zip(self.joint_names, self._seen) if not s)
+        return tuple(n for n, s in zip(self.joint_names, self.state.seen) if not s)
 
     @property
     def seen_optional(self) -> tuple:
         """Name the optional joints an accepted message gave a value (since the last reset)."""
-        n = self.required
-        mask = self._seen[n:]  # a copy; asked at every update: the tuple only when it changed
-        if mask != self._seen_optional_mask:
-            self._seen_optional = tuple(name for name, s in zip(self.joint_names[n:], mask)
+        state, n = self.state, self.required
+        mask = state.seen[n:]  # a copy; asked at every update: the tuple only when it changed
+        if mask != state.seen_optional_mask:
+            state.seen_optional = tuple(name for name, s in zip(self.joint_names[n:], mask)
                                         if s)
-            self._seen_optional_mask = mask
-        return self._seen_optional
+            state.seen_optional_mask = mask
+        return state.seen_optional
 
     def merge(self, names, positions, velocities=(), stamp_ns=0) -> 'MergeResult':
         """
@@ -158,17 +147,18 @@ class JointStateMerger:
         ``test_the_short_path_for_complete_messages_changes_nothing``); :meth:`merge_many`
         is the array version (``test_merge_many_equals_merging_one_by_one``).
         """
-        self.counts['received'] += 1
-        complete = self._complete_names
-        if complete is not None and (names is complete or tuple(names) == complete):
-            result = self._merge_complete(positions, velocities, stamp_ns)
+        counts = self.state.counts
+        counts['received'] += 1
+        complete = self.state.complete
+        if complete is not None and (names is complete.names or tuple(names) == complete.names):
+            result = self._merge_complete(complete, positions, velocities, stamp_ns)
         else:
             result = self._merge(names, positions, velocities, stamp_ns)
         if result.status == REJECTED:
-            self.counts['rejected'] += 1
-            self.counts['rejected_' + result.reason] += 1
+            counts['rejected'] += 1
+            counts['rejected_' + result.reason] += 1
         else:
-            self.counts[result.status] += 1
+            counts[result.status] += 1
         return result
 
     def merge_many(self, runs) -> tuple:
@@ -180,19 +170,17 @@ class JointStateMerger:
         Returns ``(published, q, qdot)``; ``last_seen`` is then the ``(p, dof)`` mask of
         joints that had a value at each published message.
         """
-        return merge_many(self, runs)
+        return merge_many(self.state, runs)
 
     def count_rejected(self, reason, count=1) -> None:
         """Count ``count`` messages rejected for ``reason`` (also ones rejected elsewhere)."""
-        if count:
-            self.counts['rejected'] += count
-            self.counts['rejected_' + reason] += count
+        self.state.count_rejected(reason, count)
 
     def _reject(self, reason, detail=''):
         return MergeResult(REJECTED, reason=reason,
                            detail=detail or REJECT_REASONS[reason])
 
-    def _merge_complete(self, positions, velocities, stamp_ns):
+    def _merge_complete(self, complete, positions, velocities, stamp_ns):
         """
         Merge a message of the cached complete layout: the outcome :meth:`_merge` gives.
 
@@ -203,7 +191,8 @@ class JointStateMerger:
         vector. The checks run over whole lists first (a sum is finite only if every value
         is; ``map(le, ...)`` for the limits) and look value by value only to say which failed.
         """
-        order = self._complete_order          # chain index of each message column
+        state = self.state
+        order = complete.order          # chain index of each message column
         n = len(order)
         if len(positions) != n or len(velocities) not in (0, n):
             return self._reject('length_mismatch', f'{n} names, {len(positions)} '
@@ -215,7 +204,7 @@ class JointStateMerger:
                     name = self.joint_names[order[k]]
                     return self._reject('non_finite', f'position of {name!r} is {value}')
         outside = ()
-        lower, upper = self._complete_bounds
+        lower, upper = complete.lower, complete.upper
         if lower is not None and not (all(map(operator.le, lower, values)) and
                                       all(map(operator.le, values, upper))):
             outside = []
@@ -232,16 +221,16 @@ class JointStateMerger:
             outside = tuple(outside)
         rates = [float(v) for v in velocities] if len(velocities) else None
         if rates is not None and not all(map(math.isfinite, rates)):
-            self.counts['velocities_non_finite'] += 1  # dropped: no velocities this time
+            state.counts['velocities_non_finite'] += 1  # dropped: no velocities this time
             rates = None
-        time_jump = self._track_stamp(stamp_ns) if stamp_ns else False
-        q, qdot = self._q, self._qdot
-        if self._complete_in_order:  # the message lists the joints in chain order
+        time_jump = state.track_stamp(stamp_ns) if stamp_ns else False
+        q, qdot = state.q, state.qdot
+        if complete.in_order:  # the message lists the joints in chain order
             q[:n] = values
             qdot[:n] = rates if rates is not None else self._nan[:n]
-            self._seen[:n] = self._true[:n]
+            state.seen[:n] = self._true[:n]
         else:
-            seen = self._seen
+            seen = state.seen
             for k, i in enumerate(order):
                 q[i] = values[k]
                 qdot[i] = rates[k] if rates is not None else math.nan
@@ -250,20 +239,8 @@ class JointStateMerger:
                            qdot=np.array(qdot) if rates is not None else None,
                            stamp_ns=stamp_ns, out_of_limits=outside, time_jump=time_jump)
 
-    def _track_stamp(self, stamp_ns):
-        """Follow the last stamp; on a jump back, reset first. Return whether it jumped."""
-        if not stamp_ns:
-            return False
-        last = self._last_stamp_ns
-        jumped = last is not None and stamp_ns < last - TIME_JUMP_BACK_NS
-        if jumped:
-            self.reset()
-            self.counts['time_jumps'] += 1
-            last = None
-        self._last_stamp_ns = stamp_ns if last is None else max(stamp_ns, last)
-        return jumped
-
     def _merge(self, names, positions, velocities, stamp_ns):
+        state = self.state
         n_msg = len(names)
         if n_msg == 0:
             return self._reject('empty')
@@ -272,8 +249,8 @@ class JointStateMerger:
                                 f'positions, {len(velocities)} velocities')
         if len(set(names)) != n_msg:
             return self._reject('duplicate_name')
-        index = self._index
-        new_unknown, overflow = self._note_unknown(names)
+        index = state.index
+        new_unknown, overflow = state.note_unknown(names)
         ours = []  # (chain index, position, velocity)
         for k, name in enumerate(names):
             i = index.get(name)
@@ -308,12 +285,12 @@ class JointStateMerger:
                     ours[j] = (i, min(max(position, lower), upper), velocity)
 
         if len(velocities) and not all(math.isfinite(v) for _, _, v in ours):
-            self.counts['velocities_non_finite'] += 1  # dropped: no velocities this time
+            state.counts['velocities_non_finite'] += 1  # dropped: no velocities this time
             ours = [(i, position, math.nan) for i, position, _ in ours]
 
-        time_jump = self._track_stamp(stamp_ns)
+        time_jump = state.track_stamp(stamp_ns)
 
-        q, qdot, seen = self._q, self._qdot, self._seen
+        q, qdot, seen = state.q, state.qdot, state.seen
         for i, position, velocity in ours:
             q[i] = position
             qdot[i] = velocity
@@ -327,14 +304,7 @@ class JointStateMerger:
         order = tuple(i for i, _, _ in ours)
         if len(ours) == n_msg and sum(i < required for i in order) == required:
             # every required joint once, nothing unknown: the short path from now on
-            self._complete_names = tuple(names)
-            self.raw_reader = None  # the compiled short path: learnt for this layout
-            self._complete_order = order
-            self._complete_bounds = ([self._limit_list[i][0] for i in order],
-                                     [self._limit_list[i][1] for i in order])
-            if all(math.isinf(v) for v in self._complete_bounds[0] + self._complete_bounds[1]):
-                self._complete_bounds = (None, None)  # no limits: nothing to check
-            self._complete_in_order = order == tuple(range(len(order)))
+            state.learn_complete(names, order)
         has_velocity = all(math.isfinite(v) for v in qdot[:required])
         return MergeResult(PUBLISH, q=np.array(q), qdot=np.array(qdot) if has_velocity else None,
                            **base)

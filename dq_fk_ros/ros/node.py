@@ -19,11 +19,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from dq_fk_ros.description.from_urdf import NODE_OPTIONS
 from dq_fk_ros.description.loading import load_robot, robot_from_urdf_text
 from dq_fk_ros.description.to_urdf import description_urdf
-from dq_fk_ros.errors import (
-    CdrError, DqFkError, first_line, listing, printable_line)
-from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
-from dq_fk_ros.messages.joint_states import (
-    JointStateMerger, PUBLISH, SequenceGaps)
+from dq_fk_ros.errors import DqFkError, first_line, listing, printable_line
+from dq_fk_ros.messages.joint_state_input import JointStateInput
+from dq_fk_ros.messages.joint_states import JointStateMerger, SequenceGaps
 from dq_fk_ros.messages.outputs import (
     DIAGNOSTICS, POSE, ROBOT_DESCRIPTION, TF, TF_STATIC, TWIST)
 from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S, qos_profile
@@ -85,7 +83,6 @@ class DqFkNode(Node):
         self._last_update_ns = None
         self._apply_model(model, self._build_outputs(model, p.frame_prefix, p.publish_dh_frames))
 
-        self._names_cache = JointStateNames()
         self._gaps = SequenceGaps()  # joint states lost before the node took them
         self._lost_reported = 0
         # who reads which pose topic, twice a second (a new subscriber waits at most that)
@@ -245,12 +242,10 @@ class DqFkNode(Node):
         # the poses of an update, written in place by the kernel (frame_pose_arrays)
         self._absolute = np.empty((len(model.frame_names), 7))
         self._relative = np.empty((model.n_transforms, 7))
-        self._merger = JointStateMerger(model.joint_names, model.limits,
-                                        self._params.out_of_limits,
-                                        required=len(model.required_joints))
-        if counts is not None:
-            self._merger.counts = counts
-        self._merger.unknown = {n for n in unknown if n not in model.joint_names}
+        self._merger = JointStateMerger(
+            model.joint_names, model.limits, self._params.out_of_limits, counts,
+            {n for n in unknown if n not in model.joint_names}, len(model.required_joints))
+        self._joint_states = JointStateInput(self._merger)
         if outputs is not None:
             self._pose_group.close()  # lets go of the publishers it held
             for pub in self._pose_pubs + self._twist_pubs:
@@ -318,38 +313,17 @@ class DqFkNode(Node):
 
     def _on_raw(self, raw):
         try:
-            fast = self._merger.merge_raw(raw)  # the compiled short path, or None
-            if fast is not None:
-                self._publish_merged(*fast)
+            stamp_ns, q, qdot, result = self._joint_states.take(raw)
+            if result is not None and not result.clean and not log_merge_result(
+                    self.get_logger(), result, self._model.name, self._params.out_of_limits):
                 return
-            try:
-                stamp_ns, names, positions, velocities = parse_joint_state(
-                    raw, self._names_cache, as_tuples=True)
-            except CdrError as exc:
-                self._merger.counts['received'] += 1
-                self._merger.count_rejected('malformed_cdr')
-                self.get_logger().warn(f'joint state rejected (malformed_cdr): {exc}',
-                                       throttle_duration_sec=WARN_EVERY_S)
-                return
-            self._handle_fields(names, positions, velocities, stamp_ns)
+            self._publish_merged(stamp_ns, q, qdot)
         except Exception as exc:  # nothing a user sends may stop the node
             if not self.context.ok():
                 return  # shutting down: the publishers are gone
             self._merger.count_rejected('internal_error')
             self.get_logger().error(f'joint state not processed: {exc!r}',
                                     throttle_duration_sec=WARN_EVERY_S)
-
-    def _handle_fields(self, names, positions, velocities, stamp_ns):
-        merger = self._merger
-        result = merger.merge(names, positions, velocities, stamp_ns)
-        if result.status != PUBLISH or result.new_unknown or result.time_jump or \
-                result.out_of_limits or result.unknown_overflow:
-            if not log_merge_result(self.get_logger(), result, self._model.name,
-                                    self._params.out_of_limits):
-                return
-        elif merger.raw_reader is None:  # a clean complete message: the short path learns
-            merger.learn_layout(self._names_cache.layout)
-        self._publish_merged(stamp_ns, result.q, result.qdot)
 
     def _publish_merged(self, stamp_ns, q, qdot):
         """Publish a merged joint vector unless a rate limit says not yet."""

@@ -319,11 +319,11 @@ def test_random_joint_state_contents_never_raise(messages, policy):
 class NoShortPath(JointStateMerger):
     """The merger with its short path for complete layouts switched off."""
 
-    def _merge_complete(self, positions, velocities, stamp_ns):
+    def _merge_complete(self, complete, positions, velocities, stamp_ns):
         raise AssertionError('not used')
 
     def merge(self, names, positions, velocities=(), stamp_ns=0):
-        self._complete_names = None
+        self.state.complete = None
         return super().merge(names, positions, velocities, stamp_ns)
 
 
@@ -551,7 +551,7 @@ def test_the_compiled_path_merges_as_merge_does(messages, policy, required, limi
                 (b.status, b.reason, b.detail, b.out_of_limits, b.time_jump, b.missing)
             assert str(a.q) == str(b.q) and str(a.qdot) == str(b.qdot)
         assert fast.seen_optional == slow.seen_optional
-        assert fast._q == slow._q and str(fast._qdot) == str(slow._qdot)
+        assert fast.state.q == slow.state.q and str(fast.state.qdot) == str(slow.state.qdot)
     assert fast.counts == slow.counts
 
 
