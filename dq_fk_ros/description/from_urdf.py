@@ -22,38 +22,37 @@ Craig's rules):
 
 ``z`` always points along the URDF axis, so every row has ``scale: 1``; a row's zero value
 (``theta`` or ``d``) is its offset at the URDF's zero.
-The base transform places frame 0 in its parent; every URDF link becomes a ``links``
-entry (its pose in the DH frame it moves with, published under its URDF parent), so TF
-carries the URDF's own tree. A mimic joint is a mimic row (chains of mimics followed to
-their source). A chain is split where two axes are so nearly parallel that their common
-normal lies :data:`FAR_NORMAL_M` away. Floating and planar joints are as robot_state_publisher
-has them: a planar joint is a fixed one at its origin (kdl_parser converts it); a floating
-joint's child is a ``type: floating`` link, computed at the joint's origin and on TF the
-root of a tree of its own, everything below it published (no DH chain crosses a floating
-joint: a moving joint below one starts a chain). Mimics of joints that are not published
-are skipped and named. The DH frames are the computation's: the YAML says
-``publish_dh_frames: false``, so TF carries the URDF's links alone.
-
-Why this file is long: cutting a URDF tree into chains is one algorithm (choice of chains,
-mimic sources, the precision split, links on DH frames); reading and writing are elsewhere.
+The base transform places frame 0 in its parent; every URDF link becomes a ``links`` entry
+(its pose in the DH frame it moves with, published under its URDF parent), so TF carries
+the URDF's own tree. A mimic joint is a mimic row (chains of mimics followed to their
+source). A chain is split where two axes are so nearly parallel that their common normal
+lies :data:`~.urdf_chains.FAR_NORMAL_M` away (:mod:`.urdf_chains` chooses the chains).
+Floating and planar joints are as robot_state_publisher has them: a planar joint is a fixed
+one at its origin (kdl_parser converts it); a floating joint's child is a ``type:
+floating`` link, computed at the joint's origin and on TF the root of a tree of its own,
+everything below it published (no DH chain crosses a floating joint: a moving joint below
+one starts a chain). Mimics of joints that are not published are skipped and named. The DH
+frames are the computation's: the YAML says ``publish_dh_frames: false``, so TF carries the
+URDF's links alone.
 """
 
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 import os
 
-from dq_fk_ros.description.dh_fit import dh_row, frames_on_axes, normal_feet
+from dq_fk_ros.description.dh_fit import dh_row, frames_on_axes
 from dq_fk_ros.description.robot_model import (
     JOINT_NAME, MAX_NAME_CHARS, MAX_ROWS, RobotModel, TF_FRAME_ID)
 from dq_fk_ros.description.schema import parse_robot_description
 from dq_fk_ros.description.to_yaml import ChainText, comment, description_yaml
+from dq_fk_ros.description.urdf_chains import (
+    branch_plans, ChainPlan, links_below, mimic_source, publishable_joints, split_chain)
 from dq_fk_ros.description.urdf_reader import (
     MOVING, parse_urdf, read_urdf_text, tf_name, UrdfTree)
 from dq_fk_ros.errors import listing, RobotDescriptionError
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
 import numpy as np
 
-FAR_NORMAL_M = 10.0         # a common normal this far from the joints splits the chain
 # how the tools call the base and tip links (messages name the option of the tool that said it)
 OPTIONS = ('--base', '--tip')
 NODE_OPTIONS = ('urdf_base_link', 'urdf_tip_link')
@@ -181,20 +180,20 @@ def urdf_to_description(text: str, source: str = '<string>', base: str | None = 
     for j in moving:
         _check_joint(j.name, source)
     chain_names = {j.name for j in moving}
-    published = _publishable(tree, base)
+    published = publishable_joints(tree, base)
     for j in moving:
-        if j.mimic is not None and _mimic_source(tree, j, published)[0] not in chain_names:
+        if j.mimic is not None and mimic_source(tree, j, published)[0] not in chain_names:
             raise RobotDescriptionError(
                 f'{source}: joint {j.name!r} on the chain mimics {j.mimic[0]!r}, which is not '
                 f'a moving joint of the chain {base!r} -> {tip!r}')
 
     # poses at zero, in the base link, of every link published
     pose = {base: np.eye(4)}
-    for link in _below(tree, base, published):
+    for link in links_below(tree, base, published):
         joint = tree.joints[link]
         pose[link] = pose[joint.parent] @ joint.origin
-    plans = [part for plan in [_ChainPlan(base, base, tuple(path), tip)]
-             + _branch_plans(tree, base, path, published) for part in _split(plan, pose)]
+    plans = [part for plan in [ChainPlan(base, base, tuple(path), tip)]
+             + branch_plans(tree, base, path, published) for part in split_chain(plan, pose)]
     if sum(len(plan.moving) for plan in plans) > MAX_ROWS:
         raise RobotDescriptionError(f'{source}: {sum(len(p.moving) for p in plans)} moving '
                                     f'joints; a robot description has at most {MAX_ROWS} rows')
@@ -202,7 +201,7 @@ def urdf_to_description(text: str, source: str = '<string>', base: str | None = 
     body = {base: base}          # link -> the DH frame (or the base link) it moves with
     frame_pose = {base: np.eye(4)}
     chains = []
-    order = list(_below(tree, base, published))
+    order = list(links_below(tree, base, published))
     for c, plan in enumerate(plans + [None]):
         for link in order:  # links fixed to a link of known body move with it
             joint = tree.joints[link]
@@ -212,7 +211,7 @@ def urdf_to_description(text: str, source: str = '<string>', base: str | None = 
             chains.append(_chain_entry(plan, c, pose, body, frame_pose, taken, convention,
                                        published, tree))
     links = []
-    for link in _below(tree, base, published):
+    for link in links_below(tree, base, published):
         links.append(_link_entry(tree.joints[link], pose, body, frame_pose))
     skipped = [j for j in tree.joints.values() if j.parent in pose and j.child not in pose]
     end_effector = tip
@@ -228,178 +227,6 @@ def urdf_to_description(text: str, source: str = '<string>', base: str | None = 
         warnings += (f'{source}: link names with a leading slash are published without it, '
                      f'as tf2 strips it: {shown}{more}',)
     return Conversion(text, base, tip, tuple(skipped), warnings, model)
-
-
-@dataclass(frozen=True)
-class _ChainPlan:
-    """One DH chain of the tree: its joints (fixed ones too) from ``anchor`` to ``tip``."""
-
-    anchor: str      # the link its first joint hangs from (frame 0 is placed in its axes)
-    parent: str      # the same link; its DH frame is the chain's parent
-    path: tuple      # the joints from anchor down to tip
-    tip: str
-
-    @property
-    def moving(self):
-        """Return the moving joints of the path (one DH row each)."""
-        return [j for j in self.path if j.kind in MOVING]
-
-
-def _split(plan, pose):
-    """
-    Split a chain where two axes are so nearly parallel that DH would lose precision.
-
-    Such axes (Romeo's thumbs: 1e-7 rad apart, 18 mm) have their common normal
-    :data:`FAR_NORMAL_M` or more away: rows with offsets of kilometres, whose rounding
-    shows at 1e-9 m. The rest of the chain becomes a chain of its own, hanging from the
-    DH frame before (its base transform is exact).
-    """
-    moving = [k for k, j in enumerate(plan.path) if j.kind in MOVING]
-    for a, b in zip(moving, moving[1:]):
-        first, second = plan.path[a], plan.path[b]
-        m1 = pose[first.parent] @ first.origin
-        m2 = pose[second.parent] @ second.origin
-        feet = normal_feet(m1[:3, 3], m1[:3, :3] @ first.axis, m2[:3, 3],
-                           m2[:3, :3] @ second.axis)
-        if feet is not None and max(abs(feet[0]), abs(feet[1])) > FAR_NORMAL_M:
-            head = _ChainPlan(plan.anchor, plan.parent, plan.path[:b], plan.path[b - 1].child)
-            tail = _ChainPlan(second.parent, second.parent, plan.path[b:], plan.tip)
-            return [head] + _split(tail, pose)
-    return [plan]
-
-
-def _publishable(tree, base):
-    """
-    Return the names of the joints below ``base`` that get a transform.
-
-    Every joint of robot_state_publisher (a floating one gets a frame but no transform),
-    but joints with names this package cannot publish, and mimics of joints that are not
-    published (followed to their source through chains of mimics).
-    """
-    ok, stack = set(), [base]
-    while stack:
-        link = stack.pop()
-        for j in tree.children.get(link, []):
-            if len(j.child) > MAX_NAME_CHARS or not TF_FRAME_ID.fullmatch(j.child):
-                continue
-            if j.kind in MOVING and j.mimic is None and not JOINT_NAME.fullmatch(j.name):
-                continue
-            ok.add(j.name)
-            stack.append(j.child)
-    while True:  # mimics whose source is not published are not either (nor what is below)
-        bad = {name for name, good in _mimic_sources_ok(tree, ok).items() if not good}
-        if not bad:
-            return _reachable(tree, base, ok)
-        ok -= bad
-        ok = _reachable(tree, base, ok)
-
-
-def _reachable(tree, base, ok):
-    """Return the joints of ``ok`` reached from ``base`` through joints of ``ok``."""
-    out, stack = set(), [base]
-    while stack:
-        for j in tree.children.get(stack.pop(), []):
-            if j.name in ok:
-                out.add(j.name)
-                stack.append(j.child)
-    return out
-
-
-def _mimic_sources_ok(tree, published):
-    """
-    Say per mimic joint of ``published`` whether it leads to a published joint of its own.
-
-    Each joint is looked at once (a chain of mimics is walked once, not once per member):
-    linear in the URDF, however long its chains of mimics.
-    """
-    known = {}
-    for name in published:
-        path, at = [], tree.by_name[name]
-        while at.mimic is not None and at.name not in known:
-            if at.name in path:  # a loop of mimics
-                break
-            path.append(at.name)
-            source = tree.by_name.get(at.mimic[0])
-            if source is None or source.kind not in MOVING or source.name not in published:
-                at = None
-                break
-            at = source
-        if at is None or (at.mimic is not None and at.name not in known):
-            good = False
-        else:
-            good = known.get(at.name, True)
-        for member in path:
-            known[member] = good
-    return {name: good for name, good in known.items() if name in published}
-
-
-def _mimic_source(tree, joint, published):
-    """
-    Return ``(source, multiplier, offset)``: a mimic joint followed to a joint of its own.
-
-    Chains of mimics compose (``m2 (m1 q + o1) + o2``); ``(None, ...)`` when the source is
-    not a published joint, the chain loops, or a joint is not moving.
-    """
-    multiplier, offset, seen = 1.0, 0.0, set()
-    while joint.mimic is not None:
-        if joint.name in seen:
-            return None, 0.0, 0.0
-        seen.add(joint.name)
-        name, m, o = joint.mimic
-        # this joint is m * q(name) + o, and the first one multiplier * q(this) + offset
-        multiplier, offset = multiplier * m, offset + multiplier * o
-        source = tree.by_name.get(name)
-        if source is None or source.kind not in MOVING or name not in published:
-            return None, 0.0, 0.0
-        joint = source
-    return joint.name, multiplier, offset
-
-
-def _below(tree, base, published):
-    """Yield the links below ``base`` reached through published joints, parents first."""
-    order = [base]
-    for link in order:
-        for j in tree.children.get(link, []):
-            if j.name in published:
-                order.append(j.child)
-                yield j.child
-
-
-def _longest_path(tree, link, published):
-    """Return the joints of the path below ``link`` with most moving joints (first on ties)."""
-    best = []
-    best_count = 0
-    stack = [(link, [])]
-    while stack:
-        at, path = stack.pop()
-        count = sum(j.kind in MOVING for j in path)
-        if count > best_count:
-            best, best_count = path, count
-        for j in reversed(tree.children.get(at, [])):
-            if j.name in published and j.kind != 'floating':  # no chain crosses one
-                stack.append((j.child, path + [j]))
-    while best and best[-1].kind not in MOVING:
-        best = best[:-1]
-    return best
-
-
-def _branch_plans(tree, base, main_path, published):
-    """
-    Return the other chains of the tree: every moving joint not on the first chain is on one.
-
-    Walking the URDF from ``base`` (parents first, the URDF's order), a moving joint not yet
-    on a chain starts one: it and the longest path of moving joints below it.
-    """
-    covered = {j.name for j in main_path}
-    plans = []
-    for link in [base] + list(_below(tree, base, published)):
-        for j in tree.children.get(link, []):
-            if j.name not in published or j.name in covered or j.kind not in MOVING:
-                continue
-            path = [j] + _longest_path(tree, j.child, published)
-            covered.update(joint.name for joint in path)
-            plans.append(_ChainPlan(link, link, tuple(path), path[-1].child))
-    return plans
 
 
 def _chain_entry(plan, c, pose, body, frame_pose, taken, convention, published, tree):
@@ -436,7 +263,7 @@ def _chain_entry(plan, c, pose, body, frame_pose, taken, convention, published, 
         if j.kind == 'prismatic':
             row['type'] = 'prismatic'
         if j.mimic is not None:
-            source, multiplier, offset = _mimic_source(tree, j, published)
+            source, multiplier, offset = mimic_source(tree, j, published)
             row['mimic'] = {'joint': source, 'multiplier': multiplier, 'offset': offset}
         else:
             row['joint'] = j.name
@@ -513,7 +340,7 @@ def _detach_orphan_mimics(tree):
     everything = set(tree.by_name)
     orphans = {j.child: replace(j, mimic=None) for j in tree.joints.values()
                if j.mimic is not None and j.kind in MOVING
-               and _mimic_source(tree, j, everything)[0] is None}
+               and mimic_source(tree, j, everything)[0] is None}
     if not orphans:
         return tree, ()
     joints = {child: orphans.get(child, j) for child, j in tree.joints.items()}
@@ -530,7 +357,7 @@ def _joint_kind_warnings(tree, source, base, published, orphans=()):
     As robot_state_publisher: a planar joint is fixed at its origin (kdl_parser converts it
     and warns), a floating joint has no transform and its child roots a TF tree.
     """
-    below = list(_below(tree, base, published))
+    below = list(links_below(tree, base, published))
     joints = [tree.joints[link] for link in below]
     out = ()
     planar = [comment(j.name)[:80] for j in joints if j.kind == 'planar']
@@ -547,7 +374,7 @@ def _joint_kind_warnings(tree, source, base, published, orphans=()):
     if floating:
         parts = []
         for j in floating[:5]:
-            count = sum(1 for _ in _below(tree, j.child, published))
+            count = sum(1 for _ in links_below(tree, j.child, published))
             parts.append(f'{comment(j.name)[:80]} ({comment(j.parent)[:80]} -> '
                          f'{comment(j.child)[:80]}, {count} link(s) below)')
         more = f' and {len(floating) - 5} more' if len(floating) > 5 else ''

@@ -8,13 +8,21 @@ names that joint. Only optional joints count (``RobotModel.optional_joints``): t
 required ones come in every accepted message.
 """
 
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:  # (robot_model imports this module)
-    from dq_fk_ros.description.robot_model import RobotModel
+from typing import Protocol, Sequence
 
 
-def _paths(model: 'RobotModel') -> tuple[dict, dict]:
+class RobotModel(Protocol):
+    """What is read of a ``description.robot_model.RobotModel`` (which imports this module)."""
+
+    fixed_frame: str
+    chains: Sequence[tuple]          # (parent frame name, KinematicChain, first frame index)
+    links: Sequence                  # each with .parent, .frame, .motion
+    frame_names: Sequence[str]
+    parent_frames: Sequence[str]
+    optional_joints: Sequence[str]
+
+
+def _paths(model: RobotModel) -> tuple[dict, dict]:
     """
     ``(paths, reads)``: per frame name, the moving rows and links its pose depends on.
 
@@ -48,14 +56,14 @@ def _needs(reads: dict, optional: set, elements: frozenset) -> frozenset:
     return frozenset().union(*(reads[e] for e in elements)) & optional
 
 
-def frame_needs_of(model: 'RobotModel') -> tuple[frozenset, ...]:
+def frame_needs_of(model: RobotModel) -> tuple[frozenset, ...]:
     """Per frame of a ``RobotModel``: the optional joints its pose depends on."""
     paths, reads = _paths(model)
     optional = set(model.optional_joints)
     return tuple(_needs(reads, optional, paths[name]) for name in model.frame_names)
 
 
-def edge_needs_of(model: 'RobotModel') -> tuple[frozenset, ...]:
+def edge_needs_of(model: RobotModel) -> tuple[frozenset, ...]:
     """Per frame of a ``RobotModel``: the optional joints its TF transform depends on."""
     paths, reads = _paths(model)
     optional = set(model.optional_joints)

@@ -7,17 +7,17 @@ mistake raises :class:`~dq_fk_ros.errors.RobotDescriptionError` with a single
 line naming the file, the place (row index and frame), the field, what was found and what
 is allowed. Plain Python (PyYAML + numpy), no ROS.
 
-Why this file is long: one validator per section of the file, sharing one parser state (the
-units), each error one line.
+The field checks and the YAML loader are :mod:`.yaml_fields`.
 """
 
 import math
 import os
-import re
 
 from dq_fk_ros.description.robot_model import (
     Branch, global_joint_names, JOINT_NAME, LinkFrame, MAX_DESCRIPTION_CHARS, MAX_FILE_BYTES,
-    MAX_LENGTH_M, MAX_NAME_CHARS, MAX_ROWS, pose_topic_name, RobotModel, rpy_matrix, TF_FRAME_ID)
+    MAX_NAME_CHARS, MAX_ROWS, pose_topic_name, RobotModel, rpy_matrix)
+from dq_fk_ros.description.yaml_fields import FieldReader, UniqueKeyLoader
+
 from dq_fk_ros.errors import describe, listing, RobotDescriptionError, short
 from dq_fk_ros.kinematics.dh import CONVENTIONS, DHJoint, JOINT_TYPES, KinematicChain
 from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion, quat_from_matrix
@@ -38,45 +38,6 @@ TRANSFORM_FIELDS = ('frame', 'xyz', 'rpy', 'quaternion')
 ROW_FIELDS = ('frame', 'joint', 'type', 'theta', 'd', 'a', 'alpha', 'scale', 'limits',
               'max_velocity', 'mimic', 'd_joint', 'd_limits', 'd_max_velocity')
 MIMIC_FIELDS = ('joint', 'multiplier', 'offset')
-
-
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """A SafeLoader that refuses a mapping with the same key twice."""
-
-
-def _construct_mapping(loader, node, deep=False):
-    seen = set()
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=deep)
-        if key in seen:
-            raise yaml.constructor.ConstructorError(
-                None, None, f'duplicate key {short(key)}', key_node.start_mark)
-        seen.add(key)
-    return yaml.SafeLoader.construct_mapping(loader, node, deep)
-
-
-_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
-                                 _construct_mapping)
-# YAML 1.2 writes exponents as 5e-05 or 1E16 (no point, or no sign): YAML 1.1, PyYAML's
-# dialect, reads those as strings; robot files take them as numbers
-_UniqueKeyLoader.add_implicit_resolver(
-    'tag:yaml.org,2002:float',
-    re.compile(r'^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$'),
-    list('-+0123456789.'))
-
-
-def yaml_number(value: object) -> float:
-    """
-    Write a finite float so that YAML 1.1 and 1.2 both read it back as the same float.
-
-    ``repr`` gives the shortest text that reads back exactly; YAML 1.1 also wants a point
-    in the mantissa and a sign in the exponent (``5e-05`` -> ``5.0e-05``).
-    """
-    text = repr(float(value))
-    mantissa, e, exponent = text.partition('e')
-    if e and '.' not in mantissa:
-        text = f'{mantissa}.0e{exponent}'
-    return text
 
 
 def load_robot_description(path: str | os.PathLike) -> RobotModel:
@@ -116,7 +77,7 @@ def parse_robot_description(text: str, source: str = '<string>') -> RobotModel:
         raise RobotDescriptionError(f'{source}: larger than {MAX_FILE_BYTES // 1024} KiB; a '
                                     f'robot description is at most that big')
     try:
-        data = yaml.load(text, Loader=_UniqueKeyLoader)
+        data = yaml.load(text, Loader=UniqueKeyLoader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, 'problem_mark', None)
         where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
@@ -152,74 +113,8 @@ def _looks_like_description(data):
         and 'robot' in data and (all(k in data for k in ('base', 'chain')) or 'chains' in data)
 
 
-class _Parser:
-    """Walks the YAML data, converting units and raising one-line errors."""
-
-    def __init__(self, source):
-        self.source = source
-        self.length = 1.0
-        self.angle = 1.0
-
-    def fail(self, where, message):
-        prefix = f'{self.source}: {where}: ' if where else f'{self.source}: '
-        raise RobotDescriptionError(prefix + message)
-
-    # -- generic checks ------------------------------------------------------------------
-    def mapping(self, value, where, allowed, required=()):
-        if not isinstance(value, dict):
-            self.fail(where, f'expected a mapping with fields {", ".join(allowed)}, '
-                      f'got {describe(value)}')
-        for key in value:
-            if key not in allowed:
-                self.fail(where, f'unknown field {short(key)}; allowed fields: '
-                          f'{", ".join(allowed)}')
-        for key in required:
-            if key not in value:
-                self.fail(where, f'missing field {key!r} (required: {", ".join(required)})')
-        return value
-
-    def number(self, value, where, field, unit=1.0):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(where, f'field {field!r} must be a number, got {describe(value)}')
-        try:
-            scaled = float(value) * unit
-        except OverflowError:  # an integer beyond the float range
-            scaled = math.inf
-        if not math.isfinite(scaled):
-            self.fail(where, f'field {field!r} must be a finite number, got '
-                      f'{describe(value)}')
-        return scaled
-
-    def offset(self, value, where, field):
-        """Return a length given in the file's unit in metres (at most :data:`MAX_LENGTH_M`)."""
-        metres = self.number(value, where, field, self.length)
-        if abs(metres) > MAX_LENGTH_M:
-            self.fail(where, f'field {field!r} is {metres:g} m; offsets are at most '
-                      f'{MAX_LENGTH_M:g} m')
-        return metres
-
-    def vector(self, value, where, field, size, unit=1.0):
-        if not isinstance(value, list) or len(value) != size:
-            self.fail(where, f'field {field!r} must be a list of {size} numbers, '
-                      f'got {describe(value)}')
-        return [self.number(v, where, f'{field}[{k}]', unit) for k, v in enumerate(value)]
-
-    def name(self, value, where, field, pattern, what):
-        if not isinstance(value, str) or len(value) > MAX_NAME_CHARS or \
-                not pattern.fullmatch(value):
-            self.fail(where, f'field {field!r} must be {what} (at most {MAX_NAME_CHARS} '
-                      f'characters), got {describe(value)}')
-        return value
-
-    def frame(self, value, where, field='frame'):
-        return self.name(value, where, field, TF_FRAME_ID,
-                         'a tf2 frame id (printable ASCII without spaces, not starting with '
-                         'a slash)')
-
-    def choice(self, value, where, field, allowed):
-        if not isinstance(value, str) or value not in allowed:
-            self.fail(where, f'field {field!r} is {short(value)}; allowed: {", ".join(allowed)}')
-        return value
+class _Parser(FieldReader):
+    """Walks the YAML data section by section, converting units; errors in one line."""
 
     # -- sections ------------------------------------------------------------------------
     def robot(self, data):
@@ -583,4 +478,4 @@ class _Parser:
         out['velocity'][joint] = value
 
 
-__all__ = ['load_robot_description', 'parse_robot_description', 'yaml_number']
+__all__ = ['load_robot_description', 'parse_robot_description']

@@ -10,7 +10,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import json
 
-from dq_fk_ros.description.schema import yaml_number
+from dq_fk_ros.description.yaml_fields import yaml_number
 from dq_fk_ros.errors import printable_line
 from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix
 import numpy as np

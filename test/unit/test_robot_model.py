@@ -4,9 +4,9 @@ import dataclasses
 import math
 
 from dq_fk_ros.description.robot_model import MAX_ROWS
-from dq_fk_ros.description.schema import (
-    load_robot_description, parse_robot_description, yaml_number)
+from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
+from dq_fk_ros.description.yaml_fields import yaml_number
 from dq_fk_ros.errors import RobotDescriptionError
 import homogeneous as hm
 from hypothesis import given, strategies as st
