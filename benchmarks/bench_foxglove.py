@@ -65,7 +65,7 @@ def floor_subscriber(topics):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
     from tf2_msgs.msg import TFMessage
-    from dq_fk_ros.ros.foxglove_live import DEFAULT_RATE_HZ, QUEUE_DEPTH
+    from dq_fk_ros.viewers.foxglove_live import DEFAULT_RATE_HZ, QUEUE_DEPTH
     from dq_fk_ros.ros.raw_input import take_queued
     rclpy.init()
     node = rclpy.create_node('bench_foxglove_floor', start_parameter_services=False,

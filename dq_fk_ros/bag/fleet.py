@@ -194,9 +194,9 @@ class _Runner:
     def __init__(self, units, reports, state, jobs, scheduler, window_messages, progress):
         self.reports, self.state = reports, state
         self.jobs = jobs or len(os.sched_getaffinity(0))
-        self.client = None
+        self.client = self.cluster = None   # (a LocalCluster it started, or None)
         if scheduler is not None:
-            self.client = _dask_client(scheduler, self.jobs)
+            self.client, self.cluster = _dask_client(scheduler, self.jobs)
             self.workers = max(1, len(self.client.scheduler_info()['workers']))
         else:
             self.workers = self.jobs
@@ -267,7 +267,7 @@ class _Runner:
     def _close_client(self, timeout=None):
         if self.client is not None:
             client, self.client = self.client, None
-            cluster = getattr(client, '_dq_fk_cluster', None)
+            cluster, self.cluster = self.cluster, None
             client.close(timeout=timeout)
             if cluster is not None:
                 cluster.close(timeout=timeout)
@@ -422,7 +422,11 @@ def _abandon_cluster():
 
 
 def _dask_client(scheduler, jobs):
-    """Connect to a Dask scheduler, or start a LocalCluster of ``jobs`` processes."""
+    """
+    Connect to a Dask scheduler, or start a LocalCluster of ``jobs`` processes.
+
+    Returns ``(client, cluster)``: the cluster started here (None: a scheduler's).
+    """
     try:
         from distributed import Client, LocalCluster
     except ImportError:
@@ -442,10 +446,9 @@ def _dask_client(scheduler, jobs):
         except BaseException:  # Ctrl-C while it starts: its workers stop too
             _abandon_cluster()
             raise
-        client._dq_fk_cluster = cluster
-        return client
+        return client, cluster
     try:
-        return Client(scheduler, timeout=30)
+        return Client(scheduler, timeout=30), None
     except (OSError, ValueError, TypeError) as exc:  # unreachable, or not an address
         raise BagError(f'--scheduler {scheduler}: cannot reach the scheduler ({one_line(exc)})'
                        ) from None

@@ -182,11 +182,11 @@ def _take_moving(core, reader, conns, start, end, max_transforms, summary, path)
 
 def _store(core, child, parts, summary):
     """Store one child frame's samples (of one or more parents) as its dynamic cache."""
-    child_id = core._id(child)
+    child_id = core.frame_index(child)
     if not child_id:
         summary.refused += sum(len(p[1]) for p in parts)
         return
-    parents = np.concatenate([np.full(len(p[1]), core._id(p[0]), np.int64) for p in parts])
+    parents = np.concatenate([np.full(len(p[1]), core.frame_index(p[0]), np.int64) for p in parts])
     stamps = np.concatenate([p[1] for p in parts])
     orders = np.concatenate([p[2] for p in parts])
     values = np.concatenate([p[3] for p in parts])

@@ -261,20 +261,26 @@ def _patch_xacro(resolver, allow):
         symbols.update(__builtins__={})
         return eval(code, symbols, local)
 
+    # xacro's own parts the sandbox replaces or calls (private to xacro: pinned in
+    # requirements, and test_xacro_sandbox.py fails if one is missing)
+    eval_arg, eval_dict, names_of = (substitution._eval_arg, substitution._eval_dict,
+                                     substitution._DictWrapper)
+
     def eval_substitution(text, context):
         check_expression(text)
         arguments = dict(context.get('arg', {}))
         names = {'arg': lambda name: substitution.convert_value(
-            substitution._eval_arg(name, args=arguments), 'auto')}
-        names.update({k: v for k, v in substitution._eval_dict.items() if k != '__builtins__'})
+            eval_arg(name, args=arguments), 'auto')}
+        names.update({k: v for k, v in eval_dict.items() if k != '__builtins__'})
         code = compile(text.strip(), '<$(eval)>', 'eval')
-        return str(eval(code, {'__builtins__': {}}, substitution._DictWrapper(arguments, names)))
+        return str(eval(code, {'__builtins__': {}}, names_of(arguments, names)))
 
     xacro.safe_eval = safe_eval
     substitution._eval = eval_substitution
     substitution._eval_find = find
-    substitution._eval_dict['find'] = find
-    for table in (xacro._global_symbols, xacro._global_symbols['python']):
+    eval_dict['find'] = find
+    symbols = xacro._global_symbols
+    for table in (symbols, symbols['python']):
         for name in REMOVED_SYMBOLS:
             table.pop(name, None)
     return xacro

@@ -22,7 +22,7 @@ import time
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.ros.executables import executable
-from dq_fk_ros.ros.view import DEFAULT_PORT
+from dq_fk_ros.ros.executables import VIEWER_PORT as DEFAULT_PORT
 from geometry_msgs.msg import PoseStamped
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor

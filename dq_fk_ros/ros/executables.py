@@ -12,7 +12,7 @@ MATCH_SETTLE_S = 0.5
 
 MODULES = {'dq_fk_node': 'dq_fk_ros.ros.node',
            'fake_joint_publisher': 'dq_fk_ros.ros.fake_joint_publisher',
-           'dq_fk_view': 'dq_fk_ros.ros.view',
+           'dq_fk_view': 'dq_fk_ros.viewers.view',
            'dq_fk': 'dq_fk_ros.cli.dq_fk',
            'dq_fk_bag': 'dq_fk_ros.cli.dq_fk_bag'}
 
@@ -88,12 +88,12 @@ def run_fake_joint_publisher() -> int:
 
 def run_dq_fk_view() -> int:
     """Run the ``dq_fk_view`` console script."""
-    return run_program('dq_fk_ros.ros.view')
+    return run_program('dq_fk_ros.viewers.view')
 
 
 def run_dq_fk_foxglove() -> int:
     """Run the ``dq_fk_foxglove`` console script."""
-    return run_program('dq_fk_ros.ros.foxglove_live')
+    return run_program('dq_fk_ros.viewers.foxglove_live')
 
 
 def spin_until_shutdown(program, make_node, user_errors, args=None, usage=None) -> int:
@@ -167,6 +167,9 @@ def _one_line(exc):
     """Return the first line of an exception's message, without rcl's source locations."""
     from dq_fk_ros.errors import first_line
     return first_line(exc).split(', at /')[0]
+
+
+VIEWER_PORT = 8765   # dq_fk_view's and dq_fk_foxglove's default port (Foxglove's own)
 
 
 def add_mesh_options(parser) -> None:

@@ -175,7 +175,7 @@ def frames(output: str = 'frames.pdf', bag: str | None = None, seconds: float = 
             out.write(f'Listening to tf data for {seconds:g} seconds...\n')
             out.flush()
             time.sleep(seconds)
-            with ros.buffer._lock:
+            with ros.buffer.lock:
                 gv, pdf = write_frames(ros.buffer.core, output, ros.now_ns())
         finally:
             ros.close()

@@ -121,7 +121,7 @@ class BufferCore:
             problem = (f'TF_BAD_STAMP: Ignoring transform for child_frame_id "{child}" from '
                        f'authority "{authority}" because its stamp is not an int64 of ns')
         if problem is None:
-            child_id, parent_id = self._id(child), self._id(parent)
+            child_id, parent_id = self.frame_index(child), self.frame_index(parent)
             if not child_id or not parent_id:
                 self.refused_frames += 1
                 if self.refused_frames == 1:
@@ -153,7 +153,8 @@ class BufferCore:
                                 f'{authority}', 400))
         return False
 
-    def _id(self, name):
+    def frame_index(self, name: str) -> int:
+        """Return the index of frame ``name``, added if new (0: over the frame cap)."""
         found = self.ids.get(name)
         if found is not None:
             return found

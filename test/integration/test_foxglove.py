@@ -327,7 +327,7 @@ def test_ctrl_c_while_the_server_starts_is_a_quiet_stop(monkeypatch, capsys):
     once in a loaded test run: test_program_signals.py's while-starting case).
     """
     import foxglove
-    from dq_fk_ros.ros import foxglove_live
+    from dq_fk_ros.viewers import foxglove_live
     # in this process, not the SDK's one-way global log routing (a later test's SDK server
     # would log through it; see the closing note of issue 50)
     monkeypatch.setattr(foxglove_live, 'route_sdk_log', lambda _: None)

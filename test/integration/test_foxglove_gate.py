@@ -1,5 +1,5 @@
 """
-The gate before the Foxglove SDK's server (dq_fk_ros.ros.foxglove_gate), against the real SDK.
+The gate before the Foxglove SDK's server (dq_fk_ros.viewers.foxglove_gate), against the real SDK.
 
 Each test starts the SDK's server on a random loopback address and a gate before it, and
 speaks raw WebSocket (RFC 6455, written here) so that it can send what a browser page, a
@@ -16,8 +16,8 @@ import struct
 import threading
 import time
 
-from dq_fk_ros.ros import foxglove_gate
-from dq_fk_ros.ros.foxglove_gate import Gate, private_loopback_address
+from dq_fk_ros.viewers import foxglove_gate
+from dq_fk_ros.viewers.foxglove_gate import Gate, private_loopback_address
 import pytest
 
 foxglove = pytest.importorskip('foxglove')  # make setup installs it (requirements/foxglove.txt)

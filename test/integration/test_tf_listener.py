@@ -114,7 +114,7 @@ def test_dq_fk_tf_echo_frames_and_monitor_beside_the_node(processes, tmp_path):
 
 
 def test_a_lookups_message_is_the_one_the_setters_make():
-    """to_message fills the slots directly; the same message as through the public setters."""
+    """to_message puts each value in its field: the message made by hand is the same."""
     from dq_fk_ros.ros.tf_buffer import to_message
     pose = (1.5, -2.0, 3.25, 0.0, 0.6, 0.0, 0.8)
     made = to_message('world', 'tool', pose, 1_700_000_000_123_456_789)

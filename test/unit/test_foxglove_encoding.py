@@ -1,5 +1,5 @@
 """
-Foxglove messages encoded from the ROS bytes (ros/foxglove_encoding.py) against the references.
+Foxglove messages encoded from the ROS bytes (viewers/foxglove_encoding.py) against the references.
 
 ``FrameTransformsEncoder`` against the SDK's own ``foxglove.FrameTransforms`` objects and
 encoder (``foxglove_feed.frame_transforms``), both decoded with google.protobuf from the
@@ -12,7 +12,7 @@ import math
 
 from dq_fk_ros.messages.cdr_templates import tf_message_template
 from dq_fk_ros.messages.cdr_tf import tf_layout, tf_values
-from dq_fk_ros.ros.foxglove_encoding import FrameTransformsEncoder, joint_state_json, varint
+from dq_fk_ros.viewers.foxglove_encoding import FrameTransformsEncoder, joint_state_json, varint
 from hypothesis import given, strategies as st
 import numpy as np
 import pytest
@@ -40,7 +40,7 @@ NAMES = st.text(st.characters(blacklist_categories=('Cs',), blacklist_characters
            [0, 1, 127, 128, 10**9, 10**9 - 1, 1_700_000_000_123_456_789, 2**31 * 10**9 - 1])),
        seed=st.integers(0, 2**32 - 1))
 def test_frame_transforms_decode_as_the_sdks_own(edges, stamp, seed):
-    from dq_fk_ros.ros.foxglove_feed import frame_transforms
+    from dq_fk_ros.viewers.foxglove_feed import frame_transforms
     values = np.random.default_rng(seed).normal(size=(1, 7 * len(edges)))
     values[0, ::5] = 0.0   # zeros: fields the SDK leaves out, this encoder writes
     raw = tf_message_template(edges).fill(np.array([stamp]), values)[0].tobytes()
@@ -96,8 +96,8 @@ def test_joint_state_json_is_the_fields_with_null_for_what_is_not_finite(
 def test_a_huge_tf_goes_by_the_sdk_and_keeps_no_template():
     from dq_fk_ros.description.meshes import MeshAssets
     from dq_fk_ros.description.packages import PackageResolver
-    from dq_fk_ros.ros.foxglove_encoding import MAX_TEMPLATED_BYTES
-    from dq_fk_ros.ros.foxglove_feed import FoxgloveFeed
+    from dq_fk_ros.viewers.foxglove_encoding import MAX_TEMPLATED_BYTES
+    from dq_fk_ros.viewers.foxglove_feed import FoxgloveFeed
     feed = FoxgloveFeed(foxglove, MeshAssets(PackageResolver({}), []), print)
     edges = [(f'parent_{k}', f'child_{k}') for k in range(3000)]
     stamp = 1_700_000_000_000_000_001
@@ -116,7 +116,7 @@ def test_a_bad_static_transform_is_dropped_alone_and_a_huge_description_not_rela
     from dq_fk_ros.description.meshes import MeshAssets
     from dq_fk_ros.description.packages import PackageResolver
     from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
-    from dq_fk_ros.ros.foxglove_feed import FoxgloveFeed
+    from dq_fk_ros.viewers.foxglove_feed import FoxgloveFeed
     lines = []
     feed = FoxgloveFeed(foxglove, MeshAssets(PackageResolver({}), []), lines.append)
     good = (0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
@@ -137,7 +137,7 @@ def test_a_bad_static_transform_is_dropped_alone_and_a_huge_description_not_rela
 def test_toggled_subscriptions_resend_a_kept_message_at_most_once_a_second(monkeypatch):
     from dq_fk_ros.description.meshes import MeshAssets
     from dq_fk_ros.description.packages import PackageResolver
-    from dq_fk_ros.ros import foxglove_feed
+    from dq_fk_ros.viewers import foxglove_feed
     feed = foxglove_feed.FoxgloveFeed(foxglove, MeshAssets(PackageResolver({}), []), print)
     sent = []
     feed.description = type('Sent', (), {'log': staticmethod(sent.append)})()

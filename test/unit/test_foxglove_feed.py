@@ -5,7 +5,7 @@ import os
 
 from dq_fk_ros.description.meshes import MeshAssets
 from dq_fk_ros.description.packages import PackageResolver
-from dq_fk_ros.ros.foxglove_live import MISSING, parse_args
+from dq_fk_ros.viewers.foxglove_live import MISSING, parse_args
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

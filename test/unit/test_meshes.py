@@ -5,7 +5,7 @@ import os
 from dq_fk_ros.description.meshes import (
     MAX_MESH_BYTES, mesh_allow_list, MeshAssets, visual_mesh_uris)
 from dq_fk_ros.description.packages import PackageResolver
-from dq_fk_ros.ros.view_state import ViewState
+from dq_fk_ros.viewers.view_state import ViewState
 import pytest
 
 

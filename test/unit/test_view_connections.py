@@ -2,7 +2,7 @@
 
 import asyncio
 
-from dq_fk_ros.ros.view import Connections, GuardedProtocol
+from dq_fk_ros.viewers.view import Connections, GuardedProtocol
 
 
 class FakeTransport:
@@ -70,7 +70,7 @@ def test_a_full_server_drops_half_sent_requests_first_then_plain_http_never_a_pa
 
 
 def test_the_header_clock_drops_a_connection_that_never_ends_its_headers(monkeypatch):
-    import dq_fk_ros.ros.view as view
+    import dq_fk_ros.viewers.view as view
     monkeypatch.setattr(view, 'HEADER_TIMEOUT_S', 0.05)
     loop = asyncio.new_event_loop()
     try:

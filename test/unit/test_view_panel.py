@@ -1,8 +1,8 @@
-"""The joint panel of dq_fk_view (dq_fk_ros.ros.view_panel), as joint_state_publisher_gui."""
+"""The joint panel of dq_fk_view (dq_fk_ros.viewers.view_panel), as joint_state_publisher_gui."""
 
 import math
 
-from dq_fk_ros.ros.view_panel import JointPanel
+from dq_fk_ros.viewers.view_panel import JointPanel
 from hypothesis import given, strategies as st
 
 URDF = """<robot name="r">

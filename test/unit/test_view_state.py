@@ -4,10 +4,10 @@ import json
 import time
 from types import SimpleNamespace
 
-from dq_fk_ros.ros.view import parse_args
-from dq_fk_ros.ros.view_panel import JointPanel
-from dq_fk_ros.ros.view_state import ViewState
-from dq_fk_ros.ros.view_web import _client_message, host_allowed
+from dq_fk_ros.viewers.view import parse_args
+from dq_fk_ros.viewers.view_panel import JointPanel
+from dq_fk_ros.viewers.view_state import ViewState
+from dq_fk_ros.viewers.view_web import _client_message, host_allowed
 from hypothesis import given, strategies as st
 import pytest
 

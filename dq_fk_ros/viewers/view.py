@@ -13,7 +13,7 @@ frame's axes and name, a grid, and a panel with the selected frame's pose.
 With ``--joint-panel`` (``dq_fk show`` starts it so) the page has a slider per moving joint
 and the view publishes ``sensor_msgs/JointState`` on ``joint_states`` from them,
 ``PANEL_RATE_HZ`` times a second, as joint_state_publisher_gui
-(:mod:`dq_fk_ros.ros.view_panel`).
+(:mod:`dq_fk_ros.viewers.view_panel`).
 
 Messages to the page are JSON: ``{"type": "robot", "urdf": ...}`` when the description
 changes, and ``{"type": "frames", "fixed_frame": ..., "select": ..., "stamp_ns": the
@@ -22,8 +22,8 @@ Messages from pages are read and, but for ``{"type": "hello"}``, ignored; anythi
 (not JSON, binary, too big, nested too deeply) is counted in ``/status``.
 
 This module is the program: its rclpy node (:func:`make_node`) and command line; what it
-shows is :class:`~dq_fk_ros.ros.view_state.ViewState`, the web server
-:mod:`dq_fk_ros.ros.view_web` (which says who may connect).
+shows is :class:`~dq_fk_ros.viewers.view_state.ViewState`, the web server
+:mod:`dq_fk_ros.viewers.view_web` (which says who may connect).
 """
 
 import argparse
@@ -36,14 +36,15 @@ from typing import Optional, TYPE_CHECKING
 
 from dq_fk_ros.description.packages import PackageResolver
 from dq_fk_ros.messages.outputs import ROBOT_DESCRIPTION, TF, TF_STATIC
-from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options, run_main
-from dq_fk_ros.ros.view_state import STALE_AFTER_S, ViewState
-from dq_fk_ros.ros.view_web import DEFAULT_RATE_HZ, make_app, web_root
+from dq_fk_ros.ros.executables import (
+    add_mesh_options, check_mesh_options, run_main, VIEWER_PORT)
+from dq_fk_ros.viewers.view_state import STALE_AFTER_S, ViewState
+from dq_fk_ros.viewers.view_web import DEFAULT_RATE_HZ, make_app, web_root
 
 if TYPE_CHECKING:  # rclpy is imported where used: --help answers without it
     from rclpy.node import Node
 
-DEFAULT_PORT = 8765
+DEFAULT_PORT = VIEWER_PORT
 MAX_CONNECTIONS = 256        # open at once; one more is closed as it comes (fds stay free)
 HEADER_TIMEOUT_S = 10.0      # a connection's first request must have its headers by then
 KEEPALIVE_TIMEOUT_S = 15.0   # an idle connection between requests is closed after this
@@ -277,7 +278,7 @@ def main(argv=None) -> int:
     except (FileNotFoundError, ImportError) as exc:
         print(f'dq_fk_view: {exc} (make setup installs what it needs)', file=sys.stderr)
         return 1
-    from dq_fk_ros.ros.view_panel import JointPanel
+    from dq_fk_ros.viewers.view_panel import JointPanel
     state = ViewState(args.fixed_frame, args.select, args.stale_after,
                       PackageResolver(args.packages), args.mesh_dir,
                       panel=JointPanel() if args.joint_panel else None, urdf_dir=args.urdf_dir)

@@ -7,7 +7,7 @@ so a web page that points its own domain at 127.0.0.1 (DNS rebinding) is refused
 WebSocket whose ``Origin`` is not the server's own is refused (another site's page open in
 the same browser). Both answer 403. Messages from pages are read and, but for
 ``{"type": "hello"}`` and, with the joint panel (``--joint-panel``), ``{"type": "joints",
-...}`` (:class:`~dq_fk_ros.ros.view_panel.JointPanel` checks it), ignored; anything else
+...}`` (:class:`~dq_fk_ros.viewers.view_panel.JointPanel` checks it), ignored; anything else
 (not JSON, binary, too big, nested too deeply, joints without a panel) is counted in
 ``/status``.
 """

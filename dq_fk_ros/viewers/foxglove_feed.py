@@ -28,7 +28,7 @@ from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
 from dq_fk_ros.errors import CdrError
 from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
 from dq_fk_ros.messages.cdr_tf import parse_pose_stamped, tf_stamp, tf_values, TfLatest
-from dq_fk_ros.ros.foxglove_encoding import (
+from dq_fk_ros.viewers.foxglove_encoding import (
     FrameTransformsEncoder, joint_state_json, MAX_TEMPLATED_BYTES)
 
 MAX_STAMP_NS = (1 << 32) * 1_000_000_000  # foxglove.Timestamp: unsigned 32-bit seconds

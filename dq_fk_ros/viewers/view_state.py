@@ -34,7 +34,7 @@ class ViewState:
             :class:`PackageResolver`; default: the ament index and ``ROS_PACKAGE_PATH``).
         :param mesh_dirs: folders ``file://`` meshes may be in.
         :param log: called with one line per mesh that cannot be served (default: stderr).
-        :param panel: a :class:`~dq_fk_ros.ros.view_panel.JointPanel` (``--joint-panel``)
+        :param panel: a :class:`~dq_fk_ros.viewers.view_panel.JointPanel` (``--joint-panel``)
             fed each URDF, or None.
         :param urdf_dir: the folder of the robot file the user chose, where relative mesh
             paths resolve (``--urdf-dir``; see

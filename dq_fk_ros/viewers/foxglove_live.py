@@ -8,14 +8,14 @@ An rclpy node on the same DDS domain takes ``/tf``, ``/tf_static`` (transient lo
 ``robot_description`` (transient local), ``joint_states`` and every pose topic
 (``geometry_msgs/PoseStamped`` topics with ``/pose/`` in their name: each ``dq_fk_node``'s
 ``~/pose/<frame>``) from any publisher; the Foxglove SDK's WebSocket server (``foxglove-sdk``,
-the optional extra ``dq_fk_ros[foxglove]``) serves them (:mod:`dq_fk_ros.ros.foxglove_feed`
+the optional extra ``dq_fk_ros[foxglove]``) serves them (:mod:`dq_fk_ros.viewers.foxglove_feed`
 says how): at most ``--rate`` messages a second per channel, the newest only, whatever the
 input rate. The Foxglove app fetches the URDF's meshes (``package://``) through the server's
 asset handler, which reads exactly the mesh files the current URDF names
 (:class:`~dq_fk_ros.description.meshes.MeshAssets`, the allow-list of ``dq_fk_view``). It
 listens on 127.0.0.1 unless ``--host`` says otherwise: anyone who reaches the port sees the
 robot and may fetch its meshes (docs/foxglove.md, "Security"). The SDK's server listens on a
-random loopback address behind :class:`~dq_fk_ros.ros.foxglove_gate.Gate`, which refuses
+random loopback address behind :class:`~dq_fk_ros.viewers.foxglove_gate.Gate`, which refuses
 foreign web pages (``Host``, ``Origin``), bounds connections and handshakes, and holds asset
 answers to a byte budget; the SDK's own log lines are rate-limited (:class:`LogRateLimit`).
 
@@ -32,9 +32,10 @@ import threading
 import time
 
 from dq_fk_ros.messages.outputs import ROBOT_DESCRIPTION, TF, TF_STATIC
-from dq_fk_ros.ros.executables import add_mesh_options, check_mesh_options, run_main
+from dq_fk_ros.ros.executables import (
+    add_mesh_options, check_mesh_options, run_main, VIEWER_PORT)
 
-DEFAULT_PORT = 8765
+DEFAULT_PORT = VIEWER_PORT
 DEFAULT_RATE_HZ = 30.0
 DISCOVERY_PERIOD_S = 2.0   # how often new pose topics are looked for
 QUEUE_DEPTH = 1000         # serialized /tf messages DDS keeps between two flushes
@@ -269,8 +270,8 @@ def main(argv=None) -> int:
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from dq_fk_ros.description.meshes import MeshAssets
     from dq_fk_ros.description.packages import PackageResolver
-    from dq_fk_ros.ros.foxglove_feed import FoxgloveFeed
-    from dq_fk_ros.ros.foxglove_gate import Gate, private_loopback_address
+    from dq_fk_ros.viewers.foxglove_feed import FoxgloveFeed
+    from dq_fk_ros.viewers.foxglove_gate import Gate, private_loopback_address
 
     def log(line):
         print(f'dq_fk_foxglove: {line}', file=sys.stderr, flush=True)

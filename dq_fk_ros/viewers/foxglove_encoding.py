@@ -7,7 +7,7 @@ protobuf from a template of the layout (frame ids, tags, lengths laid out once) 
 message's stamp and its 7 values per transform copied in (some 20 us). A ``JointState``'s
 JSON is its names' text, made once per set of names, and its values (:func:`joint_state_json`).
 
-The references: :func:`~dq_fk_ros.ros.foxglove_feed.frame_transforms` (the SDK's objects and
+The references: :func:`~dq_fk_ros.viewers.foxglove_feed.frame_transforms` (the SDK's objects and
 its encoder) and ``json.dumps`` of the fields; test_foxglove_encoding.py holds them equal,
 decoded with google.protobuf and json.
 """

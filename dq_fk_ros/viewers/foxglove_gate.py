@@ -41,7 +41,7 @@ import threading
 import time
 from urllib.parse import urlsplit
 
-from dq_fk_ros.ros.view_web import host_allowed, split_host
+from dq_fk_ros.viewers.view_web import host_allowed, split_host
 
 MAX_HEAD_BYTES = 16 * 1024
 HANDSHAKE_TIMEOUT_S = 10.0
