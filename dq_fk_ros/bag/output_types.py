@@ -2,7 +2,7 @@
 The message types ``dq_fk_bag process`` writes: their ``ros2msg`` definitions and RIHS01 hashes.
 
 What an output bag's schemas and ``metadata.yaml`` carry for ``/tf``, ``/tf_static``, the pose
-topics and ``/robot_description``, as rosbags' Jazzy type store makes them
+and twist topics and ``/robot_description``, as rosbags' Jazzy type store makes them
 (``generate_msgdef``, ``hash_rihs01``). Kept here so that processing a bag does not build
 that store (tens of milliseconds a process); test_output_types.py holds them equal to the
 store's. A new output type: its entry here, printed by ``python -m dq_fk_ros.bag.output_types
@@ -14,6 +14,27 @@ import sys
 
 # msgtype -> (definition, RIHS01 hash)
 OUTPUT_TYPES = {
+    'geometry_msgs/msg/TwistStamped': (
+        'std_msgs/Header header\n'
+        'geometry_msgs/Twist twist\n'
+        '================================================================================\n'
+        'MSG: std_msgs/Header\n'
+        'builtin_interfaces/Time stamp\n'
+        'string frame_id\n'
+        '================================================================================\n'
+        'MSG: builtin_interfaces/Time\n'
+        'int32 sec\n'
+        'uint32 nanosec\n'
+        '================================================================================\n'
+        'MSG: geometry_msgs/Twist\n'
+        'geometry_msgs/Vector3 linear\n'
+        'geometry_msgs/Vector3 angular\n'
+        '================================================================================\n'
+        'MSG: geometry_msgs/Vector3\n'
+        'float64 x\n'
+        'float64 y\n'
+        'float64 z\n',
+        'RIHS01_5f0fcd4f81d5d06ad9b4c4c63e3ea51b82d6ae4d0558f1d475229b1121db6f64'),
     'geometry_msgs/msg/PoseStamped': (
         'std_msgs/Header header\n'
         'geometry_msgs/Pose pose\n'

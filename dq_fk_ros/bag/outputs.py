@@ -2,8 +2,8 @@
 What ``dq_fk_bag process`` writes for a robot: the output bag's topics and their messages.
 
 :class:`BagOutputs` adds the connections (``/tf``, ``/tf_static``, ``/robot_description``,
-the pose topics, copied inputs) and writes a chunk of computed frames as rows of serialized
-messages, as the node publishes them: both lay their messages out from one
+the pose topics, the twist topics, copied inputs) and writes a chunk of computed frames as
+rows of serialized messages, as the node publishes them: both lay their messages out from one
 :class:`~dq_fk_ros.messages.output_plan.OutputPlan` (the same frame ids, TF parents, helper
 frames, order, and a transform only where the message's state has named its joints).
 """
@@ -11,9 +11,11 @@ frames, order, and a transform only where the message's state has named its join
 from dq_fk_ros.bag.output_types import OUTPUT_TYPES, string_cdr
 from dq_fk_ros.description.to_urdf import description_urdf
 from dq_fk_ros.errors import BagError
-from dq_fk_ros.messages.cdr_templates import pose_stamped_template, tf_message_template
+from dq_fk_ros.kinematics.twists import frame_twists_batch
+from dq_fk_ros.messages.cdr_templates import (
+    pose_stamped_template, tf_message_template, twist_stamped_template)
 from dq_fk_ros.messages.output_plan import OutputPlan
-from dq_fk_ros.messages.outputs import POSE, ROBOT_DESCRIPTION, TF, TF_STATIC
+from dq_fk_ros.messages.outputs import POSE, ROBOT_DESCRIPTION, TF, TF_STATIC, TWIST
 import numpy as np
 
 
@@ -56,6 +58,11 @@ class BagOutputs:
         self.pose_frames = {'all': list(plan.pose_frames), 'end': [self.end],
                             'none': []}[poses]
         self.poses = [add(POSE, model.topic_names[k]) for k in self.pose_frames]
+        # twists: the node's twist frames (unless no pose topic is asked for), in the
+        # messages whose joint states carry velocities
+        self.twist_frames = list(plan.twist_frames) if poses != 'none' else []
+        self.twists = [add(TWIST, model.topic_names[k]) for k in self.twist_frames]
+        self.twist_template = twist_stamped_template(plan.fixed_frame_id)
         # transforms and poses that depend on optional joints (side branches, every joint of
         # a tree) are written where the message's state has named those joints, as the node
         # does: each message's /tf holds the transforms whose joints are known
@@ -98,12 +105,13 @@ class BagOutputs:
             self.writer.write(self.description, time_ns, string_cdr(self.urdf))
         self.static_written = True
 
-    def write_chunk(self, q, stamps_ns, log_times_ns, seen=None) -> np.ndarray:
+    def write_chunk(self, q, stamps_ns, log_times_ns, seen=None, qdot=None) -> np.ndarray:
         """
         FK of a chunk of configurations, serialized and written as arrays.
 
         ``seen``: ``(N, dof)`` mask of the joints each message's state had (the merger's
         ``last_seen``); side-branch links are written where their joints were seen.
+        ``qdot``: ``(N, dof)`` joint velocities (a NaN row: none), for the twist topics.
         Returns the end effector's ``(N, 7)`` poses, ``(x, y, z, qx, qy, qz, qw)``.
         """
         model = self.model
@@ -144,7 +152,24 @@ class BagOutputs:
                     [self.poses[i] for i in poses], log_times_ns[rows], stamps_ns[rows],
                     [self.pose_templates[i] for i in poses],
                     [absolute[rows, self.pose_frames[i]] for i in poses])
+        if self.twists and qdot is not None:
+            self._write_twists(q, qdot, absolute, stamps_ns, log_times_ns)
         return end
+
+    def _write_twists(self, q, qdot, absolute, stamps_ns, log_times_ns):
+        """Write the twist topics of the messages with velocities (as the node publishes)."""
+        chain = self.model.chain
+        dof = chain.dof
+        rows = np.isfinite(qdot[:, :dof]).all(axis=1)
+        if not rows.any():
+            return
+        poses = absolute[rows]
+        twists = frame_twists_batch(chain, q[rows, :dof], qdot[rows, :dof],
+                                    poses[:, self.model.n_chain_frames - 1, :3],
+                                    poses[:, self.twist_frames, :3])
+        self.writer.write_templates(self.twists, log_times_ns[rows], stamps_ns[rows],
+                                    [self.twist_template] * len(self.twists),
+                                    [twists[:, k] for k in range(len(self.twists))])
 
     def _tf_values(self, relative, moving, seen):
         """

@@ -416,7 +416,7 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
             data, starts, lengths, log_times = pending.take()
             merged = taken.take_many(data, starts, lengths)
             groups, valid, stamps = merged.groups, merged.valid, merged.stamps
-            published, q = merged.published, merged.q
+            published, q, qdot = merged.published, merged.q, merged.qdot
             for group in groups:
                 if len(names_seen) < 50:
                     names_seen.extend(n for n in group.names if n not in names_seen)
@@ -432,7 +432,7 @@ def _process_messages(reader, conns, model, outputs, csv_path, copy_input, out_o
             if outputs is not None:
                 if not outputs.static_written:
                     outputs.write_static(int(out_times[0]))
-                ee = outputs.write_chunk(q, stamps, out_times, merger.last_seen)
+                ee = outputs.write_chunk(q, stamps, out_times, merger.last_seen, qdot)
             else:
                 ee = dq_to_pose_xyzw(model.end_effector_batch(q))
             if csv:

@@ -20,6 +20,7 @@ from dq_fk_ros.description.from_urdf import NODE_OPTIONS
 from dq_fk_ros.description.loading import load_robot, robot_from_urdf_text
 from dq_fk_ros.description.to_urdf import description_urdf
 from dq_fk_ros.errors import DqFkError, first_line, listing, printable_line
+from dq_fk_ros.kinematics.twists import frame_twists
 from dq_fk_ros.messages.joint_state_input import JointStateInput
 from dq_fk_ros.messages.joint_states import JointStateMerger, SequenceGaps
 from dq_fk_ros.messages.outputs import (
@@ -389,15 +390,13 @@ class DqFkNode(Node):
         if poses:
             self._pose_group.publish(out.poses(sec, nanosec, absolute, self._read_poses))
         if twists:
+            frames = self._messages.twist_frames
             dof = model.chain.dof
-            v, w = model.chain.twist(q[:dof], qdot[:dof])
-            p_end = absolute[model.n_chain_frames - 1, :3]
-            for send, read, k in zip(self._send_twist, self._twist_read,
-                                     self._messages.twist_frames):
+            moving = frame_twists(model.chain, q[:dof], qdot[:dof],
+                                  absolute[model.n_chain_frames - 1, :3], absolute[frames, :3])
+            for send, read, twist in zip(self._send_twist, self._twist_read, moving.tolist()):
                 if read:
-                    # the same rigid-body motion seen at another origin: v + w x (p_k - p)
-                    v_k = v + np.cross(w, absolute[k, :3] - p_end)
-                    send(out.twist(sec, nanosec, v_k.tolist(), w.tolist()))
+                    send(out.twist(sec, nanosec, twist[:3], twist[3:]))
 
     def _refresh_readers(self):
         """

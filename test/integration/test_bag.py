@@ -13,7 +13,7 @@ from dq_fk_ros.description.to_urdf import robot_to_urdf
 from dq_fk_ros.messages.cdr import parse_joint_state
 from dq_fk_ros.messages.joint_states import JointStateMerger, PUBLISH
 from dq_fk_ros.ros.executables import executable
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PoseStamped, TwistStamped
 import homogeneous_tf as htf
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -37,11 +37,11 @@ T0 = 1_700_000_000_000_000_000
 STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
 
 
-def js_bytes(names, positions, stamp_ns):
+def js_bytes(names, positions, stamp_ns, velocities=()):
     msg = JointState(header=Header(stamp=Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9),
                                    frame_id=''),
                      name=list(names), position=np.asarray(positions, dtype=float),
-                     velocity=np.zeros(0), effort=np.zeros(0))
+                     velocity=np.asarray(velocities, dtype=float), effort=np.zeros(0))
     return bytes(TS.serialize_cdr(msg, 'sensor_msgs/msg/JointState'))
 
 
@@ -64,10 +64,18 @@ def write_bag(path, messages, storage='mcap', extra_topic=False):
                     String(data='hello'), 'std_msgs/msg/String')))
 
 
-def valid_bag(path, n=300, storage='mcap', **kw):
+def trajectory_rates(n):
+    """Return the joint velocities of :func:`trajectory` (rad/s), its derivative."""
+    t = np.arange(n) * 0.01
+    return np.stack([0.5 * (k + 1) * np.cos(t * (k + 1)) for k in range(6)], axis=1)
+
+
+def valid_bag(path, n=300, storage='mcap', velocities=False, **kw):
     q = trajectory(n)
+    rates = trajectory_rates(n) if velocities else np.zeros((n, 0))
     stamps = [T0 + k * 10_000_000 for k in range(n)]
-    write_bag(path, [(s, js_bytes(NAMES, row, s)) for s, row in zip(stamps, q)], storage, **kw)
+    write_bag(path, [(s, js_bytes(NAMES, row, s, rate)) for s, row, rate in zip(stamps, q, rates)],
+              storage, **kw)
     return q, stamps
 
 
@@ -402,13 +410,18 @@ def test_a_damaged_chunk_is_skipped_and_every_intact_chunk_processed(tmp_path, c
 
 @pytest.mark.integration
 def test_replay_into_the_node_gives_the_offline_poses(tmp_path, processes, ros_domain_id):
-    q, stamps = valid_bag(tmp_path / 'in', n=200)
+    """The node's poses and twists of a replayed bag are the ones the bag tool wrote."""
+    q, stamps = valid_bag(tmp_path / 'in', n=200, velocities=True)
     process_bag(tmp_path / 'in', tmp_path / 'out', RL15, progress=False)
     offline = {stamp_ns(m.header): m for _, m in
                read_topic(tmp_path / 'out', '/dq_fk_node/pose/eeCarry_seg6')}
+    offline_twists = {stamp_ns(m.header): m for _, m in
+                      read_topic(tmp_path / 'out', '/dq_fk_node/twist/eeCarry_seg6')}
+    assert len(offline_twists) == 200
     listener = Harness()
     try:
         poses = listener.listen(PoseStamped, '/dq_fk_node/pose/eeCarry_seg6', 1000)
+        twists = listener.listen(TwistStamped, '/dq_fk_node/twist/eeCarry_seg6', 1000)
         diagnostics = listener.listen(DiagnosticArray, '/diagnostics')
         # a reliable input: a bag replay should lose nothing (best effort, the default,
         # may drop messages under load)
@@ -426,8 +439,8 @@ def test_replay_into_the_node_gives_the_offline_poses(tmp_path, processes, ros_d
             return {v.key: v.value for v in status}.get('updates_published')
         # the node took every message; the listener may miss a few while its own
         # subscription is still being matched, so it only has to see most of them
-        assert listener.spin_until(lambda: published() == '200' and len(poses) >= 150,
-                                   timeout_s=30), (published(), len(poses))
+        assert listener.spin_until(lambda: published() == '200' and len(poses) >= 150 and
+                                   len(twists) >= 150, timeout_s=30), (published(), len(poses))
     finally:
         listener.close()
     assert player.returncode == 0
@@ -435,6 +448,11 @@ def test_replay_into_the_node_gives_the_offline_poses(tmp_path, processes, ros_d
         ref = offline[stamp_ns(msg.header)]
         np.testing.assert_allclose(htf.pose_matrix(msg.pose), htf.pose_matrix(ref.pose),
                                    atol=1e-12)
+    for msg in twists:   # the same twist topic: the same values to the bit
+        ref = offline_twists[stamp_ns(msg.header)]
+        values = [getattr(getattr(m.twist, part), axis) for m in (msg, ref)
+                  for part in ('linear', 'angular') for axis in 'xyz']
+        assert msg.header.frame_id == ref.header.frame_id and values[:6] == values[6:]
 
 
 def test_play_with_clock_and_bad_rate(tmp_path, capsys):
