@@ -25,10 +25,7 @@ the user gave, passes it only what it may have:
 What the SDK sends passes unchanged, frame by frame, as fast as the client reads it. The
 gate runs an asyncio loop in a thread of its own; if its listener stops, ``on_failure`` is
 called once with one line (dq_fk_foxglove then exits 1). Plain asyncio, no ROS.
-
-Why this file is long: the handshake, both directions' frame reading and the asset budget
-are one bookkeeping (a reservation made reading the client is freed reading the SDK); apart,
-each file would hold half of an invariant.
+The wire format (HTTP head, frames) is :mod:`.websocket_frames`.
 """
 
 import asyncio
@@ -42,6 +39,8 @@ import time
 from urllib.parse import urlsplit
 
 from dq_fk_ros.viewers.view_web import host_allowed, split_host
+from dq_fk_ros.viewers.websocket_frames import (
+    FETCH_ASSET_RESPONSE, frame_start, no_repeated_keys, parse_head, unmask)
 
 MAX_HEAD_BYTES = 16 * 1024
 HANDSHAKE_TIMEOUT_S = 10.0
@@ -53,7 +52,6 @@ MAX_QUEUED_ASSET_REQUESTS = 1024
 READ_BYTES = 256 * 1024
 FOXGLOVE_ORIGINS = ('https://app.foxglove.dev', 'https://studio.foxglove.dev',
                     'https://console.foxglove.dev')
-FETCH_ASSET_RESPONSE = 0x04
 
 
 def raise_descriptor_limit(wanted: int = 65536) -> int:
@@ -107,62 +105,6 @@ def request_host_allowed(host_header: str, allowed=()) -> bool:
         return True
     except ValueError:
         return False
-
-
-def parse_head(head: bytes) -> tuple:
-    """Return ``(request line, [(name lower, value)], lines)`` of an HTTP request head."""
-    text = head.decode('latin-1')
-    lines = text.split('\r\n')
-    headers = []
-    for line in lines[1:]:
-        if not line:
-            continue
-        name, sep, value = line.partition(':')
-        if not sep or not name or name != name.strip():
-            raise ValueError('a malformed header line')
-        headers.append((name.lower(), value.strip()))
-    return lines[0], headers, [line for line in lines[1:] if line]
-
-
-def unmask(payload: bytes, mask: bytes) -> bytes:
-    """Return a client frame's payload unmasked (RFC 6455 section 5.3)."""
-    n = len(payload)
-    key = (mask * (n // 4 + 1))[:n]
-    return (int.from_bytes(payload, 'big') ^ int.from_bytes(key, 'big')).to_bytes(n, 'big')
-
-
-def _no_repeated_keys(pairs):
-    keys = [k for k, _ in pairs]
-    if len(set(keys)) != len(keys):
-        raise KeyError('repeated key')
-    return dict(pairs)
-
-
-def frame_start(data: bytes, pos: int) -> tuple | None:
-    """
-    Read the head of a server frame at ``data[pos:]`` (RFC 6455 section 5.2).
-
-    :return: ``(bytes of the whole frame, request id of a fetchAssetResponse or None)``, or
-        None when ``data`` ends before the head and the first 5 payload bytes
-    """
-    if len(data) - pos < 2:
-        return None
-    length, at = data[pos + 1] & 0x7F, pos + 2
-    if length == 126:
-        if len(data) - at < 2:
-            return None
-        length, at = struct.unpack_from('>H', data, at)[0], at + 2
-    elif length == 127:
-        if len(data) - at < 8:
-            return None
-        length, at = struct.unpack_from('>Q', data, at)[0], at + 8
-    request = None
-    if data[pos] & 0x0F == 2 and length >= 5:
-        if len(data) - at < 5:
-            return None
-        if data[at] == FETCH_ASSET_RESPONSE:
-            request = struct.unpack_from('<I', data, at + 1)[0]
-    return at - pos + length, request
 
 
 class Budget:
@@ -284,7 +226,7 @@ class Connection:
     def hold_asset_request(self, frame, mask, payload) -> bool:
         """Queue, refuse or reserve a ``fetchAsset`` text frame; True if not to pass now."""
         try:
-            message = json.loads(unmask(payload, mask), object_pairs_hook=_no_repeated_keys)
+            message = json.loads(unmask(payload, mask), object_pairs_hook=no_repeated_keys)
         except (ValueError, RecursionError):
             return False  # the SDK's to refuse: it is no request
         except KeyError:
