@@ -119,7 +119,7 @@ def main(argv=None):
     probe = rclpy.create_node('dq_fk_bench_probe')
     results = {}  # label -> [(median, p99) per round]
     try:
-        model, merger, out = node._model, node._merger, node._bytes
+        model, merger, out = node._model, node._merger, node._outputs.bytes
         names = list(model.joint_names)
         n_frames = len(model.frame_names)
         rng = np.random.default_rng(0)
@@ -133,7 +133,7 @@ def main(argv=None):
         info = {'publication_sequence_number': None}
         update = lambda raw: node._on_joint_state(raw, info)  # noqa: E731
         update(raws[0])  # every joint named: a tree's branches are all shown from now on
-        out = node._bytes
+        out = node._outputs.bytes
         cache = JointStateNames()
         qs = [np.array(m.position) for m in msgs]
         absolute_out = np.empty((n_frames, 7))
@@ -154,9 +154,9 @@ def main(argv=None):
             results.setdefault(label, []).append(
                 (statistics.median(samples) * 1e6, samples[int(0.99 * len(samples))] * 1e6))
 
-        every_frame = list(node._messages.plan.pose_frames)  # the frames with a pose topic
+        every_frame = list(node._outputs.messages.plan.pose_frames)  # the frames with a pose topic
         topics = [model.topic_names[k] for k in every_frame]
-        n_tf = len(node._messages.plan.moving_edges)
+        n_tf = len(node._outputs.messages.plan.moving_edges)
 
         def serialize(pair):
             absolute, relative = pair
@@ -167,24 +167,24 @@ def main(argv=None):
 
         def publish_all(_):  # as the node does: bytes through rcl (PublisherGroup)
             node._tf_group.publish(tf_payload)
-            node._pose_group.publish(pose_payloads)
+            node._outputs.pose_group.publish(pose_payloads)
 
-        messages = node._messages
+        messages = node._outputs.messages
 
         def object_update(msg):  # the message-object path the node used before
             result = merger.merge(*joint_state_fields(msg))
             absolute, relative = model.frame_poses(result.q)
             tf_msg, pose_list = messages.fill(msg.header.stamp, absolute, relative)
             node._tf_pub.publish(tf_msg)
-            for pub, pm in zip(node._pose_pubs, pose_list):
+            for pub, pm in zip(node._outputs.pose_pubs, pose_list):
                 pub.publish(pm)
 
         def readers(count):
-            return all(p.get_subscription_count() == count for p in node._pose_pubs) and \
+            return all(p.get_subscription_count() == count for p in node._outputs.pose_pubs) and \
                 node._tf_pub.get_subscription_count() == count
 
         one_pose = payloads[1] if len(payloads) > 1 else payloads[0]
-        one_pub = node._pose_pubs[0] if node._pose_pubs else node._tf_pub
+        one_pub = node._outputs.pose_pubs[0] if node._outputs.pose_pubs else node._tf_pub
         send_one = raw_publisher(one_pub)  # rclpy's publish_raw
         one_group = PublisherGroup([one_pub])  # rcl's publish, from C (the node's path)
         one_message = (one_pose,)
@@ -307,15 +307,15 @@ def main(argv=None):
     figure(f'{model.name}: rcl publishes one message (bytes, from C), the floor of the '
            "node's path", round(rcl_floor, 2), 'us', group='the node',
            text=f'- the node publishes through rcl (PublisherGroup, compiled: '
-                f'{node._pose_group.compiled}): one message {rcl_floor:.2f} us here; every '
-                f'output {rcl_floor * (1 + len(every_frame)):.1f} us in rcl and DDS alone')
+                f'{node._outputs.pose_group.compiled}): one message {rcl_floor:.2f} us here; '
+                f'every output {rcl_floor * (1 + len(every_frame)):.1f} us in rcl and DDS alone')
     return 0
 
 
 @contextlib.contextmanager
 def publish_calls_left_out(node):
     """Within the block, the node's /tf and pose groups take their messages and send none."""
-    saved = [(group, group.publish) for group in (node._tf_group, node._pose_group)]
+    saved = [(group, group.publish) for group in (node._tf_group, node._outputs.pose_group)]
     for group, _ in saved:
         group.publish = lambda messages: None
     try:

@@ -59,9 +59,10 @@ class BagOutputs:
                             'none': []}[poses]
         self.poses = [add(POSE, model.topic_names[k]) for k in self.pose_frames]
         # twists: the node's twist frames (unless no pose topic is asked for), in the
-        # messages whose joint states carry velocities
+        # messages whose joint states carry velocities: topics added at the first such one
         self.twist_frames = list(plan.twist_frames) if poses != 'none' else []
-        self.twists = [add(TWIST, model.topic_names[k]) for k in self.twist_frames]
+        self.twists = None
+        self._add_twists = lambda: [add(TWIST, model.topic_names[k]) for k in self.twist_frames]
         self.twist_template = twist_stamped_template(plan.fixed_frame_id)
         # transforms and poses that depend on optional joints (side branches, every joint of
         # a tree) are written where the message's state has named those joints, as the node
@@ -152,7 +153,7 @@ class BagOutputs:
                     [self.poses[i] for i in poses], log_times_ns[rows], stamps_ns[rows],
                     [self.pose_templates[i] for i in poses],
                     [absolute[rows, self.pose_frames[i]] for i in poses])
-        if self.twists and qdot is not None:
+        if self.twist_frames and qdot is not None:
             self._write_twists(q, qdot, absolute, stamps_ns, log_times_ns)
         return end
 
@@ -163,6 +164,8 @@ class BagOutputs:
         rows = np.isfinite(qdot[:, :dof]).all(axis=1)
         if not rows.any():
             return
+        if self.twists is None:
+            self.twists = self._add_twists()
         poses = absolute[rows]
         twists = frame_twists_batch(chain, q[rows, :dof], qdot[rows, :dof],
                                     poses[:, self.model.n_chain_frames - 1, :3],

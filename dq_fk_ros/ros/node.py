@@ -1,41 +1,37 @@
 """
 The dq_fk_node executable: ``sensor_msgs/JointState`` in, every link frame out.
 
-Thin glue: :mod:`dq_fk_ros.messages.joint_states` decides what a message means,
-:meth:`RobotModel.frame_pose_arrays` computes the frames (the compiled kernel, into the
-node's buffers), :mod:`dq_fk_ros.ros.conversions` fills the messages. The README lists its
+Thin glue: :class:`~dq_fk_ros.messages.joint_state_input.JointStateInput` takes a message
+in by the node's input rules (:mod:`dq_fk_ros.messages.joint_states`), and
+:class:`~dq_fk_ros.ros.node_outputs.NodeOutputs` computes the frames
+(:meth:`RobotModel.frame_pose_arrays`) and publishes them. The README lists its
 topics and parameters; docs/node.md says how it acts.
 
 Its parameters and their checks are :class:`~dq_fk_ros.ros.node_parameters.NodeParameters`;
 its /diagnostics status is written by :mod:`dq_fk_ros.ros.node_diagnostics`.
 """
 
-import math
 import sys
 import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from dq_fk_ros.description.from_urdf import NODE_OPTIONS
-from dq_fk_ros.description.loading import load_robot, robot_from_urdf_text
 from dq_fk_ros.description.to_urdf import description_urdf
-from dq_fk_ros.errors import DqFkError, first_line, listing, printable_line
-from dq_fk_ros.kinematics.twists import frame_twists
+from dq_fk_ros.errors import DqFkError, listing
 from dq_fk_ros.messages.joint_state_input import JointStateInput
 from dq_fk_ros.messages.joint_states import JointStateMerger, SequenceGaps
-from dq_fk_ros.messages.outputs import (
-    DIAGNOSTICS, POSE, ROBOT_DESCRIPTION, TF, TF_STATIC, TWIST)
-from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S, qos_profile
+from dq_fk_ros.messages.outputs import DIAGNOSTICS, ROBOT_DESCRIPTION, TF, TF_STATIC
+from dq_fk_ros.ros.conversions import qos_profile
 from dq_fk_ros.ros.executables import run_main, spin_until_shutdown
 from dq_fk_ros.ros.node_diagnostics import (
     joint_state_status, log_merge_result, WARN_EVERY_S)
-from dq_fk_ros.ros.node_parameters import NODE_PARAMETERS, NodeParameters, ROBOT_PARAMETERS
+from dq_fk_ros.ros.node_outputs import NodeOutputs
+from dq_fk_ros.ros.node_parameters import (
+    load_robot_of, NODE_PARAMETERS, NodeParameters, refusal, ROBOT_PARAMETERS)
 from dq_fk_ros.ros.package_paths import declare_package_paths
 from dq_fk_ros.ros.parameters import declare, help_text
 from dq_fk_ros.ros.publisher_group import PublisherGroup
-from dq_fk_ros.ros.raw_input import raw_publisher, RawSubscriptionThread, take_queued
-from geometry_msgs.msg import PoseStamped, TwistStamped
-import numpy as np
+from dq_fk_ros.ros.raw_input import RawSubscriptionThread, take_queued
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -71,18 +67,16 @@ class DqFkNode(Node):
         self._tf_static_pub = self.create_publisher(TFMessage, TF_STATIC.topic,
                                                     qos_profile(TF_STATIC))
         self._tf_group = PublisherGroup([self._tf_pub])  # bytes through rcl, many a call
-        self._pose_group = PublisherGroup([])
         self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS.topic,
                                                qos_profile(DIAGNOSTICS))
         # as robot_state_publisher: the URDF for RViz's RobotModel and Foxglove's 3D panel
         self._description_pub = self.create_publisher(String, ROBOT_DESCRIPTION.topic,
                                                       qos_profile(ROBOT_DESCRIPTION))
-        self._pose_pubs = []
-        self._twist_pubs = []
-        self._merger = None
+        self._outputs = self._merger = None
         self._last_publish_ns = None
         self._last_update_ns = None
-        self._apply_model(model, self._build_outputs(model, p.frame_prefix, p.publish_dh_frames))
+        self._apply_model(model, NodeOutputs(self, model, p.frame_prefix, p.publish_dh_frames,
+                                             self._tf_group))
 
         self._gaps = SequenceGaps()  # joint states lost before the node took them
         self._lost_reported = 0
@@ -112,29 +106,8 @@ class DqFkNode(Node):
 
     # -- parameters ----------------------------------------------------------------------
     def _load_robot(self, inputs, access=None):
-        """
-        Load the robot the parameters name (RobotDescriptionError: one line).
-
-        :param access: for a file named at run time: where it may be (see FileAccess).
-        """
-        base = inputs['urdf_base_link'] or None
-        tip = inputs['urdf_tip_link'] or None
-        if inputs['robot_description'].strip():
-            robot = robot_from_urdf_text(inputs['robot_description'],
-                                         'parameter robot_description', base, tip,
-                                         options=NODE_OPTIONS)
-        else:
-            robot = load_robot(inputs['robot_description_file'] or 'rl15', base, tip,
-                               access=access, packages=self._packages, options=NODE_OPTIONS)
-        if robot.conversion is not None:
-            self.get_logger().info(robot.summary())
-        for line in robot.warnings:
-            self.get_logger().warn(line)
-        # the kernel's copy of the robot (or the straight-line code) made now, outside the
-        # lock, not at the first update (250 frames: tens of ms the first joint states wait)
-        robot.model.frame_pose_arrays(np.zeros(robot.model.dof))
-        robot.model.transform_pose_array(np.zeros(robot.model.dof))
-        return robot.model
+        """Load the robot the parameters name (RobotDescriptionError: one line)."""
+        return load_robot_of(inputs, self._packages, self.get_logger(), access)
 
     def _on_set_parameters(self, params):
         """
@@ -157,18 +130,8 @@ class DqFkNode(Node):
             return self._set_parameters(new, model)
 
     def _refuse(self, exc, quote=False):
-        """
-        Refuse a parameter change for ``exc``: one line, in the log and the reply.
-
-        :param quote: whether an unexpected exception's text may be shown (not while a file
-            is read: it may hold the file's text).
-        """
-        if isinstance(exc, DqFkError):  # a robot file's error, a parameter's
-            reason = printable_line(exc.public)
-        elif quote and str(exc).strip():
-            reason = f'{type(exc).__name__}: {printable_line(first_line(exc))}'
-        else:
-            reason = f'{type(exc).__name__} while applying the change'
+        """Refuse a parameter change for ``exc``: one line, in the log and the reply."""
+        reason = refusal(exc, quote)
         self.get_logger().error(f'parameter change refused: {reason}')
         return SetParametersResult(successful=False, reason=reason)
 
@@ -189,8 +152,8 @@ class DqFkNode(Node):
         try:
             if model is not None or p.frame_prefix != old.frame_prefix or \
                     p.publish_dh_frames != old.publish_dh_frames:
-                outputs = self._build_outputs(model or self._model, p.frame_prefix,
-                                              p.publish_dh_frames)
+                outputs = NodeOutputs(self, model or self._model, p.frame_prefix,
+                                      p.publish_dh_frames, self._tf_group)
         except Exception as exc:  # nothing a user sets may stop the node (a name too long...)
             return self._refuse(exc, quote=True)
         resend_static = p.publish_tf and not old.publish_tf
@@ -205,70 +168,31 @@ class DqFkNode(Node):
         else:
             if resend_static:
                 self._tf_static_pub.publish(
-                    self._messages.static_tf(self.get_clock().now().to_msg()))
+                    self._outputs.messages.static_tf(self.get_clock().now().to_msg()))
             if resend_description:
                 self._send_description()
         self._refresh_readers()
         return SetParametersResult(successful=True)
 
-    def _build_outputs(self, model, prefix, dh_frames=None):
-        """
-        Return ``(messages, pose publishers, twist publishers)`` for a robot and prefix.
-
-        A pose topic per frame on TF (:attr:`OutputPlan.pose_frames`). Built before anything
-        is replaced: if a topic name is refused, those made so far are destroyed, the error
-        raised.
-        """
-        messages = FrameMessages(model, prefix, dh_frames=dh_frames)
-        made = []
-        try:
-            for k in messages.plan.pose_frames:
-                made.append(self.create_publisher(
-                    PoseStamped, POSE.topic_for(model.topic_names[k]), qos_profile(POSE)))
-            for k in messages.twist_frames:
-                made.append(self.create_publisher(
-                    TwistStamped, TWIST.topic_for(model.topic_names[k]), qos_profile(TWIST)))
-        except Exception:
-            for pub in made:
-                self.destroy_publisher(pub)
-            raise
-        n = len(messages.plan.pose_frames)
-        return messages, made[:n], made[n:]
-
     def _apply_model(self, model, outputs=None):
-        """(Re)build everything that depends on the robot: publishers, merger, messages."""
+        """(Re)build everything that depends on the robot: merger, input, outputs."""
         counts = self._merger.counts if self._merger is not None else None
         unknown = self._merger.unknown if self._merger is not None else set()
         self._model = model
-        # the poses of an update, written in place by the kernel (frame_pose_arrays)
-        self._absolute = np.empty((len(model.frame_names), 7))
-        self._relative = np.empty((model.n_transforms, 7))
         self._merger = JointStateMerger(
             model.joint_names, model.limits, self._params.out_of_limits, counts,
             {n for n in unknown if n not in model.joint_names}, len(model.required_joints))
         self._joint_states = JointStateInput(self._merger)
         if outputs is not None:
-            self._pose_group.close()  # lets go of the publishers it held
-            for pub in self._pose_pubs + self._twist_pubs:
-                self.destroy_publisher(pub)
-            self._messages, self._pose_pubs, self._twist_pubs = outputs
-            self._pose_frames = self._messages.plan.pose_frames  # frame index per pose topic
-            self.get_logger().info(self._messages.plan.summary())
-            # bytes straight to the handles: publishers are replaced under the node's lock
-            self._send_twist = [raw_publisher(pub) for pub in self._twist_pubs]
-            self._bytes = FrameBytes(self._messages)
-            self._shown_optional = ()
+            if self._outputs is not None:
+                self._outputs.close()
+            self._outputs = outputs
+            for line in outputs.describe():
+                self.get_logger().info(line)
             self._refresh_readers()
-            if model.branches:
-                self.get_logger().info(
-                    f'{len(model.branches) + 1} chains, {model.dof} joints: each transform is '
-                    f'published once joint states have named the joints it depends on')
-            elif model.optional_joints:
-                self.get_logger().info(
-                    f'side-branch joints {listing(model.optional_joints, 10)}: their links '
-                    f'are published once joint states name them')
         if self._params.publish_tf:
-            self._tf_static_pub.publish(self._messages.static_tf(self.get_clock().now().to_msg()))
+            self._tf_static_pub.publish(
+                self._outputs.messages.static_tf(self.get_clock().now().to_msg()))
         self._send_description()
 
     def _send_description(self):
@@ -346,8 +270,7 @@ class DqFkNode(Node):
             if last is not None and last <= stamp < last + 1e9 / p.publish_frequency:
                 self._merger.counts['rate_limited'] += 1
                 send_tf = False
-                if not (p.publish_poses and self._read_poses or p.publish_twist and
-                        self._any_twist_read):
+                if not self._outputs.wanted(p):
                     return  # nothing else to send: no FK either
         self._last_stamp_ns = stamp if send_tf else self._last_stamp_ns
         self._publish(stamp_ns if (p.use_joint_state_stamp and stamp_ns) else now_ns, q, qdot,
@@ -355,48 +278,17 @@ class DqFkNode(Node):
         self._last_publish_ns = now_ns
         self._merger.counts['published'] += 1
 
-    def _show_branches(self, seen):
-        """Publish the links of the side-branch joints ``seen`` from now on (rare: rebuild)."""
-        model = self._model
-        new = [name for name in seen if name not in self._shown_optional]
-        self._messages = FrameMessages(model, self._params.frame_prefix, seen,
-                                       self._messages.plan)
-        self._bytes = FrameBytes(self._messages)
-        self._shown_optional = seen
-        self._note_read_poses()
-        if new:
-            self.get_logger().info(f'joint states name joints {listing(new, 10)}: publishing '
-                                   f'the links that depend on them')
-
     def _publish(self, stamp_ns, q, qdot, send_tf=True):
         """Publish /tf and the read pose and twist topics, serialized, stamped ``stamp_ns``."""
-        model = self._model
-        if model.optional_joints:
+        outputs = self._outputs
+        if self._model.optional_joints:
             seen = self._merger.seen_optional
-            if seen != self._shown_optional:
-                self._show_branches(seen)
-        poses = self._params.publish_poses and bool(self._read_poses)
-        twists = self._params.publish_twist and qdot is not None and self._any_twist_read
-        if twists and model.branches:  # a tree: the first chain's velocities may be unknown
-            twists = all(map(math.isfinite, qdot[:model.chain.dof]))
-        if poses or twists:
-            absolute, relative = model.frame_pose_arrays(q, self._absolute, self._relative)
-        else:  # /tf alone needs the transforms only
-            relative = model.transform_pose_array(q, self._relative)
-        sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
-        out = self._bytes
-        if send_tf and self._params.publish_tf and out.sends_tf:
-            self._tf_group.publish((out.tf(sec, nanosec, relative, q),))
-        if poses:
-            self._pose_group.publish(out.poses(sec, nanosec, absolute, self._read_poses))
-        if twists:
-            frames = self._messages.twist_frames
-            dof = model.chain.dof
-            moving = frame_twists(model.chain, q[:dof], qdot[:dof],
-                                  absolute[model.n_chain_frames - 1, :3], absolute[frames, :3])
-            for send, read, twist in zip(self._send_twist, self._twist_read, moving.tolist()):
-                if read:
-                    send(out.twist(sec, nanosec, twist[:3], twist[3:]))
+            if seen != outputs.shown_optional:
+                new = outputs.show_branches(seen)  # (rare: a rebuild)
+                if new:
+                    self.get_logger().info(f'joint states name joints {listing(new, 10)}: '
+                                           f'publishing the links that depend on them')
+        outputs.publish(self._params, stamp_ns, q, qdot, send_tf)
 
     def _refresh_readers(self):
         """
@@ -404,30 +296,17 @@ class DqFkNode(Node):
 
         Counted outside the node's lock (asking DDS for matched readers can take long
         enough to stall the input thread: 5 kHz input lost messages that way), then set
-        under it if the publishers are still the same ones.
+        under it if the outputs are still the same ones.
         """
-        pose_pubs, twist_pubs = self._pose_pubs, self._twist_pubs
-        always = self._params.publish_unread_topics
-        pose = [always or pub.get_subscription_count() > 0 for pub in pose_pubs]
-        twist = [always or pub.get_subscription_count() > 0 for pub in twist_pubs]
+        outputs = self._outputs
+        pose, twist = outputs.count_readers(self._params.publish_unread_topics)
         joint_states = getattr(self, '_joint_state_sub', None)
         publishers = joint_states.get_publisher_count() if joint_states is not None else 0
         with self._lock:
             if joint_states is not None:
                 self._gaps.single_publisher(publishers == 1)
-            if pose_pubs is self._pose_pubs and twist_pubs is self._twist_pubs:
-                self._pose_readers = pose
-                self._twist_read = twist
-                self._any_twist_read = any(twist)
-                self._note_read_poses()
-
-    def _note_read_poses(self):
-        """Index the pose topics someone reads of links shown, and their publishers."""
-        hidden = self._messages.hidden  # side-branch links not named yet
-        read = [i for i, (k, on) in enumerate(zip(self._pose_frames, self._pose_readers))
-                if on and k not in hidden]
-        self._read_poses = [self._pose_frames[i] for i in read]
-        self._pose_group = self._pose_group.regroup([self._pose_pubs[i] for i in read])
+            if outputs is self._outputs:
+                outputs.set_readers(pose, twist)
 
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self) -> DiagnosticStatus:
@@ -445,8 +324,9 @@ class DqFkNode(Node):
             self._input.close()
             self._input = None
         with self._lock:  # the groups hold their publishers' handles: let go
-            for name in ('_tf_group', '_pose_group'):
-                getattr(self, name, PublisherGroup([])).close()
+            getattr(self, '_tf_group', PublisherGroup([])).close()
+            if getattr(self, '_outputs', None) is not None:
+                self._outputs.pose_group.close()
         return super().destroy_node()
 
     def _publish_diagnostics(self):

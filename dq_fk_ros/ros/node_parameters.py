@@ -12,13 +12,16 @@ from dataclasses import dataclass, fields, replace
 import math
 import os
 
-from dq_fk_ros.description.loading import FileAccess, resolve_robot
+from dq_fk_ros.description.from_urdf import NODE_OPTIONS
+from dq_fk_ros.description.loading import (
+    FileAccess, load_robot, resolve_robot, robot_from_urdf_text)
 from dq_fk_ros.description.robot_model import FRAME_ID, MAX_NAME_CHARS, TF_FRAME_ID
 from dq_fk_ros.description.shipped import shipped_robots_dir
 from dq_fk_ros.description.urdf_reader import tf_name
-from dq_fk_ros.errors import ParameterError, printable_line
+from dq_fk_ros.errors import DqFkError, first_line, ParameterError, printable_line
 from dq_fk_ros.messages.joint_states import OUT_OF_LIMITS_POLICIES
 from dq_fk_ros.ros.parameters import Param
+import numpy as np
 
 # the parameters that say which robot: changing any of them reloads it
 ROBOT_PARAMETERS = ('robot_description_file', 'robot_description', 'urdf_base_link',
@@ -228,4 +231,46 @@ def check_values(new) -> None:
             f'{MAX_FRAME_PREFIX_CHARS})')
 
 
-__all__ = ['check_values', 'NODE_PARAMETERS', 'NodeParameters', 'ROBOT_PARAMETERS']
+def load_robot_of(inputs: dict, packages, log, access=None) -> object:
+    """
+    Return the model of the robot the node's parameters name (RobotDescriptionError).
+
+    :param inputs: :attr:`NodeParameters.robot_inputs`; ``packages``: the package paths;
+        ``log``: the node's logger (the conversion's summary, the warnings).
+    :param access: for a file named at run time: where it may be (see FileAccess).
+    """
+    base = inputs['urdf_base_link'] or None
+    tip = inputs['urdf_tip_link'] or None
+    if inputs['robot_description'].strip():
+        robot = robot_from_urdf_text(inputs['robot_description'], 'parameter robot_description',
+                                     base, tip, options=NODE_OPTIONS)
+    else:
+        robot = load_robot(inputs['robot_description_file'] or 'rl15', base, tip,
+                           access=access, packages=packages, options=NODE_OPTIONS)
+    if robot.conversion is not None:
+        log.info(robot.summary())
+    for line in robot.warnings:
+        log.warn(line)
+    # the kernel's copy of the robot (or the straight-line code) made now, outside the
+    # node's lock, not at the first update (250 frames: tens of ms the first updates wait)
+    robot.model.frame_pose_arrays(np.zeros(robot.model.dof))
+    robot.model.transform_pose_array(np.zeros(robot.model.dof))
+    return robot.model
+
+
+def refusal(exc: BaseException, quote: bool = False) -> str:
+    """
+    Return the one-line reason a parameter change is refused for ``exc``.
+
+    :param quote: whether an unexpected exception's text may be shown (not while a file
+        is read: it may hold the file's text).
+    """
+    if isinstance(exc, DqFkError):  # a robot file's error, a parameter's
+        return printable_line(exc.public)
+    if quote and str(exc).strip():
+        return f'{type(exc).__name__}: {printable_line(first_line(exc))}'
+    return f'{type(exc).__name__} while applying the change'
+
+
+__all__ = ['check_values', 'load_robot_of', 'NODE_PARAMETERS', 'NodeParameters', 'refusal',
+           'ROBOT_PARAMETERS']

@@ -670,3 +670,19 @@ def test_by_default_the_output_is_tf_and_the_end_effector_pose_and_says_its_size
         else:
             assert topics >= {f'/dq_fk_node/pose/{f}' for f in MODEL.frame_names}
     assert sizes['all'] > 1.5 * sizes['end']   # 7 frames; an iCub's 8.7 GB from 332 MB
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_joint_states_with_velocities_give_the_twist_topics(tmp_path, storage):
+    """The twist topics appear with the first velocities, as many messages as JointStates."""
+    q, stamps = valid_bag(tmp_path / 'in', n=120, velocities=True)
+    summary = process_bag(tmp_path / 'in', tmp_path / 'out', RL15, storage=storage,
+                          progress=False, chunk=50)
+    assert summary.written == 120
+    twists = read_topic(tmp_path / 'out', '/dq_fk_node/twist/eeCarry_seg6')
+    assert [t for t, _ in twists] == stamps
+    assert {m.header.frame_id for _, m in twists} == {'world'}
+    process_bag(tmp_path / 'in', tmp_path / 'none', RL15, storage=storage, progress=False,
+                poses='none')
+    with Reader(tmp_path / 'none') as reader:
+        assert not [c for c in reader.connections if '/twist/' in c.topic]
