@@ -3,12 +3,16 @@ Dual-quaternion forward kinematics from a DH table, published to ROS 2.
 
 Layers, bottom up (a layer imports only those below it; docs/architecture.md):
 
-* :mod:`dq_fk_ros.kinematics`: dual quaternions and DH chains, numpy only.
-* :mod:`dq_fk_ros.description`: the YAML robot description, URDF output.
-* :mod:`dq_fk_ros.messages`: joint-state input rules and the CDR wire format, no rclpy.
+* :mod:`dq_fk_ros.kinematics`: dual quaternions, DH chains and trees (a table and an
+  engine each), twists; numpy and the C kernel only.
+* :mod:`dq_fk_ros.description`: the YAML robot description, URDF in and out.
+* :mod:`dq_fk_ros.messages`: joint-state input rules, the merge and its input, the CDR
+  wire format, the output table and plan; no rclpy.
 * :mod:`dq_fk_ros.transforms`: tf2's BufferCore over arrays (TF read back), no rclpy.
-* :mod:`dq_fk_ros.bag`: rosbag2 files (rosbags, mcap), no rclpy.
-* :mod:`dq_fk_ros.ros`: the rclpy nodes and message conversion.
+* :mod:`dq_fk_ros.storage`: the bag formats (MCAP, rosbag2, ROS 1) read and written.
+* :mod:`dq_fk_ros.bag`: processing bags (one, a window, a fleet), TF out of bags.
+* :mod:`dq_fk_ros.ros`: the rclpy nodes, their outputs and message conversion, TF tools.
+* :mod:`dq_fk_ros.viewers`: ``dq_fk_view`` (a browser) and ``dq_fk_foxglove``.
 * :mod:`dq_fk_ros.cli`: the ``dq_fk`` and ``dq_fk_bag`` command lines.
 
 Beside them, :mod:`dq_fk_ros.tf`: tf2_ros's ``Buffer``, ``TransformListener`` and

@@ -1,5 +1,5 @@
 """
-Description layer: the YAML robot description and the URDF written from it.
+Description layer: the YAML robot description, URDF read (and cut into DH chains) and written.
 
 Built on :mod:`dq_fk_ros.kinematics`; no ROS.
 """

@@ -1,1 +1,1 @@
-"""Kinematics layer: dual quaternions and DH chains in numpy; imports nothing else."""
+"""Kinematics layer: dual quaternions, DH chains and trees (tables, engines), twists; no ROS."""
