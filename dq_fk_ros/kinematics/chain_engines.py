@@ -2,7 +2,8 @@
 The two engines of a DH chain, one chosen per chain: the compiled kernel, and its reference.
 
 Both take a :class:`~dq_fk_ros.kinematics.chain_table.ChainTable` and offer the same
-methods: ``frames(q, out)`` (every frame, ``(n_frames, 8)``, ``w >= 0``), ``end(q)``,
+methods: ``frames(q, out)`` (every frame, ``(n_frames, 8)``, ``w >= 0``), ``end(q)`` (and
+``pose(q)``, the same as a ``DualQuaternion``),
 ``frames_batch(q, out)``, ``end_batch(q, out)`` and ``jacobian(q)`` (6 x dof, geometric).
 :class:`CompiledEngine` runs the C kernel's ``Chain`` (the factor program copied into it
 once); :class:`ReferenceEngine` runs the same program in Python floats and numpy
@@ -19,6 +20,7 @@ from dq_fk_ros.kinematics.chain_batches import (
 from dq_fk_ros.kinematics.chain_jacobians import jacobian_geometric_reference
 from dq_fk_ros.kinematics.chain_table import ChainTable
 from dq_fk_ros.kinematics.dh_code import run_chain_program
+from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
 from dq_fk_ros.kinematics.kernel import KERNEL
 from dq_fk_ros.kinematics.kernel_layout import pack, program_record
 import numpy as np
@@ -58,6 +60,10 @@ class ReferenceEngine:
         end = self.coeffs(q)[-1]
         return np.frombuffer(array('d', end if end[0] >= 0.0 else [-v for v in end]))
 
+    def pose(self, q: ArrayLike) -> DualQuaternion:
+        """Return the last frame as a :class:`DualQuaternion` (``KinematicChain.forward``)."""
+        return DualQuaternion.from_array(self.end(q))
+
     def frames_batch(self, q: ArrayLike, out: np.ndarray | None = None) -> np.ndarray:
         """Return every frame of N configurations, ``(N, n_frames, 8)``."""
         return _filled(forward_all_batch_reference(self.table, q), out)
@@ -85,26 +91,42 @@ class CompiledEngine:
         """Copy ``table``'s program, base, tool and Jacobian rows into the kernel."""
         self.table = table
         self.kernel_chain = KERNEL.Chain(*kernel_chain_args(table))
+        self.frames_shape = (table.n_frames, 8)
 
     def __reduce__(self):
         """Pickle the table only; the kernel's copy is made again on unpickling."""
         return CompiledEngine, (self.table,)
 
-    def _call(self, method, q, out):
-        try:  # a float64 vector of the right length goes straight in
-            method(q, out)
-        except (ValueError, TypeError):  # a list, another dtype... or a wrong q: its error
-            method(self.table.q_vector(q), out)
-        return out
-
+    # (each call tries the kernel with ``q`` as given: a float64 vector of the right length
+    # goes straight in; a list, another dtype... or a wrong q is converted, or refused with
+    # the numpy path's error; written out in each method: a helper call costs ~5 % here)
     def frames(self, q: ArrayLike, out: np.ndarray | None = None) -> np.ndarray:
         """Return every frame, ``(n_frames, 8)``, ``w >= 0`` (into ``out`` if given)."""
-        out = np.empty((self.table.n_frames, 8)) if out is None else out
-        return self._call(self.kernel_chain.frames, q, out)
+        if out is None:
+            out = np.empty(self.frames_shape)
+        try:
+            self.kernel_chain.frames(q, out)
+        except (ValueError, TypeError):
+            self.kernel_chain.frames(self.table.q_vector(q), out)
+        return out
 
     def end(self, q: ArrayLike) -> np.ndarray:
         """Return the last frame (the tool, if any), 8 coefficients, ``w >= 0``."""
-        return self._call(self.kernel_chain.end, q, np.empty(8))
+        out = np.empty(8)
+        try:
+            self.kernel_chain.end(q, out)
+        except (ValueError, TypeError):
+            self.kernel_chain.end(self.table.q_vector(q), out)
+        return out
+
+    def pose(self, q: ArrayLike) -> DualQuaternion:
+        """Return the last frame as a :class:`DualQuaternion` (``KinematicChain.forward``)."""
+        out = np.empty(8)
+        try:
+            self.kernel_chain.end(q, out)
+        except (ValueError, TypeError):
+            self.kernel_chain.end(self.table.q_vector(q), out)
+        return DualQuaternion.from_array(out)
 
     def frames_batch(self, q: ArrayLike, out: np.ndarray | None = None) -> np.ndarray:
         """Return every frame of N configurations, ``(N, n_frames, 8)``."""
@@ -122,7 +144,12 @@ class CompiledEngine:
 
     def jacobian(self, q: ArrayLike) -> np.ndarray:
         """Return the 6 x dof geometric Jacobian of the last frame, in the fixed frame."""
-        return self._call(self.kernel_chain.jacobian, q, np.empty((6, self.table.dof)))
+        out = np.empty((6, self.table.dof))
+        try:
+            self.kernel_chain.jacobian(q, out)
+        except (ValueError, TypeError):
+            self.kernel_chain.jacobian(self.table.q_vector(q), out)
+        return out
 
 
 def chain_engine(table: ChainTable) -> CompiledEngine | ReferenceEngine:

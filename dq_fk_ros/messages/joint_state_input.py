@@ -15,6 +15,7 @@ from typing import Optional
 
 from dq_fk_ros.errors import CdrError
 from dq_fk_ros.messages.cdr import group_joint_state_spans, JointStateNames, parse_joint_state
+from dq_fk_ros.messages.joint_state_raw import merge_raw
 from dq_fk_ros.messages.joint_state_rules import REJECTED
 from dq_fk_ros.messages.joint_states import JointStateMerger, MergeResult
 import numpy as np
@@ -56,7 +57,7 @@ class JointStateInput:
         (publish only a ``PUBLISH``; report what it carries unless it is ``clean``).
         """
         merger = self.merger
-        fast = merger.merge_raw(raw)  # the compiled short path, or None
+        fast = merge_raw(merger.state, raw)  # the compiled short path, or None
         if fast is not None:
             return fast + (None,)
         try:

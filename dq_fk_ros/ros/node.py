@@ -273,22 +273,21 @@ class DqFkNode(Node):
                 if not self._outputs.wanted(p):
                     return  # nothing else to send: no FK either
         self._last_stamp_ns = stamp if send_tf else self._last_stamp_ns
-        self._publish(stamp_ns if (p.use_joint_state_stamp and stamp_ns) else now_ns, q, qdot,
-                      send_tf)
+        if self._model.optional_joints:
+            self._show_branches()
+        self._outputs.publish(p, stamp_ns if (p.use_joint_state_stamp and stamp_ns) else now_ns,
+                              q, qdot, send_tf)
         self._last_publish_ns = now_ns
         self._merger.counts['published'] += 1
 
-    def _publish(self, stamp_ns, q, qdot, send_tf=True):
-        """Publish /tf and the read pose and twist topics, serialized, stamped ``stamp_ns``."""
-        outputs = self._outputs
-        if self._model.optional_joints:
-            seen = self._merger.seen_optional
-            if seen != outputs.shown_optional:
-                new = outputs.show_branches(seen)  # (rare: a rebuild)
-                if new:
-                    self.get_logger().info(f'joint states name joints {listing(new, 10)}: '
-                                           f'publishing the links that depend on them')
-        outputs.publish(self._params, stamp_ns, q, qdot, send_tf)
+    def _show_branches(self):
+        """Publish the links of the side-branch joints named so far (rare: a rebuild)."""
+        seen = self._merger.seen_optional
+        if seen != self._outputs.shown_optional:
+            new = self._outputs.show_branches(seen)
+            if new:
+                self.get_logger().info(f'joint states name joints {listing(new, 10)}: '
+                                       f'publishing the links that depend on them')
 
     def _refresh_readers(self):
         """

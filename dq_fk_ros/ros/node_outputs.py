@@ -59,9 +59,13 @@ class NodeOutputs:
         self.twist_read = [False] * len(self.twist_pubs)
         self.any_twist_read = False
         self.read_poses = []
-        # the poses of an update, written in place by the kernel (frame_pose_arrays)
+        # the poses of an update, written in place by the robot's engine (the kernel's
+        # Model, or the reference): RobotModel.frame_pose_arrays / transform_pose_array
+        # without their two pass-through calls
         self.absolute = np.empty((len(model.frame_names), 7))
         self.relative = np.empty((model.n_transforms, 7))
+        engine = model.kinematics.engine
+        self.fill_poses, self.fill_transforms = engine.poses, engine.transforms
 
     def describe(self) -> list:
         """Return the lines the node logs when it takes these outputs."""
@@ -121,10 +125,11 @@ class NodeOutputs:
         twists = params.publish_twist and qdot is not None and self.any_twist_read
         if twists and model.branches:  # a tree: the first chain's velocities may be unknown
             twists = all(map(math.isfinite, qdot[:model.chain.dof]))
+        absolute, relative = self.absolute, self.relative
         if poses or twists:
-            absolute, relative = model.frame_pose_arrays(q, self.absolute, self.relative)
+            self.fill_poses(q, absolute, relative)
         else:  # /tf alone needs the transforms only
-            relative = model.transform_pose_array(q, self.relative)
+            self.fill_transforms(q, relative)
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
         out = self.bytes
         if send_tf and params.publish_tf and out.sends_tf:
