@@ -41,6 +41,14 @@ def joint_value_vector(q: ArrayLike, joint_names: Sequence[str]) -> np.ndarray:
     return q
 
 
+def joint_value_batch(q: ArrayLike, dof: int) -> np.ndarray:
+    """Return ``q`` as a contiguous ``(N, dof)`` float64 array (``ValueError`` if not)."""
+    q = np.ascontiguousarray(q, dtype=float)
+    if q.ndim != 2 or q.shape[1] != dof:
+        raise ValueError(f'expected an (N, {dof}) array of joint values, got shape {q.shape}')
+    return q
+
+
 @dataclass(frozen=True, eq=False)
 class ChainTable:
     """
@@ -106,11 +114,7 @@ class ChainTable:
 
     def q_batch(self, q: ArrayLike) -> np.ndarray:
         """Return ``q`` as a contiguous ``(N, dof)`` float64 array (``ValueError`` if not)."""
-        q = np.ascontiguousarray(q, dtype=float)
-        if q.ndim != 2 or q.shape[1] != self.dof:
-            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
-                             f'got shape {q.shape}')
-        return q
+        return joint_value_batch(q, self.dof)
 
 
 def chain_table(joints: Sequence[DHJoint], convention: str, base: Coeffs8,
@@ -147,4 +151,5 @@ def chain_table(joints: Sequence[DHJoint], convention: str, base: Coeffs8,
         np.array([j.alpha for j in joints]), scale, program, rows, pose_rows, jacobian_rows)
 
 
-__all__ = ['chain_table', 'ChainTable', 'joint_value_list', 'joint_value_vector']
+__all__ = ['chain_table', 'ChainTable', 'joint_value_batch', 'joint_value_list',
+           'joint_value_vector']

@@ -15,7 +15,7 @@ of one configuration and the numpy batch (:func:`tree_batch`). test_kernel.py
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from dq_fk_ros.kinematics.chain_table import joint_value_vector
+from dq_fk_ros.kinematics.chain_table import joint_value_batch, joint_value_vector
 from dq_fk_ros.kinematics.dh import KinematicChain
 from dq_fk_ros.kinematics.dh_code import run_chain_program
 from dq_fk_ros.kinematics.dual_quaternion import dq_multiply_array, dq_to_pose_xyzw
@@ -50,11 +50,7 @@ class TreeLayout:
 
     def q_batch(self, q: ArrayLike) -> np.ndarray:
         """Return ``q`` as a contiguous ``(N, dof)`` float64 array (``ValueError`` if not)."""
-        q = np.ascontiguousarray(q, dtype=float)
-        if q.ndim != 2 or q.shape[1] != self.dof:
-            raise ValueError(f'expected an (N, {self.dof}) array of joint values, '
-                             f'got shape {q.shape}')
-        return q
+        return joint_value_batch(q, self.dof)
 
 
 def link_motion(motion: tuple, q: Sequence, cos: Callable, sin: Callable) -> tuple:
