@@ -11,6 +11,7 @@ chunk; test_bag_writer.py holds both to the ``mcap`` library's ``MessageIndex`` 
 """
 
 from dataclasses import dataclass
+import os
 import struct
 from typing import Optional
 
@@ -155,11 +156,17 @@ def mcap_chunk_counts(files, topic) -> Optional[ChunkCounts]:
 
 
 def _index_times(stream, offset):
-    """Return the log times of one MessageIndex record at ``offset``."""
+    """
+    Return the log times of one MessageIndex record at ``offset``.
+
+    A record that claims more bytes than the file holds after it is refused before any is
+    read (a hostile index would otherwise ask for up to 4 GiB at once).
+    """
     stream.seek(offset)
     head = stream.read(15)
     opcode, length, _, size = struct.unpack('<BQHI', head)
-    if opcode != OP_MESSAGE_INDEX or size % 16 or size + 6 > length:
+    if opcode != OP_MESSAGE_INDEX or size % 16 or size + 6 > length or \
+            size > os.fstat(stream.fileno()).st_size - offset - 15:
         raise ValueError('not a message index')
     return np.frombuffer(stream.read(size), dtype='<u8')[0::2].astype(np.int64)
 

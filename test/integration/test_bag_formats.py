@@ -11,6 +11,7 @@ the same joint states give from an MCAP bag. The writers of the registry are
 import dataclasses
 import json
 import os
+import tracemalloc
 
 from dq_fk_ros.bag.discover import find_bags
 from dq_fk_ros.bag.process import process_bag
@@ -18,6 +19,7 @@ from dq_fk_ros.bag.windows import chunk_counts
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.storage import formats, mcap_writer
 from dq_fk_ros.storage.formats import BagFormat, FORMATS, open_bag_writer
+from dq_fk_ros.storage.mcap_summary import read_summary
 from dq_fk_ros.storage.reader_interface import BagReader, BatchesFromMessages, JOINT_STATE
 from dq_fk_ros.storage.reading import open_reader
 from dq_fk_ros.storage.rosbags_writer import RosbagsWriter
@@ -138,3 +140,29 @@ def test_every_row_is_complete():
     for row in FORMATS:
         assert all(getattr(row, f.name) is not None for f in dataclasses.fields(row)
                    if f.name not in ('reference', 'chunk_counts')), row.name
+
+
+def test_a_message_index_claiming_more_than_the_file_is_not_read(tmp_path, monkeypatch):
+    """A hostile index record's size (4 GiB) is refused before a byte of it is read."""
+    monkeypatch.setattr(mcap_writer, 'CHUNK_BYTES', 4000)
+    writer = RosbagsWriter(tmp_path / 'bag', 'mcap')
+    writer.open()
+    conn = writer.add_connection('/joint_states', JOINT_STATE, typestore=TS)
+    for k, row in enumerate(trajectory(100)):
+        writer.write(conn, T0 + k, js_bytes(NAMES, row, T0 + k))
+    writer.close()
+    (file,) = (tmp_path / 'bag').glob('*.mcap')
+    assert chunk_counts(tmp_path / 'bag', '/joint_states') is not None
+    offset = min(o for c in read_summary(str(file)).chunk_index.values()
+                 for o in c.message_index_offsets.values())
+    data = bytearray(file.read_bytes())
+    data[offset + 1:offset + 9] = (1 << 62).to_bytes(8, 'little')       # record length
+    data[offset + 11:offset + 15] = (0xFFFFFFF0).to_bytes(4, 'little')   # bytes of pairs
+    file.write_bytes(bytes(data))
+    tracemalloc.start()
+    try:
+        assert chunk_counts(tmp_path / 'bag', '/joint_states') is None
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 64 << 20, peak
