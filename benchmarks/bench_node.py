@@ -35,6 +35,7 @@ import time
 
 from bench_results import figure
 from dq_fk_ros.messages.cdr import JointStateNames, parse_joint_state
+from dq_fk_ros.messages.outputs import POSE
 from dq_fk_ros.ros.conversions import joint_state_fields
 from dq_fk_ros.ros.node import DqFkNode
 from dq_fk_ros.ros.node_parameters import INPUT_BATCH_MS_DEFAULT
@@ -154,20 +155,25 @@ def main(argv=None):
             results.setdefault(label, []).append(
                 (statistics.median(samples) * 1e6, samples[int(0.99 * len(samples))] * 1e6))
 
-        every_frame = list(node._outputs.messages.plan.pose_frames)  # the frames with a pose topic
+        outputs = node._outputs
+        (at,) = [i for i, s in enumerate(outputs.streams) if s.output is POSE]
+        stream, pose_pubs = outputs.streams[at], outputs.publishers[at]
+        every_frame = list(stream.frames)  # the frames with a pose topic
+        every = list(range(len(every_frame)))
         topics = [model.topic_names[k] for k in every_frame]
         n_tf = len(node._outputs.messages.plan.moving_edges)
 
         def serialize(pair):
             absolute, relative = pair
-            return [out.tf(1, 2, relative)] + out.poses(1, 2, absolute, every_frame)
+            array, columns, _ = stream.values(None, None, absolute[None])
+            return [out.tf(1, 2, relative)] + stream.serialize(1, 2, array[0], columns, every)
         payloads = serialize(poses[0])
 
         tf_payload, pose_payloads = (payloads[0],), payloads[1:]
 
         def publish_all(_):  # as the node does: bytes through rcl (PublisherGroup)
             node._tf_group.publish(tf_payload)
-            node._outputs.pose_group.publish(pose_payloads)
+            outputs.groups[at].publish(pose_payloads)
 
         messages = node._outputs.messages
 
@@ -176,15 +182,15 @@ def main(argv=None):
             absolute, relative = model.frame_poses(result.q)
             tf_msg, pose_list = messages.fill(msg.header.stamp, absolute, relative)
             node._tf_pub.publish(tf_msg)
-            for pub, pm in zip(node._outputs.pose_pubs, pose_list):
+            for pub, pm in zip(pose_pubs, pose_list):
                 pub.publish(pm)
 
         def readers(count):
-            return all(p.get_subscription_count() == count for p in node._outputs.pose_pubs) and \
+            return all(p.get_subscription_count() == count for p in pose_pubs) and \
                 node._tf_pub.get_subscription_count() == count
 
         one_pose = payloads[1] if len(payloads) > 1 else payloads[0]
-        one_pub = node._outputs.pose_pubs[0] if node._outputs.pose_pubs else node._tf_pub
+        one_pub = pose_pubs[0] if pose_pubs else node._tf_pub
         send_one = raw_publisher(one_pub)  # rclpy's publish_raw
         one_group = PublisherGroup([one_pub])  # rcl's publish, from C (the node's path)
         one_message = (one_pose,)
@@ -307,15 +313,15 @@ def main(argv=None):
     figure(f'{model.name}: rcl publishes one message (bytes, from C), the floor of the '
            "node's path", round(rcl_floor, 2), 'us', group='the node',
            text=f'- the node publishes through rcl (PublisherGroup, compiled: '
-                f'{node._outputs.pose_group.compiled}): one message {rcl_floor:.2f} us here; '
+                f'{node._tf_group.compiled}): one message {rcl_floor:.2f} us here; '
                 f'every output {rcl_floor * (1 + len(every_frame)):.1f} us in rcl and DDS alone')
     return 0
 
 
 @contextlib.contextmanager
 def publish_calls_left_out(node):
-    """Within the block, the node's /tf and pose groups take their messages and send none."""
-    saved = [(group, group.publish) for group in (node._tf_group, node._outputs.pose_group)]
+    """Within the block, the node's /tf and per-frame groups take their messages, send none."""
+    saved = [(group, group.publish) for group in (node._tf_group, *node._outputs.groups)]
     for group, _ in saved:
         group.publish = lambda messages: None
     try:

@@ -5,17 +5,19 @@ What ``dq_fk_bag process`` writes for a robot: the output bag's topics and their
 the pose topics, the twist topics, copied inputs) and writes a chunk of computed frames as
 rows of serialized messages, as the node publishes them: both lay their messages out from one
 :class:`~dq_fk_ros.messages.output_plan.OutputPlan` (the same frame ids, TF parents, helper
-frames, order, and a transform only where the message's state has named its joints).
+frames, order, and a transform only where the message's state has named its joints), and the
+per-frame topics (poses, twists) of both are the output table's rows through one
+:class:`~dq_fk_ros.messages.frame_streams.FrameStream` each.
 """
 
 from dq_fk_ros.bag.output_types import OUTPUT_TYPES, string_cdr
 from dq_fk_ros.description.to_urdf import description_urdf
 from dq_fk_ros.errors import BagError
-from dq_fk_ros.kinematics.twists import frame_twists_batch
-from dq_fk_ros.messages.cdr_templates import (
-    pose_stamped_template, tf_message_template, twist_stamped_template)
+from dq_fk_ros.messages import outputs as output_table
+from dq_fk_ros.messages.cdr_templates import tf_message_template
+from dq_fk_ros.messages.frame_streams import FrameStream
 from dq_fk_ros.messages.output_plan import OutputPlan
-from dq_fk_ros.messages.outputs import POSE, ROBOT_DESCRIPTION, TF, TF_STATIC, TWIST
+from dq_fk_ros.messages.outputs import POSE, ROBOT_DESCRIPTION, TF, TF_STATIC
 import numpy as np
 
 
@@ -55,37 +57,30 @@ class BagOutputs:
         self.tf = add(TF)
         self.tf_static = add(TF_STATIC)
         self.end = model.end_effector_index
-        self.pose_frames = {'all': list(plan.pose_frames), 'end': [self.end],
-                            'none': []}[poses]
-        self.poses = [add(POSE, model.topic_names[k]) for k in self.pose_frames]
-        # twists: the node's twist frames (unless no pose topic is asked for), in the
-        # messages whose joint states carry velocities: topics added at the first such one
-        self.twist_frames = list(plan.twist_frames) if poses != 'none' else []
-        self.twists = None
-        self._add_twists = lambda: [add(TWIST, model.topic_names[k]) for k in self.twist_frames]
-        self.twist_template = twist_stamped_template(plan.fixed_frame_id)
-        # transforms and poses that depend on optional joints (side branches, every joint of
-        # a tree) are written where the message's state has named those joints, as the node
-        # does: each message's /tf holds the transforms whose joints are known
-        edge_needs, frame_needs = model.edge_needs, model.frame_needs
+        # the per-frame outputs (poses, twists: the node's rows, frames and messages):
+        # ``--poses end`` keeps the end effector's pose topic, ``none`` no per-frame topic
+        self.streams = []
+        for output in output_table.FRAME_OUTPUTS:  # (read at each use: tests add rows)
+            frames = [] if poses == 'none' else [self.end] if (
+                poses == 'end' and output is POSE) else getattr(plan, output.plan)
+            self.streams.append(FrameStream(output, plan, frames))
+        # their connections: now, or for a row that needs velocities at the first message
+        # that has them (a bag without velocities stays as it was)
+        self._add_stream = lambda stream: [add(stream.output, model.topic_names[k])
+                                           for k in stream.frames]
+        self.channels = [None if stream.output.velocities else self._add_stream(stream)
+                         for stream in self.streams]
+        # transforms and per-frame topics that depend on optional joints (side branches,
+        # every joint of a tree) are written where the message's state has named those
+        # joints, as the node does: each message's /tf holds the transforms whose joints are
+        # known, each frame's topic waits for the joints its pose needs
+        edge_needs = model.edge_needs
         index = {name: i for i, name in enumerate(model.joint_names)}
         self._gated = [i for i, (k, _) in enumerate(plan.moving_edges) if edge_needs[k]]
         self._gate_columns = [[index[n] for n in edge_needs[plan.moving_edges[i][0]]]
                               for i in self._gated]
         self._tf_templates = {}
-        self.base_poses = [i for i, k in enumerate(self.pose_frames) if not frame_needs[k]]
-        self.pose_groups = []   # (joint columns, [pose index, ...]) per set of needs
-        for group in sorted({frame_needs[self.pose_frames[i]] for i in
-                             range(len(self.pose_frames))} - {frozenset()}, key=sorted):
-            self.pose_groups.append(([index[n] for n in sorted(group)],
-                                     [i for i, k in enumerate(self.pose_frames)
-                                      if frame_needs[k] == group]))
-        # a template per pose frame: its PoseStamped's frame id is its TF tree's root
-        templates = {frame_id: pose_stamped_template(frame_id)
-                     for frame_id in {plan.pose_frame_ids.get(k, plan.fixed_frame_id)
-                                      for k in self.pose_frames}}
-        self.pose_templates = [templates[plan.pose_frame_ids.get(k, plan.fixed_frame_id)]
-                               for k in self.pose_frames]
+        self._waiting = [stream.waiting_groups(index) for stream in self.streams]
         self.static_template = tf_message_template(plan.static_edges)
         try:
             self.urdf = description_urdf(model)
@@ -125,19 +120,16 @@ class BagOutputs:
         else:
             absolute, relative = model.frame_pose_arrays_batch(q, self._fk_out)
         end = absolute[:, self.end].copy()
-        absolute = self.plan.rooted_poses(absolute)  # frames below a floating joint
-        n = len(q)
         helpers = self.plan.helpers
         moving = None
         if helpers.moving:  # (a cylindrical row's first motion: rare, per message)
             moving = np.array([np.concatenate(helpers.moving_poses(row)) for row in q])
         stamps_ns, log_times_ns = np.asarray(stamps_ns), np.asarray(log_times_ns)
-        channels = [self.poses[i] for i in self.base_poses]
-        templates = [self.pose_templates[i] for i in self.base_poses]
-        values = [absolute[:, self.pose_frames[i]] for i in self.base_poses]
+        every, later = self._frame_values(q, qdot, absolute, seen)
+        channels, templates, values = every
         tf = list(self._tf_values(relative, moving, seen))
         if len(tf) == 1 and tf[0][0] is None:  # every message the same transforms
-            channels.insert(0, self.tf)  # interleaved: each message's /tf, then its poses
+            channels.insert(0, self.tf)  # interleaved: each message's /tf, then its topics
             templates.insert(0, tf[0][1])
             values.insert(0, tf[0][2])
         else:
@@ -146,33 +138,47 @@ class BagOutputs:
                                             [template], [tf_values])
         if channels:
             self.writer.write_templates(channels, log_times_ns, stamps_ns, templates, values)
-        for columns, poses in self.pose_groups:
-            rows = np.ones(n, bool) if seen is None else seen[:, columns].all(axis=1)
-            if rows.any():
-                self.writer.write_templates(
-                    [self.poses[i] for i in poses], log_times_ns[rows], stamps_ns[rows],
-                    [self.pose_templates[i] for i in poses],
-                    [absolute[rows, self.pose_frames[i]] for i in poses])
-        if self.twist_frames and qdot is not None:
-            self._write_twists(q, qdot, absolute, stamps_ns, log_times_ns)
+        for rows, s, positions, values in later:
+            if self.channels[s] is None:  # its first message: its topics from now on
+                self.channels[s] = self._add_stream(self.streams[s])
+            templates = self.streams[s].templates
+            self.writer.write_templates([self.channels[s][i] for i in positions],
+                                        log_times_ns[rows], stamps_ns[rows],
+                                        [templates[i] for i in positions], values)
         return end
 
-    def _write_twists(self, q, qdot, absolute, stamps_ns, log_times_ns):
-        """Write the twist topics of the messages with velocities (as the node publishes)."""
-        chain = self.model.chain
-        dof = chain.dof
-        rows = np.isfinite(qdot[:, :dof]).all(axis=1)
-        if not rows.any():
-            return
-        if self.twists is None:
-            self.twists = self._add_twists()
-        poses = absolute[rows]
-        twists = frame_twists_batch(chain, q[rows, :dof], qdot[rows, :dof],
-                                    poses[:, self.model.n_chain_frames - 1, :3],
-                                    poses[:, self.twist_frames, :3])
-        self.writer.write_templates(self.twists, log_times_ns[rows], stamps_ns[rows],
-                                    [self.twist_template] * len(self.twists),
-                                    [twists[:, k] for k in range(len(self.twists))])
+    def _frame_values(self, q, qdot, absolute, seen):
+        """
+        Return the per-frame topics' values: those of every message, and those of some.
+
+        ``(channels, templates, values)`` of the topics every message has (written with its
+        /tf), then ``[(rows, stream, frame positions, values)]`` of the others: the rows
+        where a stream's values exist (twists: where the velocities are known) and the
+        frames' joints were seen (:meth:`FrameStream.waiting_groups`). A stream that needs
+        velocities is always of the others (its topics are added at its first message).
+        """
+        n = len(q)
+        every, later = ([], [], []), []
+        for s, stream in enumerate(self.streams):
+            got = stream.values(q, qdot, absolute) if stream.frames else None
+            if got is None:
+                continue
+            array, columns, rows = got
+            for joints, positions in self._waiting[s]:
+                if rows is None and (not joints or seen is None) and \
+                        not stream.output.velocities:
+                    every[0].extend(self.channels[s][i] for i in positions)
+                    every[1].extend(stream.templates[i] for i in positions)
+                    every[2].extend(array[:, columns[i]] for i in positions)
+                    continue
+                known = np.ones(n, bool) if rows is None else rows.copy()
+                if joints and seen is not None:
+                    known &= seen[:, joints].all(axis=1)
+                if known.any():
+                    picked = known if rows is None else known[rows]
+                    later.append((known, s, positions,
+                                  [array[picked, columns[i]] for i in positions]))
+        return every, later
 
     def _tf_values(self, relative, moving, seen):
         """

@@ -6,12 +6,26 @@ frames it carries (the :class:`~dq_fk_ros.messages.output_plan.OutputPlan` attri
 lists them for a robot: one plan for the node and the bag alike). ``dq_fk_node`` publishes
 every row, ``dq_fk_bag process`` writes them as a bag's connections (with the same QoS as
 offered profiles), ``dq_fk_view`` and ``dq_fk_foxglove`` subscribe to the TF rows and the
-description by these names. Adding an output is a row here plus its writer. No ROS here:
-QoS is plain data, turned into an rclpy ``QoSProfile`` by
-:func:`dq_fk_ros.ros.conversions.qos_profile`.
+description by these names.
+
+A row with a topic per frame (:data:`FRAME_OUTPUTS`: the poses, the twists) also carries its
+message layout (``template``, a function of the header's frame id) and its values
+(``values``, a function of the poses and velocities of N messages): the node publishes it for
+one update and the bag tool writes it for a batch through
+:class:`~dq_fk_ros.messages.frame_streams.FrameStream`, which holds one rule for frames
+whose joints are not known yet. Adding such an output is a row here, its values (computed in
+``kinematics/`` when more than a pose) and, for the bag tool, its type's definition in
+``bag/output_types.py``. No ROS here: QoS is plain data, turned into an rclpy
+``QoSProfile`` by :func:`dq_fk_ros.ros.conversions.qos_profile`.
 """
 
 from dataclasses import dataclass
+import math
+from typing import Callable, Optional
+
+from dq_fk_ros.kinematics.twists import frame_twists, frame_twists_batch
+from dq_fk_ros.messages.cdr_templates import pose_stamped_template, twist_stamped_template
+import numpy as np
 
 
 @dataclass(frozen=True)
@@ -24,6 +38,12 @@ class Output:
     latched: bool       # durability transient local (a late subscriber gets the last ones)
     frames: str         # which frames it carries (docs/node.md says it in full)
     plan: str = ''      # the OutputPlan attribute that lists them ('': no frame)
+    # a topic per frame: the node's bool parameter that turns it on, the message layout
+    # (header frame id -> CdrTemplate) and its values (see pose_values)
+    switch: str = ''
+    template: Optional[Callable] = None
+    values: Optional[Callable] = None
+    velocities: bool = False   # its values need joint velocities (its topics come with them)
 
     def topic_for(self, frame: str = '', namespace: str = '~') -> str:
         """
@@ -41,6 +61,52 @@ class Output:
         return name if name.startswith('/') else f'/{name}'
 
 
+def pose_values(plan, q, qdot, absolute, frames) -> tuple:
+    """
+    Return the values of N messages of a per-frame output: here each frame's pose.
+
+    Every per-frame row's ``values`` has this signature (N = 1 for one node update).
+
+    :param plan: the robot's :class:`~dq_fk_ros.messages.output_plan.OutputPlan`.
+    :param q: ``(N, dof)`` joint values; ``qdot``: their velocities (None: none given).
+    :param absolute: ``(N, n_frames, 7)`` poses in the fixed frame, ``(x, y, z, qx, qy,
+        qz, qw)``; ``frames``: the frame indices of the row's topics.
+    :returns: ``(array, columns, rows)``: ``array[:, columns[i]]`` are frame i's values
+        (float64, the template's width), for the messages ``rows`` (a bool mask; None:
+        all N, and ``array`` has N rows; else ``array`` has a row per True); or None when
+        no message has them.
+    """
+    # a frame below a floating joint in that joint's child: the frame its PoseStamped names
+    return (plan.rooted_poses(absolute) if plan.rooted else absolute), frames, None
+
+
+def twist_values(plan, q, qdot, absolute, frames) -> Optional[tuple]:
+    """
+    Return :func:`pose_values`' tuple for the frames' twists ``(v, w)`` in the fixed frame.
+
+    The messages whose first chain's velocities are all known (finite) have one
+    (``kinematics.twists``: one configuration for the node, a batch for the bag tool).
+    """
+    if qdot is None:
+        return None
+    model = plan.model
+    dof = model.chain.dof
+    end = model.n_chain_frames - 1
+    if len(q) == 1:  # the node's update
+        if not all(map(math.isfinite, qdot[0, :dof])):
+            return None
+        twists = frame_twists(model.chain, q[0, :dof], qdot[0, :dof], absolute[0, end, :3],
+                              absolute[0, frames, :3])
+        return twists[None], range(len(frames)), None
+    rows = np.isfinite(qdot[:, :dof]).all(axis=1)
+    if not rows.any():
+        return None
+    poses = absolute[rows]
+    twists = frame_twists_batch(model.chain, q[rows, :dof], qdot[rows, :dof],
+                                poses[:, end, :3], poses[:, frames, :3])
+    return twists, range(len(frames)), None if rows.all() else rows
+
+
 TF = Output('/tf', 'tf2_msgs/msg/TFMessage', 100, False,
             'the moving transforms: every revolute, prismatic, continuous and mimic joint',
             'moving_edges')
@@ -49,13 +115,16 @@ TF_STATIC = Output('/tf_static', 'tf2_msgs/msg/TFMessage', 1, True,
 ROBOT_DESCRIPTION = Output('robot_description', 'std_msgs/msg/String', 1, True,
                            'the URDF (none: no frame)')
 POSE = Output('~/pose/{frame}', 'geometry_msgs/msg/PoseStamped', 10, False,
-              'one frame on TF, in the root of its TF tree', 'pose_frames')
+              'one frame on TF, in the root of its TF tree', 'pose_frames',
+              'publish_poses', pose_stamped_template, pose_values)
 TWIST = Output('~/twist/{frame}', 'geometry_msgs/msg/TwistStamped', 10, False,
                "the last DH frame's, the tool's and a link end effector's velocity, in the "
-               'fixed frame', 'twist_frames')
+               'fixed frame', 'twist_frames',
+               'publish_twist', twist_stamped_template, twist_values, velocities=True)
 DIAGNOSTICS = Output('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', 10, False,
                      "the node's status (no frame)")
 OUTPUTS = (TF, TF_STATIC, ROBOT_DESCRIPTION, POSE, TWIST, DIAGNOSTICS)
+FRAME_OUTPUTS = tuple(o for o in OUTPUTS if o.values is not None)  # a topic per frame
 
-__all__ = ['DIAGNOSTICS', 'Output', 'OUTPUTS', 'POSE', 'ROBOT_DESCRIPTION', 'TF',
-           'TF_STATIC', 'TWIST']
+__all__ = ['DIAGNOSTICS', 'FRAME_OUTPUTS', 'Output', 'OUTPUTS', 'POSE', 'pose_values',
+           'ROBOT_DESCRIPTION', 'TF', 'TF_STATIC', 'TWIST', 'twist_values']

@@ -10,11 +10,10 @@ Poses arrive as tuples ``(x, y, z, qx, qy, qz, qw)`` (metres, the ROS quaternion
 byte).
 """
 
-from typing import TYPE_CHECKING
+from typing import Callable, TYPE_CHECKING
 
 from builtin_interfaces.msg import Time
-from dq_fk_ros.messages.cdr_templates import (pose_stamped_template, tf_message_template,
-                                              twist_stamped_template)
+from dq_fk_ros.messages.cdr_templates import tf_message_template
 from dq_fk_ros.messages.output_plan import OutputPlan
 from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
 import numpy as np
@@ -155,17 +154,18 @@ def _transform_stamped(parent, child, stamp=None, pose=None):
 
 class FrameBytes:
     """
-    The node's /tf, pose and twist messages of one robot, serialized per update.
+    The node's /tf message of one robot, serialized per update.
 
+    (The per-frame topics: :class:`~dq_fk_ros.messages.frame_streams.FrameStream`.)
     The fast path; the reference is :class:`FrameMessages` (rclpy's message objects), held
     equal byte for byte by test_frame_bytes.py's
     ``test_serialized_output_equals_the_message_objects``.
 
-    Each message's fixed bytes (frame ids, padding) are laid out once; an update fills them
-    with its stamp and float64 fields and hands ``bytes`` to ``Publisher.publish``. Poses
-    given as the arrays of :meth:`RobotModel.frame_pose_arrays` go to the C writer
-    (:meth:`CdrTemplate.compiled`: one call per message); lists of poses, or no C writer,
-    to :class:`~dq_fk_ros.messages.cdr_templates.CdrPacker` (one ``struct`` call per message), its
+    The message's fixed bytes (frame ids, padding) are laid out once; an update fills them
+    with its stamp and float64 fields and hands ``bytes`` to ``Publisher.publish``.
+    Transforms given as the arrays of :meth:`RobotModel.frame_pose_arrays` go to the C
+    writer (:meth:`CdrTemplate.compiled`); lists, or no C writer, to
+    :class:`~dq_fk_ros.messages.cdr_templates.CdrPacker` (one ``struct`` call), its
     reference (``test_the_c_writer_equals_the_packer_byte_for_byte``).
     """
 
@@ -177,20 +177,22 @@ class FrameBytes:
         self._moving = tuple(k for _, k in self.moving_edges)
         self.sends_tf = bool(messages.tf.transforms)  # a robot with nothing moving: no /tf
         edges = [(t.header.frame_id, t.child_frame_id) for t in messages.tf.transforms]
-        tf = tf_message_template(edges)
-        pose = pose_stamped_template(messages.fixed_frame_id)
-        twist = twist_stamped_template(messages.fixed_frame_id)
-        self.templates = {'tf': tf, 'pose': pose, 'twist': twist}  # layouts, for the tests
+        self.template = tf = tf_message_template(edges)   # the layout, for the tests
         self._tf = tf.packer()
-        self._pose = pose.packer()
-        self._twist = twist.packer()
         self._tf_c = tf.compiled(7)
-        self._pose_c = pose.compiled(7)
-        # frames posed in the child of a floating joint: a template per such frame id
-        self._rooted = {}
-        for k, _ in self.plan.rooted:
-            template = pose_stamped_template(self.plan.pose_frame_ids[k])
-            self._rooted[k] = (template.packer(), template.compiled(7))
+
+    def tf_writer(self) -> Callable[..., bytes]:
+        """
+        Return a function ``(sec, nanosec, relative, q) -> bytes`` equal to :meth:`tf`.
+
+        For ``relative`` as an array: where the C writer is built and no helper frame moves,
+        its ``one`` bound to the moving rows (the node's update, without :meth:`tf`'s
+        checks); else :meth:`tf` itself.
+        """
+        if self._tf_c is None or self.helpers.moving:
+            return self.tf
+        one, moving = self._tf_c.one, self._moving
+        return lambda sec, nanosec, relative, q=None: one(sec, nanosec, relative, moving)
 
     def tf(self, sec, nanosec, relative, q=None) -> bytes:
         """
@@ -213,39 +215,3 @@ class FrameBytes:
         if self.helpers.moving:
             poses += self.helpers.moving_poses(q)
         return self._tf.pack(sec, nanosec, poses)
-
-    def pose(self, sec, nanosec, pose) -> bytes:
-        """Return a serialized PoseStamped of ``pose`` in the fixed frame."""
-        return self._pose.pack(sec, nanosec, (pose,))
-
-    def poses(self, sec, nanosec, absolute, frames) -> list:
-        """
-        Return serialized PoseStampeds of the poses ``absolute[k]`` for k in ``frames``.
-
-        :param absolute: an ``(n, 7)`` float64 array (the C writer) or a list of poses.
-        """
-        if self._rooted:
-            return self._poses_rooted(sec, nanosec, absolute, frames)
-        if self._pose_c is not None and isinstance(absolute, np.ndarray):
-            return self._pose_c.each(sec, nanosec, absolute, frames)
-        if isinstance(absolute, np.ndarray):
-            absolute = absolute.tolist()
-        pack = self._pose.pack
-        return [pack(sec, nanosec, (absolute[k],)) for k in frames]
-
-    def _poses_rooted(self, sec, nanosec, absolute, frames):
-        """:meth:`poses` where some frames are posed in a floating joint's child."""
-        array = self.plan.rooted_poses(np.array(absolute, dtype=float))
-        compiled = isinstance(absolute, np.ndarray)
-        out = []
-        for k in frames:
-            packer, writer = self._rooted.get(k, (self._pose, self._pose_c))
-            if compiled and writer is not None:
-                out += writer.each(sec, nanosec, array, (k,))
-            else:
-                out.append(packer.pack(sec, nanosec, (array[k].tolist(),)))
-        return out
-
-    def twist(self, sec, nanosec, v, w) -> bytes:
-        """Return a serialized TwistStamped: linear ``v``, angular ``w`` (fixed-frame axes)."""
-        return self._twist.pack(sec, nanosec, (v, w))

@@ -291,21 +291,21 @@ class DqFkNode(Node):
 
     def _refresh_readers(self):
         """
-        Note which pose and twist topics have subscribers (nobody reads: not filled).
+        Note which per-frame topics (poses, twists) have subscribers (nobody reads: not filled).
 
         Counted outside the node's lock (asking DDS for matched readers can take long
         enough to stall the input thread: 5 kHz input lost messages that way), then set
         under it if the outputs are still the same ones.
         """
         outputs = self._outputs
-        pose, twist = outputs.count_readers(self._params.publish_unread_topics)
+        readers = outputs.count_readers(self._params.publish_unread_topics)
         joint_states = getattr(self, '_joint_state_sub', None)
         publishers = joint_states.get_publisher_count() if joint_states is not None else 0
         with self._lock:
             if joint_states is not None:
                 self._gaps.single_publisher(publishers == 1)
             if outputs is self._outputs:
-                outputs.set_readers(pose, twist)
+                outputs.set_readers(readers)
 
     # -- diagnostics ---------------------------------------------------------------------
     def diagnostics(self) -> DiagnosticStatus:
@@ -325,7 +325,7 @@ class DqFkNode(Node):
         with self._lock:  # the groups hold their publishers' handles: let go
             getattr(self, '_tf_group', PublisherGroup([])).close()
             if getattr(self, '_outputs', None) is not None:
-                self._outputs.pose_group.close()
+                self._outputs.close_groups()
         return super().destroy_node()
 
     def _publish_diagnostics(self):

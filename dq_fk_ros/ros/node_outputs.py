@@ -1,26 +1,31 @@
 """
 dq_fk_node's outputs of one robot: the output table's topics, filled and published per update.
 
-:class:`NodeOutputs` makes the pose and twist publishers of a robot under a frame prefix (a
-row of :data:`~dq_fk_ros.messages.outputs.OUTPUTS` each: topic, type, QoS; the frames from
-the :class:`~dq_fk_ros.messages.output_plan.OutputPlan`), knows which of them someone reads,
-and publishes an update: ``/tf`` (its transforms only, unless a pose or twist is read), the
-read pose topics and the twist topics (``kinematics.twists.frame_twists``), serialized by
-:class:`~dq_fk_ros.ros.conversions.FrameBytes`. The node swaps whole ``NodeOutputs`` when the
-robot, the prefix or ``publish_dh_frames`` change; ``dq_fk_bag process`` writes the same
-rows from the same plan (``bag/outputs.py``).
+:class:`NodeOutputs` makes a publisher per topic of every per-frame row of
+:data:`~dq_fk_ros.messages.outputs.FRAME_OUTPUTS` (the poses, the twists: topic, type and QoS
+from the row, the frames from the :class:`~dq_fk_ros.messages.output_plan.OutputPlan`, the
+messages from a :class:`~dq_fk_ros.messages.frame_streams.FrameStream`, as ``dq_fk_bag
+process`` writes them for a batch), knows which of them someone reads and publishes an
+update: ``/tf`` (its transforms only, unless a per-frame topic is read, serialized by
+:class:`~dq_fk_ros.ros.conversions.FrameBytes`), then each row switched on by its parameter.
+The node swaps whole ``NodeOutputs`` when the robot, the prefix or ``publish_dh_frames``
+change.
 """
 
-import math
+import importlib
 
 from dq_fk_ros.errors import listing
-from dq_fk_ros.kinematics.twists import frame_twists
-from dq_fk_ros.messages.outputs import POSE, TWIST
+from dq_fk_ros.messages import outputs as output_table
+from dq_fk_ros.messages.frame_streams import FrameStream
 from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages, NS_PER_S, qos_profile
 from dq_fk_ros.ros.publisher_group import PublisherGroup
-from dq_fk_ros.ros.raw_input import raw_publisher
-from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
+
+
+def message_class(msgtype: str) -> type:
+    """Return the rclpy message class of ``'pkg/msg/Name'``."""
+    package, kind, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{package}.{kind}'), name)
 
 
 class NodeOutputs:
@@ -33,37 +38,42 @@ class NodeOutputs:
     """
 
     def __init__(self, node, model, prefix: str, dh_frames, tf_group: PublisherGroup):
-        """Make the pose and twist publishers of ``model`` under ``prefix`` on ``node``."""
+        """Make the publishers of every per-frame output of ``model`` under ``prefix``."""
         self.node, self.model, self.tf_group = node, model, tf_group
         self.messages = messages = FrameMessages(model, prefix, dh_frames=dh_frames)
-        made = []
+        self.streams = [FrameStream(output, messages.plan)
+                        for output in output_table.FRAME_OUTPUTS]
+        self.publishers = []   # per stream, one per frame
         try:
-            for k in messages.plan.pose_frames:
-                made.append(node.create_publisher(
-                    PoseStamped, POSE.topic_for(model.topic_names[k]), qos_profile(POSE)))
-            for k in messages.twist_frames:
-                made.append(node.create_publisher(
-                    TwistStamped, TWIST.topic_for(model.topic_names[k]), qos_profile(TWIST)))
+            for stream in self.streams:
+                output = stream.output
+                kind, qos = message_class(output.msgtype), qos_profile(output)
+                made = []
+                self.publishers.append(made)
+                for k in stream.frames:
+                    made.append(node.create_publisher(
+                        kind, output.topic_for(model.topic_names[k]), qos))
         except Exception:
-            for pub in made:
-                node.destroy_publisher(pub)
+            self.close()
             raise
-        n = len(messages.plan.pose_frames)
-        self.pose_pubs, self.twist_pubs = made[:n], made[n:]
-        self.pose_frames = messages.plan.pose_frames   # the frame index of each pose topic
-        self.pose_group = PublisherGroup([])
-        self.send_twist = [raw_publisher(pub) for pub in self.twist_pubs]   # bytes, direct
+        self.groups = [PublisherGroup([]) for _ in self.streams]
         self.bytes = FrameBytes(messages)
+        self.tf_bytes = self.bytes.tf_writer()
         self.shown_optional = ()
-        self.pose_readers = [False] * n
-        self.twist_read = [False] * len(self.twist_pubs)
-        self.any_twist_read = False
-        self.read_poses = []
+        self.readers = [[False] * len(s.frames) for s in self.streams]
+        self.shown = [s.shown(()) for s in self.streams]   # none of the optional joints yet
+        self.read = [[] for _ in self.streams]   # per stream, the positions read and shown
+        self.active = []   # the streams with a topic read
+        self.switches = [stream.output.switch for stream in self.streams]
+        self.value_functions = [stream.output.values for stream in self.streams]
+        self.velocities = [stream.output.velocities for stream in self.streams]
+        self._on, self._on_for = [], None
         # the poses of an update, written in place by the robot's engine (the kernel's
         # Model, or the reference): RobotModel.frame_pose_arrays / transform_pose_array
         # without their two pass-through calls
         self.absolute = np.empty((len(model.frame_names), 7))
         self.relative = np.empty((model.n_transforms, 7))
+        self._absolute_n = self.absolute[None]   # the same memory, as a batch of one
         engine = model.kinematics.engine
         self.fill_poses, self.fill_transforms = engine.poses, engine.transforms
 
@@ -80,33 +90,55 @@ class NodeOutputs:
 
     def close(self) -> None:
         """Let go of the publishers (their group, then the publishers themselves)."""
-        self.pose_group.close()
-        for pub in self.pose_pubs + self.twist_pubs:
-            self.node.destroy_publisher(pub)
+        self.close_groups()
+        for made in self.publishers:
+            for pub in made:
+                self.node.destroy_publisher(pub)
 
-    def count_readers(self, always: bool) -> tuple:
-        """Return which pose and which twist topics someone reads (``always``: all)."""
-        return ([always or pub.get_subscription_count() > 0 for pub in self.pose_pubs],
-                [always or pub.get_subscription_count() > 0 for pub in self.twist_pubs])
+    def close_groups(self) -> None:
+        """Let go of the publishers' handles the groups hold (before they are destroyed)."""
+        for group in getattr(self, 'groups', ()):
+            group.close()
 
-    def set_readers(self, pose: list, twist: list) -> None:
+    def count_readers(self, always: bool) -> list:
+        """Return, per per-frame output, which of its topics someone reads (``always``: all)."""
+        return [[always or pub.get_subscription_count() > 0 for pub in made]
+                for made in self.publishers]
+
+    def set_readers(self, readers: list) -> None:
         """Take the reader flags of :meth:`count_readers` (under the node's lock)."""
-        self.pose_readers, self.twist_read = pose, twist
-        self.any_twist_read = any(twist)
-        self.note_read_poses()
+        self.readers = readers
+        self.note_read()
 
-    def note_read_poses(self) -> None:
-        """Index the pose topics someone reads of links shown, and their publishers."""
-        hidden = self.messages.hidden  # side-branch links not named yet
-        read = [i for i, (k, on) in enumerate(zip(self.pose_frames, self.pose_readers))
-                if on and k not in hidden]
-        self.read_poses = [self.pose_frames[i] for i in read]
-        self.pose_group = self.pose_group.regroup([self.pose_pubs[i] for i in read])
+    def note_read(self) -> None:
+        """Index the topics someone reads of frames shown, and group their publishers."""
+        for s, (made, readers, shown) in enumerate(
+                zip(self.publishers, self.readers, self.shown)):
+            read = [i for i, (on, known) in enumerate(zip(readers, shown)) if on and known]
+            self.read[s] = read
+            self.groups[s] = self.groups[s].regroup([made[i] for i in read])
+        self.active = [s for s, read in enumerate(self.read) if read]
+        self._on_for = None
+
+    def on_for(self, params) -> list:
+        """
+        Return (and keep) the streams read and switched on by ``params``.
+
+        Per stream its values, frames, whether it needs velocities, serializer, publish and
+        read topics.
+
+        ``NodeParameters`` is replaced, never changed, when a parameter changes: the list is
+        kept for one parameters object (and made again when the readers change).
+        """
+        self._on = [(self.value_functions[s], self.streams[s].frames, self.velocities[s],
+                     self.streams[s].serialize, self.groups[s].publish, self.read[s])
+                    for s in self.active if getattr(params, self.switches[s])]
+        self._on_for = params
+        return self._on
 
     def wanted(self, params) -> bool:
-        """Say whether an update has anything but ``/tf`` to send (a pose or twist read)."""
-        return bool(params.publish_poses and self.read_poses or
-                    params.publish_twist and self.any_twist_read)
+        """Say whether an update has anything but ``/tf`` to send (a read topic switched on)."""
+        return bool(self._on if params is self._on_for else self.on_for(params))
 
     def show_branches(self, seen: tuple) -> list:
         """Publish the links of the side-branch joints ``seen`` from now on; return new ones."""
@@ -114,35 +146,39 @@ class NodeOutputs:
         self.messages = FrameMessages(self.model, self.messages.plan.prefix, seen,
                                       self.messages.plan)
         self.bytes = FrameBytes(self.messages)
+        self.tf_bytes = self.bytes.tf_writer()
         self.shown_optional = seen
-        self.note_read_poses()
+        self.shown = [stream.shown(seen) for stream in self.streams]
+        self.note_read()
         return new
 
     def publish(self, params, stamp_ns: int, q, qdot, send_tf: bool = True) -> None:
-        """Publish ``/tf`` and the read pose and twist topics, stamped ``stamp_ns``."""
-        model = self.model
-        poses = params.publish_poses and bool(self.read_poses)
-        twists = params.publish_twist and qdot is not None and self.any_twist_read
-        if twists and model.branches:  # a tree: the first chain's velocities may be unknown
-            twists = all(map(math.isfinite, qdot[:model.chain.dof]))
+        """Publish ``/tf`` and the read per-frame topics, stamped ``stamp_ns``."""
+        if params is not self._on_for:  # (parameters change by a new object: see on_for)
+            self.on_for(params)
+        on = self._on
         absolute, relative = self.absolute, self.relative
-        if poses or twists:
+        if on:
             self.fill_poses(q, absolute, relative)
         else:  # /tf alone needs the transforms only
             self.fill_transforms(q, relative)
         sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
-        out = self.bytes
-        if send_tf and params.publish_tf and out.sends_tf:
-            self.tf_group.publish((out.tf(sec, nanosec, relative, q),))
-        if poses:
-            self.pose_group.publish(out.poses(sec, nanosec, absolute, self.read_poses))
-        if twists:
-            frames, dof = self.messages.twist_frames, model.chain.dof
-            moving = frame_twists(model.chain, q[:dof], qdot[:dof],
-                                  absolute[model.n_chain_frames - 1, :3], absolute[frames, :3])
-            for send, read, twist in zip(self.send_twist, self.twist_read, moving.tolist()):
-                if read:
-                    send(out.twist(sec, nanosec, twist[:3], twist[3:]))
+        if send_tf and params.publish_tf and self.bytes.sends_tf:
+            self.tf_group.publish((self.tf_bytes(sec, nanosec, relative, q),))
+        if not on:
+            return
+        # N = 1: the update as a batch of one (views where q and qdot are arrays already)
+        q_n = q[None] if type(q) is np.ndarray else np.asarray(q, dtype=float)[None]
+        qdot_n = None if qdot is None else np.asarray(qdot, dtype=float)[None]
+        plan, absolute_n = self.messages.plan, self._absolute_n
+        for values_of, frames, velocities, serialize, send, read in on:
+            if velocities and qdot is None:
+                continue   # a row of velocities: none given
+            got = values_of(plan, q_n, qdot_n, absolute_n, frames)
+            if got is not None and got[2] is None:
+                array, columns, _ = got
+                values = absolute if array is absolute_n else array[0]  # (no view to make)
+                send(serialize(sec, nanosec, values, columns, read))
 
 
 __all__ = ['NodeOutputs']

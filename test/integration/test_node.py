@@ -8,6 +8,7 @@ import xml.etree.ElementTree as ET
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.description.to_urdf import robot_to_urdf
+from dq_fk_ros.messages.outputs import POSE
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import homogeneous_tf as htf
 import numpy as np
@@ -119,14 +120,16 @@ def test_missing_joints_hold_publishing_back(ros):
 def test_a_side_branch_pose_topic_is_published_from_the_message_that_first_names_it(ros):
     """Not from the next look at who reads the pose topics (twice a second): at once."""
     node = ros.start_node(robot_description_file='dual_arm', publish_unread_topics=True)
-    hidden = [k for k in node._outputs.pose_frames if k in node._outputs.messages.hidden]
-    assert hidden and len(node._outputs.pose_group) == len(node._outputs.pose_pubs) - len(hidden)
+    outputs = node._outputs
+    (poses,) = [s for s, stream in enumerate(outputs.streams) if stream.output is POSE]
+    hidden = [k for k in outputs.streams[poses].frames if k in outputs.messages.hidden]
+    assert hidden and len(outputs.groups[poses]) == len(outputs.publishers[poses]) - len(hidden)
     model = node._model
     every_joint = ros.joint_state(model.joint_names, [0.1] * len(model.joint_names))
     # handed to the node as its input thread does (no timer can run in between)
     node._on_joint_state(serialize_message(every_joint), {'publication_sequence_number': None})
-    assert not node._outputs.messages.hidden
-    assert len(node._outputs.pose_group) == len(node._outputs.pose_pubs)
+    assert not outputs.messages.hidden
+    assert len(outputs.groups[poses]) == len(outputs.publishers[poses])
 
 
 def test_a_tree_publishes_each_chain_when_its_joints_arrive_and_a_mimic_with_its_source(ros):

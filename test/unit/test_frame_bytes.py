@@ -8,6 +8,8 @@ from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.messages.cdr import COMPILED
 from dq_fk_ros.messages.cdr_templates import pose_stamped_template, tf_message_template
+from dq_fk_ros.messages.frame_streams import FrameStream
+from dq_fk_ros.messages.outputs import POSE, TWIST
 from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
@@ -38,35 +40,48 @@ def robot_model(robot):
     return load_robot_description(shipped_robot_path(robot))
 
 
+def every_frame_streams(plan, compiled=True):
+    """Return the pose stream of every frame (as FrameMessages.poses) and the twist stream."""
+    poses = FrameStream(POSE, plan, range(len(plan.frame_ids)), compiled)
+    return poses, FrameStream(TWIST, plan, None, compiled)
+
+
 @pytest.mark.parametrize('robot', shipped_robots() + ['ur5.urdf', 'panda.urdf'])
 @pytest.mark.parametrize('prefix', ['', 'left/'])
 def test_serialized_output_equals_the_message_objects(robot, prefix):
     model = robot_model(robot)
     objects = FrameMessages(model, prefix, model.optional_joints)  # every branch shown
     raw = FrameBytes(objects)
+    pose_stream, twist_stream = every_frame_streams(objects.plan)
     rng = np.random.default_rng(len(robot) + len(prefix))
     for sec, nanosec in STAMPS:
         q = rng.uniform(-2, 2, model.dof)
+        qdot = rng.normal(size=model.dof)
         absolute, relative = model.frame_poses(q)
         stamp = Time(sec=sec, nanosec=nanosec)
         tf, poses = objects.fill(stamp, absolute, relative, q)
         ours = raw.tf(sec, nanosec, relative, q)
         assert deserialize_message(ours, TFMessage) == tf  # every field
-        same_outside_padding(ours, serialize_message(tf), raw.templates['tf'])
+        same_outside_padding(ours, serialize_message(tf), raw.template)
+        batch = np.array(absolute)[None]
+        array, columns, rows = pose_stream.values(q[None], None, batch)
         every = list(range(len(absolute)))
-        assert raw.poses(sec, nanosec, absolute, every) == \
-            [raw.pose(sec, nanosec, pose) for pose in absolute]
-        assert raw.poses(sec, nanosec, absolute, every[1::2]) == \
-            [raw.pose(sec, nanosec, pose) for pose in absolute[1::2]]
-        for msg, pose in zip(poses, absolute):
-            ours = raw.pose(sec, nanosec, pose)
-            assert deserialize_message(ours, PoseStamped) == msg
-            same_outside_padding(ours, serialize_message(msg), raw.templates['pose'])
-        v, w = rng.normal(size=3), rng.normal(size=3)
-        (twist,) = objects.fill_twists(stamp, [(v, w)])[:1]
-        ours = raw.twist(sec, nanosec, v.tolist(), w.tolist())
-        assert deserialize_message(ours, TwistStamped) == twist
-        same_outside_padding(ours, serialize_message(twist), raw.templates['twist'])
+        ours = pose_stream.serialize(sec, nanosec, array[0], columns, every)
+        assert rows is None and len(ours) == len(poses)
+        for data, msg, template in zip(ours, poses, pose_stream.templates):
+            assert deserialize_message(data, PoseStamped) == msg
+            same_outside_padding(data, serialize_message(msg), template)
+        assert pose_stream.serialize(sec, nanosec, array[0], columns, every[1::2]) == ours[1::2]
+        got = twist_stream.values(q[None], qdot[None], batch)
+        if not twist_stream.frames:
+            continue
+        array, columns, rows = got
+        picked = list(range(len(twist_stream.frames)))
+        ours = twist_stream.serialize(sec, nanosec, array[0], columns, picked)
+        twists = objects.fill_twists(stamp, [(t[:3], t[3:]) for t in array[0]])
+        for data, msg, template in zip(ours, twists, twist_stream.templates):
+            assert deserialize_message(data, TwistStamped) == msg
+            same_outside_padding(data, serialize_message(msg), template)
 
 
 @pytest.mark.skipif(COMPILED is None, reason='the struct packer alone is active')
@@ -74,20 +89,28 @@ def test_serialized_output_equals_the_message_objects(robot, prefix):
 def test_the_c_writer_equals_the_packer_byte_for_byte(robot):
     model = robot_model(robot)
     raw = FrameBytes(FrameMessages(model, 'left/', model.optional_joints))
-    assert raw._tf_c is not None and raw._pose_c is not None
+    assert raw._tf_c is not None
+    compiled = every_frame_streams(raw.plan)
+    packed = every_frame_streams(raw.plan, compiled=False)
+    assert all(w[1] is not None for s in compiled for w in s._writers)
     rng = np.random.default_rng(len(robot))
     odd = [0.0, -0.0, np.nan, np.inf, -np.inf, 1e308, 5e-324]
-    every = list(range(len(model.frame_names)))
     for sec, nanosec in STAMPS + [(-2**31, 2**32 - 1)]:
         q = rng.uniform(-2, 2, model.dof)
         absolute, relative = model.frame_pose_arrays(q)
         absolute[0, :len(odd)] = odd  # every bit pattern is copied as it is
         assert raw.tf(sec, nanosec, relative, q) == \
-            raw.tf(sec, nanosec, relative.tolist(), q)
-        assert raw.poses(sec, nanosec, absolute, every) == \
-            raw.poses(sec, nanosec, absolute.tolist(), every)
-        assert raw.poses(sec, nanosec, absolute, every[::-2]) == \
-            [raw.pose(sec, nanosec, pose) for pose in absolute.tolist()[::-2]]
+            raw.tf(sec, nanosec, relative.tolist(), q) == \
+            raw.tf_writer()(sec, nanosec, relative, q)   # the node's
+        for fast, reference in zip(compiled, packed):
+            got = fast.values(q[None], rng.normal(size=(1, model.dof)), absolute[None])
+            if got is None or not fast.frames:
+                continue
+            array, columns, _ = got
+            every = list(range(len(fast.frames)))
+            for picked in (every, every[::-2]):
+                assert fast.serialize(sec, nanosec, array[0], columns, picked) == \
+                    reference.serialize(sec, nanosec, array[0], columns, picked)
 
 
 @pytest.mark.skipif(COMPILED is None, reason='the struct packer alone is active')

@@ -6,8 +6,10 @@ import sys
 from dq_fk_ros.description.loading import robot_from_urdf_text
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
+from dq_fk_ros.messages.frame_streams import FrameStream
 from dq_fk_ros.messages.output_plan import OutputPlan
-from dq_fk_ros.ros.conversions import FrameBytes, FrameMessages
+from dq_fk_ros.messages.outputs import POSE
+from dq_fk_ros.ros.conversions import FrameMessages
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 import pytest
@@ -74,7 +76,9 @@ def test_a_dh_file_keeps_its_frames_on_tf():
 def test_poses_below_a_floating_joint_are_in_its_child_as_pinocchio_has_them():
     model = robot_from_urdf_text(ROBOT, 'carried.urdf').model
     messages = FrameMessages(model)
-    raw = FrameBytes(messages)
+    stream = FrameStream(POSE, messages.plan)
+    assert not stream.uniform  # two roots: a layout each
+    packed = FrameStream(POSE, messages.plan, compiled=False)
     pin_model = oracle.urdf_model(ROBOT)
     q = np.array([0.4, -0.7, 1.1])
     values = dict(zip(model.joint_names, q))
@@ -82,7 +86,11 @@ def test_poses_below_a_floating_joint_are_in_its_child_as_pinocchio_has_them():
                                         list(model.frame_names[model.n_dh_frames:]))
     absolute, _ = model.frame_pose_arrays(q)
     frames = list(messages.plan.pose_frames)
-    for k, data in zip(frames, raw.poses(1, 2, absolute, frames)):
+    array, columns, _ = stream.values(q[None], None, absolute[None])
+    every = list(range(len(frames)))
+    serialized = stream.serialize(1, 2, array[0], columns, every)
+    assert serialized == packed.serialize(1, 2, array[0], columns, every)  # C and packer
+    for k, data in zip(frames, serialized):
         msg = deserialize_message(data, PoseStamped)
         name, root = model.frame_names[k], msg.header.frame_id
         expected = np.linalg.inv(placements[root]) @ placements[name]
@@ -95,7 +103,7 @@ def test_poses_below_a_floating_joint_are_in_its_child_as_pinocchio_has_them():
         np.testing.assert_allclose(rotation, expected[:3, :3], atol=1e-9, err_msg=name)
     # the message objects (the reference) say the same
     _, poses = messages.fill(None, absolute, model.frame_pose_arrays(q)[1])
-    for k, data in zip(frames, raw.poses(1, 2, absolute, frames)):
+    for k, data in zip(frames, serialized):
         msg = deserialize_message(data, PoseStamped)
         assert msg.header.frame_id == poses[k].header.frame_id
         assert msg.pose == poses[k].pose
