@@ -109,7 +109,9 @@ setup(
     install_requires=['setuptools', 'numpy', 'PyYAML'],
     # dq_fk_bag process --scheduler: a Dask cluster (pip install 'dq_fk_ros[cluster]')
     # dq_fk_foxglove: the Foxglove SDK's WebSocket server (pip install 'dq_fk_ros[foxglove]')
-    extras_require={'cluster': ['dask[distributed]'], 'foxglove': ['foxglove-sdk>=0.30']},
+    # dq_fk calibrate: Levenberg-Marquardt (pip install 'dq_fk_ros[calibrate]')
+    extras_require={'calibrate': ['scipy'], 'cluster': ['dask[distributed]'],
+                    'foxglove': ['foxglove-sdk>=0.30']},
     zip_safe=True,
     maintainer='dq_fk_ros developers',
     maintainer_email='dq_fk_ros@example.com',

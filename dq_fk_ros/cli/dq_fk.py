@@ -4,7 +4,8 @@
 ``dq_fk validate FILE...``, ``dq_fk fk FILE --joints ...``, ``dq_fk urdf FILE``,
 ``dq_fk plot FILE``, ``dq_fk from-urdf ROBOT.urdf -o robot.yaml``, ``dq_fk list`` run no ROS
 process; ``dq_fk show ROBOT`` starts the node and the view (:mod:`dq_fk_ros.ros.show`);
-``dq_fk tf echo|frames|monitor`` read TF (:mod:`dq_fk_ros.ros.tf_tools`).
+``dq_fk tf echo|frames|monitor`` read TF (:mod:`dq_fk_ros.ros.tf_tools`); ``dq_fk
+calibrate`` identifies a DH table from measured poses (:mod:`dq_fk_ros.cli.calibrate`).
 FILE is a DH YAML file, a URDF or xacro file (converted on the way, as ``from-urdf`` does),
 or the name of a shipped robot (``rl15``, ``puma560``...).
 """
@@ -302,6 +303,11 @@ def _tf_command(tf_tools, args):
     return tf_tools.monitor(args.target, args.source, args.seconds)
 
 
+def cmd_calibrate(args) -> int:
+    from dq_fk_ros.cli.calibrate import cmd_calibrate as run  # scipy: lazily
+    return run(args)
+
+
 def cmd_list(args) -> int:
     for name in shipped_robots():
         model = load_robot_description(shipped_robot_path(name))
@@ -401,6 +407,39 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument('source', metavar='SOURCE', nargs='?')
     q.add_argument('--seconds', type=float, help='stop after this long (default: Ctrl-C)')
     p.set_defaults(func=cmd_tf)
+    p = sub.add_parser('calibrate', help='identify the DH table from measured poses (CSV or '
+                       'bag), or plan the configurations to measure (docs/calibration.md)')
+    p.add_argument('robot', metavar='ROBOT', help='a DH file, a shipped robot name or a URDF')
+    p.add_argument('data', metavar='DATA.csv', nargs='?', help='a column per joint (rad, m), '
+                   'x, y, z (m) and, if measured, qx, qy, qz, qw')
+    p.add_argument('-o', '--output', required=True, metavar='CALIBRATED.yaml',
+                   help='the robot file with the identified rows (with --plan: PLAN.csv)')
+    p.add_argument('--report', metavar='REPORT.json', help='what was identified, how well')
+    p.add_argument('--plot', metavar='RESIDUALS.png', help='position errors before and after')
+    p.add_argument('--bag', help='measurements from a bag instead: --pose-topic paired with '
+                   'its joint states')
+    p.add_argument('--pose-topic', metavar='TOPIC', help='the measured PoseStamped topic')
+    p.add_argument('--joint-topic', metavar='TOPIC', help='the JointState topic (default: '
+                   "the bag's only one)")
+    p.add_argument('--max-gap', type=float, default=0.05, metavar='S', help='a pose needs a '
+                   'joint state within this many seconds before and after (default 0.05)')
+    p.add_argument('--max-motion', type=float, default=1e-3, metavar='Q', help='leave out a '
+                   'pose taken while a joint moved more than this (rad or m; default 0.001)')
+    p.add_argument('--position-only', action='store_true',
+                   help='use the measured positions only (no orientation)')
+    p.add_argument('--position-noise', type=float, metavar='M',
+                   help='position noise (m, one sigma; default: estimated)')
+    p.add_argument('--orientation-noise', type=float, metavar='RAD',
+                   help='orientation noise (rad, one sigma; default: estimated)')
+    p.add_argument('--holdout', type=float, default=0.2, metavar='SHARE',
+                   help='share of the measurements kept out of the fit to judge it (0.2)')
+    p.add_argument('--seed', type=int, default=0, help='for the held-out draw and --plan')
+    p.add_argument('--plan', type=int, metavar='N',
+                   help='write N configurations within the limits that maximise the '
+                   'observability index, as a CSV to drive the robot to')
+    add_urdf_chain_options(p)
+    add_package_option(p)
+    p.set_defaults(func=cmd_calibrate)
     p = sub.add_parser('list', help='list the shipped robots')
     p.add_argument('--verbose', '-v', action='store_true',
                    help='also say which FK path is active (the C kernel or numpy)')

@@ -16,7 +16,7 @@ PACKAGE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
 # bottom up: a layer may import its own modules and those of the layers before it; at the
 # bottom the package's errors (one module, dq_fk_ros/errors.py, that every layer imports)
 LAYERS = ('errors', 'kinematics', 'description', 'messages', 'transforms', 'storage', 'bag',
-          'ros', 'viewers', 'cli')
+          'calibration', 'ros', 'viewers', 'cli')
 # modules beside the layers: the package's surfaces, which may import any layer
 SURFACES = ('__init__.py', 'tf.py')
 # what each layer may import from outside the standard library and the package
@@ -32,6 +32,8 @@ THIRD_PARTY = {
     'storage': {'numpy', 'rosbags', 'mcap', 'compression', 'backports', 'lz4', 'yaml',
                 'zlib_ng'},
     'bag': {'numpy', 'rosbags', 'mcap', 'yaml', 'distributed'},
+    # scipy: Levenberg-Marquardt; ruamel: the robot file written back with its comments
+    'calibration': {'numpy', 'scipy', 'ruamel', 'matplotlib'},
     'ros': {'numpy', 'rclpy', 'aiohttp', 'foxglove', 'ament_index_python', 'builtin_interfaces',
             'diagnostic_msgs', 'geometry_msgs',
             'rcl_interfaces', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'tf2_msgs'},
