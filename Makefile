@@ -134,11 +134,24 @@ $(BENCH_VENV)/.stamp: requirements/bench.txt setup.py
 	  $(BENCH_VENV)/bin/python -m pip install --disable-pip-version-check --no-deps -e .
 	@touch $@
 
+# bench_calibration.py's peers, each in a venv of its own (pybotics pins numpy < 2)
+PEER_VENVS = .venv-figaroh .venv-pybotics
+.venv-%/.stamp: requirements/bench-%.txt
+	@echo 'bench: installing the calibration peer $* into .venv-$* (requirements/bench-$*.txt)'
+	@$(STEP) "create virtual environment .venv-$*" .venv-$*-logs/venv.log $(PYTHON) -m venv .venv-$*
+	@$(STEP) "install requirements/bench-$*.txt" .venv-$*-logs/install.log \
+	  .venv-$*/bin/python -m pip install --disable-pip-version-check -r requirements/bench-$*.txt
+	@touch $@
+
 # every benchmark records its figures (benchmarks/bench_results.py) for docs/performance.md
 BENCH_RESULTS = build/bench/results.jsonl
 bench: export DQ_FK_BENCH_JSON = $(abspath $(BENCH_RESULTS))
-bench: setup $(BENCH_VENV)/.stamp
+bench: setup $(BENCH_VENV)/.stamp $(addsuffix /.stamp,$(PEER_VENVS))
 	@mkdir -p $(dir $(BENCH_RESULTS)) && rm -f $(BENCH_RESULTS)
+	@DQ_FK_FIGAROH_PYTHON=$(abspath .venv-figaroh/bin/python) \
+	  DQ_FK_PYBOTICS_PYTHON=$(abspath .venv-pybotics/bin/python) \
+	  $(PY) benchmarks/bench_calibration.py
+	@echo
 	@$(BENCH_VENV)/bin/python benchmarks/bench_core.py
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_node.py

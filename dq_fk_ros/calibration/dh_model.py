@@ -188,22 +188,23 @@ class DhPoseModel:
         rows = params[:4 * n].reshape(n, 4)
         t_wb, phi, t_em, psi = params[4 * n:4 * n + 3], params[4 * n + 3:4 * n + 6], \
             params[4 * n + 6:4 * n + 9], params[4 * n + 9:4 * n + 12]
-        h = np.broadcast_to(self.base, (m, 8)).copy()
+        # the chain's dual quaternion, components first: h[k] is component k of every
+        # configuration (the factors multiplied on the right in closed form, _times)
+        h = np.repeat(np.asarray(self.base, dtype=float)[:, None], m, axis=1)
         axes = []   # per factor: (parameter index, rotation?, u (M,3), c (M,3))
         for i in range(n):
-            values = {'theta': np.full(m, rows[i, 0]), 'd': np.full(m, rows[i, 1]),
-                      'a': np.full(m, rows[i, 2]), 'alpha': np.full(m, rows[i, 3])}
+            values = {'theta': rows[i, 0], 'd': rows[i, 1], 'a': rows[i, 2],
+                      'alpha': rows[i, 3]}
             if self.theta_index[i] >= 0:
                 values['theta'] = values['theta'] + self.scale[i] * q[:, self.theta_index[i]]
             if self.d_index[i] >= 0:
                 values['d'] = values['d'] + self.scale[i] * q[:, self.d_index[i]]
             for axis, rotation, field in FACTORS[self.convention]:
                 if jacobian:
-                    r = rotation_matrices(h[:, :4])
-                    u = r[:, :, 2] if axis == 'z' else r[:, :, 0]
-                    axes.append((4 * i + ROW_FIELDS.index(field), rotation, u,
-                                 translation_of(h)))
-                h = dual_product(h, _factor(axis, rotation, values[field]))
+                    axes.append((4 * i + ROW_FIELDS.index(field), rotation,
+                                 _axis_of(h, axis), _origin_of(h)))
+                h = _times(h, axis, rotation, values[field])
+        h = np.ascontiguousarray(h.T)
         h = dual_product(h, np.broadcast_to(self.tool, (m, 8)))
         r_end = rotation_matrices(h[:, :4])
         x = translation_of(h) + r_end @ t_em            # the measured point, robot frame
@@ -230,15 +231,58 @@ class DhPoseModel:
         return positions, quaternions, jac
 
 
-def _factor(axis: str, rotation: bool, value: np.ndarray) -> np.ndarray:
-    """Return the ``(M, 8)`` dual quaternions of one factor ([Zivkovic2023] (13)-(15))."""
-    out = np.zeros((len(value), 8))
-    at = 3 if axis == 'z' else 1
+def _times(h: np.ndarray, axis: str, rotation: bool, value) -> np.ndarray:
+    """
+    Return ``h F`` for one factor F ([Zivkovic2023] eqs. (13)-(15)), components first.
+
+    ``Rz(v) = cos(v/2) + k sin(v/2)``, ``Rx(v) = cos(v/2) + i sin(v/2)`` multiply both parts
+    of ``h``; ``Tz(v) = 1 + eps k v/2``, ``Tx(v) = 1 + eps i v/2`` add ``r k v/2`` or ``r i
+    v/2`` to its dual part (``r`` its real part): the quaternion products written out for
+    these sparse factors (test_calibration.py holds the chain to 4x4 products).
+    """
     if rotation:
-        out[:, 0], out[:, at] = np.cos(0.5 * value), np.sin(0.5 * value)
-    else:
-        out[:, 0], out[:, 4 + at] = 1.0, 0.5 * value
+        c, s = np.cos(0.5 * value), np.sin(0.5 * value)
+        out = np.empty_like(h)
+        for at in (0, 4):
+            w, x, y, z = h[at], h[at + 1], h[at + 2], h[at + 3]
+            if axis == 'z':   # (w, x, y, z)(c, 0, 0, s)
+                out[at], out[at + 1] = w * c - z * s, x * c + y * s
+                out[at + 2], out[at + 3] = y * c - x * s, z * c + w * s
+            else:             # (w, x, y, z)(c, s, 0, 0)
+                out[at], out[at + 1] = w * c - x * s, x * c + w * s
+                out[at + 2], out[at + 3] = y * c + z * s, z * c - y * s
+        return out
+    t = 0.5 * value
+    out = h.copy()
+    w, x, y, z = h[0], h[1], h[2], h[3]
+    if axis == 'z':   # + eps (w, x, y, z)(0, 0, 0, t)
+        out[4] -= z * t
+        out[5] += y * t
+        out[6] -= x * t
+        out[7] += w * t
+    else:             # + eps (w, x, y, z)(0, t, 0, 0)
+        out[4] -= x * t
+        out[5] += w * t
+        out[6] += z * t
+        out[7] -= y * t
     return out
+
+
+def _axis_of(h: np.ndarray, axis: str) -> np.ndarray:
+    """Return the ``(M, 3)`` z or x axis of the frames ``h`` (components first)."""
+    w, x, y, z = h[0], h[1], h[2], h[3]
+    if axis == 'z':
+        return np.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)], 1)
+    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], 1)
+
+
+def _origin_of(h: np.ndarray) -> np.ndarray:
+    """Return the ``(M, 3)`` origins ``2 d r*`` of the frames ``h`` (components first)."""
+    w, x, y, z = h[0], h[1], h[2], h[3]
+    dw, dx, dy, dz = h[4], h[5], h[6], h[7]
+    return 2 * np.stack([-dw * x + dx * w - dy * z + dz * y,
+                         -dw * y + dx * z + dy * w - dz * x,
+                         -dw * z - dx * y + dy * x + dz * w], 1)
 
 
 __all__ = ['DhPoseModel', 'FRAME_FIELDS', 'left_jacobian', 'quaternion_of_rotvec',

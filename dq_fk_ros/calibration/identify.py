@@ -150,11 +150,19 @@ def fit(model, start, free, data, sigma) -> np.ndarray:
         p[free] = x
         return p
 
+    last = {}   # the residuals and Jacobian of the last x: MINPACK asks for both at it
+
+    def both(x):
+        key = x.tobytes()
+        if last.get('key') != key:
+            last.update(key=key, value=weighted(model, full(x), data, sigma, free))
+        return last['value']
+
     def fun(x):
-        return weighted(model, full(x), data, sigma, free, jacobian=False)[0]
+        return both(x)[0]
 
     def jac(x):
-        return weighted(model, full(x), data, sigma, free)[1]
+        return both(x)[1]
 
     result = least_squares(fun, params[free], jac=jac, method='lm', x_scale='jac',
                            xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200 * (len(free) + 1))
@@ -279,16 +287,21 @@ def calibrate(model: DhPoseModel, data: Measurements, sigma_position=None,
     kept = sorted(kept)
     # (3) everything that can be, weighted by the noise (estimated: fitted again)
     params = fit(model, start, kept, train, (sp, so))
-    if sigma_position is None or (orientation and sigma_orientation is None):
+    if orientation and (sigma_position is None or sigma_orientation is None):
+        # two kinds of residual: their weights move the fit; positions alone: they do not
         after = residuals_of(model, params, train)
         dof_share = max(1.0, len(train) * (6 if orientation else 3) - len(kept)) / \
             (len(train) * (6 if orientation else 3))
         if sigma_position is None:
             sp = max(1e-9, _rms(after.position) / np.sqrt(dof_share))
-        if orientation and sigma_orientation is None:
+        if sigma_orientation is None:
             so = max(1e-9, _rms(after.orientation) / np.sqrt(dof_share))
         start = fit(model, start, frames, train, (sp, so))
         params = fit(model, start, kept, train, (sp, so))
+    elif sigma_position is None:   # the noise, for the standard deviations
+        dof = max(1, 3 * len(train) - len(kept))
+        sp = max(1e-9, float(np.sqrt(np.sum(residuals_of(model, params, train).position ** 2)
+                                     / dof)))
     r, jac = weighted(model, params, train, (sp, so), np.array(kept))
     chi2 = float(r @ r) / max(1, len(r) - len(kept))
     std = np.zeros(len(params))

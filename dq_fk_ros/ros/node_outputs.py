@@ -67,7 +67,7 @@ class NodeOutputs:
         self.switches = [stream.output.switch for stream in self.streams]
         self.value_functions = [stream.output.values for stream in self.streams]
         self.velocities = [stream.output.velocities for stream in self.streams]
-        self._on, self._on_for = [], None
+        self._on, self._on_without_velocities, self._on_for = [], [], None
         # the poses of an update, written in place by the robot's engine (the kernel's
         # Model, or the reference): RobotModel.frame_pose_arrays / transform_pose_array
         # without their two pass-through calls
@@ -133,6 +133,7 @@ class NodeOutputs:
         self._on = [(self.value_functions[s], self.streams[s].frames, self.velocities[s],
                      self.streams[s].serialize, self.groups[s].publish, self.read[s])
                     for s in self.active if getattr(params, self.switches[s])]
+        self._on_without_velocities = [row for row in self._on if not row[2]]
         self._on_for = params
         return self._on
 
@@ -156,7 +157,7 @@ class NodeOutputs:
         """Publish ``/tf`` and the read per-frame topics, stamped ``stamp_ns``."""
         if params is not self._on_for:  # (parameters change by a new object: see on_for)
             self.on_for(params)
-        on = self._on
+        on = self._on if qdot is not None else self._on_without_velocities
         absolute, relative = self.absolute, self.relative
         if on:
             self.fill_poses(q, absolute, relative)
@@ -171,9 +172,7 @@ class NodeOutputs:
         q_n = q[None] if type(q) is np.ndarray else np.asarray(q, dtype=float)[None]
         qdot_n = None if qdot is None else np.asarray(qdot, dtype=float)[None]
         plan, absolute_n = self.messages.plan, self._absolute_n
-        for values_of, frames, velocities, serialize, send, read in on:
-            if velocities and qdot is None:
-                continue   # a row of velocities: none given
+        for values_of, frames, _, serialize, send, read in on:
             got = values_of(plan, q_n, qdot_n, absolute_n, frames)
             if got is not None and got[2] is None:
                 array, columns, _ = got
