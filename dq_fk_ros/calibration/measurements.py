@@ -153,8 +153,9 @@ def read_bag(path, joint_names, pose_topic, joint_topic=None, max_gap_s=0.05,
             except CdrError:
                 counts['malformed'] += 1
                 continue
-            if not all(map(math.isfinite, pose)):
-                counts['malformed'] += 1
+            if not all(map(math.isfinite, pose)) or \
+                    abs(math.sqrt(sum(v * v for v in pose[3:])) - 1.0) > 1e-3:
+                counts['malformed'] += 1   # (not a number, or not a unit quaternion)
                 continue
             frames.add(frame_id)
             measured.append((stamp or log_time, pose))

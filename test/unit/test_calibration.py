@@ -12,6 +12,8 @@ parameters held as unidentifiable must be the ones the geometry says.
 import csv
 import json
 import math
+import os
+import sys
 
 from dq_fk_ros.calibration.dh_model import DhPoseModel
 from dq_fk_ros.calibration.identify import identifiable, preference
@@ -22,6 +24,9 @@ from dq_fk_ros.description.shipped import shipped_robot_path
 import numpy as np
 import pytest
 import yaml
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from vendor_urdfs import UR5, vendor_path  # noqa: E402, I100 (the tests' helper)
 
 pytest.importorskip('scipy')
 LENGTH = {'m': 1.0, 'mm': 1e-3}
@@ -57,7 +62,7 @@ class Robot:
     """A DH robot file read by this test: its rows (m, rad), base, tool, joints."""
 
     def __init__(self, name):
-        self.path = shipped_robot_path(name)
+        self.path = name if os.path.exists(name) else shipped_robot_path(name)
         with open(self.path, encoding='utf-8') as stream:
             doc = yaml.safe_load(stream)
         units = doc.get('units', {})
@@ -72,12 +77,16 @@ class Robot:
         self.limits = np.array([np.array(r.get('limits', [-180, 180])) * angle
                                 for r in doc['chain']])
         base, tool = doc.get('base') or {}, doc.get('tool')
-        self.base = frame_matrix(np.array(base.get('xyz', [0, 0, 0])) * length,
-                                 np.array(base.get('rpy', [0, 0, 0])) * angle)
-        self.tool = np.eye(4) if tool is None else \
-            frame_matrix(np.array(tool.get('xyz', [0, 0, 0])) * length,
-                         np.array(tool.get('rpy', [0, 0, 0])) * angle)
-        assert tool is None or 'quaternion' not in tool
+        self.base = self.placement(base, length, angle)
+        self.tool = np.eye(4) if tool is None else self.placement(tool, length, angle)
+
+    @staticmethod
+    def placement(entry, length, angle):
+        """Return the 4x4 of a base or tool entry: xyz and rpy, or xyz and a quaternion."""
+        xyz = np.array(entry.get('xyz', [0, 0, 0])) * length
+        if 'quaternion' in entry:
+            return matrix_of(xyz, entry['quaternion'])
+        return frame_matrix(xyz, np.array(entry.get('rpy', [0, 0, 0])) * angle)
 
     def poses(self, rows, q, world, end):
         """Return the measured frame's 4x4 pose at each configuration of ``q``."""
@@ -230,6 +239,36 @@ def test_the_calibrated_table_predicts_held_out_poses_within_the_trackers_noise(
     before = report['residuals']['before']['holdout']['position_rms_m']
     after = report['residuals']['after']['holdout']['position_rms_m']
     assert before > 0.3e-3 and after < 2 * SIGMA_P * math.sqrt(3)
+
+
+def test_a_urdf_robot_is_calibrated_through_its_dh_table(tmp_path, capsys):
+    """The URDF's DH table as dq_fk from-urdf writes it is the nominal: the file written."""
+    assert main(['from-urdf', vendor_path(UR5), '--tip', UR5[1], '-o',
+                 str(tmp_path / 'ur5.yaml')]) == 0
+    robot = Robot(str(tmp_path / 'ur5.yaml'))
+    rng = np.random.default_rng(5)
+    truth = perturbed(robot, rng)
+    q = configurations(robot, rng, 60)
+    write_csv(tmp_path / 'data.csv', robot, measure(robot, truth, q, rng, True), True)
+    assert main(['calibrate', vendor_path(UR5), str(tmp_path / 'data.csv'), '--tip', UR5[1],
+                 '-o', str(tmp_path / 'calibrated.yaml'), '--report',
+                 str(tmp_path / 'report.json'), '--plot', str(tmp_path / 'residuals.png')]) == 0
+    report = json.loads((tmp_path / 'report.json').read_text())
+    calibrated = Robot(str(tmp_path / 'calibrated.yaml'))
+    world, end = (matrix_of(report[k]['xyz'], report[k]['quaternion_xyzw'])
+                  for k in ('fixed_frame_in_measurement', 'measured_in_end'))
+    held_out = configurations(robot, rng, 40)
+    error = np.linalg.norm(robot.poses(truth, held_out, WORLD, END)[:, :3, 3] -
+                           calibrated.poses(calibrated.rows, held_out, world, end)[:, :3, 3],
+                           axis=1)
+    assert np.sqrt(np.mean(error ** 2)) < 1.5 * SIGMA_P * math.sqrt(3)
+    with open(tmp_path / 'residuals.png', 'rb') as stream:
+        assert stream.read(8) == b'\x89PNG\r\n\x1a\n'
+    # the links of the URDF kept: a calibrated URDF from it
+    capsys.readouterr()
+    assert main(['urdf', str(tmp_path / 'calibrated.yaml')]) == 0
+    urdf = capsys.readouterr().out
+    assert '<robot' in urdf and 'wrist_3_link' in urdf
 
 
 def test_the_jacobian_is_the_central_difference_of_the_prediction():
