@@ -27,7 +27,7 @@ from dq_fk_ros.storage.text import printable
 import numpy as np
 
 MAX_CSV_BYTES = 256 * 1024 * 1024
-MAX_ROWS = 1_000_000
+MAX_ROWS = 100_000      # measurements: the Jacobian is 6 x 8 bytes a parameter for each
 MAX_COLUMNS = 4096
 MAX_JOINT_STATES = 20_000_000
 POSE_STAMPED = 'geometry_msgs/msg/PoseStamped'
@@ -47,6 +47,8 @@ def read_csv(path, joint_names) -> Measurements:
         that is not of unit length, too few rows, a file too big.
     """
     path = os.fspath(path)
+    if os.path.exists(path) and not os.path.isfile(path):
+        raise DataError(f'{path}: not a regular file')   # (a FIFO would never end)
     try:
         size = os.path.getsize(path)
         if size > MAX_CSV_BYTES:

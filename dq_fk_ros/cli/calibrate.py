@@ -28,7 +28,7 @@ from dq_fk_ros.description.schema import load_robot_description, MAX_FILE_BYTES
 from dq_fk_ros.errors import DqFkError, RobotDescriptionError
 import numpy as np
 
-MAX_PLAN = 100_000
+MAX_PLAN = 1000   # configurations (20 candidates each are scored)
 
 
 class CalibrateUsage(DqFkError):

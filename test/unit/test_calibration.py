@@ -351,3 +351,15 @@ def test_a_csv_that_does_not_fit_the_robot_is_refused_in_one_line(
         read_csv(path, joints)
     text = str(caught.value)
     assert message in text and '\n' not in text and 'secret' not in text
+
+
+def test_a_fifo_is_not_read_as_a_csv(tmp_path):
+    os.mkfifo(tmp_path / 'data.csv')
+    with pytest.raises(DataError, match='not a regular file'):
+        read_csv(tmp_path / 'data.csv', Robot('ur5e').joints)
+
+
+def test_a_plan_too_large_is_refused_in_one_line(tmp_path, capsys):
+    assert main(['calibrate', 'ur5e', '--plan', '1000000', '-o', str(tmp_path / 'p.csv')]) == 1
+    err = capsys.readouterr().err
+    assert '--plan 1000000: give 1 to 1000 configurations' in err and err.count('\n') == 1
