@@ -15,6 +15,8 @@ Serializing one message at a time (:meth:`FrameStream.serialize`): the C writer
 equal byte for byte, and both equal to rclpy's message objects.
 """
 
+from typing import Callable, Optional
+
 import numpy as np
 
 
@@ -50,6 +52,20 @@ class FrameStream:
         # one layout and the C writer: one call writes every message of an update
         self._each = self._writers[0][1].each if self.uniform and self._writers and \
             self._writers[0][1] is not None else None
+
+    def direct_writer(self) -> Optional[Callable[..., list]]:
+        """
+        Return the C writer's ``each`` where this row's values are the poses as they are.
+
+        That is a pose row (``outputs.pose_values``) with no frame below a floating joint and
+        one layout: ``each(sec, nanosec, absolute, frames)`` then gives :meth:`serialize`'s
+        messages without the values call (the node's update; test_frame_bytes.py holds the
+        two equal). None otherwise.
+        """
+        from dq_fk_ros.messages.outputs import pose_values
+        if self.output.values is pose_values and not self.plan.rooted:
+            return self._each
+        return None
 
     def values(self, q, qdot, absolute) -> tuple:
         """

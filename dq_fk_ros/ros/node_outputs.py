@@ -124,16 +124,26 @@ class NodeOutputs:
         """
         Return (and keep) the streams read and switched on by ``params``.
 
-        Per stream its values, frames, whether it needs velocities, serializer, publish and
-        read topics.
+        Per stream its values, serializer, frames, publish, whether it needs velocities and
+        its read topics; a pose row straight to the C writer instead
+        (``FrameStream.direct_writer``): None, the writer, the read frames, publish.
 
         ``NodeParameters`` is replaced, never changed, when a parameter changes: the list is
         kept for one parameters object (and made again when the readers change).
         """
-        self._on = [(self.value_functions[s], self.streams[s].frames, self.velocities[s],
-                     self.streams[s].serialize, self.groups[s].publish, self.read[s])
-                    for s in self.active if getattr(params, self.switches[s])]
-        self._on_without_velocities = [row for row in self._on if not row[2]]
+        self._on = []
+        for s in self.active:
+            if not getattr(params, self.switches[s]):
+                continue
+            stream, send = self.streams[s], self.groups[s].publish
+            each = stream.direct_writer()
+            if each is not None:   # the poses as they are: straight to the C writer
+                self._on.append((None, each, [stream.frames[i] for i in self.read[s]], send,
+                                 False, None))
+            else:
+                self._on.append((self.value_functions[s], stream.serialize, stream.frames,
+                                 send, self.velocities[s], self.read[s]))
+        self._on_without_velocities = [row for row in self._on if not row[4]]
         self._on_for = params
         return self._on
 
@@ -168,15 +178,18 @@ class NodeOutputs:
             self.tf_group.publish((self.tf_bytes(sec, nanosec, relative, q),))
         if not on:
             return
-        # N = 1: the update as a batch of one (views where q and qdot are arrays already)
-        q_n = q[None] if type(q) is np.ndarray else np.asarray(q, dtype=float)[None]
-        qdot_n = None if qdot is None else np.asarray(qdot, dtype=float)[None]
-        plan, absolute_n = self.messages.plan, self._absolute_n
-        for values_of, frames, _, serialize, send, read in on:
-            got = values_of(plan, q_n, qdot_n, absolute_n, frames)
+        q_n = None
+        for values_of, serialize, frames, send, _, read in on:
+            if values_of is None:   # (serialize: the C writer; frames: the read ones)
+                send(serialize(sec, nanosec, absolute, frames))
+                continue
+            if q_n is None:   # N = 1: the update as a batch of one (views of the arrays)
+                q_n = q[None] if type(q) is np.ndarray else np.asarray(q, dtype=float)[None]
+                qdot_n = None if qdot is None else np.asarray(qdot, dtype=float)[None]
+            got = values_of(self.messages.plan, q_n, qdot_n, self._absolute_n, frames)
             if got is not None and got[2] is None:
                 array, columns, _ = got
-                values = absolute if array is absolute_n else array[0]  # (no view to make)
+                values = absolute if array is self._absolute_n else array[0]
                 send(serialize(sec, nanosec, values, columns, read))
 
 

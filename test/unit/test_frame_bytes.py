@@ -111,6 +111,10 @@ def test_the_c_writer_equals_the_packer_byte_for_byte(robot):
             for picked in (every, every[::-2]):
                 assert fast.serialize(sec, nanosec, array[0], columns, picked) == \
                     reference.serialize(sec, nanosec, array[0], columns, picked)
+                direct = fast.direct_writer()   # the node's pose rows, straight to C
+                if direct is not None:
+                    assert direct(sec, nanosec, absolute, [fast.frames[i] for i in picked]) \
+                        == reference.serialize(sec, nanosec, array[0], columns, picked)
 
 
 @pytest.mark.skipif(COMPILED is None, reason='the struct packer alone is active')
