@@ -4,8 +4,8 @@ dq_fk calibrate against figaroh and pybotics on the same synthetic measurements.
 A robot file's DH table (default: the Panda, a modified table as pybotics models robots)
 is perturbed as a real arm is off its nominal one (~0.5 mm, ~0.05 deg a parameter),
 placed 2 m from a laser tracker, given a reflector on its flange and measured at random
-configurations with 20 um of noise a component (benchmarks/calibration_truth.py, plain
-4x4 products). Each tool calibrates from the same training measurements, starting from
+configurations with 20 um of noise a component (test/dh_truth.py, the tests' plain 4x4
+products). Each tool calibrates from the same training measurements, starting from
 the same rigid fit of the nominal points (the Kabsch start); each is judged by the RMS of
 its predicted positions against the noise-free truth at held-out configurations, and timed
 over its calibration call (best of ``--repeat``).
@@ -34,7 +34,6 @@ import tempfile
 import time
 
 from bench_results import figure
-from calibration_truth import frame, kabsch, positions, trans
 from dq_fk_ros.calibration.dh_model import DhPoseModel
 from dq_fk_ros.calibration.identify import calibrate, Measurements
 from dq_fk_ros.description.loading import load_robot
@@ -43,6 +42,8 @@ from dq_fk_ros.kinematics.dh import homogeneous_from_dq
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(os.path.dirname(HERE), 'test'))
+from dh_truth import frame_matrix as frame, kabsch, positions, trans  # noqa: E402, I100
 PEERS = {'pybotics': 'DQ_FK_PYBOTICS_PYTHON', 'figaroh': 'DQ_FK_FIGAROH_PYTHON'}
 WORLD = frame([2.1, -0.8, 0.4], [0.05, -0.1, 2.6])   # the robot in the tracker's frame
 END = trans(0.03, -0.02, 0.07)                        # the reflector on the flange

@@ -26,36 +26,12 @@ import pytest
 import yaml
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from vendor_urdfs import UR5, vendor_path  # noqa: E402, I100 (the tests' helper)
+from dh_truth import frame_matrix, row_matrix  # noqa: E402, I100 (the tests' helpers)
+from vendor_urdfs import UR5, vendor_path  # noqa: E402
 
 pytest.importorskip('scipy')
 LENGTH = {'m': 1.0, 'mm': 1e-3}
 SIGMA_P, SIGMA_R = 20e-6, 1e-4
-
-
-def rot(axis, angle):
-    c, s = math.cos(angle), math.sin(angle)
-    m = np.eye(4)
-    i, j = {'x': (1, 2), 'y': (2, 0), 'z': (0, 1)}[axis]
-    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
-    return m
-
-
-def trans(x, y, z):
-    m = np.eye(4)
-    m[:3, 3] = x, y, z
-    return m
-
-
-def row_matrix(theta, d, a, alpha, convention):
-    """One DH row, as the textbooks multiply it (Spong standard, Craig modified)."""
-    if convention == 'standard':
-        return rot('z', theta) @ trans(0, 0, d) @ trans(a, 0, 0) @ rot('x', alpha)
-    return rot('x', alpha) @ trans(a, 0, 0) @ rot('z', theta) @ trans(0, 0, d)
-
-
-def frame_matrix(xyz, rpy):
-    return trans(*xyz) @ rot('z', rpy[2]) @ rot('y', rpy[1]) @ rot('x', rpy[0])
 
 
 class Robot:

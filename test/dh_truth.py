@@ -1,10 +1,8 @@
 """
-The synthetic calibration data of bench_calibration.py, made with plain 4x4 DH products.
+A DH robot's poses as the textbooks compute them: plain 4x4 products, no code of the package.
 
-Numpy only (1.x and 2.x: the peers' venvs import it too). A robot file's table is
-perturbed as a real arm is off its nominal one, placed in a tracker's frame, given a
-reflector on its flange and measured (positions) with a tracker's noise; the data and the
-noise-free truth of held-out configurations are saved in one ``.npz`` for every peer.
+The truth of test_calibration.py and test_calibration_bag.py (a perturbed robot measured by
+a tracker), and of benchmarks/bench_calibration.py's data for dq_fk calibrate's peers.
 """
 
 import math
@@ -13,6 +11,7 @@ import numpy as np
 
 
 def rot(axis, angle):
+    """Return the 4x4 rotation about ``axis`` (x, y or z) by ``angle`` rad."""
     c, s = math.cos(angle), math.sin(angle)
     m = np.eye(4)
     i, j = {'x': (1, 2), 'y': (2, 0), 'z': (0, 1)}[axis]
@@ -21,20 +20,22 @@ def rot(axis, angle):
 
 
 def trans(x, y, z):
+    """Return the 4x4 translation by ``(x, y, z)``."""
     m = np.eye(4)
     m[:3, 3] = x, y, z
     return m
 
 
-def frame(xyz, rpy):
-    return trans(*xyz) @ rot('z', rpy[2]) @ rot('y', rpy[1]) @ rot('x', rpy[0])
-
-
 def row_matrix(theta, d, a, alpha, convention):
-    """One DH row: Spong's standard Rz Tz Tx Rx, or Craig's modified Rx Tx Rz Tz."""
+    """Return one DH row, as the textbooks multiply it (Spong standard, Craig modified)."""
     if convention == 'standard':
         return rot('z', theta) @ trans(0, 0, d) @ trans(a, 0, 0) @ rot('x', alpha)
     return rot('x', alpha) @ trans(a, 0, 0) @ rot('z', theta) @ trans(0, 0, d)
+
+
+def frame_matrix(xyz, rpy):
+    """Return the 4x4 of a position and roll, pitch, yaw (URDF's fixed-axis order)."""
+    return trans(*xyz) @ rot('z', rpy[2]) @ rot('y', rpy[1]) @ rot('x', rpy[0])
 
 
 def positions(rows, convention, base, tool, world, end, q):
