@@ -279,6 +279,13 @@ def calibrate(model: DhPoseModel, data: Measurements, sigma_position=None,
     sp = sigma_position or DEFAULT_SIGMA_POSITION
     so = (sigma_orientation or DEFAULT_SIGMA_ORIENTATION) if orientation else None
     frames = frame_indices(model, orientation)
+    per = 6 if orientation else 3
+    needed = -(-(len(frames) + 4 * len(model.row_names)) // per)
+    if len(train) < needed:
+        raise DqFkError(f'{len(train)} measurements fitted ({len(data)} given, '
+                        f'{len(test)} held out): at least {needed} are needed for the '
+                        f'{len(frames) + 4 * len(model.row_names)} parameters, tens more to '
+                        f'average the noise')
     # (1) the frames alone, the table as published
     start = fit(model, rigid_start(model, train), frames, train, (sp, so))
     # (2) what the data can separate

@@ -329,6 +329,18 @@ def test_a_csv_that_does_not_fit_the_robot_is_refused_in_one_line(
     assert message in text and '\n' not in text and 'secret' not in text
 
 
+def test_too_few_measurements_for_the_parameters_are_refused_in_one_line(tmp_path, capsys):
+    robot = Robot('ur5e')
+    rng = np.random.default_rng(2)
+    q = configurations(robot, rng, 10)
+    write_csv(tmp_path / 'data.csv', robot, measure(robot, robot.rows, q, rng, False), False)
+    assert main(['calibrate', 'ur5e', str(tmp_path / 'data.csv'), '-o',
+                 str(tmp_path / 'out.yaml')]) == 1
+    err = capsys.readouterr().err
+    assert '8 measurements fitted (10 given, 2 held out): at least 11 are needed for the 33 parameters' in err
+    assert err.count('\n') == 1 and not (tmp_path / 'out.yaml').exists()
+
+
 def test_a_fifo_is_not_read_as_a_csv(tmp_path):
     os.mkfifo(tmp_path / 'data.csv')
     with pytest.raises(DataError, match='not a regular file'):
