@@ -14,7 +14,6 @@ from dq_fk_ros.bag.output_types import OUTPUT_TYPES, string_cdr
 from dq_fk_ros.description.to_urdf import description_urdf
 from dq_fk_ros.errors import BagError
 from dq_fk_ros.messages import outputs as output_table
-from dq_fk_ros.messages.cdr_templates import tf_message_template
 from dq_fk_ros.messages.frame_streams import FrameStream
 from dq_fk_ros.messages.output_plan import OutputPlan
 from dq_fk_ros.messages.outputs import POSE, ROBOT_DESCRIPTION, TF, TF_STATIC
@@ -81,7 +80,7 @@ class BagOutputs:
                               for i in self._gated]
         self._tf_templates = {}
         self._waiting = [stream.waiting_groups(index) for stream in self.streams]
-        self.static_template = tf_message_template(plan.static_edges)
+        self.static_template = TF_STATIC.template(plan)
         try:
             self.urdf = description_urdf(model)
         except ValueError:  # a robot URDF cannot express: no /robot_description
@@ -95,7 +94,7 @@ class BagOutputs:
 
     def write_static(self, time_ns) -> None:
         """Write /tf_static once: base, fixed rows, tool and links, stamped ``time_ns``."""
-        row = self.static_template.fill([time_ns], self.plan.static_poses()[None, :])[0]
+        row = self.static_template.fill([time_ns], TF_STATIC.values(self.plan))[0]
         self.writer.write(self.tf_static, time_ns, memoryview(row))
         if self.description is not None:
             self.writer.write(self.description, time_ns, string_cdr(self.urdf))
@@ -120,14 +119,10 @@ class BagOutputs:
         else:
             absolute, relative = model.frame_pose_arrays_batch(q, self._fk_out)
         end = absolute[:, self.end].copy()
-        helpers = self.plan.helpers
-        moving = None
-        if helpers.moving:  # (a cylindrical row's first motion: rare, per message)
-            moving = np.array([np.concatenate(helpers.moving_poses(row)) for row in q])
         stamps_ns, log_times_ns = np.asarray(stamps_ns), np.asarray(log_times_ns)
         every, later = self._frame_values(q, qdot, absolute, seen)
         channels, templates, values = every
-        tf = list(self._tf_values(relative, moving, seen))
+        tf = list(self._tf_values(relative, q, seen))
         if len(tf) == 1 and tf[0][0] is None:  # every message the same transforms
             channels.insert(0, self.tf)  # interleaved: each message's /tf, then its topics
             templates.insert(0, tf[0][1])
@@ -180,15 +175,15 @@ class BagOutputs:
                                   [array[picked, columns[i]] for i in positions]))
         return every, later
 
-    def _tf_values(self, relative, moving, seen):
+    def _tf_values(self, relative, q, seen):
         """
         Yield ``(rows, template, values)``: the moving transforms whose joints are known.
 
-        The node's rule and order (:meth:`OutputPlan.shown_edges`, :meth:`OutputPlan.tf_edges`):
-        messages whose states know the same joints share one template; ``rows`` is None
-        when that is every message of the chunk.
+        The node's rule and order (:meth:`OutputPlan.shown_edges`, the /tf row's
+        ``tf_template`` and ``tf_values``): messages whose states know the same joints share
+        one template; ``rows`` is None when that is every message of the chunk.
         """
-        plan, n = self.plan, len(relative)
+        plan = self.plan
         if not self._gated or seen is None:
             patterns, inverse = [np.ones(len(self._gated), bool)], None
         else:
@@ -201,24 +196,14 @@ class BagOutputs:
             rows = None if inverse is None else inverse == p
             hidden = {i for i, on in zip(self._gated, pattern) if not on}
             edges = [e for i, e in enumerate(plan.moving_edges) if i not in hidden]
-            if not edges and moving is None:
+            if not edges and not plan.helpers.moving:
                 continue  # nothing known to move: no /tf (as the node)
             key = pattern.tobytes()
             template = self._tf_templates.get(key)
             if template is None:
-                template = self._tf_templates[key] = tf_message_template(plan.tf_edges(edges))
+                template = self._tf_templates[key] = TF.template(plan, edges)
             picked = slice(None) if rows is None else rows
-            count = n if rows is None else int(rows.sum())
-            columns = [r for _, r in edges]
-            if columns and columns == list(range(columns[0], columns[0] + len(columns))):
-                # a run of transforms: a view, rows at the array's stride (no copy)
-                values = relative[picked][:, columns[0]:columns[0] + len(columns)]
-                values = values.reshape(count, -1)
-            else:
-                values = relative[picked][:, columns].reshape(count, -1)
-            if moving is not None:
-                values = np.concatenate([values, moving[picked]], axis=1)
-            yield rows, template, values
+            yield rows, template, TF.values(plan, q[picked], relative[picked], edges)
 
     def copy(self, conn, time_ns, raw) -> None:
         """Copy an input message through unchanged."""

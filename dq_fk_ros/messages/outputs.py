@@ -24,7 +24,8 @@ import math
 from typing import Callable, Optional
 
 from dq_fk_ros.kinematics.twists import frame_twists, frame_twists_batch
-from dq_fk_ros.messages.cdr_templates import pose_stamped_template, twist_stamped_template
+from dq_fk_ros.messages.cdr_templates import (
+    CdrTemplate, pose_stamped_template, tf_message_template, twist_stamped_template)
 import numpy as np
 
 
@@ -38,8 +39,9 @@ class Output:
     latched: bool       # durability transient local (a late subscriber gets the last ones)
     frames: str         # which frames it carries (docs/node.md says it in full)
     plan: str = ''      # the OutputPlan attribute that lists them ('': no frame)
-    # a topic per frame: the node's bool parameter that turns it on, the message layout
-    # (header frame id -> CdrTemplate) and its values (see pose_values)
+    # the node's bool parameter that turns it on ('': always), the message layout (a
+    # CdrTemplate) and its values: for a topic per frame, of the header's frame id and
+    # pose_values' signature; for /tf, tf_template and tf_values; for /tf_static, of the plan
     switch: str = ''
     template: Optional[Callable] = None
     values: Optional[Callable] = None
@@ -107,11 +109,54 @@ def twist_values(plan, q, qdot, absolute, frames) -> Optional[tuple]:
     return twists, range(len(frames)), None if rows.all() else rows
 
 
+def tf_template(plan, edges) -> CdrTemplate:
+    """
+    Return the layout of a ``/tf`` message carrying the moving ``edges`` and moving helpers.
+
+    ``edges``: ``(frame index, transform index)`` of the moving transforms whose joints are
+    known (``OutputPlan.shown_edges``; the bag tool per message: the same rule).
+    """
+    return tf_message_template(plan.tf_edges(edges))
+
+
+def tf_values(plan, q, relative, edges) -> np.ndarray:
+    """
+    Return the ``(N, 7 k)`` values of N ``/tf`` messages of :func:`tf_template`'s layout.
+
+    The transforms of ``edges``, rows of ``relative`` (``(N, n_transforms, 7)``, each in its
+    TF parent), then the moving helper frames at the joint values ``q`` ``(N, dof)``. The
+    node's update writes the same from the transforms' rows directly
+    (``FrameBytes.tf_writer``; test_frame_bytes.py holds it to this).
+    """
+    n = len(relative)
+    columns = [r for _, r in edges]
+    if columns and columns == list(range(columns[0], columns[0] + len(columns))):
+        # a run of transforms: a view, rows at the array's stride (no copy)
+        values = relative[:, columns[0]:columns[0] + len(columns)].reshape(n, -1)
+    else:
+        values = relative[:, columns].reshape(n, -1)
+    if plan.helpers.moving:  # (a cylindrical row's first motion: rare, per message)
+        moving = np.array([np.concatenate(plan.helpers.moving_poses(row)) for row in q])
+        values = np.concatenate([values, moving.reshape(n, -1)], axis=1)
+    return values
+
+
+def static_template(plan) -> CdrTemplate:
+    """Return the layout of the one ``/tf_static`` message: every static transform."""
+    return tf_message_template(plan.static_edges)
+
+
+def static_values(plan) -> np.ndarray:
+    """Return the ``(1, 7 k)`` values of :func:`static_template`'s message."""
+    return plan.static_poses()[None, :]
+
+
 TF = Output('/tf', 'tf2_msgs/msg/TFMessage', 100, False,
             'the moving transforms: every revolute, prismatic, continuous and mimic joint',
-            'moving_edges')
+            'moving_edges', 'publish_tf', tf_template, tf_values)
 TF_STATIC = Output('/tf_static', 'tf2_msgs/msg/TFMessage', 1, True,
-                   'the fixed transforms (fixed and planar joints), once', 'static_edges')
+                   'the fixed transforms (fixed and planar joints), once', 'static_edges',
+                   '', static_template, static_values)
 ROBOT_DESCRIPTION = Output('robot_description', 'std_msgs/msg/String', 1, True,
                            'the URDF (none: no frame)')
 POSE = Output('~/pose/{frame}', 'geometry_msgs/msg/PoseStamped', 10, False,
@@ -124,7 +169,8 @@ TWIST = Output('~/twist/{frame}', 'geometry_msgs/msg/TwistStamped', 10, False,
 DIAGNOSTICS = Output('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', 10, False,
                      "the node's status (no frame)")
 OUTPUTS = (TF, TF_STATIC, ROBOT_DESCRIPTION, POSE, TWIST, DIAGNOSTICS)
-FRAME_OUTPUTS = tuple(o for o in OUTPUTS if o.values is not None)  # a topic per frame
+FRAME_OUTPUTS = tuple(o for o in OUTPUTS if '{frame}' in o.topic)  # a topic per frame
 
 __all__ = ['DIAGNOSTICS', 'FRAME_OUTPUTS', 'Output', 'OUTPUTS', 'POSE', 'pose_values',
-           'ROBOT_DESCRIPTION', 'TF', 'TF_STATIC', 'TWIST', 'twist_values']
+           'ROBOT_DESCRIPTION', 'TF', 'TF_STATIC', 'tf_template', 'tf_values', 'TWIST',
+           'twist_values']

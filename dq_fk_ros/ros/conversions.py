@@ -13,8 +13,8 @@ byte).
 from typing import Callable, TYPE_CHECKING
 
 from builtin_interfaces.msg import Time
-from dq_fk_ros.messages.cdr_templates import tf_message_template
 from dq_fk_ros.messages.output_plan import OutputPlan
+from dq_fk_ros.messages.outputs import TF
 from geometry_msgs.msg import PoseStamped, TransformStamped, TwistStamped
 import numpy as np
 from tf2_msgs.msg import TFMessage
@@ -176,8 +176,7 @@ class FrameBytes:
         self.moving_edges = messages.moving_edges
         self._moving = tuple(k for _, k in self.moving_edges)
         self.sends_tf = bool(messages.tf.transforms)  # a robot with nothing moving: no /tf
-        edges = [(t.header.frame_id, t.child_frame_id) for t in messages.tf.transforms]
-        self.template = tf = tf_message_template(edges)   # the layout, for the tests
+        self.template = tf = TF.template(self.plan, self.moving_edges)  # (also the tests')
         self._tf = tf.packer()
         self._tf_c = tf.compiled(7)
 
@@ -209,9 +208,7 @@ class FrameBytes:
             n = len(relative)
             return self._tf_c.one(sec, nanosec, np.concatenate([relative, helpers]),
                                   self._moving + tuple(range(n, n + len(helpers))))
-        if isinstance(relative, np.ndarray):
-            relative = relative.tolist()
-        poses = [relative[k] for k in self._moving]
-        if self.helpers.moving:
-            poses += self.helpers.moving_poses(q)
-        return self._tf.pack(sec, nanosec, poses)
+        # the reference: the /tf row's values (the bag tool's), one message of them
+        values = TF.values(self.plan, None if q is None else np.asarray(q, dtype=float)[None],
+                           np.asarray(relative, dtype=float)[None], self.moving_edges)[0]
+        return self._tf.pack(sec, nanosec, values.reshape(-1, 7).tolist())

@@ -337,7 +337,8 @@ def test_too_few_measurements_for_the_parameters_are_refused_in_one_line(tmp_pat
     assert main(['calibrate', 'ur5e', str(tmp_path / 'data.csv'), '-o',
                  str(tmp_path / 'out.yaml')]) == 1
     err = capsys.readouterr().err
-    assert '8 measurements fitted (10 given, 2 held out): at least 11 are needed for the 33 parameters' in err
+    assert ('8 measurements fitted (10 given, 2 held out): at least 11 are needed for the 33 '
+            'parameters') in err
     assert err.count('\n') == 1 and not (tmp_path / 'out.yaml').exists()
 
 
