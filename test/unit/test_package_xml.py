@@ -9,7 +9,8 @@ import xml.etree.ElementTree as ET
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 # module name -> the rosdep key that provides it (ROS packages are their own key)
 ROSDEP = {'numpy': 'python3-numpy', 'yaml': 'python3-yaml', 'matplotlib': 'python3-matplotlib',
-          'mpl_toolkits': 'python3-matplotlib', 'aiohttp': 'python3-aiohttp'}
+          'mpl_toolkits': 'python3-matplotlib', 'aiohttp': 'python3-aiohttp',
+          'scipy': 'python3-scipy'}
 
 
 def third_party_imports():
