@@ -28,6 +28,8 @@ Jacobian to central differences of :meth:`DhPoseModel.predict`.
 
 from dataclasses import dataclass
 
+from dq_fk_ros.kinematics.dual_quaternion import (
+    dq_multiply_array, dq_translation_array, quat_multiply, quat_to_matrix)
 import numpy as np
 
 ROW_FIELDS = ('theta', 'd', 'a', 'alpha')
@@ -37,40 +39,6 @@ FACTORS = {'standard': (('z', True, 'theta'), ('z', False, 'd'), ('x', False, 'a
                         ('z', False, 'd'))}
 FRAME_FIELDS = ('base_x', 'base_y', 'base_z', 'base_rx', 'base_ry', 'base_rz',
                 'end_x', 'end_y', 'end_z', 'end_rx', 'end_ry', 'end_rz')
-
-
-def quaternion_product(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Return ``p q`` of quaternions ``(..., 4)`` as ``(w, x, y, z)``."""
-    pw, px, py, pz = np.moveaxis(p, -1, 0)
-    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
-    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
-                     pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw], axis=-1)
-
-
-def dual_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Return ``a b`` of dual quaternions ``(..., 8)``, ``(w, x, y, z, w', x', y', z')``."""
-    real = quaternion_product(a[..., :4], b[..., :4])
-    dual = quaternion_product(a[..., :4], b[..., 4:]) + quaternion_product(a[..., 4:],
-                                                                           b[..., :4])
-    return np.concatenate([real, dual], axis=-1)
-
-
-def rotation_matrices(r: np.ndarray) -> np.ndarray:
-    """Return the ``(..., 3, 3)`` rotations of unit quaternions ``(..., 4)`` ``(w, x, y, z)``."""
-    w, x, y, z = np.moveaxis(r, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)],
-        axis=-2)
-
-
-def translation_of(h: np.ndarray) -> np.ndarray:
-    """Return the translation ``2 d r*`` of dual quaternions ``(..., 8)`` ([Zivkovic2023] (17))."""
-    conj = h[..., :4] * np.array([1.0, -1.0, -1.0, -1.0])
-    return 2.0 * quaternion_product(h[..., 4:], conj)[..., 1:]
 
 
 def quaternion_of_rotvec(v: np.ndarray) -> np.ndarray:
@@ -205,13 +173,13 @@ class DhPoseModel:
                                  _axis_of(h, axis), _origin_of(h)))
                 h = _times(h, axis, rotation, values[field])
         h = np.ascontiguousarray(h.T)
-        h = dual_product(h, np.broadcast_to(self.tool, (m, 8)))
-        r_end = rotation_matrices(h[:, :4])
-        x = translation_of(h) + r_end @ t_em            # the measured point, robot frame
+        h = dq_multiply_array(h, self.tool)
+        r_end = quat_to_matrix(h[:, :4])
+        x = dq_translation_array(h) + r_end @ t_em            # the measured point, robot frame
         q_wb = quaternion_of_rotvec(phi)
-        r_wb = rotation_matrices(q_wb)
+        r_wb = quat_to_matrix(q_wb)
         positions = t_wb + x @ r_wb.T
-        quaternions = quaternion_product(quaternion_product(
+        quaternions = quat_multiply(quat_multiply(
             np.broadcast_to(q_wb, (m, 4)), h[:, :4]), quaternion_of_rotvec(psi))
         if not jacobian:
             return positions, quaternions

@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 
 from dq_fk_ros.calibration.dh_model import (
     DhPoseModel, left_jacobian, quaternion_of_rotvec, rotvec_of_quaternion)
-from dq_fk_ros.calibration.dh_model import quaternion_product
 from dq_fk_ros.errors import DqFkError
+from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix, quat_multiply
 import numpy as np
 
 RANK_TOLERANCE = 1e-6
@@ -112,7 +112,7 @@ def residuals_of(model, params, data: Measurements) -> Residuals:
 def _rotation_error(predicted, measured):
     """Return ``Log(R_pred R_meas^T)``: rotation vectors in the measurement frame."""
     conj = measured * np.array([1.0, -1.0, -1.0, -1.0])
-    return rotvec_of_quaternion(quaternion_product(predicted, conj))
+    return rotvec_of_quaternion(quat_multiply(predicted, conj))
 
 
 def weighted(model: DhPoseModel, params: np.ndarray, data: Measurements, sigma: tuple,
@@ -178,25 +178,9 @@ def rigid_start(model, data) -> np.ndarray:
     d = np.sign(np.linalg.det(u @ vt))
     rotation = u @ np.diag([1.0, 1.0, d]) @ vt
     frames = np.zeros(6)
-    frames[3:] = _rotvec_of_matrix(rotation)
+    frames[3:] = rotvec_of_quaternion(quat_from_matrix(rotation))
     frames[:3] = data.positions.mean(axis=0) - rotation @ robot.mean(axis=0)
     return model.nominal(base_in_measurement=frames)
-
-
-def _rotvec_of_matrix(r) -> np.ndarray:
-    w = 0.5 * np.sqrt(max(0.0, 1.0 + np.trace(r)))
-    if w > 1e-3:
-        q = np.array([w, (r[2, 1] - r[1, 2]) / (4 * w), (r[0, 2] - r[2, 0]) / (4 * w),
-                      (r[1, 0] - r[0, 1]) / (4 * w)])
-    else:  # near a half turn: the largest diagonal
-        i = int(np.argmax(np.diag(r)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        v = np.zeros(3)
-        v[i] = 0.5 * np.sqrt(max(0.0, 1.0 + r[i, i] - r[j, j] - r[k, k]))
-        v[j] = (r[j, i] + r[i, j]) / (4 * v[i])
-        v[k] = (r[k, i] + r[i, k]) / (4 * v[i])
-        q = np.array([(r[k, j] - r[j, k]) / (4 * v[i]), *v])
-    return rotvec_of_quaternion(q / np.linalg.norm(q))
 
 
 def frame_indices(model, orientation: bool) -> list:

@@ -14,7 +14,6 @@ import json
 import math
 import os
 import sys
-import tempfile
 
 from dq_fk_ros.calibration.calibrated_yaml import calibrated_yaml
 from dq_fk_ros.calibration.dh_model import DhPoseModel
@@ -23,8 +22,8 @@ from dq_fk_ros.calibration.identify import (
 from dq_fk_ros.calibration.measurements import read_bag, read_csv
 from dq_fk_ros.calibration.report import plot_residuals, report
 from dq_fk_ros.description.loading import is_urdf, resolve_robot
-from dq_fk_ros.description.robot_model import RobotModel
-from dq_fk_ros.description.schema import load_robot_description, MAX_FILE_BYTES
+from dq_fk_ros.description.schema import (
+    load_robot_description, MAX_FILE_BYTES, parse_robot_description)
 from dq_fk_ros.errors import DqFkError, RobotDescriptionError
 import numpy as np
 
@@ -36,25 +35,17 @@ class CalibrateUsage(DqFkError):
 
 
 def robot_text(args) -> tuple:
-    """Return ``(DH YAML text, what it came from)`` of ROBOT (a URDF converted)."""
+    """Return ``(DH YAML text, what it came from, its RobotModel)`` of ROBOT (a URDF converted)."""
     path = resolve_robot(args.robot)
     if is_urdf(path):
         from dq_fk_ros.description.from_urdf import load_urdf_description
         conversion, _ = load_urdf_description(path, args.urdf_base, args.urdf_tip, 'standard',
                                               dict(args.package))
-        return conversion.text, f'{path} (its DH table, as dq_fk from-urdf writes it)'
-    load_robot_description(path)  # its one-line errors first
+        source = f'{path} (its DH table, as dq_fk from-urdf writes it)'
+        return conversion.text, source, parse_robot_description(conversion.text, source)
+    model = load_robot_description(path)  # its one-line errors first
     with open(path, encoding='utf-8') as stream:
-        return stream.read(MAX_FILE_BYTES + 1), path
-
-
-def model_of_text(text: str) -> RobotModel:
-    """Return the RobotModel of a DH YAML text (read as the tools read a file)."""
-    with tempfile.TemporaryDirectory(prefix='dq_fk_calibrate_') as folder:
-        path = os.path.join(folder, 'robot.yaml')
-        with open(path, 'w', encoding='utf-8') as stream:
-            stream.write(text)
-        return load_robot_description(path)
+        return stream.read(MAX_FILE_BYTES + 1), path, model
 
 
 def check_arguments(args) -> None:
@@ -81,8 +72,7 @@ def cmd_calibrate(args) -> int:
     """Run ``dq_fk calibrate`` (module doc); return the exit code."""
     check_arguments(args)
     require_scipy()
-    text, source = robot_text(args)
-    model = model_of_text(text)
+    text, source, model = robot_text(args)
     table = model.chain.table
     n_rows = len(table.a)
     dh = DhPoseModel.from_table(table, model.frame_names[1:1 + n_rows])
@@ -112,7 +102,7 @@ def cmd_calibrate(args) -> int:
             f'{"poses" if data.quaternions is not None else "positions"}); the DH rows are '
             f'identified, everything else as in {os.path.basename(source.split(" (")[0])}.')
     out = calibrated_yaml(text, source, dh.nominal_rows, rows, note)
-    check = model_of_text(out)   # what every tool will load
+    check = parse_robot_description(out, args.output)   # what every tool will load
     if not np.allclose(np.stack([check.chain.table.theta0, check.chain.table.d0,
                                  check.chain.table.a, check.chain.table.alpha], 1), rows,
                        rtol=0, atol=1e-8):

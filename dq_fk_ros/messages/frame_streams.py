@@ -17,6 +17,7 @@ equal byte for byte, and both equal to rclpy's message objects.
 
 from typing import Callable, Optional
 
+from dq_fk_ros.messages.outputs import pose_values
 import numpy as np
 
 
@@ -62,7 +63,6 @@ class FrameStream:
         messages without the values call (the node's update; test_frame_bytes.py holds the
         two equal). None otherwise.
         """
-        from dq_fk_ros.messages.outputs import pose_values
         if self.output.values is pose_values and not self.plan.rooted:
             return self._each
         return None

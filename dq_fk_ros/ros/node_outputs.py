@@ -64,9 +64,6 @@ class NodeOutputs:
         self.shown = [s.shown(()) for s in self.streams]   # none of the optional joints yet
         self.read = [[] for _ in self.streams]   # per stream, the positions read and shown
         self.active = []   # the streams with a topic read
-        self.switches = [stream.output.switch for stream in self.streams]
-        self.value_functions = [stream.output.values for stream in self.streams]
-        self.velocities = [stream.output.velocities for stream in self.streams]
         self._on, self._on_without_velocities, self._on_for = [], [], None
         # the poses of an update, written in place by the robot's engine (the kernel's
         # Model, or the reference): RobotModel.frame_pose_arrays / transform_pose_array
@@ -133,16 +130,16 @@ class NodeOutputs:
         """
         self._on = []
         for s in self.active:
-            if not getattr(params, self.switches[s]):
-                continue
             stream, send = self.streams[s], self.groups[s].publish
+            if not getattr(params, stream.output.switch):
+                continue
             each = stream.direct_writer()
             if each is not None:   # the poses as they are: straight to the C writer
                 self._on.append((None, each, [stream.frames[i] for i in self.read[s]], send,
                                  False, None))
             else:
-                self._on.append((self.value_functions[s], stream.serialize, stream.frames,
-                                 send, self.velocities[s], self.read[s]))
+                self._on.append((stream.output.values, stream.serialize, stream.frames,
+                                 send, stream.output.velocities, self.read[s]))
         self._on_without_velocities = [row for row in self._on if not row[4]]
         self._on_for = params
         return self._on

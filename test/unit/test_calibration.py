@@ -25,8 +25,10 @@ import numpy as np
 import pytest
 import yaml
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+TEST = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path[:0] = [TEST, os.path.join(TEST, 'integration')]
 from dh_truth import frame_matrix, row_matrix  # noqa: E402, I100 (the tests' helpers)
+from homogeneous_tf import pose_matrix_of_tuple  # noqa: E402
 from vendor_urdfs import UR5, vendor_path  # noqa: E402
 
 pytest.importorskip('scipy')
@@ -61,7 +63,7 @@ class Robot:
         """Return the 4x4 of a base or tool entry: xyz and rpy, or xyz and a quaternion."""
         xyz = np.array(entry.get('xyz', [0, 0, 0])) * length
         if 'quaternion' in entry:
-            return matrix_of(xyz, entry['quaternion'])
+            return pose_matrix_of_tuple((*xyz, *entry['quaternion']))
         return frame_matrix(xyz, np.array(entry.get('rpy', [0, 0, 0])) * angle)
 
     def poses(self, rows, q, world, end):
@@ -87,16 +89,6 @@ def quaternion_xyzw(m):
              (m[2, 1] - m[1, 2]) / (4 * x)]
     q = np.array(q)
     return q * np.sign(q[3] or 1.0)
-
-
-def matrix_of(xyz, quaternion_xyzw_):
-    x, y, z, w = quaternion_xyzw_
-    m = np.eye(4)
-    m[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                 [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                 [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
-    m[:3, 3] = xyz
-    return m
 
 
 def small_rotation(rng, sigma):
@@ -200,8 +192,8 @@ def test_the_calibrated_table_predicts_held_out_poses_within_the_trackers_noise(
     load_robot_description(calibrated.path)   # every tool loads it
     world = report['fixed_frame_in_measurement']
     end = report['measured_in_end']
-    world = matrix_of(world['xyz'], world['quaternion_xyzw'])
-    end = matrix_of(end['xyz'], end['quaternion_xyzw'])
+    world = pose_matrix_of_tuple((*world['xyz'], *world['quaternion_xyzw']))
+    end = pose_matrix_of_tuple((*end['xyz'], *end['quaternion_xyzw']))
     held_out = configurations(robot, rng, 50)
     true_poses = robot.poses(truth, held_out, WORLD, END)
     predicted = robot.poses(rows, held_out, world, end)
@@ -231,7 +223,7 @@ def test_a_urdf_robot_is_calibrated_through_its_dh_table(tmp_path, capsys):
                  str(tmp_path / 'report.json'), '--plot', str(tmp_path / 'residuals.png')]) == 0
     report = json.loads((tmp_path / 'report.json').read_text())
     calibrated = Robot(str(tmp_path / 'calibrated.yaml'))
-    world, end = (matrix_of(report[k]['xyz'], report[k]['quaternion_xyzw'])
+    world, end = (pose_matrix_of_tuple((*report[k]['xyz'], *report[k]['quaternion_xyzw']))
                   for k in ('fixed_frame_in_measurement', 'measured_in_end'))
     held_out = configurations(robot, rng, 40)
     error = np.linalg.norm(robot.poses(truth, held_out, WORLD, END)[:, :3, 3] -
