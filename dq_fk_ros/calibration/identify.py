@@ -32,6 +32,7 @@ from dq_fk_ros.kinematics.dual_quaternion import quat_from_matrix, quat_multiply
 import numpy as np
 
 RANK_TOLERANCE = 1e-6
+MAX_MAGNITUDE = 1e4   # m or rad: a joint value or measured coordinate beyond is no robot's
 DEFAULT_SIGMA_POSITION = 1e-4     # m, before one is estimated
 DEFAULT_SIGMA_ORIENTATION = 1e-3  # rad
 
@@ -256,6 +257,10 @@ def calibrate(model: DhPoseModel, data: Measurements, sigma_position=None,
         of the fit and used to judge it.
     """
     orientation = data.quaternions is not None
+    for name, values in (('joint value', data.q), ('measured position', data.positions)):
+        if values.size and not np.abs(values).max() <= MAX_MAGNITUDE:
+            raise DqFkError(f'a {name} of magnitude {np.abs(values).max():.3g}: at most '
+                            f'{MAX_MAGNITUDE:g} (rad, m) is taken')
     rng = np.random.default_rng(seed)
     order = rng.permutation(len(data))
     n_out = int(round(holdout * len(data)))

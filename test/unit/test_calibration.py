@@ -334,6 +334,17 @@ def test_too_few_measurements_for_the_parameters_are_refused_in_one_line(tmp_pat
     assert err.count('\n') == 1 and not (tmp_path / 'out.yaml').exists()
 
 
+def test_values_no_robot_has_are_refused_in_one_line(tmp_path, capsys):
+    """1e308 overflowed the fit into numpy warnings and 'SVD did not converge'."""
+    robot = Robot('ur5e')
+    rows = [[1e308, 0, 0, 0, 0, 0, 1e308, 0, 0]] * 20
+    write_csv(tmp_path / 'data.csv', robot, rows, False)
+    assert main(['calibrate', 'ur5e', str(tmp_path / 'data.csv'), '-o',
+                 str(tmp_path / 'out.yaml')]) == 1
+    err = capsys.readouterr().err
+    assert err == 'dq_fk: a joint value of magnitude 1e+308: at most 10000 (rad, m) is taken\n'
+
+
 def test_a_fifo_is_not_read_as_a_csv(tmp_path):
     os.mkfifo(tmp_path / 'data.csv')
     with pytest.raises(DataError, match='not a regular file'):
