@@ -12,6 +12,7 @@ transforms received on /tf and /tf_static (no tf2_ros on a pip-only install).
 """
 
 import math
+import time
 
 import homogeneous_tf as htf
 import numpy as np
@@ -65,13 +66,21 @@ def test_robot_state_publishers_launch_test(case, joint_type, prefix, positions,
                                                        str(params)])
     tf = listener.listen(TFMessage, '/tf', 100)
     static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
-    state = None if positions is None else listener.joint_state(['joint1'], positions)
     link1, link2 = prefix + 'link1', prefix + 'link2'
 
     def received():
         return [t for m in static[-1:] + tf[-1:] for t in m.transforms]
-    assert listener.spin_until(lambda: lookup(received(), link1, link2) is not None,
-                               publish=state, timeout_s=10), (case, node.poll())
+
+    def seen():
+        return lookup(received(), link1, link2) is not None
+    # a freshly stamped state every 50 ms, as a joint_state_publisher sends: the node throttles
+    # /tf by the stamps (robot_state_publisher's rule), so one stamp repeated is published
+    # once, and lost if that was before this listener's /tf subscription was matched
+    deadline = time.monotonic() + 10
+    while not seen() and time.monotonic() < deadline:
+        state = None if positions is None else listener.joint_state(['joint1'], positions)
+        listener.spin_until(seen, publish=state, timeout_s=0.05)
+    assert seen(), (case, node.poll())
     t = lookup(received(), link1, link2)
     np.testing.assert_allclose(t[:3, 3], [5.0, 0.0, 0.0], atol=EPS)
     assert lookup(received(), 'base_link', 'wim_link') is None
