@@ -278,9 +278,12 @@ def test_bad_clients_cannot_stop_the_server_or_grow_it(processes, listener):
             try:
                 bad[4].send({'op': 'subscribe', 'subscriptions': [{'id': 10_000 + k,
                                                                    'channelId': channel}]}, 60)
-            except ConnectionResetError:
+            except (ConnectionResetError, TimeoutError):
                 # the SDK drops a client whose control queue (a status reply per refused
-                # subscribe) fills faster than it reads: a way to survive it, not a failure
+                # subscribe) fills faster than it reads, or stops reading from it (its
+                # send then waits on TCP: 60 s in a loaded CI run): ways to survive it, not
+                # failures; what must hold (the good client served, the server up, its
+                # memory bounded) is asserted below
                 break
         slow += [FoxgloveClient(url) for _ in range(3)]     # readers that never read
         for s in slow:
