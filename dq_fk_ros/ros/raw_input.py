@@ -9,10 +9,12 @@ message costs about a sixth of that. The subscription lives on a hidden helper n
 changes stay with the executor, and the owner serialises the two with a lock.
 """
 
+import atexit
 import ctypes
 import threading
 import time
 from typing import Callable
+import weakref
 
 import rclpy
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -20,6 +22,21 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 WAKE_S = 0.1  # the longest a stop request waits for the thread
 OS_THREAD_NAME = b'dq_fk input'  # what top -H and /proc/<pid>/task/*/comm show
 _PR_SET_NAME = 15
+_RUNNING = weakref.WeakSet()   # the threads not closed yet: stopped before the interpreter ends
+
+
+@atexit.register
+def stop_all_threads() -> None:
+    """
+    Stop every input thread still running and wait for it (at exit, before finalisation).
+
+    A thread left inside rcl's wait when the interpreter finalises is unwound through C++
+    that may not throw: "terminate called without an active exception", exit 134. The
+    ROS 2 tutorials' order (spin, ``rclpy.shutdown()``, end of script) did that; now every
+    order ends cleanly (test_tf_listener.py's ``test_a_listener_ends_cleanly_*``).
+    """
+    for running in list(_RUNNING):
+        running.stop()
 
 
 def name_os_thread(name) -> bool:
@@ -109,6 +126,14 @@ class RawSubscriptionThread:
         self._thread = threading.Thread(target=self._run, name=f'{owner.get_name()} input',
                                         daemon=True)
         self._thread.start()
+        _RUNNING.add(self)
+
+    def stop(self) -> None:
+        """Stop the thread and wait for it (the helper node stays: :meth:`close`)."""
+        self._stop = True
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=5 * WAKE_S + 1.0)
+        _RUNNING.discard(self)
 
     def _call(self, raw, info):
         """Hand one message to the callback; an exception is counted and reported, not fatal."""
@@ -143,7 +168,5 @@ class RawSubscriptionThread:
 
     def close(self) -> None:
         """Stop the thread and destroy the helper node."""
-        self._stop = True
-        if self._thread is not threading.current_thread():
-            self._thread.join(timeout=5 * WAKE_S + 1.0)
+        self.stop()
         self._node.destroy_node()

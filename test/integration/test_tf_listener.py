@@ -6,6 +6,8 @@ in a context of the test's own with its dedicated spin thread, as tf2_ros users 
 """
 
 import math
+import signal
+import sys
 import time
 
 from dq_fk_ros import tf
@@ -126,3 +128,60 @@ def test_a_lookups_message_is_the_one_the_setters_make():
     assert made == expected
     from rclpy.serialization import serialize_message
     assert serialize_message(made) == serialize_message(expected)
+
+
+SHUTDOWN_ORDERS = {
+    # the ROS 2 tutorials' order: spin, rclpy.shutdown(), the script ends
+    'shutdown then exit': 'rclpy.shutdown()',
+    'destroy_node then shutdown': 'node.destroy_node(); rclpy.shutdown()',
+    'nothing at all': 'pass',
+    "an exception in the user's code": "raise RuntimeError('a bug of the user')",
+}
+
+
+@pytest.mark.parametrize('spin_thread', [False, True])
+@pytest.mark.parametrize('order', sorted(SHUTDOWN_ORDERS))
+def test_a_listener_ends_cleanly_in_any_shutdown_order(processes, order, spin_thread):
+    # exit 134, 'terminate called without an active exception', before: the listener's
+    # input thread was still inside rcl's wait when the interpreter finalised
+    script = (
+        'import rclpy\n'
+        'from dq_fk_ros import tf\n'
+        'rclpy.init()\n'
+        "node = rclpy.create_node('exit_order_listener')\n"
+        'buffer = tf.Buffer()\n'
+        f'listener = tf.TransformListener(buffer, node, spin_thread={spin_thread})\n'
+        'for _ in range(3):\n'
+        '    rclpy.spin_once(node, timeout_sec=0.02)\n' if not spin_thread else
+        'import rclpy, time\n'
+        'from dq_fk_ros import tf\n'
+        'rclpy.init()\n'
+        "node = rclpy.create_node('exit_order_listener')\n"
+        'buffer = tf.Buffer()\n'
+        f'listener = tf.TransformListener(buffer, node, spin_thread={spin_thread})\n'
+        'time.sleep(0.1)\n') + SHUTDOWN_ORDERS[order] + '\n'
+    proc = processes.start([sys.executable, '-c', script])
+    out, _ = proc.communicate(timeout=30)
+    expected = 1 if order.startswith('an exception') else 0
+    assert proc.returncode == expected and 'terminate called' not in out, out[-2000:]
+
+
+def test_a_listener_ends_cleanly_on_ctrl_c(processes):
+    script = ('import rclpy\n'
+              'from rclpy.executors import ExternalShutdownException\n'
+              'from dq_fk_ros import tf\n'
+              'rclpy.init()\n'
+              "node = rclpy.create_node('ctrl_c_listener')\n"
+              'listener = tf.TransformListener(tf.Buffer(), node)\n'
+              "print('spinning', flush=True)\n"
+              'try:\n'
+              '    rclpy.spin(node)\n'
+              'except (KeyboardInterrupt, ExternalShutdownException):\n'
+              '    pass\n'
+              'rclpy.try_shutdown()\n')
+    proc = processes.start([sys.executable, '-c', script])
+    assert proc.stdout.readline().strip() == 'spinning'
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0 and 'terminate called' not in out, out[-2000:]
