@@ -13,8 +13,8 @@ import atexit
 import ctypes
 import threading
 import time
-import weakref
 from typing import Callable
+import weakref
 
 import rclpy
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
