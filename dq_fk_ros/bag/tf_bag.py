@@ -10,10 +10,12 @@ interface. ``/tf`` messages are read between ``start`` and ``end`` (log times, n
 Messages of one publisher share a layout (their frame ids): each layout is read once
 (:func:`~dq_fk_ros.messages.cdr_tf.tf_layout`), and its messages' stamps and values are taken
 as numpy columns at fixed offsets, no object per transform. Each edge's samples are sorted
-by stamp (stable: of equal stamps the later-read counts as the newer, as tf2 inserts them),
-exact duplicates dropped, and stored as the core's arrays with no pruning (the whole bag is
-the cache). Transforms tf2 refuses (NaN or infinite values, a quaternion off unit norm, a
-frame its own parent, an empty frame id) are dropped and counted. The samples held are
+by stamp, one sample a stamp (the first read; a later one of the same stamp is a duplicate,
+or a repeated stamp refused as ``BufferCore.set_transform`` refuses it), and stored as the
+core's arrays with no pruning (the whole bag is the cache). Transforms tf2 refuses (NaN or
+infinite values, a quaternion off unit norm, a frame its own parent, an empty or too long
+frame id) and frames past the core's cap are dropped and counted, the cap applied while
+reading. The samples held are
 bounded (``max_transforms``); a bag with more between ``start`` and ``end`` is refused in one
 line that says to give them. Reference: the same transforms given one by one to
 ``BufferCore.set_transform`` (``test_tf_bag.py``).
@@ -27,13 +29,14 @@ from dq_fk_ros.messages.cdr_tf import LayoutCache, tf_layout
 from dq_fk_ros.storage.reader_interface import TF_MESSAGE
 from dq_fk_ros.storage.reading import open_reader
 from dq_fk_ros.storage.text import printable
-from dq_fk_ros.transforms.buffer_core import BufferCore, QUATERNION_TOLERANCE, strip_slash
+from dq_fk_ros.transforms.buffer_core import (BufferCore, MAX_FRAME_ID, MAX_FRAMES,
+                                              QUATERNION_TOLERANCE, strip_slash)
 from dq_fk_ros.transforms.edges import MovingEdge
 import numpy as np
 
 TF_TOPICS = ('/tf', '/tf_static')
 TF_TYPES = (TF_MESSAGE, 'tf/msg/tfMessage')   # the second: older ROS 1 bags (tf's)
-MAX_TRANSFORMS = 20_000_000   # samples held (64 bytes each: about 1.3 GB)
+MAX_TRANSFORMS = 20_000_000   # samples held (80 bytes each while read: about 1.6 GB)
 WHOLE_BAG_NS = 1 << 62        # the cache time of a bag's core: nothing pruned
 MAX_LAYOUTS = 4096            # message layouts (publishers' frame-id sets) recognised at once
 
@@ -46,8 +49,21 @@ class TfBagSummary:
         self.messages = 0
         self.transforms = 0
         self.unreadable = 0      # messages that are no TFMessage
-        self.refused = 0         # transforms tf2 refuses (NaN, not unit, self, no frame id)
-        self.duplicates = 0
+        self.refused = 0         # transforms refused (NaN, not unit, self, no frame id, ...)
+        self.past_frame_cap = 0  # of them: naming frames past the core's cap (MAX_FRAMES)
+        self.duplicates = 0      # a sample recorded twice, kept once
+        self.repeated = 0        # another sample of a stamp its edge holds: refused
+
+    def dropped_line(self) -> str:
+        """Return one line saying what was dropped and why, or '' when nothing was."""
+        parts = [f'{count} {what}' for count, what in (
+            (self.past_frame_cap, f'transforms naming frames past the {MAX_FRAMES}-frame cap'),
+            (self.refused - self.past_frame_cap, 'transforms tf2 refuses (NaN, infinite, '
+             'a quaternion off unit length, a frame its own parent, an empty or too long '
+             'frame id)'),
+            (self.repeated, "repeated stamps of an edge (tf2's TF_REPEATED_DATA)"),
+            (self.unreadable, 'messages that are no TFMessage')) if count]
+        return ('dropped: ' + '; '.join(parts)) if parts else ''
 
 
 def core_from_bag(path, start: int | None = None, end: int | None = None,
@@ -107,112 +123,163 @@ def _matches(known, data, starts, lengths):
                      for s, n in zip(starts.tolist(), lengths.tolist())], bool)
 
 
+class _Columns:
+    """
+    The transforms read so far, one row each, in arrays grown by half when full.
+
+    Columns: stamp (int64 ns), read order (int64: the message's), parent and child id
+    (int32), the 7 values (float64): 80 bytes a transform, whatever the bag's layouts.
+    """
+
+    def __init__(self):
+        self.n = 0
+        self.stamps = np.zeros(0, np.int64)
+        self.orders = np.zeros(0, np.int64)
+        self.ids = np.zeros((0, 2), np.int32)
+        self.values = np.zeros((0, 7))
+
+    def extend(self, stamps, orders, ids, values):
+        """Append rows (equal lengths)."""
+        n, more = self.n, len(stamps)
+        if n + more > len(self.stamps):
+            room = max(n + more, len(self.stamps) * 3 // 2, 1024)
+            for name in ('stamps', 'orders', 'ids', 'values'):
+                old = getattr(self, name)
+                grown = np.zeros((room,) + old.shape[1:], old.dtype)
+                grown[:n] = old[:n]
+                setattr(self, name, grown)
+        self.stamps[n:n + more] = stamps
+        self.orders[n:n + more] = orders
+        self.ids[n:n + more] = ids
+        self.values[n:n + more] = values
+        self.n = n + more
+
+
+def _edge_ids(core, layout):
+    """
+    Return ``(ids, why)`` per transform of ``layout``: ``(parent id, child id)``, and why not.
+
+    ``why`` is 0 (taken), 1 (a name tf2 refuses: empty, its own parent, longer than
+    MAX_FRAME_ID) or 2 (a frame past the core's cap: refused here, while reading).
+    """
+    ids, why = [], []
+    for parent, child in layout.edges:
+        p, c = strip_slash(parent), strip_slash(child)
+        if not p or not c or p == c or max(len(p), len(c)) > MAX_FRAME_ID:
+            ids.append((0, 0))
+            why.append(1)
+            continue
+        child_id = core.frame_index(c)
+        parent_id = core.frame_index(p) if child_id else 0
+        ids.append((parent_id, child_id) if parent_id else (0, 0))
+        why.append(0 if parent_id else 2)
+    return np.array(ids, np.int32).reshape(-1, 2), np.array(why, np.int8)
+
+
 def _take_moving(core, reader, conns, start, end, max_transforms, summary, path):
-    """Read ``/tf`` in batches, by layout, into columns; then store each edge sorted."""
-    layouts = []   # [KnownLayout] in the order first seen
-    parts = {}     # id(KnownLayout) -> [(orders, stamps (n, T), values (n, T, 7))]
+    """
+    Read ``/tf`` in batches, by layout, into columns; then store each edge sorted.
+
+    Bounded while reading: at most ``max_transforms`` rows (then one line), frames past the
+    core's cap refused and counted as they come, the layouts remembered at most
+    ``MAX_LAYOUTS`` (each with its frame ids only), and a batch of messages whose layouts
+    all differ read one message at a time rather than compared with each other.
+    """
+    columns = _Columns()
     known_layouts = LayoutCache(MAX_LAYOUTS)
+    edge_ids = {}   # id(KnownLayout) -> (KnownLayout, ids per transform)
     order = 0
-    total = 0
     for batch in reader.message_batches(conns, start, end):
         summary.messages += len(batch.starts)
         data = bytes(batch.data)
         block = np.frombuffer(data, np.uint8)
         left = np.arange(len(batch.starts))
+        scans = 4 * len(left) + 64   # messages compared with a layout, at most, this batch
         while len(left):
             first = int(left[0])
             raw = data[batch.starts[first]:batch.starts[first] + batch.lengths[first]]
             try:
-                known, _ = known_layouts.find(raw)
+                known, forgotten = known_layouts.find(raw)
             except CdrError:
                 summary.unreadable += 1
                 left = left[1:]
                 continue
-            if id(known) not in parts:   # (a forgotten layout stays here, held by layouts)
-                layouts.append(known)
-                parts[id(known)] = []
-            same = _matches(known, data, batch.starts[left], batch.lengths[left])
-            taken = left[same]
-            left = left[~same]
-            total += len(taken) * len(known.layout.edges)
-            if total > max_transforms:
-                raise BagError(f'{path}: more than {max_transforms} transforms on /tf between '
-                               f'start and end (about {max_transforms * 64 >> 20} MiB held); '
-                               'give start and end (--start/--end) to read a part of it')
+            if forgotten is not None:
+                edge_ids.pop(id(forgotten), None)
+            entry = edge_ids.get(id(known))
+            if entry is None or entry[0] is not known:
+                entry = edge_ids[id(known)] = (known,) + _edge_ids(core, known.layout)
+            _, ids, why = entry
+            if scans >= len(left):
+                scans -= len(left)
+                same = _matches(known, data, batch.starts[left], batch.lengths[left])
+                taken, left = left[same], left[~same]
+            else:   # layouts that differ message after message: one at a time
+                taken, left = left[:1], left[1:]
             layout = known.layout
+            summary.refused += len(taken) * int((why != 0).sum())
+            summary.past_frame_cap += len(taken) * int((why == 2).sum())
+            kept = np.flatnonzero(why == 0)
+            if not len(kept):
+                continue
+            if columns.n + len(taken) * len(kept) > max_transforms:
+                raise BagError(f'{path}: more than {max_transforms} transforms on /tf between '
+                               f'start and end (about {max_transforms * 80 >> 20} MiB held); '
+                               'give start and end (--start/--end) to read a part of it')
             rows = block[batch.starts[taken][:, None] + np.arange(layout.size)]   # (n, size)
             stamps = np.stack([
                 np.ascontiguousarray(rows[:, at:at + 4]).view('<i4')[:, 0].astype(np.int64)
                 * 10**9 + np.ascontiguousarray(rows[:, at + 4:at + 8]).view('<u4')[:, 0]
-                for at in layout.stamps], axis=1) if layout.edges else \
-                np.zeros((len(taken), 0), np.int64)
+                for at in (layout.stamps[j] for j in kept)], axis=1)
             values = np.stack([np.ascontiguousarray(rows[:, at:at + 56]).view('<f8')
-                               for at in layout.values], axis=1) if layout.edges else \
-                np.zeros((len(taken), 0, 7))
-            parts[id(known)].append((order + taken, stamps, values))
+                               for at in (layout.values[j] for j in kept)], axis=1)
+            columns.extend(stamps.reshape(-1), np.repeat(order + taken, len(kept)),
+                           np.tile(ids[kept], (len(taken), 1)), values.reshape(-1, 7))
         order += len(batch.starts)
-    columns = {}   # (parent, child) -> [(stamps, orders, values)]
-    for known in layouts:
-        if not parts[id(known)]:
-            continue
-        orders = np.concatenate([p[0] for p in parts[id(known)]])
-        stamps = np.concatenate([p[1] for p in parts[id(known)]])
-        values = np.concatenate([p[2] for p in parts[id(known)]])
-        for j, (parent, child) in enumerate(known.layout.edges):
-            columns.setdefault((parent, child), []).append(
-                (stamps[:, j], orders, np.ascontiguousarray(values[:, j])))
-    edges = {}   # child -> [(parent, stamps, orders, values)]
-    for (parent, child), parts in columns.items():
-        stamps = np.concatenate([p[0] for p in parts])
-        orders = np.concatenate([p[1] for p in parts])
-        values = np.concatenate([p[2] for p in parts])
-        p, c = strip_slash(parent), strip_slash(child)
-        if not p or not c or p == c:
-            summary.refused += len(stamps)
-            continue
-        norm2 = np.einsum('ij,ij->i', values[:, 3:], values[:, 3:])
-        good = np.isfinite(values).all(axis=1) & (np.abs(norm2 - 1.0) < QUATERNION_TOLERANCE)
-        summary.refused += int((~good).sum())
-        values = values[good]
-        values[:, 3:] /= np.sqrt(norm2[good])[:, None]
-        edges.setdefault(c, []).append((p, stamps[good], orders[good], values))
-    for child, parts in edges.items():
-        _store(core, child, parts, summary)
+    _store_all(core, columns, summary)
 
 
-def _store(core, child, parts, summary):
-    """Store one child frame's samples (of one or more parents) as its dynamic cache."""
-    child_id = core.frame_index(child)
-    if not child_id:
-        summary.refused += sum(len(p[1]) for p in parts)
-        return
-    parents = np.concatenate([np.full(len(p[1]), core.frame_index(p[0]), np.int64) for p in parts])
-    stamps = np.concatenate([p[1] for p in parts])
-    orders = np.concatenate([p[2] for p in parts])
-    values = np.concatenate([p[3] for p in parts])
-    keep = parents != 0
-    rows = np.concatenate((stamps[:, None].view(np.float64), parents[:, None].view(np.float64),
-                           values), axis=1)[keep]
-    orders = orders[keep]
-    if len(orders) > 1 and not (orders[1:] > orders[:-1]).all():   # from several layouts
-        ordering = np.argsort(orders, kind='stable')
-        rows, orders = rows[ordering], orders[ordering]
-    in_time = rows[:, 0].view(np.int64)
-    if len(rows) > 1 and not (in_time[1:] > in_time[:-1]).all():
-        # recorded out of order or twice: exact duplicates (stamp, parent, values) kept once
-        # (the first read, as tf2 keeps it), then sorted by stamp, read order among equals
-        _, first = np.unique(rows.view(np.dtype((np.void, rows.dtype.itemsize * 9))),
-                             return_index=True)
-        summary.duplicates += len(rows) - len(first)
-        first.sort()
-        rows, orders = rows[first], orders[first]
-        rows = rows[np.lexsort((orders, rows[:, 0].view(np.int64)))]
+def _store_all(core, columns, summary):
+    """Check the values as tf2 does, then store each child frame's samples sorted by stamp."""
+    n = columns.n
+    stamps, orders = columns.stamps[:n], columns.orders[:n]
+    ids, values = columns.ids[:n], columns.values[:n]
+    norm2 = np.einsum('ij,ij->i', values[:, 3:], values[:, 3:])
+    good = np.isfinite(values).all(axis=1) & (np.abs(norm2 - 1.0) < QUATERNION_TOLERANCE)
+    summary.refused += int((~good).sum())
+    if not good.all():
+        stamps, orders, ids, values, norm2 = (a[good] for a in (stamps, orders, ids, values,
+                                                                norm2))
+    values = values.copy()
+    values[:, 3:] /= np.sqrt(norm2)[:, None]
+    # by child, then stamp, then read order: of one stamp the first read is kept (a later
+    # one the same in every value a duplicate, else a repeated stamp, tf2's TF_REPEATED_DATA)
+    ordering = np.lexsort((orders, stamps, ids[:, 1]))
+    stamps, ids, values = stamps[ordering], ids[ordering], values[ordering]
+    bounds = np.flatnonzero(np.diff(ids[:, 1])) + 1
+    for lo, hi in zip(np.r_[0, bounds], np.r_[bounds, len(stamps)]):
+        if hi > lo:
+            _store(core, int(ids[lo, 1]), stamps[lo:hi], ids[lo:hi, 0], values[lo:hi], summary)
+
+
+def _store(core, child_id, stamps, parents, values, summary):
+    """Store one child frame's samples (sorted by stamp, read order among equals)."""
+    later = np.flatnonzero(stamps[1:] == stamps[:-1]) + 1
+    if len(later):
+        keep = np.ones(len(stamps), bool)
+        keep[later] = False
+        # the sample kept for each dropped one: the first of its stamp
+        first = np.maximum.accumulate(np.where(keep, np.arange(len(stamps)), 0))[later]
+        same = (parents[later] == parents[first]) & (values[later] == values[first]).all(axis=1)
+        summary.duplicates += int(same.sum())
+        summary.repeated += int((~same).sum())
+        stamps, parents, values = stamps[keep], parents[keep], values[keep]
     core.caches[child_id] = MovingEdge.of(
-        core.cache_time_ns, np.ascontiguousarray(rows[:, 0]).view(np.int64).tobytes(),
-        np.ascontiguousarray(rows[:, 1]).view(np.int64).tobytes(),
-        np.ascontiguousarray(rows[:, 2:]).tobytes())
+        core.cache_time_ns, np.ascontiguousarray(stamps, np.int64).tobytes(),
+        np.ascontiguousarray(parents, np.int64).tobytes(),
+        np.ascontiguousarray(values, np.float64).tobytes())
     core.authority[child_id] = 'bag'
-    summary.transforms += len(rows)
+    summary.transforms += len(stamps)
 
 
 __all__ = ['core_from_bag', 'MAX_TRANSFORMS', 'TF_TOPICS', 'TfBagSummary']

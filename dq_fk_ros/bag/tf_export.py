@@ -13,7 +13,7 @@ and left out, never invented.
 import math
 import os
 import struct
-from typing import NamedTuple
+from typing import Iterator, NamedTuple
 
 from dq_fk_ros.bag.tf_bag import core_from_bag
 from dq_fk_ros.errors import BagError
@@ -34,31 +34,47 @@ class TfExport(NamedTuple):
     rows: int
     unanswered: int
     csv_path: str
+    dropped: str = ''   # what the bag's TF held that was dropped, one line ('' for nothing)
 
 
-def stamps_at_rate(core, rate_hz: float) -> np.ndarray:
-    """Return stamps every ``1 / rate_hz`` s over the span of the core's moving samples."""
+def tf_span(core) -> tuple:
+    """Return ``(first, last)`` stamp (ns) of the core's moving samples, or None without any."""
     first, last = None, None
     for cache in core.caches:
         if cache is not None and not cache.static and len(cache):
             a, b = cache.oldest_stamp(), cache.newest_stamp()
             first = a if first is None else min(first, a)
             last = b if last is None else max(last, b)
-    if first is None:
-        return np.zeros(0, np.int64)
+    return None if first is None else (first, last)
+
+
+def stamps_at_rate(core, rate_hz: float, block: int = CSV_ROWS_AT_ONCE) -> Iterator[np.ndarray]:
+    """
+    Yield stamps every ``1 / rate_hz`` s over the span of the core's moving samples.
+
+    ``block`` stamps at a time: what is held does not grow with the rows. More than
+    ``MAX_ROWS`` in all: a one-line BagError before any is yielded.
+    """
+    span = tf_span(core)
+    if span is None:
+        return
+    first, last = span
     step = 1e9 / rate_hz
     count = int((last - first) // step) + 1
     if count > MAX_ROWS:
         raise BagError(f'--rate {rate_hz:g} over {(last - first) / 1e9:.1f} s is {count} rows, '
                        f'more than {MAX_ROWS}; lower the rate or give --start/--end')
-    return first + np.round(np.arange(count) * step).astype(np.int64)
+    for at in range(0, count, block):
+        yield first + np.round(np.arange(at, min(count, at + block)) * step).astype(np.int64)
 
 
-def stamps_of_topic(path, topic, start=None, end=None, max_rows: int = MAX_ROWS) -> np.ndarray:
+def stamps_of_topic(path, topic, start=None, end=None, max_rows: int = MAX_ROWS,
+                    block: int = CSV_ROWS_AT_ONCE) -> Iterator[np.ndarray]:
     """
-    Return the header stamps (ns) of the messages of ``topic`` (a type with a header).
+    Yield the header stamps (ns) of the messages of ``topic`` (a type with a header).
 
-    More than ``max_rows`` messages between ``start`` and ``end``: a one-line BagError.
+    ``block`` stamps at a time, as read. More than ``max_rows`` messages between ``start``
+    and ``end``: a one-line BagError (after the rows before it).
     """
     from rosbags.typesys import get_typestore, Stores
     store = get_typestore(Stores.ROS2_JAZZY)
@@ -74,15 +90,20 @@ def stamps_of_topic(path, topic, start=None, end=None, max_rows: int = MAX_ROWS)
             raise BagError(f'--at-topic {printable(topic)}: its type {printable(kind)} is not '
                            'one whose first field is a std_msgs/Header (Image, PointCloud2, '
                            'CameraInfo...)')
-        stamps = []
+        stamps, count = [], 0
         for _, _, raw in reader.messages(conns, start, end):
-            if len(stamps) >= max_rows:
+            if count >= max_rows:
                 raise BagError(f'--at-topic {printable(topic)}: more than {max_rows} messages '
                                'between start and end; give --start/--end')
             if len(raw) >= 12:
                 sec, nanosec = _STAMP.unpack_from(raw, 4)
                 stamps.append(sec * 1_000_000_000 + nanosec)
-        return np.asarray(stamps, np.int64)
+                count += 1
+                if len(stamps) == block:
+                    yield np.asarray(stamps, np.int64)
+                    stamps = []
+        if stamps:
+            yield np.asarray(stamps, np.int64)
     finally:
         reader.close()
 
@@ -121,6 +142,9 @@ def export_tf(path, target: str, source: str, csv_path, rate_hz: float | None = 
     """
     Write ``source``'s pose in ``target`` over the bag to ``csv_path`` (module doc).
 
+    The rows are looked up and written ``CSV_ROWS_AT_ONCE`` at a time: memory does not grow
+    with them. ``TfExport.dropped`` says in one line what the bag's TF held that was dropped.
+
     :param start: the first log time (ns) read; ``end``: the first not read.
     :raises BagError: one line (no TF, no such topic, too many rows, an output that exists).
     """
@@ -130,22 +154,27 @@ def export_tf(path, target: str, source: str, csv_path, rate_hz: float | None = 
         raise BagError(f'--rate must be above 0 and at most 1e6 Hz, got {rate_hz:g}')
     if os.path.lexists(csv_path):
         raise BagError(f'{csv_path}: exists; choose another path')
-    core, _ = core_from_bag(path, start, end)
+    core, summary = core_from_bag(path, start, end)
     for frame in (target, source):
         if frame not in core.ids:
             raise BagError(f'{path}: no frame {printable(frame)!r} on /tf or /tf_static; its '
                            f'frames: {", ".join(printable(f) for f in core.frame_names()[:30])}')
-    stamps = stamps_at_rate(core, rate_hz) if rate_hz is not None else \
+    blocks = stamps_at_rate(core, rate_hz) if rate_hz is not None else \
         stamps_of_topic(path, at_topic, start, end)
-    poses = lookup_poses(core, target, source, stamps)
-    answered = ~np.isnan(poses).any(axis=1)
-    with open(csv_path, 'x', newline='', encoding='utf-8') as stream:
-        stream.write('stamp_ns,x,y,z,qx,qy,qz,qw\n')
-        kept_stamps, kept = stamps[answered], poses[answered]
-        for at in range(0, len(kept_stamps), CSV_ROWS_AT_ONCE):
-            stream.write(csv_rows(kept_stamps[at:at + CSV_ROWS_AT_ONCE],
-                                  kept[at:at + CSV_ROWS_AT_ONCE]))
-    return TfExport(int(answered.sum()), int((~answered).sum()), os.fspath(csv_path))
+    rows = unanswered = 0
+    try:
+        with open(csv_path, 'x', newline='', encoding='utf-8') as stream:
+            stream.write('stamp_ns,x,y,z,qx,qy,qz,qw\n')
+            for stamps in blocks:
+                poses = lookup_poses(core, target, source, stamps)
+                answered = ~np.isnan(poses).any(axis=1)
+                stream.write(csv_rows(stamps[answered], poses[answered]))
+                rows += int(answered.sum())
+                unanswered += int((~answered).sum())
+    except BagError:
+        os.unlink(csv_path)   # (only a file this call made: open 'x' refuses one that exists)
+        raise
+    return TfExport(rows, unanswered, os.fspath(csv_path), summary.dropped_line())
 
 
-__all__ = ['export_tf', 'MAX_ROWS', 'stamps_at_rate', 'stamps_of_topic', 'TfExport']
+__all__ = ['export_tf', 'MAX_ROWS', 'stamps_at_rate', 'stamps_of_topic', 'tf_span', 'TfExport']

@@ -221,15 +221,21 @@ def export_tf_csv(args) -> int:
     if args.start < 0 or (args.end is not None and args.end <= args.start):
         raise BagError('--start must be 0 or more and --end after it')
     reader = open_reader(args.bag)
-    origin = reader.start_time
+    origin, length = reader.start_time, max(0, reader.end_time - reader.start_time)
     reader.close()
+    if args.start * 1e9 >= length and (args.start or length):
+        raise BagError(f'--start {args.start:g} s is at or past the end of {args.bag} (its '
+                       f'messages span {length / 1e9:.3f} s)')
     start = origin + round(args.start * 1e9) if args.start else None
-    end = origin + round(args.end * 1e9) if args.end is not None else None
+    end = origin + round(args.end * 1e9) if args.end is not None and \
+        args.end * 1e9 < length else None   # (past the end: to the end)
     done = export_tf(args.bag, args.target, args.source, args.csv, rate_hz=args.rate,
                      at_topic=args.at_topic, start=start, end=end)
     print(f'{args.csv}: {done.rows} poses of {printable(args.source)} in '
           f'{printable(args.target)}' + (f'; {done.unanswered} stamps TF could not answer, '
                                          'left out' if done.unanswered else ''))
+    if done.dropped:
+        print(f'dq_fk_bag: {args.bag}: {done.dropped}', file=sys.stderr)
     return 0
 
 

@@ -133,19 +133,34 @@ def _compiled_check(check):
 
 
 class KnownLayout:
-    """A layout :class:`TfLatest` has seen, and its check; hashed by identity (cheaply)."""
+    """
+    A layout :class:`TfLatest` has seen, and its check; hashed by identity (cheaply).
 
-    __slots__ = ('layout', 'check', 'match', 'runs')
+    ``layout.raw`` is emptied once the check is made: a remembered layout holds its frame ids,
+    never the message it was read from.
+    """
+
+    __slots__ = ('layout', 'check', 'match', 'runs', 'name_bytes')
 
     def __init__(self, layout):
-        self.layout, self.check = layout, _layout_check(layout)
+        self.check = _layout_check(layout)
+        self.layout = layout._replace(raw=b'')
+        self.name_bytes = sum(b - a for a, b in layout.strings)
         compiled = self.runs = _compiled_check(self.check)
         self.match = compiled.match if compiled is not None else \
             (lambda raw, check=self.check: _is_layout(raw, check))
 
 
+MAX_REMEMBERED_NAME_BYTES = 256 << 10   # a layout whose frame ids take more is not remembered
+
+
 class LayoutCache:
-    """The layouts of the serialized ``TFMessage`` s seen (by size); the oldest forgotten."""
+    """
+    The layouts of the serialized ``TFMessage`` s seen (by size); the oldest forgotten.
+
+    A layout whose frame ids take more than ``MAX_REMEMBERED_NAME_BYTES`` is read for its
+    message and not remembered: what the cache holds is at most ``max_layouts`` times that.
+    """
 
     def __init__(self, max_layouts=64):
         """Remember at most ``max_layouts`` layouts."""
@@ -159,6 +174,8 @@ class LayoutCache:
             if known.match(raw):
                 return known, None
         known = KnownLayout(tf_layout(raw))
+        if known.name_bytes > MAX_REMEMBERED_NAME_BYTES:
+            return known, None
         self._by_size.setdefault(known.layout.size, []).append(known)
         self._order.append(known)
         old = None
@@ -193,6 +210,8 @@ class TfLatest:
         if forgotten is not None:
             self._latest.pop(forgotten, None)
         self._latest[known] = raw
+        if len(self._latest) > self._layouts.max_layouts:   # (layouts too big to remember)
+            self._latest.pop(next(iter(self._latest)))
 
     def pop(self) -> list:
         """Return ``[(transforms, stamp_ns), ...]`` of each layout's newest message; forget it."""

@@ -26,7 +26,7 @@ from builtin_interfaces.msg import Time as TimeMsg
 from dq_fk_ros.errors import CdrError
 from dq_fk_ros.messages.cdr_tf import TfReader
 from dq_fk_ros.transforms.buffer_core import (BufferCore, COMPILED, DEFAULT_CACHE_TIME_NS,
-                                              MAX_FRAMES, strip_slash)
+                                              MAX_FRAME_ID, MAX_FRAMES, strip_slash)
 from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
                                              InvalidArgumentException, LookupException,
                                              TimeoutException, TransformException)
@@ -52,6 +52,8 @@ LOG_EVERY_S = 10.0    # a listener's refused transforms: one line per this many 
 _STAMP, _POSE7 = struct.Struct('<iI'), struct.Struct('<7d')
 AUTHORITY = 'default_authority'   # what tf2_ros's Python listener records
 INPUT_BATCH_S = 0.002   # the listener's /tf thread: messages this close share a wake-up
+SLICE = 256             # transforms of one message stored under one hold of the lock
+MAX_PLANS = 64          # layouts whose frame ids a listener remembers (as its reader's)
 
 
 def time_ns(value) -> int:
@@ -139,10 +141,12 @@ class Buffer:
     def set_raw(self, transforms, authority: str, static: bool = False) -> int:
         """Store ``[(parent, child, stamp_ns, pose)]`` (the listener's); return how many taken."""
         taken = 0
-        with self._changed:
-            for parent, child, stamp, pose in transforms:
-                taken += self.core.set_transform(parent, child, stamp, pose, authority, static)
-            self._changed.notify_all()
+        for lo in range(0, len(transforms), SLICE):   # lookups go between slices
+            with self._changed:
+                for parent, child, stamp, pose in transforms[lo:lo + SLICE]:
+                    taken += self.core.set_transform(parent, child, stamp, pose, authority,
+                                                     static)
+                self._changed.notify_all()
         return taken
 
     def append_raw(self, raw: bytes, layout, plans: dict, authority: str) -> int:
@@ -153,40 +157,48 @@ class Buffer:
         (the common case) in C; every other one (a new frame, an older or equal stamp, a
         refusal) goes through ``BufferCore.set_transform``, the reference
         (``test_tf_listener.py``'s ``test_the_listener_stores_what_set_transform_stores``).
-        ``plans`` keeps each layout's frame ids and offsets (ids never change).
+        ``plans`` keeps each layout's frame ids and offsets (ids never change), at most
+        ``MAX_PLANS``. The lock is taken for ``SLICE`` transforms at a time: a lookup waits
+        for one slice of a peer's message at most, never for the whole of it.
         """
         core = self.core
         with self._changed:
             plan = plans.get(id(layout))
             if plan is None or plan[0] is not layout or plan[2]:
-                rows, incomplete = [], False
-                for (parent, child), at, value_at in zip(layout.edges, layout.stamps,
-                                                         layout.values):
-                    p, c = strip_slash(parent), strip_slash(child)
-                    named = p and c and p != c
-                    good = named and core.ids.get(c) and core.ids.get(p)
-                    incomplete |= bool(named and not good)   # frames not seen yet
-                    rows.append((core.ids[c] if good else 0, core.ids[p] if good else 0, at,
-                                 value_at))
-                plan = plans[id(layout)] = (layout, np.array(rows, np.int64).reshape(-1, 4),
-                                            incomplete and len(core.names) <= core.max_frames)
-                if len(plans) > 256:
+                plan = plans[id(layout)] = self._plan(layout)
+                if len(plans) > MAX_PLANS:
                     plans.pop(next(iter(plans)))
-            left = COMPILED.append_many(core.caches, plan[1], raw, core.cache_time_ns)
-            taken = len(layout.edges) - len(left)
-            skipped = set(left)
-            for i, child in enumerate(plan[1][:, 0].tolist()):
-                if child and i not in skipped:
-                    core.authority[child] = authority
-            if left:
-                stamp, pose = _STAMP.unpack_from, _POSE7.unpack_from
+        rows, taken = plan[1], 0
+        stamp, pose = _STAMP.unpack_from, _POSE7.unpack_from
+        for lo in range(0, len(rows), SLICE):
+            with self._changed:
+                part = rows[lo:lo + SLICE]
+                left = COMPILED.append_many(core.caches, part, raw, core.cache_time_ns)
+                taken += len(part) - len(left)
+                skipped = set(left)
+                for i, child in enumerate(part[:, 0].tolist()):
+                    if child and i not in skipped:
+                        core.authority[child] = authority
                 for i in left:
-                    parent, child = layout.edges[i]
-                    sec, nanosec = stamp(raw, layout.stamps[i])
+                    parent, child = layout.edges[lo + i]
+                    sec, nanosec = stamp(raw, layout.stamps[lo + i])
                     taken += core.set_transform(parent, child, sec * 1_000_000_000 + nanosec,
-                                                pose(raw, layout.values[i]), authority)
-            self._changed.notify_all()
+                                                pose(raw, layout.values[lo + i]), authority)
+                self._changed.notify_all()
         return taken
+
+    def _plan(self, layout):
+        """Return ``(layout, rows (child id, parent id, stamp at, values at), incomplete)``."""
+        core = self.core
+        rows, incomplete = [], False
+        for (parent, child), at, value_at in zip(layout.edges, layout.stamps, layout.values):
+            p, c = strip_slash(parent), strip_slash(child)
+            named = p and c and p != c and max(len(p), len(c)) <= MAX_FRAME_ID
+            good = named and core.ids.get(c) and core.ids.get(p)
+            incomplete |= bool(named and not good)   # frames not seen yet
+            rows.append((core.ids[c] if good else 0, core.ids[p] if good else 0, at, value_at))
+        return (layout, np.array(rows, np.int64).reshape(-1, 4),
+                incomplete and len(core.names) <= core.max_frames)
 
     def clear(self) -> None:
         """Forget every sample."""
@@ -357,13 +369,19 @@ class TransformListener:
             self.dedicated_listener_thread.start()
 
     def _log(self, line):
-        self.counts['refused'] += 1
+        """Log a line of the buffer's (already at most one a code every LOG_EVERY_S)."""
+        self.node.get_logger().warning(line)
+
+    def _log_unreadable(self):
+        self.counts['unreadable'] += 1
         now = _time.monotonic()
         with self._log_lock:
             if now - self._last_log < LOG_EVERY_S:
                 return
             self._last_log = now
-        self.node.get_logger().warning(f"{line} ({self.counts['refused']} refused so far)")
+        self.node.get_logger().warning(
+            'a TFMessage that does not read as one (not CDR, truncated, or frame ids that are '
+            f"not UTF-8) ({self.counts['unreadable']} so far)")
 
     def _on_tf(self, raw):
         self._take(raw, self._reader, False)
@@ -376,16 +394,15 @@ class TransformListener:
         try:
             layout = reader.layout(raw)
         except (CdrError, ValueError):
-            self.counts['unreadable'] += 1
-            self._log('a TFMessage that does not read as one (not CDR, truncated, or frame ids '
-                      'that are not UTF-8)')
+            self._log_unreadable()
             return
         if static or COMPILED is None or self.buffer.core.sclerp:
             self.counts['transforms'] += self.buffer.set_raw(
                 TfReader.unpack(raw, layout), AUTHORITY, static)
-            return
-        self.counts['transforms'] += self.buffer.append_raw(raw, layout, self._plans,
-                                                            AUTHORITY)
+        else:
+            self.counts['transforms'] += self.buffer.append_raw(raw, layout, self._plans,
+                                                                AUTHORITY)
+        self.counts['refused'] = sum(self.buffer.core.refused.values())
 
     def unregister(self) -> None:
         """Destroy the subscriptions (tf2_ros's ``unregister``)."""

@@ -8,11 +8,14 @@ them. Each child frame has one cache of (stamp, parent, translation, rotation) s
 * **Insert** (``TimeCache::insertData``): samples older than ``cache_time_ns`` before the
   newest are pruned first (by the newest before this insert); a sample older than that
   bound is refused (tf2's ``TF_OLD_DATA``); an exact duplicate (stamp, parent and values) is
-  not stored twice; among equal stamps the latest insert counts as the newest. A static
+  not stored twice; another sample of a stamp the edge holds is refused (``TF_REPEATED_DATA``,
+  ROS 1's tf2: Jazzy keeps every distinct one, see :mod:`~dq_fk_ros.transforms.edges`). A static
   transform is one sample valid at every time (``StaticCache``); a frame switching between
-  static and dynamic starts a new cache. Rejected, each with one log line: a frame id empty
-  after a leading ``/`` is stripped, a frame that is its own parent, a NaN, a quaternion
-  whose squared norm is off 1 by 0.01 or more. Stored quaternions are normalised.
+  static and dynamic starts a new cache. Rejected and counted by code (:attr:`refused`), each
+  code logged at once and then at most once per ``log_every_s``: a frame id empty after a
+  leading ``/`` is stripped or longer than ``MAX_FRAME_ID``, a frame that is its own parent,
+  a NaN, a quaternion whose squared norm is off 1 by 0.01 or more, frames past
+  ``max_frames``. Stored quaternions are normalised.
 * **One edge at time t** (``TimeCache::findClosest``, ``getData``): t = 0 gives the newest
   sample; one sample answers its own stamp only ("Lookup would require extrapolation at
   time ..."); t after the newest or before the oldest raises (into the future / the past);
@@ -32,22 +35,22 @@ The edges (one child frame's samples) are :mod:`dq_fk_ros.transforms.edges`, the
 arithmetic :mod:`dq_fk_ros.transforms.pose_math`.
 """
 
-import math
+import time as _time
 
 from dq_fk_ros.errors import printable_line
 from dq_fk_ros.kinematics.kernel import load_compiled
-from dq_fk_ros.transforms.edges import display_time, MovingEdge, StaticEdge
+from dq_fk_ros.transforms.admission import admit, INT64, MAX_FRAME_ID, QUATERNION_TOLERANCE
+from dq_fk_ros.transforms.edges import display_time, MovingEdge, REPEATED, StaticEdge, STORED
 from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
                                              InvalidArgumentException, LookupException)
 from dq_fk_ros.transforms.frames_text import frames_dot, frames_yaml
 from dq_fk_ros.transforms.pose_math import compose, IDENTITY, inverse
 
 MAX_GRAPH_DEPTH = 1000           # tf2's: a longer walk is a loop
-QUATERNION_TOLERANCE = 10e-3     # tf2's QUATERNION_NORMALIZATION_TOLERANCE (on the norm^2)
 DEFAULT_CACHE_TIME_NS = 10 * 10**9
 MAX_FRAMES = 10_000              # frame names held at most; more are refused (one log line)
+LOG_EVERY_S = 10.0               # a code's refusals: one log line per this many seconds
 INTERPOLATIONS = ('slerp', 'sclerp')
-INT64 = (-(1 << 63), 1 << 63)    # times are int64 ns, as tf2's TimePoint
 # the walk in C (transforms/_tf.c): lookup's fast path, this module's _walk its reference
 COMPILED, COMPILED_WHY = load_compiled('dq_fk_ros.transforms._tf')
 
@@ -61,14 +64,15 @@ class BufferCore:
     """
 
     def __init__(self, cache_time_ns: int = DEFAULT_CACHE_TIME_NS, interpolation: str = 'slerp',
-                 max_frames: int = MAX_FRAMES, log=None):
+                 max_frames: int = MAX_FRAMES, log=None, log_every_s: float = LOG_EVERY_S):
         """
         Start empty.
 
         :param cache_time_ns: how long before the newest sample an edge keeps its samples.
         :param interpolation: ``'slerp'`` (tf2's) or ``'sclerp'`` (screw motion, not tf2's).
         :param max_frames: frame names held at most; transforms naming more are refused.
-        :param log: called with one line for each refused transform (default: dropped).
+        :param log: called with one line for a refused transform (default: dropped): the
+            first of each tf2 code at once, later ones at most once per ``log_every_s``.
         """
         if interpolation not in INTERPOLATIONS:
             raise ValueError(f"interpolation must be one of {', '.join(INTERPOLATIONS)}, got "
@@ -84,7 +88,9 @@ class BufferCore:
         self.names = ['NO_PARENT']
         self.caches = [None]     # id -> StaticEdge | MovingEdge | None (a root or a parent only)
         self.authority = {}      # id -> the authority of its last accepted transform
-        self.refused_frames = 0
+        self.refused = {}        # tf2's code (TF_OLD_DATA, ...) -> transforms refused
+        self.log_every_s = log_every_s
+        self._logged = {}        # code -> monotonic time of its last line
 
     # -- in -------------------------------------------------------------------------------
     def set_transform(self, parent: str, child: str, stamp_ns: int, values,
@@ -95,45 +101,15 @@ class BufferCore:
         :param values: ``(x, y, z, qx, qy, qz, qw)``.
         """
         parent, child = strip_slash(parent), strip_slash(child)
-        problem = None
-        if child == parent:
-            problem = (f'TF_SELF_TRANSFORM: Ignoring transform from authority "{authority}" '
-                       f'with frame_id and child_frame_id "{child}" because they are the same')
-        elif not child:
-            problem = (f'TF_NO_CHILD_FRAME_ID: Ignoring transform from authority "{authority}"'
-                       ' because child_frame_id not set')
-        elif not parent:
-            problem = (f'TF_NO_FRAME_ID: Ignoring transform with child_frame_id "{child}" from '
-                       f'authority "{authority}" because frame_id not set')
-        x, y, z, qx, qy, qz, qw = (float(v) for v in values)
-        norm2 = qx * qx + qy * qy + qz * qz + qw * qw
-        if problem is None and any(v != v for v in (x, y, z, qx, qy, qz, qw)):
-            problem = (f'TF_NAN_INPUT: Ignoring transform for child_frame_id "{child}" from '
-                       f'authority "{authority}" because of a nan value in the transform')
-        elif problem is None and not abs(norm2 - 1.0) < QUATERNION_TOLERANCE:
-            problem = (f'TF_DENORMALIZED_QUATERNION: Ignoring transform for child_frame_id '
-                       f'"{child}" from authority "{authority}" because of an invalid '
-                       f'quaternion in the transform ({qx:f} {qy:f} {qz:f} {qw:f})')
-        elif problem is None and not all(math.isfinite(v) for v in (x, y, z)):
-            problem = (f'TF_INF_INPUT: Ignoring transform for child_frame_id "{child}" from '
-                       f'authority "{authority}" because of an infinite translation')
-        elif problem is None and not (type(stamp_ns) is int and INT64[0] <= stamp_ns < INT64[1]):
-            problem = (f'TF_BAD_STAMP: Ignoring transform for child_frame_id "{child}" from '
-                       f'authority "{authority}" because its stamp is not an int64 of ns')
-        if problem is None:
-            child_id, parent_id = self.frame_index(child), self.frame_index(parent)
-            if not child_id or not parent_id:
-                self.refused_frames += 1
-                if self.refused_frames == 1:
-                    problem = (f'TF_TOO_MANY_FRAMES: Ignoring transforms naming new frames '
-                               f'past {self.max_frames} (first: "{child}" in "{parent}")')
-                else:
-                    return False
-        if problem is not None:
-            self.log(printable_line(problem, 400))
-            return False
-        n = math.sqrt(norm2)
-        values = (x, y, z, qx / n, qy / n, qz / n, qw / n)
+        code, checked = admit(parent, child, stamp_ns, values, authority)
+        if code is not None:
+            return self._refuse(code, checked)
+        child_id, parent_id = self.frame_index(child), self.frame_index(parent)
+        if not child_id or not parent_id:
+            return self._refuse('TF_TOO_MANY_FRAMES', f'TF_TOO_MANY_FRAMES: Ignoring '
+                                f'transforms naming new frames '
+                                f'past {self.max_frames} (this one: "{child}" in "{parent}")')
+        values = checked
         cache = self.caches[child_id]
         if static:
             if cache is None or not cache.static:
@@ -145,13 +121,39 @@ class BufferCore:
             # edges of one robot fill in step: rooms of 8 to 23 samples spread their growth
             # over many messages (one message growing all of tiago's stalled 50 ms)
             cache = self.caches[child_id] = MovingEdge(self.cache_time_ns, 8 + child_id % 16)
-        if cache.insert(int(stamp_ns), parent_id, values):
+        done = cache.insert(stamp_ns, parent_id, values)
+        if done == STORED:
             self.authority[child_id] = authority
             return True
-        self.log(printable_line(f'TF_OLD_DATA ignoring data from the past for frame {child} at '
+        if done == REPEATED:
+            return self._refuse('TF_REPEATED_DATA', f'TF_REPEATED_DATA ignoring data with '
+                                f'redundant timestamp for frame {child} (parent {parent}) at '
                                 f'time {display_time(stamp_ns)} according to authority '
-                                f'{authority}', 400))
+                                f'{authority}')
+        return self._refuse('TF_OLD_DATA', f'TF_OLD_DATA ignoring data from the past for frame '
+                            f'{child} at time {display_time(stamp_ns)} according to authority '
+                            f'{authority}')
+
+    def _refuse(self, code: str, line: str) -> bool:
+        """
+        Count a refused transform by its tf2 code; log it, one line a code every log_every_s.
+
+        The first of a code is logged at once, later ones at most once per ``log_every_s``
+        with the count so far (a peer repeating a refusal cannot flood the log). False.
+        """
+        count = self.refused[code] = self.refused.get(code, 0) + 1
+        now = _time.monotonic()
+        last = self._logged.get(code)
+        if last is None or now - last >= self.log_every_s:
+            self._logged[code] = now
+            self.log(printable_line(line, 360)
+                     + (f' ({count} refused so far)' if count > 1 else ''))
         return False
+
+    @property
+    def refused_frames(self) -> int:
+        """Return how many transforms were refused for naming frames past the cap."""
+        return self.refused.get('TF_TOO_MANY_FRAMES', 0)
 
     def frame_index(self, name: str) -> int:
         """Return the index of frame ``name``, added if new (0: over the frame cap)."""
@@ -471,5 +473,6 @@ def _check_time(time_ns):
                                        f'{printable_line(repr(time_ns), 40)}')
 
 
-__all__ = ['BufferCore', 'DEFAULT_CACHE_TIME_NS', 'MAX_FRAMES', 'MAX_GRAPH_DEPTH',
+__all__ = ['BufferCore', 'DEFAULT_CACHE_TIME_NS', 'LOG_EVERY_S', 'MAX_FRAME_ID', 'MAX_FRAMES',
+           'MAX_GRAPH_DEPTH',
            'QUATERNION_TOLERANCE', 'strip_slash']

@@ -6,12 +6,18 @@ One child frame's transforms over time (tf2's ``TimeCache`` and ``StaticCache``)
 appends to; :class:`StaticEdge` holds one transform valid at every time. Their rules are
 tf2's ``cache.cpp``: insertion, pruning by the cache time, duplicates, and which samples
 answer a time (:meth:`MovingEdge.find`); :mod:`dq_fk_ros.transforms.buffer_core` walks them.
+One rule is not Jazzy's: an edge holds one sample per stamp (a repeated stamp with other
+values is refused, tf2's ``TF_REPEATED_DATA`` of ROS 1); Jazzy's ``insertData`` keeps every
+distinct sample of a stamp, scanning them all at each insert, so that one peer repeating a
+stamp grows an edge without bound and slows every insert.
 """
 
 from array import array
 from bisect import bisect_left, bisect_right
 
 from dq_fk_ros.transforms.pose_math import screw_interpolate, slerp
+
+STORED, OLD, REPEATED = 0, 1, 2   # what MovingEdge.insert did with a sample
 
 
 def display_time(stamp_ns: int) -> str:
@@ -115,18 +121,24 @@ class MovingEdge:
     def _same(self, k, parent, values):
         return self.parents[k] == parent and tuple(self.values[7 * k:7 * k + 7]) == values
 
-    def insert(self, stamp: int, parent: int, values: tuple) -> bool:
-        """Store a sample as tf2's ``TimeCache::insertData``; False: older than the cache time."""
+    def insert(self, stamp: int, parent: int, values: tuple) -> int:
+        """
+        Store a sample as tf2's ``TimeCache::insertData``; return STORED, OLD or REPEATED.
+
+        OLD: older than the cache time before the newest. REPEATED: the edge holds a sample
+        of this stamp already, with another parent or values (an exact duplicate is STORED,
+        once). One sample per stamp, found by bisection: a peer repeating one stamp costs
+        O(log n) an insert, never a scan of the samples sharing it.
+        """
         stamps, count = self.stamps, self.count
         if count > self.start:
             newest = stamps[count - 1]
             self.start = bisect_left(stamps, newest - self.cache_ns, self.start, count)
             if stamp < newest - self.cache_ns:
-                return False
-            low = bisect_left(stamps, stamp, self.start, count)
-            at = bisect_right(stamps, stamp, low, count)
-            if any(self._same(k, parent, values) for k in range(low, at)):
-                return True   # an exact duplicate: stored once
+                return OLD
+            at = bisect_left(stamps, stamp, self.start, count)
+            if at < count and stamps[at] == stamp:
+                return STORED if self._same(at, parent, values) else REPEATED
         else:
             at = count
         before = self.start
@@ -141,7 +153,7 @@ class MovingEdge:
         self.parents[at] = parent
         self.values[7 * at:7 * at + 7] = array('d', values)
         self.count = count + 1
-        return True
+        return STORED
 
     def find(self, time_ns: int) -> tuple:
         """
@@ -196,4 +208,4 @@ class MovingEdge:
                                  s * a[2] + ratio * b[2]) + slerp(a[3:], b[3:], ratio), None
 
 
-__all__ = ['display_time', 'MovingEdge', 'StaticEdge']
+__all__ = ['display_time', 'MovingEdge', 'OLD', 'REPEATED', 'StaticEdge', 'STORED']

@@ -26,17 +26,19 @@ def frames_yaml(info: list, now_ns: int = 0) -> str:
 
 
 def frames_dot(info: list, now_ns: int = 0) -> str:
-    """
+    r"""
     Return the Graphviz text of view_frames (tf2's ``_allFramesAsDot``) of ``info``.
 
     Frame names and broadcasters are anyone's on the domain: quotes, backslashes and line
-    breaks in them are escaped so that they stay names in the DOT text.
+    breaks in them are escaped so that they stay names in the DOT text. A frame name is
+    written whole (at most ``MAX_FRAME_ID`` characters), each character it cannot show as
+    ``\xNN``: two frames are two nodes however alike their names.
     """
     def esc(text):
         return printable_line(text, 200).replace('\\', '\\\\').replace('"', '\\"')
 
     def q(text):
-        return f'"{esc(text)}"'
+        return f'"{dot_name(text)}"'
     lines = ['digraph G {']
     if not info:
         lines.append('"no tf data recieved"')
@@ -59,4 +61,25 @@ def frames_dot(info: list, now_ns: int = 0) -> str:
     return '\n'.join(lines)
 
 
-__all__ = ['frames_dot', 'frames_yaml']
+def dot_name(name: str) -> str:
+    r"""
+    Return ``name`` as the text of a DOT string, one to one: distinct names stay distinct.
+
+    A backslash is doubled, a quote escaped, a character that is not printable written
+    ``\xNN`` (``\uNNNN`` beyond 0xff): a single backslash, which no frame name's own
+    backslash (written doubled) can make.
+    """
+    out = []
+    for ch in name:
+        if ch == '\\':
+            out.append('\\\\')
+        elif ch == '"':
+            out.append('\\"')
+        elif ch.isprintable():
+            out.append(ch)
+        else:
+            out.append(f'\\x{ord(ch):02x}' if ord(ch) <= 0xff else f'\\u{ord(ch):04x}')
+    return ''.join(out)
+
+
+__all__ = ['dot_name', 'frames_dot', 'frames_yaml']

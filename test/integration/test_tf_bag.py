@@ -44,6 +44,8 @@ def recording():
     out.append(('/tf', T0 + 4 * MS, [('base', 'arm', T0 + 4 * MS,
                                       (math.nan, 0, 0, 0, 0, 0, 1))]))   # refused
     out.append(out[5])   # a message recorded twice
+    t = T0 + 10 * MS * 3   # another arm at a stamp its edge holds: refused (TF_REPEATED_DATA)
+    out.append(('/tf', t + MS // 2, [('base', 'arm', t, (7, 7, 7, 0, 0, 0, 1))]))
     return out
 
 
@@ -107,6 +109,7 @@ def test_every_format_reads_as_the_transforms_given_one_by_one(tmp_path, kind):
     core, summary = core_from_bag(path)
     expected = reference()
     assert summary.refused == 1 and summary.duplicates == 2   # (two transforms recorded twice)
+    assert summary.repeated == 1
     for target, source in QUERIES:
         for stamp in STAMPS:
             try:
@@ -237,7 +240,90 @@ def test_at_topic_holds_at_most_max_rows_stamps(tmp_path):
                         height=0, width=0, encoding='mono8', is_bigendian=0, step=0,
                         data=np.zeros(0, np.uint8))
             writer.write(conn, T0 + k, bytes(TS2.serialize_cdr(msg, 'sensor_msgs/msg/Image')))
-    assert len(stamps_of_topic(images, '/camera/image', max_rows=20)) == 20
+    blocks = list(stamps_of_topic(images, '/camera/image', max_rows=20, block=8))
+    assert [len(b) for b in blocks] == [8, 8, 4]
+    assert np.concatenate(blocks).tolist() == [k * 10**9 for k in range(20)]
     with pytest.raises(BagError, match='more than 19 messages') as info:
-        stamps_of_topic(images, '/camera/image', max_rows=19)
+        list(stamps_of_topic(images, '/camera/image', max_rows=19))
     assert '\n' not in str(info.value)
+
+
+def tf_bag_of(path, messages):
+    """Write ``[(log time, [(parent, child, stamp, pose)])]`` on /tf as a rosbag2 MCAP bag."""
+    from rosbags.rosbag2 import Writer
+    with Writer(path, version=9) as writer:
+        conn = writer.add_connection('/tf', TF, typestore=TS2)
+        for log_time, transforms in messages:
+            writer.write(conn, log_time, bytes(TS2.serialize_cdr(message(TS2, transforms), TF)))
+    return path
+
+
+def test_frames_past_the_cap_are_refused_while_reading_counted_and_said(tmp_path, capsys):
+    # a new frame in every message: every layout and a column per edge had been kept
+    # before the cap applied (about 4 KB a transform), and the frames past it dropped silently
+    import tracemalloc
+    from dq_fk_ros.cli import dq_fk_bag
+    from dq_fk_ros.transforms.buffer_core import MAX_FRAMES
+    count = MAX_FRAMES + 2000
+    path = tf_bag_of(tmp_path / 'frames', [
+        (T0 + k * MS, [('world', f'frame_{k}', T0 + k * MS, (k, 0, 0, 0, 0, 0, 1))])
+        for k in range(count)])
+    tracemalloc.start()
+    try:
+        core, summary = core_from_bag(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    held = MAX_FRAMES - 1   # (world is a name too)
+    assert len(core.frame_names()) == MAX_FRAMES
+    assert summary.transforms == held and summary.past_frame_cap == count - held
+    assert summary.refused == count - held
+    assert peak < 2000 * count, peak   # (about 4 KB a transform before; names included)
+    assert core.lookup('world', f'frame_{held - 1}', 0)[0][0] == held - 1
+    assert dq_fk_bag.main(['tf', str(path), 'world', 'frame_3', '--csv',
+                           str(tmp_path / 'f.csv'), '--rate', '100']) == 0
+    err = capsys.readouterr().err
+    assert f'dropped: {count - held} transforms naming frames past the {MAX_FRAMES}-frame ' \
+        'cap' in err and err.count('\n') == 1
+
+
+def test_rows_at_a_rate_are_written_in_blocks_and_times_out_of_range_are_one_line(
+        tmp_path, capsys):
+    # a 2-message bag at --rate 1e6 had asked for > 6 GiB at once (a MemoryError traceback)
+    import tracemalloc
+    from dq_fk_ros.bag.tf_export import export_tf
+    from dq_fk_ros.cli import dq_fk_bag
+    path = tf_bag_of(tmp_path / 'two', [
+        (T0, [('world', 'base', T0, (0, 0, 0, 0, 0, 0, 1))]),
+        (T0 + 2 * 10**9, [('world', 'base', T0 + 2 * 10**9, (2, 0, 0, 0, 0, 0, 1))])])
+    tracemalloc.start()
+    try:
+        done = export_tf(path, 'world', 'base', tmp_path / 'rows.csv', rate_hz=1e6)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert done.rows == 2_000_001 and done.unanswered == 0 and done.dropped == ''
+    assert peak < 64 << 20, peak   # the rows: 2 M of 8 + 56 bytes and their text (~230 MB)
+    with open(tmp_path / 'rows.csv') as stream:
+        lines = stream.readlines()
+    assert len(lines) == 2_000_002 and lines[1].startswith(f'{T0},0.000000000,')
+    assert lines[1_000_001].startswith(f'{T0 + 10**9},1.000000000,')
+    for option, value in (('--start', '1e300'), ('--start', '2.5'), ('--end', '-1')):
+        assert dq_fk_bag.main(['tf', str(path), 'world', 'base', '--csv',
+                               str(tmp_path / f'x{value}.csv'), '--rate', '10', option,
+                               value]) == 2
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and 'Traceback' not in err, err
+        assert not (tmp_path / f'x{value}.csv').exists()
+    assert 'past the end' in dq_fk_bag_error(tmp_path, path, capsys, '--start', '1e300')
+    # an end past the bag's is its end
+    assert dq_fk_bag.main(['tf', str(path), 'world', 'base', '--csv', str(tmp_path / 'e.csv'),
+                           '--rate', '10', '--end', '1e300']) == 0
+    assert capsys.readouterr().out.startswith(f'{tmp_path / "e.csv"}: 21 poses')
+
+
+def dq_fk_bag_error(tmp_path, path, capsys, option, value):
+    from dq_fk_ros.cli import dq_fk_bag
+    assert dq_fk_bag.main(['tf', str(path), 'world', 'base', '--csv', str(tmp_path / 'y.csv'),
+                           '--rate', '10', option, value]) == 2
+    return capsys.readouterr().err

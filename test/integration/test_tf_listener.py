@@ -185,3 +185,46 @@ def test_a_listener_ends_cleanly_on_ctrl_c(processes):
     proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 0 and 'terminate called' not in out, out[-2000:]
+
+
+def test_a_peer_repeating_one_stamp_loses_no_message_and_every_refusal_is_counted(
+        ros_domain_id):
+    # 200 transforms of one frame at one stamp a message: each insert had scanned every
+    # sample of that stamp under the buffer lock, and the listener took 55 of 580 messages
+    messages, per_message = 150, 200
+    with own_node(unique_node_name('tf_repeat_test')) as node:
+        buffer = tf.Buffer()
+        listener = tf.TransformListener(buffer, node, spin_thread=True)
+        try:
+            moving = tf.TransformBroadcaster(node)
+            other = TransformStamped()
+            other.header.frame_id, other.child_frame_id = 'rep_world', 'rep_other'
+            other.header.stamp.sec, other.transform.rotation.w = 5, 1.0
+            moving.send_transform(other)
+            assert buffer.can_transform('rep_world', 'rep_other', Time(),
+                                        timeout=Duration(seconds=10))
+            batch = []
+            for k in range(per_message):
+                t = TransformStamped()
+                t.header.frame_id, t.child_frame_id = 'rep_world', 'rep_peer'
+                t.header.stamp.sec = 7
+                t.transform.translation.x, t.transform.rotation.w = float(k), 1.0
+                batch.append(t)
+            answered = 0
+            for _ in range(messages):
+                moving.send_transform(batch)
+                buffer.lookup_transform('rep_world', 'rep_other', Time())
+                answered += 1
+                time.sleep(0.01)
+            assert wait_until(lambda: listener.counts['messages'] == messages + 1, 20), \
+                listener.counts
+            # the first sample of the stamp is held; every later one refused and counted
+            # (the same values as the held one: a duplicate, taken once, tf2's rule)
+            duplicates = messages - 1
+            assert listener.counts['refused'] == messages * per_message - 1 - duplicates
+            assert buffer.core.refused == {'TF_REPEATED_DATA': listener.counts['refused']}
+            assert buffer.lookup_transform('rep_world', 'rep_peer', Time(seconds=7)) \
+                .transform.translation.x == 0.0
+            assert answered == messages
+        finally:
+            listener.unregister()

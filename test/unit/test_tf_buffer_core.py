@@ -12,7 +12,7 @@ frames with no common ancestor are a ConnectivityException.
 
 import math
 
-from dq_fk_ros.transforms.buffer_core import BufferCore
+from dq_fk_ros.transforms.buffer_core import BufferCore, MAX_FRAME_ID
 from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
                                              InvalidArgumentException, LookupException,
                                              TransformException)
@@ -66,18 +66,23 @@ class Reference:
     def __init__(self):
         self.static = {}     # child -> (parent, pose)
         self.samples = {}    # child -> [(stamp, insert order, parent, pose)]
+        self.named = set()   # parents of refused samples
 
     def add(self, parent, child, stamp, pose, static=False):
+        """Store a sample; return whether it was taken (False: refused, a repeated stamp)."""
         if static:
             self.static[child] = (parent, pose)
             self.samples.pop(child, None)
-        else:
-            self.static.pop(child, None)
-            samples = self.samples.setdefault(child, [])
-            # tf2 stores an exact duplicate (stamp, parent, values) once: a repeat of an
-            # earlier sample of its stamp does not make that sample the newest again
-            if not any(s[0] == stamp and s[2] == parent and s[3] == pose for s in samples):
-                samples.append((stamp, len(samples), parent, pose))
+            return True
+        if child in self.static:
+            del self.static[child]
+        samples = self.samples.setdefault(child, [])
+        held = [s for s in samples if s[0] == stamp]
+        if held:   # one sample a stamp: an exact duplicate is taken once, another refused
+            self.named.add(parent)   # (its name is known, as tf2 names it before storing)
+            return held[0][2] == parent and held[0][3] == pose
+        samples.append((stamp, len(samples), parent, pose))
+        return True
 
     def edge(self, child, t):
         """Return ``(parent, 4x4)`` at t, None for a root, or raise ExtrapolationException."""
@@ -144,7 +149,7 @@ class Reference:
     def lookup(self, target, source, t):
         if target == source:
             return np.eye(4)
-        known = set(self.static) | set(self.samples) | \
+        known = set(self.static) | set(self.samples) | self.named | \
             {p for p, _ in self.static.values()} | \
             {s[2] for v in self.samples.values() for s in v}
         for name in (target, source):
@@ -210,8 +215,8 @@ def test_lookups_follow_tf2s_rules_on_random_trees(scene):
     inserts, queries = scene
     core, reference = BufferCore(cache_time_ns=100 * S), Reference()
     for parent, child, stamp, pose, static in inserts:
-        assert core.set_transform(parent, child, stamp, pose, 'test', static)
-        reference.add(parent, child, stamp, pose, static)
+        assert core.set_transform(parent, child, stamp, pose, 'test', static) == \
+            reference.add(parent, child, stamp, pose, static)
     for target, source, t in queries:
         try:
             expected = reference.lookup(target, source, t)
@@ -278,7 +283,7 @@ def test_frame_names_as_tf2_takes_them():
 
 def test_nan_denormalised_self_and_unnamed_transforms_are_refused_with_one_line_each():
     lines = []
-    core = BufferCore(log=lines.append)
+    core = BufferCore(log=lines.append, log_every_s=0)
     for parent, child, pose in (('a', 'b', (math.nan, 0, 0, 0, 0, 0, 1)),
                                 ('a', 'b', (0, 0, 0, 0, 0, 0, 2.0)),
                                 ('a', 'b', (0, 0, 0, 0, 0, 0, 0)),
@@ -312,16 +317,67 @@ def test_a_peer_naming_a_million_frames_is_held_to_the_cap():
         core.set_transform('world', f'frame_{k}', S, (0, 0, 0, 0, 0, 0, 1))
     assert len(core.frame_names()) <= 1000 and len(lines) == 1
     assert 'TF_TOO_MANY_FRAMES' in lines[0]
-    assert core.refused_frames == 100_000 - 999
+    # every refused transform counted (the count had stayed at 1)
+    assert core.refused_frames == 100_000 - 999 == core.refused['TF_TOO_MANY_FRAMES']
 
 
-def test_samples_of_equal_stamps_the_last_one_counts_and_duplicates_are_one():
-    core = BufferCore()
-    core.set_transform('a', 'b', S, (1, 0, 0, 0, 0, 0, 1))
-    core.set_transform('a', 'b', S, (2, 0, 0, 0, 0, 0, 1))
-    core.set_transform('a', 'b', S, (2, 0, 0, 0, 0, 0, 1))
-    assert core.lookup('a', 'b', S)[0][0] == 2.0
-    assert len(core.caches[core.ids['b']]) == 2
+def test_a_repeated_stamp_is_refused_and_an_exact_duplicate_stored_once():
+    lines = []
+    core = BufferCore(log=lines.append)
+    assert core.set_transform('a', 'b', S, (1, 0, 0, 0, 0, 0, 1))
+    assert not core.set_transform('a', 'b', S, (2, 0, 0, 0, 0, 0, 1))
+    assert not core.set_transform('c', 'b', S, (1, 0, 0, 0, 0, 0, 1))   # another parent
+    assert core.set_transform('a', 'b', S, (1, 0, 0, 0, 0, 0, 1))       # the same: taken once
+    assert core.lookup('a', 'b', S)[0][0] == 1.0
+    assert len(core.caches[core.ids['b']]) == 1
+    assert core.refused == {'TF_REPEATED_DATA': 2}
+    assert len(lines) == 1 and lines[0].startswith(
+        'TF_REPEATED_DATA ignoring data with redundant timestamp for frame b (parent a)')
+
+
+def test_a_peer_repeating_one_stamp_costs_no_scan_and_is_logged_at_a_bounded_rate():
+    # 10 000 transforms of one frame at one stamp took 51 s (each insert scanned every
+    # sample of the stamp) and logged nothing; now one sample is held, the rest counted
+    lines = []
+    core = BufferCore(log=lines.append)
+    core.set_transform('world', 'other', S, (0, 0, 0, 0, 0, 0, 1))
+    steps = []
+    for k in range(10_000):
+        steps.append(core.set_transform('world', 'peer', S, (k, 0, 0, 0, 0, 0, 1)))
+    assert steps[0] and not any(steps[1:])
+    assert len(core.caches[core.ids['peer']]) == 1
+    assert core.refused['TF_REPEATED_DATA'] == 9999 and len(lines) == 1
+    # (the bound on time is the benchmark's: bench_tf.py prints the inserts a second)
+
+
+def test_refusals_are_logged_once_a_code_per_interval_with_their_count(monkeypatch):
+    clock = [100.0]
+    monkeypatch.setattr('dq_fk_ros.transforms.buffer_core._time.monotonic', lambda: clock[0])
+    lines = []
+    core = BufferCore(log=lines.append, log_every_s=10.0)
+    for k in range(5):
+        core.set_transform('a', 'a', S, (0, 0, 0, 0, 0, 0, 1))
+        core.set_transform('a', 'b', S, (0, 0, 0, 0, 0, 0, 3))
+    assert [line.split(':')[0] for line in lines] == ['TF_SELF_TRANSFORM',
+                                                      'TF_DENORMALIZED_QUATERNION']
+    clock[0] += 10.0
+    core.set_transform('a', 'a', S, (0, 0, 0, 0, 0, 0, 1))
+    assert lines[-1].startswith('TF_SELF_TRANSFORM') and lines[-1].endswith(
+        '(6 refused so far)')
+    assert core.refused == {'TF_SELF_TRANSFORM': 6, 'TF_DENORMALIZED_QUATERNION': 5}
+
+
+def test_frame_ids_longer_than_the_bound_are_refused_and_not_held():
+    lines = []
+    core = BufferCore(log=lines.append)
+    long_name = 'x' * (MAX_FRAME_ID + 1)
+    for k in range(100):
+        assert not core.set_transform('world', long_name + str(k), S, (0, 0, 0, 0, 0, 0, 1))
+        assert not core.set_transform(long_name + str(k), 'base', S, (0, 0, 0, 0, 0, 0, 1))
+    assert core.set_transform('world', 'y' * MAX_FRAME_ID, S, (0, 0, 0, 0, 0, 0, 1))
+    assert core.frame_names() == ['y' * MAX_FRAME_ID, 'world']
+    assert core.refused == {'TF_LONG_FRAME_ID': 200} and len(lines) == 1
+    assert len(lines[0]) < 400
 
 
 def test_interpolation_takes_the_short_way_round_and_sclerp_moves_along_the_screw():
@@ -397,7 +453,7 @@ def test_the_compiled_walk_is_the_reference(scene):
 
 def test_stamps_out_of_range_are_refused_and_times_out_of_range_are_tf2s_invalid_argument():
     lines = []
-    core = BufferCore(log=lines.append)
+    core = BufferCore(log=lines.append, log_every_s=0)
     core.set_transform('a', 'b', S, (0, 0, 0, 0, 0, 0, 1))
     for stamp in (1 << 63, -(1 << 63) - 1, 2**200, 1.5):
         assert not core.set_transform('a', 'b', stamp, (0, 0, 0, 0, 0, 0, 1))

@@ -2,9 +2,9 @@
 
 import math
 
-from dq_fk_ros.messages.cdr_tf import TfReader
-from dq_fk_ros.ros.tf_buffer import Buffer
-from dq_fk_ros.transforms.buffer_core import COMPILED
+from dq_fk_ros.messages.cdr_tf import MAX_REMEMBERED_NAME_BYTES, TfReader
+from dq_fk_ros.ros.tf_buffer import Buffer, MAX_PLANS, SLICE
+from dq_fk_ros.transforms.buffer_core import COMPILED, MAX_FRAME_ID
 from geometry_msgs.msg import TransformStamped
 from hypothesis import given, settings, strategies as st
 import pytest
@@ -13,6 +13,7 @@ from rclpy.serialization import serialize_message
 from tf2_msgs.msg import TFMessage
 
 S = 10**9
+ONE = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
 
 
 def message(transforms):
@@ -72,3 +73,39 @@ def test_compaction_and_pruning_over_many_messages():
     cache = fast.core.caches[fast.core.ids['base']]
     # tf2 prunes by the newest before each insert: 1 s of samples and the one just added
     assert len(cache) == 1002 and cache.count < 6000   # compacted
+
+
+def test_a_message_longer_than_a_slice_is_stored_as_set_transform_stores_it():
+    # the lock is taken a slice at a time: the slices' seams must not change what is stored
+    fast, slow = Buffer(), Buffer()
+    reader, plans = TfReader(), {}
+    assert SLICE < 600
+    for k in range(3):
+        raw = message([('world', f'f{j % 300}', (k * 2 + j // 300) * S,
+                        (float(j),) + ONE[1:]) for j in range(600)])
+        taken = fast.append_raw(raw, reader.layout(raw), plans, 'x')
+        assert taken == slow.set_raw(TfReader.unpack(raw, reader.layout(raw)), 'x') == 600
+    assert state(fast) == state(slow)
+
+
+def test_what_a_listener_remembers_is_bounded_whatever_the_names():
+    # 10 000 names of 50 KB had held a listener at 1 GiB: names are refused past
+    # MAX_FRAME_ID, layouts remembered without their message and only up to a size, plans
+    # at most MAX_PLANS
+    buffer, reader, plans = Buffer(), TfReader(), {}
+    huge = 'n' * 50_000
+    for k in range(100):
+        raw = message([('world', huge + str(k), S, ONE),
+                       ('world', f'small_{k}', S, ONE)])
+        layout = reader.layout(raw)
+        assert buffer.append_raw(raw, layout, plans, 'x') == 1
+    assert buffer.core.refused == {'TF_LONG_FRAME_ID': 100}
+    assert all(len(name) <= MAX_FRAME_ID for name in buffer.core.frame_names())
+    assert len(plans) <= MAX_PLANS
+    remembered = reader._layouts._order
+    assert len(remembered) <= 64 and all(known.layout.raw == b'' for known in remembered)
+    assert sum(known.name_bytes for known in remembered) <= 64 * MAX_REMEMBERED_NAME_BYTES
+    big = message([('world', 'x' * 1000 + str(j), S, ONE)
+                   for j in range(300)])
+    reader.layout(big)
+    assert len(reader._layouts._order) == len(remembered)   # (300 KB of names: not kept)

@@ -68,6 +68,23 @@ def test_frames_names_from_peers_stay_names_in_the_dot_text(tmp_path):
     assert len(graph['edges']) == 3   # two transforms and the legend's
 
 
+def test_frames_whose_names_share_a_long_start_or_differ_unprintably_are_two_nodes(tmp_path):
+    # names alike in their first 200 characters had been drawn as one node
+    core = BufferCore()
+    stem = 'f' * 300
+    names = [stem + 'a', stem + 'b', 'ctl\x01', 'ctl\x02', 'ctl?', 'ctl\\x01']
+    for name in names:
+        assert core.set_transform('world', name, 10**9, (0, 0, 0, 0, 0, 0, 1), 'peer')
+    gv, _ = tf_tools.write_frames(core, str(tmp_path / 'frames.pdf'), 2 * 10**9)
+    import json
+    import subprocess
+    graph = json.loads(subprocess.run(['dot', '-Tjson', gv], capture_output=True,
+                                      check=True).stdout)
+    nodes = [o['name'] for o in graph['objects'] if 'nodes' not in o]
+    assert len(nodes) == len(set(nodes)) == len(names) + 2   # and world, and the legend
+    assert stem + 'a' in nodes and 'ctl\\x01' in nodes and 'ctl\\\\x01' in nodes
+
+
 def test_without_dot_the_gv_is_written_and_it_says_how_to_get_dot(tmp_path, monkeypatch):
     monkeypatch.setattr(shutil, 'which', lambda name: None)
     with pytest.raises(RuntimeError, match=r'frames.gv written; .*apt-get install graphviz'):
