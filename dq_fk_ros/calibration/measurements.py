@@ -53,7 +53,8 @@ def read_csv(path, joint_names) -> Measurements:
         size = os.path.getsize(path)
         if size > MAX_CSV_BYTES:
             raise DataError(f'{path}: {size} bytes; at most {MAX_CSV_BYTES} are read')
-        with open(path, encoding='utf-8', newline='') as stream:
+        # (utf-8-sig: a spreadsheet's "CSV UTF-8" starts with a byte-order mark)
+        with open(path, encoding='utf-8-sig', newline='') as stream:
             text = stream.read(MAX_CSV_BYTES + 1)
     except UnicodeDecodeError:
         raise DataError(f'{path}: not UTF-8 text') from None

@@ -68,9 +68,43 @@ def check_arguments(args) -> None:
             raise CalibrateUsage(f'--{name.replace("_", "-")} {value}: a positive number')
 
 
+def check_outputs(args) -> None:
+    """
+    Refuse an output that is an input, another output, or a symbolic link (one line).
+
+    Outputs (``-o``, ``--report``, ``--plot``) are never an input (ROBOT, DATA.csv, a file
+    of ``--bag``'s folder), as for bags: compared after links, and by inode (a hard link).
+    """
+    inputs = [('ROBOT', resolve_robot(args.robot))]
+    inputs += [(what, path) for what, path in (('DATA', args.data), ('--bag', args.bag)) if path]
+    outputs = [(what, path) for what, path in (('-o', args.output), ('--report', args.report),
+                                               ('--plot', args.plot)) if path]
+    seen = []
+    for what, path in outputs:
+        real = os.path.realpath(path)
+        for other, given in inputs + seen:
+            there = os.path.realpath(given)
+            if real == there or real.startswith(there.rstrip(os.sep) + os.sep) or \
+                    _same_inode(path, given):
+                raise CalibrateUsage(f'{what} {path} would overwrite {other} {given}; outputs '
+                                     'are never an input or another output: choose another path')
+        if os.path.islink(path):
+            raise CalibrateUsage(f'{what} {path} is a symbolic link; not following it (give the '
+                                 'real path)')
+        seen.append((what, path))
+
+
+def _same_inode(a, b) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:   # (one of them does not exist yet)
+        return False
+
+
 def cmd_calibrate(args) -> int:
     """Run ``dq_fk calibrate`` (module doc); return the exit code."""
     check_arguments(args)
+    check_outputs(args)
     require_scipy()
     text, source, model = robot_text(args)
     table = model.chain.table

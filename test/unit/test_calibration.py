@@ -355,3 +355,61 @@ def test_a_plan_too_large_is_refused_in_one_line(tmp_path, capsys):
     assert main(['calibrate', 'ur5e', '--plan', '1000000', '-o', str(tmp_path / 'p.csv')]) == 1
     err = capsys.readouterr().err
     assert '--plan 1000000: give 1 to 1000 configurations' in err and err.count('\n') == 1
+
+
+def _ur5e_data(tmp_path, name='data.csv'):
+    robot = Robot('ur5e')
+    rng = np.random.default_rng(5)
+    q = configurations(robot, rng, 40)
+    write_csv(tmp_path / name, robot, measure(robot, perturbed(robot, rng), q, rng, False),
+              False)
+    return tmp_path / name
+
+
+@pytest.mark.parametrize('option', ['-o', '--report', '--plot'])
+@pytest.mark.parametrize('victim', ['data', 'robot', 'hard link', 'symbolic link'])
+def test_an_output_naming_an_input_is_refused_and_the_input_kept(tmp_path, capsys, option,
+                                                                  victim):
+    # `-o DATA.csv` had overwritten the measurements and exited 0
+    data = _ur5e_data(tmp_path)
+    robot = tmp_path / 'ur5e.yaml'
+    robot.write_text(open(shipped_robot_path('ur5e'), encoding='utf-8').read())
+    before = {p: p.read_bytes() for p in (data, robot)}
+    target = {'data': data, 'robot': robot}.get(victim)
+    if victim == 'hard link':
+        target = tmp_path / 'alias.csv'
+        os.link(data, target)
+    elif victim == 'symbolic link':
+        target = tmp_path / 'link.csv'
+        os.symlink(data, target)
+    outputs = {'-o': tmp_path / 'out.yaml', '--report': tmp_path / 'r.json',
+               '--plot': tmp_path / 'p.png'}
+    outputs[option] = target
+    argv = ['calibrate', str(robot), str(data)]
+    for name, path in outputs.items():
+        argv += [name, str(path)]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and option in err and ('would overwrite' in err
+                                                       or 'symbolic link' in err), err
+    assert {p: p.read_bytes() for p in (data, robot)} == before
+    assert not any(outputs[o].exists() for o in outputs if o != option)
+
+
+def test_two_outputs_on_one_path_are_refused(tmp_path, capsys):
+    data = _ur5e_data(tmp_path)
+    assert main(['calibrate', 'ur5e', str(data), '-o', str(tmp_path / 'x'), '--report',
+                 str(tmp_path / 'x')]) == 1
+    err = capsys.readouterr().err
+    assert '--report' in err and 'would overwrite -o' in err and err.count('\n') == 1
+
+
+def test_a_csv_saved_as_csv_utf8_with_a_byte_order_mark_is_read(tmp_path):
+    # a spreadsheet's "CSV UTF-8" puts U+FEFF before the header: "no column joint_1" before
+    data = _ur5e_data(tmp_path)
+    marked = tmp_path / 'marked.csv'
+    marked.write_bytes(b'\xef\xbb\xbf' + data.read_bytes())
+    joints = Robot('ur5e').joints
+    plain, with_mark = read_csv(data, joints), read_csv(marked, joints)
+    np.testing.assert_array_equal(plain.q, with_mark.q)
+    np.testing.assert_array_equal(plain.positions, with_mark.positions)
