@@ -20,6 +20,7 @@ from urllib.parse import quote, unquote
 import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description.packages import PackageNotFound, PackageResolver
+from dq_fk_ros.description.symlinks import follow_keeping_names
 from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES, parse_xml
 from dq_fk_ros.errors import printable_line
 
@@ -98,9 +99,12 @@ def _mesh_path(uri, resolver, allowed, urdf_dir=None):
         name = uri[len('package://'):].partition('/')[0]
         named = resolver.resolve(uri)   # inside its package as text ('..' refused)
         real = os.path.realpath(named)
-        root = os.path.realpath(resolver.find(name))
-        if os.path.commonpath([real, root]) != root and not build_link(named, real):
-            raise ValueError('outside its package')
+        folder = resolver.find(name)
+        root = os.path.realpath(folder)
+        if os.path.commonpath([real, root]) != root:
+            real = follow_keeping_names(folder, named)   # links that keep every name only
+            if real is None:
+                raise ValueError('outside its package')
         check_mesh_file(real)
         return real
     if uri.startswith('file://') or '://' not in uri:
@@ -121,18 +125,6 @@ def _mesh_path(uri, resolver, allowed, urdf_dir=None):
         raise ValueError(f'outside {where}')
     check_mesh_file(real)
     return real
-
-
-def build_link(named: str, real: str) -> bool:
-    """
-    Whether ``named`` reaches ``real`` through links as a build makes them: the same file name.
-
-    ``colcon build --symlink-install`` installs ``share/PKG/meshes/a.stl`` as a link to
-    ``src/PKG/meshes/a.stl`` (and a workspace's ``src/PKG`` is often a link to a clone): the
-    file keeps its name. A link to another name (``link.stl`` -> ``secret.stl``) is not
-    followed out of its package.
-    """
-    return os.path.basename(named) == os.path.basename(real)
 
 
 def check_mesh_file(path: str) -> None:

@@ -204,6 +204,7 @@ def _confine(roots, time_limit_s, memory):
     import builtins
     import io
     import resource
+    from dq_fk_ros.description.symlinks import follow_keeping_names
     resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
     cpu = int(time_limit_s) + 1
     resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu))
@@ -224,13 +225,16 @@ def _confine(roots, time_limit_s, memory):
             raise PermissionError(errno.EACCES, 'refused, xacro may not write files', shown)
         named = os.path.normpath(os.path.abspath(os.fsdecode(file)))
         path = os.path.realpath(named)
-        # under a root as resolved, or as named when the links keep the file's name (those a
-        # --symlink-install build makes: share/PKG/urdf/x.xacro -> src/PKG/urdf/x.xacro)
-        same_name = os.path.basename(named) == os.path.basename(path)
-        if not any(path.startswith(root) or (same_name and named.startswith(root))
-                   for root in roots):
-            raise PermissionError(errno.EACCES, "refused, outside the robot's package and the "
-                                  'allowed folders (--package, read_roots)', shown)
+        # under a root as resolved, or as named when every link on the way keeps its name
+        # (those a --symlink-install build makes: share/PKG/urdf/x.xacro ->
+        # src/PKG/urdf/x.xacro; description/symlinks.py)
+        if not any(path.startswith(root) for root in roots):
+            found = [follow_keeping_names(root, named) for root in roots
+                     if named.startswith(root)]
+            path = next((f for f in found if f is not None), None)
+            if path is None:
+                raise PermissionError(errno.EACCES, "refused, outside the robot's package and "
+                                      'the allowed folders (--package, read_roots)', shown)
         return real_open(path, mode, *args, **kwargs)
 
     builtins.open = io.open = confined_open

@@ -368,8 +368,8 @@ def _ur5e_data(tmp_path, name='data.csv'):
 
 @pytest.mark.parametrize('option', ['-o', '--report', '--plot'])
 @pytest.mark.parametrize('victim', ['data', 'robot', 'hard link', 'symbolic link'])
-def test_an_output_naming_an_input_is_refused_and_the_input_kept(tmp_path, capsys, option,
-                                                                  victim):
+def test_an_output_naming_an_input_is_refused_and_the_input_kept(
+        tmp_path, capsys, option, victim):
     # `-o DATA.csv` had overwritten the measurements and exited 0
     data = _ur5e_data(tmp_path)
     robot = tmp_path / 'ur5e.yaml'

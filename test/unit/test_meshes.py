@@ -189,3 +189,37 @@ def test_relative_paths_resolve_in_the_folder_of_a_urdf_file_the_user_chose(tmp_
     assets.replace(text)
     assert assets.fetch('meshes/link_0.stl') == b'solid a\nendsolid a\n'
     assert assets.fetch('../secret.stl') is None
+
+
+def test_a_mesh_reached_through_a_link_that_renames_is_not_served(tmp_path):
+    # a folder link with another name (meshes -> /elsewhere/stuff), or a renamed link in the
+    # middle of a chain, had served files outside the package to a URDF any peer sends
+    outside = tmp_path / 'outside'
+    (outside / 'stuff').mkdir(parents=True)
+    (outside / 'stuff' / 'a.stl').write_text('solid secret\nendsolid secret\n')
+    (outside / 'mid.stl').write_text('solid secret\nendsolid secret\n')
+    os.symlink(outside / 'mid.stl', outside / 'b.stl')       # b.stl -> mid.stl: renames
+    package = tmp_path / 'arm'
+    (package / 'parts').mkdir(parents=True)
+    (package / 'package.xml').write_text('<package><name>arm</name></package>')
+    os.symlink(outside / 'stuff', package / 'meshes')        # meshes -> stuff: renames
+    os.symlink(outside / 'b.stl', package / 'parts' / 'b.stl')   # b -> b -> mid
+    # what a build makes: a file link keeping its name, into a clone whose folder link
+    # keeps its name too
+    clone = tmp_path / 'clones' / 'arm' / 'parts'
+    clone.mkdir(parents=True)
+    (clone / 'c.stl').write_text('solid c\nendsolid c\n')
+    (tmp_path / 'src').mkdir()
+    os.symlink(tmp_path / 'clones' / 'arm', tmp_path / 'src' / 'arm')
+    os.symlink(tmp_path / 'src' / 'arm' / 'parts' / 'c.stl', package / 'parts' / 'c.stl')
+    resolver = PackageResolver({'arm': str(package)}, environ={})
+    uris = ['package://arm/meshes/a.stl', 'package://arm/parts/b.stl',
+            'package://arm/parts/c.stl']
+    listed = {m.uri: m for m in mesh_allow_list(robot(*uris), resolver)}
+    assert listed['package://arm/meshes/a.stl'].problem.endswith('outside its package')
+    assert listed['package://arm/parts/b.stl'].problem.endswith('outside its package')
+    assert listed['package://arm/parts/c.stl'].path == str(clone / 'c.stl')
+    assets = MeshAssets(resolver)
+    assets.replace(robot(*uris))
+    assert assets.fetch('package://arm/meshes/a.stl') is None
+    assert assets.fetch('package://arm/parts/c.stl') == b'solid c\nendsolid c\n'

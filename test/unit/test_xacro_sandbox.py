@@ -236,3 +236,48 @@ def test_a_refused_read_says_what_and_why_in_one_line(tmp_path, body, refused):
     assert '\n' not in message and refused in message, message
     assert "outside the robot's package" in message and 'NoneType' not in message, message
     assert message.count('outside') == 1, message
+
+
+def test_links_are_followed_out_of_the_package_only_if_every_one_keeps_its_name(tmp_path):
+    # a folder link with another name, and a renamed link in the middle of a chain, had let
+    # xacro read files outside the package: only the first and the last names were compared
+    outside = tmp_path / 'outside'
+    (outside / 'stuff').mkdir(parents=True)
+    write(outside / 'stuff', 'secret.yaml', 'password: hunter2\n')
+    write(outside / 'stuff', 'part.xacro', '<robot xmlns:xacro="http://www.ros.org/wiki/xacro">'
+          '<link name="hunter2"/></robot>\n')
+    write(outside, 'middle.yaml', 'password: hunter2\n')
+    package = tmp_path / 'pkg'
+    (package / 'urdf').mkdir(parents=True)
+    (package / 'package.xml').write_text('<package><name>pkg</name></package>')
+    os.symlink(outside / 'stuff', package / 'config')   # a folder link: config -> stuff
+    os.symlink(outside / 'middle.yaml', outside / 'secret.yaml')   # secret -> middle
+    os.symlink(outside / 'secret.yaml', package / 'urdf' / 'secret.yaml')   # chain
+    cases = {
+        'folder load_yaml': "${xacro.load_yaml('../config/secret.yaml')['password']}",
+        'folder include': '<xacro:include filename="../config/part.xacro"/>',
+        'chain load_yaml': "${xacro.load_yaml('secret.yaml')['password']}",
+    }
+    for name, body in cases.items():
+        text = body if body.startswith('<') else f'<link name="{body}"/>'
+        path = write(package / 'urdf', f'{name.replace(" ", "_")}.urdf.xacro',
+                     HEAD + text + '<link name="a"/>' + TAIL)
+        with pytest.raises(RobotDescriptionError, match='refused, outside') as caught:
+            read_urdf_text(path, read_roots=[package])
+        assert 'hunter2' not in str(caught.value), name
+    # what a build makes is still followed: share/pkg/urdf/x -> src/pkg/urdf/x, and a
+    # folder link that keeps its name (src/pkg -> a clone named pkg)
+    clone = tmp_path / 'clones' / 'pkg'
+    (clone / 'urdf').mkdir(parents=True)
+    (clone / 'package.xml').write_text('<package><name>pkg</name></package>')
+    write(clone / 'urdf', 'part.xacro', '<robot xmlns:xacro="http://www.ros.org/wiki/xacro">'
+          '<link name="from_the_clone"/></robot>\n')
+    share = tmp_path / 'install' / 'share' / 'pkg' / 'urdf'
+    share.mkdir(parents=True)
+    (share.parent / 'package.xml').write_text('<package><name>pkg</name></package>')
+    (tmp_path / 'ws' / 'src').mkdir(parents=True)
+    os.symlink(clone, tmp_path / 'ws' / 'src' / 'pkg')
+    os.symlink(tmp_path / 'ws' / 'src' / 'pkg' / 'urdf' / 'part.xacro', share / 'part.xacro')
+    path = write(share, 'robot.urdf.xacro', HEAD + '<xacro:include filename="part.xacro"/>'
+                 + '<link name="a"/>' + TAIL)
+    assert 'from_the_clone' in read_urdf_text(path, read_roots=[share.parent])
