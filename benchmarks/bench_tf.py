@@ -17,6 +17,11 @@ Prints each figure beside its target (issue "TF without tf2"):
     run after the 10 s cache filled (target: flat, less than 5 MiB more).
 (d) ``dq_fk_bag tf`` (its function, in this process) over a bag of 300 000 RL15 ``/tf``
     messages beside rosbags' bare read of the same messages (target <= 1.5x).
+(e) a hostile peer (issue "Nothing crashes, III"): 10 000 transforms of one frame at one
+    stamp into ``Buffer.set_transform`` (51 s before; target <= 0.5 s), and 580 messages of
+    200 such transforms stored as the listener stores them (``append_raw``) while another
+    thread looks up an unrelated frame: the longest a lookup waited (2.8 s before; target
+    <= 20 ms, a slice of 256 transforms and Python's 5 ms thread switch).
 
 Run with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a private ROS_DOMAIN_ID (``make bench``
 sets both): ``python benchmarks/bench_tf.py [--seconds 60] [--skip-listener]``.
@@ -127,6 +132,50 @@ def bench_lookups():
     assert not np.isnan(rows).any()
     figure('lookup_poses, 100 000 stamps, two leaves of 130 frames', best, 's', '<= 0.1 s',
            best <= 0.1, group=GROUP)
+
+
+def bench_hostile_peer():
+    """Print (e)."""
+    import threading
+    from dq_fk_ros.messages.cdr_tf import TfReader
+    from dq_fk_ros.ros.tf_buffer import Buffer
+    from geometry_msgs.msg import TransformStamped
+    from rclpy.serialization import serialize_message
+    from rclpy.time import Time
+    from tf2_msgs.msg import TFMessage
+
+    def transform(parent, child, sec, x):
+        t = TransformStamped()
+        t.header.frame_id, t.child_frame_id, t.header.stamp.sec = parent, child, sec
+        t.transform.translation.x, t.transform.rotation.w = float(x), 1.0
+        return t
+    buffer = Buffer(log=lambda line: None)
+    start = time.perf_counter()
+    for k in range(10_000):
+        buffer.set_transform(transform('world', 'peer', 7, k), 'peer')
+    took = time.perf_counter() - start
+    figure('10 000 transforms of one frame at one stamp, set_transform', took, 's',
+           '<= 0.5 s (51 s before)', took <= 0.5, group=GROUP)
+    buffer = Buffer(log=lambda line: None)
+    buffer.set_transform(transform('world', 'other', 5, 0), 'rsp')
+    raw = serialize_message(TFMessage(transforms=[transform('world', 'peer', 7, k)
+                                                  for k in range(200)]))
+    reader, plans, done, waits = TfReader(), {}, threading.Event(), []
+
+    def peer():
+        for _ in range(580):
+            buffer.append_raw(raw, reader.layout(raw), plans, 'peer')
+        done.set()
+    thread = threading.Thread(target=peer)
+    thread.start()
+    while not done.is_set():
+        begin = time.perf_counter()
+        buffer.lookup_transform('world', 'other', Time())
+        waits.append(time.perf_counter() - begin)
+    thread.join()
+    longest = max(waits) * 1e3
+    figure('longest lookup of another frame while 580 x 200 repeated stamps are stored',
+           longest, 'ms', '<= 20 ms (2.8 s before)', longest <= 20, group=GROUP)
 
 
 def listen(seconds):
@@ -257,6 +306,7 @@ def main(argv=None):
         return listen(args.listen)
     print('TF without tf2 (dq_fk_ros.tf)')
     bench_lookups()
+    bench_hostile_peer()
     folder = os.path.join(os.path.dirname(HERE), 'build', 'bench')
     os.makedirs(folder, exist_ok=True)
     bench_bag(folder)

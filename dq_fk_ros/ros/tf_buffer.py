@@ -147,6 +147,7 @@ class Buffer:
                     taken += self.core.set_transform(parent, child, stamp, pose, authority,
                                                      static)
                 self._changed.notify_all()
+            _time.sleep(0)   # hand over: a lookup waiting on the lock takes it (not fair)
         return taken
 
     def append_raw(self, raw: bytes, layout, plans: dict, authority: str) -> int:
@@ -185,6 +186,7 @@ class Buffer:
                     taken += core.set_transform(parent, child, sec * 1_000_000_000 + nanosec,
                                                 pose(raw, layout.values[lo + i]), authority)
                 self._changed.notify_all()
+            _time.sleep(0)   # hand over: a lookup waiting on the lock takes it (not fair)
         return taken
 
     def _plan(self, layout):
