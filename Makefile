@@ -16,7 +16,7 @@ DEMO_DOMAIN_ID ?= $(shell echo $$(( ($$$$ % 80) + 20 )))
 BENCH_VENV ?= .venv-bench
 
 # (graphviz: Debian's dot, for dq_fk tf frames and its test)
-.PHONY: help setup browser graphviz demo demo-live demo-foxglove test sanitize bench mutate screenshot clean
+.PHONY: help setup browser graphviz demo demo-live demo-foxglove test check sanitize bench mutate screenshot clean
 
 help:
 	@echo 'make setup  create .venv with ROS 2 Jazzy (PyPI), tf2_msgs and dq_fk_ros'
@@ -24,6 +24,7 @@ help:
 	@echo 'make demo-live  the same, sweeping the joints, and dq_fk_view: the robot in a browser (Ctrl-C)'
 	@echo 'make demo-foxglove  the same with dq_fk_foxglove: the robot in the Foxglove app (Ctrl-C)'
 	@echo 'make test   setup (and Chromium for the browser tests), then linters, unit and integration tests'
+	@echo 'make check  the edit-test loop: linters and unit tests only (no DDS processes, no browser)'
 	@echo 'make sanitize  the C extensions under ASan and UBSan: their tests and a fuzz (FUZZ=long: longer)'
 	@echo 'make bench  benchmarks: the core against its peers (installed in .venv-bench)'
 	@echo 'make mutate mutation testing of the pure modules (minutes; not part of make test)'
@@ -90,6 +91,9 @@ demo-foxglove: setup
 
 test: setup browser graphviz
 	@scripts/run_tests $(PY)
+
+check: setup graphviz
+	@$(PY) -m pytest -q test/lint test/unit
 
 # the C extensions built with -fsanitize=address,undefined, their unit tests and the
 # hypothesis fuzz of every compiled entry point run under them (scripts/sanitize); FUZZ=ci

@@ -119,6 +119,8 @@ setup(
     license='Apache-2.0',
     tests_require=['pytest'],
     entry_points={'console_scripts': [f'{name} = {target}'
-                                      for name, target in CONSOLE_SCRIPTS.items()]},
+                                      for name, target in CONSOLE_SCRIPTS.items()],
+                  # the fixtures of dq_fk_ros.testing, in every pytest run once installed
+                  'pytest11': ['dq_fk_ros = dq_fk_ros.testing.plugin']},
     cmdclass={'develop': develop, 'install_scripts': install_scripts},
 )

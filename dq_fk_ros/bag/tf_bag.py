@@ -44,8 +44,9 @@ MAX_LAYOUTS = 4096            # message layouts (publishers' frame-id sets) reco
 class TfBagSummary:
     """What :func:`core_from_bag` read: messages, transforms taken, dropped and why."""
 
-    def __init__(self):
-        """Start at zero."""
+    def __init__(self, max_frames: int = MAX_FRAMES):
+        """Start at zero (``max_frames``: the frame cap the core was given)."""
+        self.max_frames = max_frames
         self.messages = 0
         self.transforms = 0
         self.unreadable = 0      # messages that are no TFMessage
@@ -57,7 +58,8 @@ class TfBagSummary:
     def dropped_line(self) -> str:
         """Return one line saying what was dropped and why, or '' when nothing was."""
         parts = [f'{count} {what}' for count, what in (
-            (self.past_frame_cap, f'transforms naming frames past the {MAX_FRAMES}-frame cap'),
+            (self.past_frame_cap,
+             f'transforms naming frames past the {self.max_frames}-frame cap'),
             (self.refused - self.past_frame_cap, 'transforms tf2 refuses (NaN, infinite, '
              'a quaternion off unit length, a frame its own parent, an empty or too long '
              'frame id)'),
@@ -67,12 +69,13 @@ class TfBagSummary:
 
 
 def core_from_bag(path, start: int | None = None, end: int | None = None,
-                  max_transforms: int = MAX_TRANSFORMS, interpolation: str = 'slerp'
-                  ) -> tuple:
+                  max_transforms: int = MAX_TRANSFORMS, interpolation: str = 'slerp',
+                  max_frames: int | None = None) -> tuple:
     """
     Return ``(BufferCore, TfBagSummary)`` of the bag's TF (module doc).
 
     :param start: the first log time (ns) of ``/tf`` read; ``end``: the first not read.
+    :param max_frames: frame names held at most (default ``MAX_FRAMES``).
     :raises BagError: no TF topic, or more than ``max_transforms`` transforms (one line).
     """
     path = os.fspath(path)
@@ -85,8 +88,8 @@ def core_from_bag(path, start: int | None = None, end: int | None = None,
                                for t, m in reader.all_topics[:20]) or 'none'
             raise BagError(f'{path} has no /tf or /tf_static ({TF_MESSAGE}); its topics: '
                            f'{topics}')
-        core = BufferCore(WHOLE_BAG_NS, interpolation)
-        summary = TfBagSummary()
+        core = BufferCore(WHOLE_BAG_NS, interpolation, max_frames or MAX_FRAMES)
+        summary = TfBagSummary(core.max_frames)
         static = [c for c in conns if c.topic.lstrip('/') == 'tf_static']
         moving = [c for c in conns if c not in static]
         for conn, _, raw in reader.messages(static) if static else ():

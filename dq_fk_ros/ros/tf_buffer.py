@@ -202,6 +202,11 @@ class Buffer:
         return (layout, np.array(rows, np.int64).reshape(-1, 4),
                 incomplete and len(core.names) <= core.max_frames)
 
+    def wait_for_data(self, timeout_s: float) -> None:
+        """Return when transforms were stored, or after ``timeout_s`` (not tf2_ros's)."""
+        with self._changed:
+            self._changed.wait(timeout_s)
+
     def clear(self) -> None:
         """Forget every sample."""
         with self.lock:

@@ -166,9 +166,11 @@ def frames(output: str = 'frames.pdf', bag: str | None = None, seconds: float = 
     """Write view_frames' files from ``seconds`` of live TF or from a bag; return 0."""
     if bag is not None:
         from dq_fk_ros.bag.tf_bag import core_from_bag
-        core, _ = core_from_bag(bag)
+        core, summary = core_from_bag(bag)
         newest = max((c.newest_stamp() for c in core.caches if c is not None), default=0)
         gv, pdf = write_frames(core, output, newest)
+        if summary.dropped_line():
+            print(f'dq_fk tf frames: {bag}: {summary.dropped_line()}', file=sys.stderr)
     else:
         ros = _Ros('dq_fk_tf_frames')
         try:

@@ -263,28 +263,37 @@ def test_frames_past_the_cap_are_refused_while_reading_counted_and_said(tmp_path
     # before the cap applied (about 4 KB a transform), and the frames past it dropped silently
     import tracemalloc
     from dq_fk_ros.cli import dq_fk_bag
-    from dq_fk_ros.transforms.buffer_core import MAX_FRAMES
-    count = MAX_FRAMES + 2000
-    path = tf_bag_of(tmp_path / 'frames', [
-        (T0 + k * MS, [('world', f'frame_{k}', T0 + k * MS, (k, 0, 0, 0, 0, 0, 1))])
-        for k in range(count)])
-    tracemalloc.start()
-    try:
-        core, summary = core_from_bag(path)
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-    held = MAX_FRAMES - 1   # (world is a name too)
-    assert len(core.frame_names()) == MAX_FRAMES
+    cap = 500
+
+    def read(count):
+        path = tf_bag_of(tmp_path / f'frames_{count}', [
+            (T0 + k * MS, [('world', f'frame_{k}', T0 + k * MS, (k, 0, 0, 0, 0, 0, 1))])
+            for k in range(count)])
+        tracemalloc.start()
+        try:
+            core, summary = core_from_bag(path, max_frames=cap)
+            return core, summary, tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+    _, _, peak_small = read(1500)
+    core, summary, peak = read(3000)
+    count, held = 3000, cap - 1   # (world is a name too)
+    assert len(core.frame_names()) == cap
     assert summary.transforms == held and summary.past_frame_cap == count - held
     assert summary.refused == count - held
-    assert peak < 2000 * count, peak   # (about 4 KB a transform before; names included)
+    # what grows with the transforms: about 4 KB each before; the layouts remembered are
+    # bounded (MAX_LAYOUTS) and paid by both reads
+    assert (peak - peak_small) / 1500 < 400, (peak, peak_small)
     assert core.lookup('world', f'frame_{held - 1}', 0)[0][0] == held - 1
-    assert dq_fk_bag.main(['tf', str(path), 'world', 'frame_3', '--csv',
+    # the command says it in one line (the default cap: 10 000 frames)
+    path = tf_bag_of(tmp_path / 'more', [
+        (T0 + k * MS, [('world', f'f{k % 10_005}', T0 + k * MS, (k, 0, 0, 0, 0, 0, 1))])
+        for k in range(10_010)])
+    assert dq_fk_bag.main(['tf', str(path), 'world', 'f3', '--csv',
                            str(tmp_path / 'f.csv'), '--rate', '100']) == 0
     err = capsys.readouterr().err
-    assert f'dropped: {count - held} transforms naming frames past the {MAX_FRAMES}-frame ' \
-        'cap' in err and err.count('\n') == 1
+    assert 'dropped: 6 transforms naming frames past the 10000-frame cap' in err
+    assert err.count('\n') == 1
 
 
 def test_rows_at_a_rate_are_written_in_blocks_and_times_out_of_range_are_one_line(

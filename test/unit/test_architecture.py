@@ -16,7 +16,7 @@ PACKAGE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
 # bottom up: a layer may import its own modules and those of the layers before it; at the
 # bottom the package's errors (one module, dq_fk_ros/errors.py, that every layer imports)
 LAYERS = ('errors', 'kinematics', 'description', 'messages', 'transforms', 'storage', 'bag',
-          'calibration', 'ros', 'viewers', 'cli')
+          'calibration', 'ros', 'viewers', 'cli', 'testing')
 # modules beside the layers: the package's surfaces, which may import any layer
 SURFACES = ('__init__.py', 'tf.py')
 # what each layer may import from outside the standard library and the package
@@ -40,6 +40,8 @@ THIRD_PARTY = {
     'viewers': {'numpy', 'rclpy', 'aiohttp', 'foxglove', 'geometry_msgs', 'sensor_msgs',
                 'std_msgs', 'tf2_msgs'},
     'cli': {'numpy'},
+    # the pytest plugin users get: its fixtures start the programs and read TF back
+    'testing': {'pytest', 'rclpy', 'geometry_msgs', 'sensor_msgs'},
 }
 
 

@@ -10,7 +10,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 # module name -> the rosdep key that provides it (ROS packages are their own key)
 ROSDEP = {'numpy': 'python3-numpy', 'yaml': 'python3-yaml', 'matplotlib': 'python3-matplotlib',
           'mpl_toolkits': 'python3-matplotlib', 'aiohttp': 'python3-aiohttp',
-          'scipy': 'python3-scipy'}
+          'scipy': 'python3-scipy', 'pytest': 'python3-pytest'}
 
 
 def third_party_imports():
