@@ -185,6 +185,8 @@ bench: setup $(BENCH_VENV)/.stamp $(addsuffix /.stamp,$(PEER_VENVS))
 	@$(PY) benchmarks/bench_fleet.py
 	@echo
 	@ROS_DOMAIN_ID=$(DEMO_DOMAIN_ID) $(PY) benchmarks/bench_tf.py
+	@echo
+	@$(PY) benchmarks/bench_testing.py
 	@$(PY) scripts/performance_doc.py $(BENCH_RESULTS) docs/performance.md
 
 mutate: setup
