@@ -55,8 +55,8 @@ def main(argv=None):
                         ('start', "dq_fk_robot('rl15') until its first TF"),
                         ('set_joints', 'set_joints until TF shows them'),
                         ('teardown', 'teardown: every process stopped')):
-        best, worst = min(times[what]), max(times[what])
-        figure(f'{label} (worst {worst:.3f} s)', best, 's', group=GROUP)
+        best, worst = min(times[what]) * 1e3, max(times[what]) * 1e3
+        figure(f'{label} (worst {worst:.0f} ms)', best, 'ms', group=GROUP)
     return 0
 
 
