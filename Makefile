@@ -92,8 +92,11 @@ demo-foxglove: setup
 test: setup browser graphviz
 	@scripts/run_tests $(PY)
 
+# (one pytest-xdist worker a core, up to 4, as scripts/run_tests)
+TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); echo $$(( n < 4 ? n : 4 )))
 check: setup graphviz
-	@$(PY) -m pytest -q test/lint test/unit
+	@start=$$(date +%s); $(PY) -m pytest -q -n $(TEST_WORKERS) test/lint test/unit; rc=$$?; \
+	  echo "check: wall time $$(( $$(date +%s) - start )) s"; exit $$rc
 
 # the C extensions built with -fsanitize=address,undefined, their unit tests and the
 # hypothesis fuzz of every compiled entry point run under them (scripts/sanitize); FUZZ=ci
