@@ -124,6 +124,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser('play', help='publish the JointState messages with recorded timing')
     p.add_argument('bag', metavar='BAG')
     p.add_argument('--topic', help='JointState topic (default: the only one in the bag)')
+    p.add_argument('--output-topic', metavar='TOPIC',
+                   help="publish on this topic instead of the bag's (e.g. a robot's namespace)")
     p.add_argument('--rate', type=finite, default=1.0, help='speed factor (default 1)')
     p.add_argument('--loop', action='store_true', help='start over at the end')
     p.add_argument('--start', type=finite, default=0.0, help='skip this many seconds')
@@ -285,7 +287,7 @@ def main(argv=None) -> int:
             s = play_bag(args.bag, PlayOptions(
                 topic=args.topic, rate=args.rate, loop=args.loop, start_s=args.start,
                 duration_s=args.duration, clock=args.clock, progress=not args.quiet,
-                wait_for=args.wait_for_subscribers))
+                wait_for=args.wait_for_subscribers, output_topic=args.output_topic))
             print(f'{args.bag}: published {s.sent} JointState messages')
         for line in (s.note, s.error):
             if line:

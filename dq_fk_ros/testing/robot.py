@@ -68,7 +68,8 @@ class RobotHandle:
         from dq_fk_ros.ros.executables import executable
         self._pool = pool
         self.robot = os.fspath(robot)
-        self.namespace = namespace or f'/dq_fk_test_{os.getpid()}_{next(_counter)}'
+        self.namespace = '/' + (namespace or f'dq_fk_test_{os.getpid()}_{next(_counter)}')\
+            .strip('/')
         loaded = load_robot(self.robot)
         self.joint_names = tuple(loaded.model.joint_names)
         prefix, model = params.get('frame_prefix', ''), loaded.model
@@ -89,9 +90,10 @@ class RobotHandle:
         # (its log to a file: a pipe nobody reads would stop a node that logs much)
         self._node_log = tempfile.TemporaryFile('w+', encoding='utf-8', errors='replace')
         self.node = pool.start(argv, stdout=self._node_log)
-        if joints_bag is not None:
+        if joints_bag is not None:   # (once the node subscribed: nothing sent before)
             self.joints = pool.start(executable('dq_fk_bag') + [
-                'play', os.fspath(joints_bag), '--topic', topic, '--quiet'])
+                'play', os.fspath(joints_bag), '--output-topic', topic,
+                '--wait-for-subscribers', '1', '--quiet'])
         else:
             argv = [sys.executable, '-m', 'dq_fk_ros.testing.joint_source', self.robot,
                     '--topic', topic, '--rate', str(rate_hz), '--set', json.dumps(joints or {})]

@@ -394,7 +394,12 @@ def test_invalid_client_messages_do_not_write_a_line_each(processes):
     bad = FoxgloveClient(url)
     try:
         for k in range(500):  # the SDK logs each one ('Invalid message from ...')
-            bad.send('not json at all {{{' if k % 2 else b'\xff' * 16)
+            try:
+                bad.send('not json at all {{{' if k % 2 else b'\xff' * 16)
+            except ConnectionResetError:
+                # the server may drop a client that sends nothing valid (seen under a CPU
+                # hog on both cores): what must hold, few log lines, is asserted below
+                break
         reader.until(lambda text: False, timeout_s=3)
         sdk_lines = [line for line in reader.lines if 'sdk:' in line]
         assert 1 <= len(sdk_lines) <= 5, sdk_lines[:8]

@@ -86,6 +86,32 @@ def test_joints_replayed_from_a_csv(dq_fk_robot, tmp_path):
     assert_pose_close(pose, rl15_truth([0.3, 0, 0.2, 0, 0, 0]), atol_m=1e-9, atol_rad=1e-9)
 
 
+def test_joints_replayed_from_a_bag(dq_fk_robot, tmp_path):
+    from dq_fk_ros.cli import dq_fk_bag
+    from rclpy.duration import Duration
+    from rclpy.time import Time
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import get_typestore, Stores
+    bag = tmp_path / 'joints'
+    assert dq_fk_bag.main(['example', str(bag), '--robot', 'rl15', '--seconds', '1',
+                           '--rate', '20']) == 0
+    # the bag's last JointState, read by rosbags
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Reader(bag) as reader:
+        last = None
+        for conn, _, raw in reader.messages():
+            last = store.deserialize_cdr(raw, conn.msgtype)
+    q = [last.position[list(last.name).index(f'joint_{k}')] for k in range(1, 7)]
+    stamp = last.header.stamp.sec * 10**9 + last.header.stamp.nanosec
+    robot = dq_fk_robot('rl15', joints_bag=bag, publish_frequency=0.0,
+                        joint_states_reliability='reliable')
+    assert robot.joints.wait(timeout=60) == 0   # the player ends with the bag
+    assert robot.buffer.can_transform('world', 'eeCarry_seg6', Time(nanoseconds=stamp),
+                                      timeout=Duration(seconds=20))
+    pose = robot.buffer.lookup_transform('world', 'eeCarry_seg6', Time(nanoseconds=stamp))
+    assert_pose_close(pose, rl15_truth(q), atol_m=1e-9, atol_rad=1e-9)
+
+
 def test_a_failing_test_of_a_user_leaves_no_process_and_the_plugin_loads_by_itself(
         tmp_path):
     # a user's project: only pytest and the installed package, no conftest of ours
