@@ -143,7 +143,7 @@ def test_an_interrupted_or_killed_pytest_leaves_no_process(tmp_path, signal_name
     import signal
     import time
     (tmp_path / 'test_user.py').write_text(textwrap.dedent("""
-        import os, threading
+        import os, time
 
         def test_waits_for_ever(dq_fk_robot):
             robot = dq_fk_robot('rl15')
@@ -151,12 +151,13 @@ def test_an_interrupted_or_killed_pytest_leaves_no_process(tmp_path, signal_name
             with open(os.environ['PIDS'] + '.part', 'w') as stream:
                 stream.write(f'{robot.node.pid} {robot.joints.pid}')
             os.rename(os.environ['PIDS'] + '.part', os.environ['PIDS'])
-            threading.Event().wait()
+            while True:   # (not Event().wait(): a SIGINT the kernel hands to one of DDS's
+                time.sleep(0.1)   # threads would never wake a main thread blocked in it)
         """), encoding='utf-8')
     pids = tmp_path / 'pids'
     env = dict(os.environ, PIDS=str(pids))
-    proc = subprocess.Popen([sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider',
-                             '-p', 'no:randomly', '-p', 'no:timeout',
+    proc = subprocess.Popen([sys.executable, '-X', 'faulthandler', '-m', 'pytest', '-q',
+                             '-p', 'no:cacheprovider', '-p', 'no:randomly', '-p', 'no:timeout',
                              str(tmp_path / 'test_user.py')],
                             cwd=tmp_path, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
@@ -167,7 +168,13 @@ def test_an_interrupted_or_killed_pytest_leaves_no_process(tmp_path, signal_name
         assert pids.exists(), proc.communicate(timeout=10)[0][-2000:]
         children = [int(p) for p in pids.read_text().split()]
         proc.send_signal(getattr(signal, signal_name))
-        proc.communicate(timeout=60)
+        try:
+            proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:   # a hang: every thread's stack (faulthandler)
+            proc.send_signal(signal.SIGABRT)
+            out = proc.communicate(timeout=30)[0]
+            raise AssertionError(f'pytest still running 60 s after {signal_name}: '
+                                 f'{out[-6000:]}') from None
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
