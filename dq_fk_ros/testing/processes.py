@@ -5,7 +5,11 @@ Child processes of a test: started in a session of their own, every one stopped 
 loopback) and stops them all: SIGINT to each process group, SIGKILL to what is left after
 ``grace_s``. On Linux each child is also asked to get SIGTERM if the test process dies
 (``PR_SET_PDEATHSIG``), so that even a pytest killed with SIGKILL leaves no node running on
-the domain. Plain Python, no ROS.
+the domain; Linux ties that to the thread that started the child, so a process must be
+started from a thread that outlives it (the test's own). SIGINT and SIGTERM are given back
+their default in the child: a pytest started with SIGINT ignored (a CI runner, a background
+job) would otherwise hand that on, and its children would not stop on SIGINT. Plain Python,
+no ROS.
 """
 
 import ctypes
@@ -17,10 +21,18 @@ import time
 _PR_SET_PDEATHSIG = 1
 
 
-def _die_with_parent():   # (runs in the child between fork and exec)
+def _child_signals():   # (runs in the child between fork and exec)
+    """Die with the parent; take SIGINT and SIGTERM as a terminal's child would."""
     try:
-        ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
-    except (OSError, AttributeError):
+        libc = ctypes.CDLL(None)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+        # a pytest started with SIGINT ignored (a CI runner, a background job) hands that on
+        # through exec: its children would not stop on stop()'s SIGINT (nor a Python child
+        # raise KeyboardInterrupt); libc's signal(), as Python's may not run in this thread
+        for number in (signal.SIGINT, signal.SIGTERM):
+            libc.signal(int(number), ctypes.c_void_p(0))   # SIG_DFL
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    except (OSError, AttributeError, ValueError):
         pass
 
 
@@ -47,7 +59,7 @@ class ProcessPool:
         kwargs.setdefault('stderr', subprocess.STDOUT)
         kwargs.setdefault('text', True)
         proc = subprocess.Popen(argv, env=env, start_new_session=True,
-                                preexec_fn=_die_with_parent if os.name == 'posix' else None,
+                                preexec_fn=_child_signals if os.name == 'posix' else None,
                                 **kwargs)
         self._procs.append(proc)
         return proc

@@ -160,7 +160,10 @@ def test_an_interrupted_or_killed_pytest_leaves_no_process(tmp_path, signal_name
                              '-p', 'no:cacheprovider', '-p', 'no:randomly', '-p', 'no:timeout',
                              str(tmp_path / 'test_user.py')],
                             cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                            # Ctrl-C as a terminal sends it: SIGINT not ignored (this run may
+                            # have been started with it ignored, and exec hands that on)
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 60
         while not pids.exists() and proc.poll() is None and time.monotonic() < deadline:
