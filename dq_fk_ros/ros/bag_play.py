@@ -5,7 +5,7 @@ import math
 import time
 
 from dq_fk_ros.bag.progress import Progress
-from dq_fk_ros.errors import BagError
+from dq_fk_ros.errors import BagError, printable_line
 from dq_fk_ros.ros.executables import MATCH_SETTLE_S
 from dq_fk_ros.storage.reading import joint_state_connections, open_reader
 
@@ -63,6 +63,10 @@ def play_bag(path, options=None, node=None, **changes) -> PlaySummary:
     from dq_fk_ros.ros.conversions import ns_to_stamp
     import rclpy
     from rclpy.duration import Duration
+    from rclpy.exceptions import NameValidationException
+    from rclpy.expand_topic_name import expand_topic_name
+    from rclpy.validate_full_topic_name import validate_full_topic_name
+    from rclpy.validate_topic_name import validate_topic_name
     from rclpy.qos import QoSProfile
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
@@ -76,6 +80,14 @@ def play_bag(path, options=None, node=None, **changes) -> PlaySummary:
         raise BagError(f'--start must be 0 or more seconds, got {start_s}')
     if duration_s is not None and not 0 < duration_s < math.inf:
         raise BagError(f'--duration must be a positive number of seconds, got {duration_s}')
+    if output_topic:
+        try:   # (as the publisher will name it: a long name fails only once expanded)
+            validate_topic_name(output_topic)
+            validate_full_topic_name(expand_topic_name(output_topic, 'dq_fk_bag_play', '/'))
+        except NameValidationException:
+            raise BagError(f'--output-topic {printable_line(output_topic, 80)!r}: not a ROS '
+                           'topic name (letters, digits, _ and /, at most 255 characters)') \
+                from None
     reader = open_reader(path)
     try:
         conns = joint_state_connections(reader, path, topic)

@@ -686,3 +686,15 @@ def test_joint_states_with_velocities_give_the_twist_topics(tmp_path, storage):
                 poses='none')
     with Reader(tmp_path / 'none') as reader:
         assert not [c for c in reader.connections if '/twist/' in c.topic]
+
+
+def test_play_output_topic_that_is_no_topic_name_is_one_line(tmp_path, capsys):
+    from dq_fk_ros.cli import dq_fk_bag
+    bag = tmp_path / 'joints'
+    assert dq_fk_bag.main(['example', str(bag), '--seconds', '0.2', '--rate', '10']) == 0
+    capsys.readouterr()
+    for name in ('bad name!', 'x\ny', 'a' * 5000):
+        assert dq_fk_bag.main(['play', str(bag), '--output-topic', name, '--quiet']) == 2
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and 'not a ROS topic name' in err, err
+        assert 'Traceback' not in err and len(err) < 300
