@@ -25,6 +25,7 @@ pytestmark = pytest.mark.integration
 
 MESH = os.urandom(2 << 20)   # a 2 MiB mesh
 LEFTOVER = {}                # socket -> what came after the answer's head
+SLOW = 'package://p/slow.stl'  # answered by the SDK once the test lets it
 
 
 class Sdk:
@@ -33,6 +34,7 @@ class Sdk:
     def __init__(self):
         self.calls = 0
         self.lock = threading.Lock()
+        self.release = threading.Event()   # a fetch of SLOW waits for it
         self.address = private_loopback_address()
         self.server = foxglove.start_server(name='gate-test', host=self.address, port=0,
                                             asset_handler=self.fetch)
@@ -40,6 +42,9 @@ class Sdk:
     def fetch(self, uri):
         with self.lock:
             self.calls += 1
+        if uri == SLOW:
+            self.release.wait(30)
+            return MESH
         return MESH if uri == 'package://p/mesh.stl' else None
 
 
@@ -251,12 +256,15 @@ def test_a_reader_gets_every_answer_of_a_burst_in_turn(sdk, gates):
     answers = asset_answers(read_frames(sock, lambda f: len(asset_answers(f)) == 31, 60))
     assert {r: answers[r] for r in range(30)} == {r: (0, '', len(MESH)) for r in range(30)}
     assert answers[30][0] == 1   # the SDK's own refusal passes through
-    fetch(sock, 40)
-    fetch(sock, 40)              # the same id twice: the second is answered at once
-    frames = read_frames(sock, lambda f: sum(p[:1] == b'\x04' for _, p in f) == 2)
+    fetch(sock, 40, SLOW)
+    fetch(sock, 40, SLOW)        # the same id while the first is held: answered at once
+    frames = read_frames(sock, lambda f: sum(p[:1] == b'\x04' for _, p in f) == 1)
+    refused = [asset_answers([f]).popitem()[1][:2] for f in frames if f[1][:1] == b'\x04']
+    sdk.release.set()
+    frames = read_frames(sock, lambda f: sum(p[:1] == b'\x04' for _, p in f) == 1)
     sock.close()
-    answers = sorted(asset_answers([f]).popitem()[1][:2] for f in frames if f[1][:1] == b'\x04')
-    assert answers == [(0, ''), (1, 'a request of this id is in flight')]
+    answered = [asset_answers([f]).popitem()[1][:2] for f in frames if f[1][:1] == b'\x04']
+    assert refused + answered == [(1, 'a request of this id is in flight'), (0, '')]
 
 
 def test_all_clients_together_hold_at_most_the_budget(sdk, gates, monkeypatch):
