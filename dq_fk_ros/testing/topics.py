@@ -1,9 +1,11 @@
 """
-``next_message``: the next message on a topic that a test waits for, with a deadline.
+Waits a test makes for an event, each with a deadline: never a sleep standing for one.
 
-A context and a node of its own for each call (on the test's domain, as the environment
-says), a subscription, and a spin until a message arrives (that ``where`` accepts) or the
-deadline passes: a wait for an event, never a sleep.
+``next_message``: a context and a node of its own for each call (on the test's domain, as the
+environment says), a subscription, and a spin until a message arrives (that ``where``
+accepts) or the deadline passes. ``wait_for_match``: until a publisher and a subscription
+have each matched the other (DDS matches the two sides apart: a message sent when only the
+publisher has matched is lost to a volatile subscription). ``wait_until``: a predicate polled.
 """
 
 import os
@@ -49,4 +51,32 @@ def next_message(msg_type, topic: str, where=None, timeout_s: float = 10.0,
     return got[0]
 
 
-__all__ = ['next_message']
+def wait_until(predicate, timeout_s: float = 10.0, every_s: float = 0.01) -> object:
+    """Poll ``predicate()`` every ``every_s`` until true or ``timeout_s``; return its value."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = predicate()
+        if value or time.monotonic() >= deadline:
+            return value
+        time.sleep(every_s)
+
+
+def wait_for_match(publisher=None, subscription=None, count: int = 1,
+                   timeout_s: float = 10.0) -> None:
+    """
+    Wait until ``publisher`` has ``count`` matched subscriptions and ``subscription`` as many.
+
+    :param publisher: an rclpy publisher (``get_subscription_count``), or None.
+    :param subscription: an rclpy subscription (``get_publisher_count``), or None.
+    :raises AssertionError: not matched within ``timeout_s`` (which side, how many it has).
+    """
+    sides = [(name, getter) for name, getter in (
+        ('publisher', publisher and publisher.get_subscription_count),
+        ('subscription', subscription and subscription.get_publisher_count)) if getter]
+    if not wait_until(lambda: all(getter() >= count for _, getter in sides), timeout_s):
+        short = ', '.join(f'{name} matched {getter()}' for name, getter in sides
+                          if getter() < count)
+        raise AssertionError(f'not matched within {timeout_s:g} s (asked {count}): {short}')
+
+
+__all__ = ['next_message', 'wait_for_match', 'wait_until']

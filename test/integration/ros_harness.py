@@ -47,14 +47,6 @@ def own_node(name):
         rclpy.shutdown(context=context)
 
 
-def wait_until(predicate, timeout_s=10.0):
-    """Poll ``predicate`` every 10 ms until it holds or ``timeout_s``; return its last value."""
-    deadline = time.monotonic() + timeout_s
-    while not predicate() and time.monotonic() < deadline:
-        time.sleep(0.01)
-    return predicate()
-
-
 def start(processes, name, *params, namespace=None, log_level='warn', options=(), env=None):
     """
     Start one of the package's programs with ``-p`` parameters, reaped by ``processes``.

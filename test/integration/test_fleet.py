@@ -19,6 +19,7 @@ from dq_fk_ros.cli.dq_fk_bag import main as bag_main
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.ros.executables import executable
+from dq_fk_ros.testing import wait_until
 import numpy as np
 from proc_table import in_session, listening, proc_file, proc_stat, processes
 import pytest
@@ -168,7 +169,6 @@ def test_complete_outputs_are_skipped_and_changed_or_missing_ones_redone(tmp_pat
     again = process_fleet([tmp_path / 'in'], out, 'rl15', QUIET, jobs=1, progress=False)
     assert [b.status for b in again.bags] == ['skipped'] * 3
     shutil.rmtree(out / 'b1')
-    time.sleep(0.01)
     shutil.rmtree(tmp_path / 'in' / 'b2')
     rl15_bag(tmp_path / 'in' / 'b2', 140, offset=0.2)  # a changed input
     third = process_fleet([tmp_path / 'in'], out, 'rl15', QUIET, jobs=1, progress=False)
@@ -211,11 +211,7 @@ def _kill_all_but_the_tracker(pgid):
 
 def _wait_for_work(out, timeout_s=60):
     """Wait until a fleet writing ``out`` has an output bag under way (an MCAP in its work)."""
-    work = out / '.dq_fk_fleet' / 'work'
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline and not any(
-            name.endswith('.mcap') for _, _, names in os.walk(work) for name in names):
-        time.sleep(0.02)
+    wait_until(lambda: _has_work(out), timeout_s)
 
 
 def test_a_local_cluster_listens_on_loopback_only_and_on_no_fixed_port(tmp_path):
@@ -290,9 +286,7 @@ def test_the_command_killed_alone_leaves_no_worker_behind(tmp_path, how):
         os.kill(child.pid, signal.SIGKILL)
         child.wait()
         assert workers, 'no worker process seen'
-        deadline = time.monotonic() + 3.0
-        while _processes_marked(mark) and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_until(lambda: not _processes_marked(mark), 3.0)
         left = _processes_marked(mark)
     finally:
         for pid in _processes_marked(mark):
@@ -471,6 +465,24 @@ def signal_fleet(tmp_path_factory):
     return root
 
 
+def _has_work(out):
+    return any(name.endswith('.mcap') for _, _, names in os.walk(out / '.dq_fk_fleet' / 'work')
+               for name in names)
+
+
+# the moments a signal is sent at, each an event seen from outside (never a delay): at once
+# (Python still importing), once the output folder is made, once a worker process exists
+# (not in a serial run), once an output bag is under way, once a bag is done
+MOMENTS = {
+    'at-once': lambda child, out: True,
+    'planned': lambda child, out: (out / '.dq_fk_fleet').is_dir(),
+    'workers': lambda child, out: bool(_spawned_by(child.pid)),
+    'writing': lambda child, out: _has_work(out),
+    'one-done': lambda child, out: any((out / f'b{k}' / 'metadata.yaml').exists()
+                                       for k in range(2)),
+}
+
+
 @pytest.mark.parametrize('how', ['pool', 'serial', 'local'])
 @pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
 def test_a_signal_at_any_moment_exits_quietly_and_a_new_run_resumes(signal_fleet, tmp_path,
@@ -479,42 +491,46 @@ def test_a_signal_at_any_moment_exits_quietly_and_a_new_run_resumes(signal_fleet
     Exit quietly on Ctrl-C or SIGTERM before, while and after the workers start.
 
     Ctrl-C goes to the whole process group (as a terminal sends it), SIGTERM to the command
-    alone (as a supervisor does): exit 130 (143) within 2 s, no traceback, no process left;
-    the next run's outputs are byte-identical.
+    alone (as a supervisor does): exit 130 (143) or 0 if it was done, no traceback, no process
+    left; the next run's outputs are byte-identical. Each signal is sent when an event of
+    :data:`MOMENTS` is seen; the run that had ended first (exit 0) has nothing to check.
     """
     out = tmp_path / 'out'
     extra = {'pool': ['--jobs', '2'], 'serial': ['--jobs', '1'],
              'local': ['--scheduler', 'local', '--jobs', '2']}[how]
     argv = executable('dq_fk_bag') + ['process', str(signal_fleet / 'in'), '--output-dir',
                                       str(out), '--robot', 'rl15', '--quiet'] + extra
-    for delay in (0.4, 1.0, 2.0, 3.5):
-        mark = f'dq_fk_signal_test_{os.getpid()}_{how}_{signum}_{delay}'
+    for moment, reached in MOMENTS.items():
+        if moment == 'workers' and how == 'serial':
+            continue
+        mark = f'dq_fk_signal_test_{os.getpid()}_{how}_{signum}_{moment}'
         child = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE, env=dict(os.environ, DQ_FK_MARK=mark))
-        time.sleep(delay)
-        sent = time.monotonic()
-        if signum == signal.SIGINT:
-            os.killpg(child.pid, signum)
-        else:
-            os.kill(child.pid, signum)
         try:
-            _, err = child.communicate(timeout=20)
+            assert wait_until(lambda: reached(child, out) or child.poll() is not None, 60,
+                              every_s=0.002), f'{moment}: not reached in 60 s'
+            if signum == signal.SIGINT:
+                os.killpg(child.pid, signum)
+            else:
+                os.kill(child.pid, signum)
+            _, err = child.communicate(timeout=20)   # the deadline: a hang fails here
         finally:
             if child.poll() is None:
                 os.killpg(child.pid, signal.SIGKILL)
-        took = time.monotonic() - sent
-        time.sleep(0.5)
+        wait_until(lambda: not _processes_marked(mark), 10)
         left = _processes_marked(mark)
         for pid in left:
             os.kill(pid, signal.SIGKILL)
         err = err.decode(errors='replace')
         if child.returncode == 0:  # the run was over before the signal: nothing to check
             continue
-        assert child.returncode == 128 + signum, (delay, child.returncode, err[-2000:])
-        assert took < 2.0, (delay, took)
-        assert left == [], (delay, left)
-        assert 'Traceback' not in err and 'Warning' not in err, (delay, err[-2000:])
-        assert err.count('\n') <= 1, (delay, err[-2000:])  # the one line, if any
+        # at once: the signal may come before Python's handlers are set, when the system's
+        # default ends the process by the signal (no output: nothing ran)
+        allowed = {128 + signum} | ({-signum} if moment == 'at-once' else set())
+        assert child.returncode in allowed, (moment, child.returncode, err[-2000:])
+        assert left == [], (moment, left)
+        assert 'Traceback' not in err and 'Warning' not in err, (moment, err[-2000:])
+        assert err.count('\n') <= 1, (moment, err[-2000:])  # the one line, if any
     assert bag_main(['process', str(signal_fleet / 'in'), '--output-dir', str(out),
                      '--robot', 'rl15', '--jobs', '2', '--quiet']) == 0
     for k in range(2):
@@ -560,25 +576,20 @@ def test_a_signal_while_a_worker_starts_leaves_no_traceback(signal_fleet, tmp_pa
     child = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, env=env)
     try:
-        deadline = time.monotonic() + 30
-        while not _spawned_by(child.pid) and child.poll() is None:
-            assert time.monotonic() < deadline, 'no worker started within 30 s'
-            time.sleep(0.005)
-        sent = time.monotonic()
+        assert wait_until(lambda: _spawned_by(child.pid) or child.poll() is not None, 30,
+                          every_s=0.002), 'no worker started within 30 s'
         os.kill(child.pid, signal.SIGTERM)
-        _, err = child.communicate(timeout=20)
-        took = time.monotonic() - sent
+        _, err = child.communicate(timeout=20)   # the deadline: a hang fails here
     finally:
         if child.poll() is None:
             os.killpg(child.pid, signal.SIGKILL)
-    time.sleep(0.5)
+    wait_until(lambda: not _processes_marked(mark), 10)
     left = _processes_marked(mark)
     for pid in left:
         os.kill(pid, signal.SIGKILL)
     err = err.decode(errors='replace')
     assert child.returncode == 128 + signal.SIGTERM, (child.returncode, err[-2000:])
     assert 'Traceback' not in err and err.count('\n') <= 1, err[-2000:]
-    assert took < 2.0, took
     assert left == [], left
 
 

@@ -16,6 +16,7 @@ import struct
 import threading
 import time
 
+from dq_fk_ros.testing import wait_until
 from dq_fk_ros.viewers import foxglove_gate
 from dq_fk_ros.viewers.foxglove_gate import Gate, private_loopback_address
 import pytest
@@ -201,9 +202,8 @@ def test_half_open_connections_do_not_stop_it_listening(sdk, gates, monkeypatch)
     try:
         for _ in range(1100):  # past 1024 descriptors: the SDK alone stopped listening here
             idle.append(socket.create_connection(('127.0.0.1', gate.port), timeout=20))
-        time.sleep(0.5)
+        assert wait_until(lambda: gate.counts['refused_over_limit'] >= 850, 20), gate.counts
         assert len(gate.connections) <= 200
-        assert gate.counts['refused_over_limit'] >= 850
         deadline = time.monotonic() + 20
         status = ''
         while time.monotonic() < deadline and not status.startswith('HTTP/1.1 101'):
@@ -228,7 +228,10 @@ def test_a_client_that_never_reads_holds_one_share_of_mesh_answers(sdk, gates):
     stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     for request in range(400):
         fetch(stalled, request)
-    time.sleep(3.0)
+    # every request read by the gate: held in its queue or passed on and asked of the SDK
+    connection, = gate.connections
+    assert wait_until(lambda: len(connection.queued) + sdk.calls >= 400, 30), \
+        (len(connection.queued), sdk.calls)
     # without the gate the SDK answers all 400 (800 MiB queued for a reader that never
     # reads); with it, 16 MiB (8 answers of 2 MiB) and what the sockets took
     assert sdk.calls <= 10, sdk.calls
@@ -279,8 +282,8 @@ def test_all_clients_together_hold_at_most_the_budget(sdk, gates, monkeypatch):
         for request in range(8):
             fetch(sock, request)
         stalled.append(sock)
-    time.sleep(2.0)
-    assert gate.budget.used == 3 * len(MESH)
+    # the budget is full when each client holds the answer its socket cannot take
+    assert wait_until(lambda: gate.budget.used == 3 * len(MESH), 20), gate.budget.used
     late, _ = handshake(gate.port)
     fetch(late, 9)
     answers = asset_answers(read_frames(late, lambda f: asset_answers(f)))

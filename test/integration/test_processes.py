@@ -10,11 +10,11 @@ import os
 import re
 import signal
 import sys
-import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
+from dq_fk_ros.testing import wait_until
 from geometry_msgs.msg import PoseStamped
 import homogeneous_tf as htf
 import numpy as np
@@ -123,7 +123,8 @@ def test_fake_joint_publisher_takes_the_robot_as_joint_state_publisher_does(
 
 def test_tf_static_reaches_a_subscriber_that_starts_late(processes, listener):
     start(processes, 'dq_fk_node')
-    time.sleep(2.0)
+    # its /joint_states subscription is made after /tf_static is sent: subscribe after that
+    assert wait_until(lambda: listener.probe.count_subscribers('/joint_states'), 20)
     static = listener.listen(TFMessage, '/tf_static', TF_STATIC_QOS)
     assert listener.spin_until(lambda: static, timeout_s=10)
     pairs = [(t.header.frame_id, t.child_frame_id) for t in static[-1].transforms]

@@ -11,13 +11,14 @@ ASan and UBSan).
 import time
 
 from dq_fk_ros.ros.publisher_group import COMPILED, PublisherGroup
+from dq_fk_ros.testing import wait_for_match, wait_until
 from geometry_msgs.msg import PoseStamped
 from hypothesis import given, strategies as st
 import pytest
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
-from ros_harness import own_node, wait_until
+from ros_harness import own_node
 
 pytestmark = pytest.mark.integration
 needs_c = pytest.mark.skipif(not COMPILED, reason='dq_fk_ros.ros._rcl_publish is not built '
@@ -53,8 +54,8 @@ def received(node, topics, compiled, updates):
     group = PublisherGroup(pubs, compiled=compiled)
     try:
         assert group.compiled == (compiled and COMPILED)
-        assert wait_until(lambda: all(p.get_subscription_count() == 1 for p in pubs))
-        time.sleep(0.3)  # the subscriptions' side of the match
+        for pub, sub in zip(pubs, subs):
+            wait_for_match(pub, sub)
         for messages in updates:
             group.publish(messages)
         deadline = time.monotonic() + 10.0

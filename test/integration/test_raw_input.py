@@ -5,10 +5,11 @@ import sys
 import time
 
 from dq_fk_ros.ros.raw_input import raw_publisher, RawSubscriptionThread, take_queued
+from dq_fk_ros.testing import wait_for_match, wait_until
 import pytest
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
-from ros_harness import own_node, wait_until
+from ros_harness import own_node
 from std_msgs.msg import String
 
 pytestmark = pytest.mark.integration
@@ -29,8 +30,7 @@ def test_bytes_published_raw_arrive_in_order_with_their_sequence_numbers(node):
     thread = RawSubscriptionThread(node, String, '/raw_io', QOS,
                                    lambda raw, info: got.append((raw, info)))
     try:
-        assert wait_until(lambda: pub.get_subscription_count() == 1)
-        time.sleep(0.5)  # the subscription's side of the match
+        wait_for_match(pub, thread.subscription)
         for k in range(50):
             send(serialize_message(String(data=f'message {k}')))
         assert wait_until(lambda: len(got) == 50)
@@ -50,8 +50,7 @@ def test_a_batch_window_delays_the_next_look_and_loses_nothing(node):
                                    lambda raw, info: got.append((time.monotonic(), raw)),
                                    batch_s=0.4)
     try:
-        assert wait_until(lambda: pub.get_subscription_count() == 1)
-        time.sleep(0.5)  # the subscription's side of the match
+        wait_for_match(pub, thread.subscription)
         pub.publish(String(data='first'))
         assert wait_until(lambda: len(got) == 1)
         sent = [time.monotonic()]
@@ -87,14 +86,20 @@ def test_the_input_thread_carries_a_name_top_shows(node):
 def test_take_queued_hands_over_what_is_queued_up_to_a_limit(node):
     pub = node.create_publisher(String, 'raw_queue', QOS)
     sub = node.create_subscription(String, 'raw_queue', lambda _: None, QOS, raw=True)
-    assert wait_until(lambda: pub.get_subscription_count() == 1)
-    time.sleep(0.5)
+    wait_for_match(pub, sub)
     for k in range(10):
         pub.publish(String(data=str(k)))
-    time.sleep(0.5)
     first, rest = [], []
-    take_queued(sub, first.append, limit=3)
-    take_queued(sub, lambda raw, info: rest.append(info), with_info=True)
+
+    def took_first():   # taken as they arrive: each call takes at most its limit
+        assert take_queued(sub, first.append, limit=3 - len(first)) <= 3
+        return len(first) == 3
+
+    def took_rest():
+        take_queued(sub, lambda raw, info: rest.append(info), with_info=True)
+        return len(rest) == 7
+    assert wait_until(took_first) and wait_until(took_rest)
+    assert take_queued(sub, first.append) == 0
     assert [deserialize_message(raw, String).data for raw in first] == ['0', '1', '2']
     assert len(rest) == 7 and all('publication_sequence_number' in info for info in rest)
 
@@ -126,8 +131,7 @@ def test_a_callback_that_raises_is_counted_and_the_thread_goes_on(node):
     thread = RawSubscriptionThread(node, String, '/raw_io', QOS, callback,
                                    on_error=reported.append)
     try:
-        assert wait_until(lambda: pub.get_subscription_count() == 1)
-        time.sleep(0.5)
+        wait_for_match(pub, thread.subscription)
         for k in range(20):
             pub.publish(String(data=f'bad {k}' if k % 2 else f'good {k}'))
         assert wait_until(lambda: len(got) == 10)

