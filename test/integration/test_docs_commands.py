@@ -4,13 +4,15 @@ Every shell example of the README and docs/ runs as written (after ``make demo``
 The fenced blocks marked ``sh`` are the runnable ones: each runs as one bash script (``set
 -e``) from the repository's root, on this run's private DDS domain; ``make`` lines are the
 Makefile's own (``make test`` runs this test) and are left out. Blocks marked ``python``
-run with the set-up's Python, in file order after the shell blocks before them. Other
-blocks (``text``, ``yaml``, output) are not commands.
+run with the set-up's Python. One test a document: its blocks run in file order (a reader
+runs them so, and a block may use what one before it made), whatever order the tests run in
+(pytest-randomly) and on whichever worker. Other blocks (``text``, ``yaml``, output) are not
+commands.
 
 Two things are changed before a block runs, so that it touches nothing of another run or of
-the user: ``/tmp/`` becomes a scratch folder of this run (the same for every block: they
-chain), and the Dask scheduler's port 8799 a free port. While a block runs, every TCP port
-it or a process it starts listens on must be on loopback.
+the user: ``/tmp/`` becomes a scratch folder of the document's test (the same for each of
+its blocks), and the Dask scheduler's port 8799 a free port. While a block runs, every TCP
+port it or a process it starts listens on must be on loopback.
 """
 
 import glob
@@ -54,13 +56,11 @@ def test_the_docs_have_python_examples():
 DOCS_PORT = '8799'  # the scheduler's port in the README
 
 
-@pytest.fixture(scope='module')
-def private_places(tmp_path_factory):
-    """Return ``(scratch folder, free port)``: where this run's examples put ``/tmp/``, 8799."""
+def free_port():
+    """Return a TCP port free on loopback now: where a document's 8799 goes."""
     with socket.socket() as probe:
         probe.bind(('127.0.0.1', 0))
-        port = probe.getsockname()[1]
-    return str(tmp_path_factory.mktemp('docs_tmp')), str(port)
+        return str(probe.getsockname()[1])
 
 
 def made_private(script, scratch, port):
@@ -95,11 +95,27 @@ def stop_left_behind(session, grace_s=10.0):
             time.sleep(0.05)
 
 
-@pytest.mark.parametrize('place, script', EXAMPLES, ids=[place for place, _ in EXAMPLES])
-def test_a_shell_example_runs_as_written(place, script, ros_domain_id, tmp_path,
-                                         private_places):
-    script = made_private(script, *private_places)
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', HOME=str(tmp_path))
+DOCUMENTS = sorted({place.split(':')[0] for place, _ in EXAMPLES},
+                   key=lambda d: (d != 'README.md', d))
+
+
+def test_every_example_belongs_to_a_document_test():
+    assert sum(1 for place, _ in EXAMPLES if place.split(':')[0] in DOCUMENTS) == len(EXAMPLES)
+
+
+@pytest.mark.parametrize('document', DOCUMENTS)
+def test_a_documents_examples_run_as_written_in_order(document, ros_domain_id, tmp_path):
+    scratch, port = tmp_path / 'tmp', free_port()
+    scratch.mkdir()
+    for number, (place, script) in enumerate(
+            (p, s) for p, s in EXAMPLES if p.split(':')[0] == document):
+        run_example(place, made_private(script, str(scratch), port), tmp_path / str(number))
+
+
+def run_example(place, script, home):
+    """Run one block (``place``: file:line[:python]) with ``home`` as HOME; assert it held."""
+    home.mkdir()
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', HOME=str(home))
     if place.endswith(':python'):
         command = [os.path.join(ROOT, '.venv', 'bin', 'python'), '-c', script]
     else:
@@ -107,7 +123,7 @@ def test_a_shell_example_runs_as_written(place, script, ros_domain_id, tmp_path,
         if not any(line.strip() for line in lines):
             return  # a block of make commands only: the Makefile's own (CI runs them)
         command = ['bash', '-c', 'set -e\n' + '\n'.join(lines)]
-    with open(tmp_path / 'stdout', 'w+') as out, open(tmp_path / 'stderr', 'w+') as err:
+    with open(home / 'stdout', 'w+') as out, open(home / 'stderr', 'w+') as err:
         run = subprocess.Popen(command, cwd=ROOT, env=env, stdout=out, stderr=err,
                                start_new_session=True)
         seen, deadline = set(), time.monotonic() + 180
