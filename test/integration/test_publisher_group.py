@@ -11,7 +11,7 @@ ASan and UBSan).
 import time
 
 from dq_fk_ros.ros.publisher_group import COMPILED, PublisherGroup
-from dq_fk_ros.testing import wait_for_match, wait_until
+from dq_fk_ros.testing import wait_for_match
 from geometry_msgs.msg import PoseStamped
 from hypothesis import given, strategies as st
 import pytest

@@ -3,9 +3,9 @@
 import json
 from types import SimpleNamespace
 
+from dq_fk_ros.viewers import view_state
 from dq_fk_ros.viewers.view import parse_args
 from dq_fk_ros.viewers.view_panel import JointPanel
-from dq_fk_ros.viewers import view_state
 from dq_fk_ros.viewers.view_state import ViewState
 from dq_fk_ros.viewers.view_web import _client_message, host_allowed
 from hypothesis import given, strategies as st
