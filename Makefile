@@ -192,8 +192,13 @@ bench: setup $(BENCH_VENV)/.stamp $(addsuffix /.stamp,$(PEER_VENVS))
 	@$(PY) benchmarks/bench_testing.py
 	@$(PY) scripts/performance_doc.py $(BENCH_RESULTS) docs/performance.md
 
-mutate: setup
-	@$(PY) scripts/mutate.py
+$(STAMPS)/mutation: requirements/mutation.txt $(STAMPS)/dev
+	@echo 'setup: installing mutmut (make mutate)'
+	@$(STEP) "install requirements/mutation.txt" $(LOGS)/mutation.log $(PIP) -r requirements/mutation.txt
+	@touch $@
+
+mutate: setup $(STAMPS)/mutation
+	@$(PY) scripts/mutate.py run
 
 # The README's picture of dq_fk_view, taken by its browser test (headless Chromium)
 # the README's pictures of dq_fk_view (RL15, UR5, Panda with their meshes), made by the

@@ -1,0 +1,58 @@
+"""scripts/mutate.py: the per-module kill rates it makes of mutmut's results."""
+
+import json
+import os
+import sys
+
+import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', '..', 'scripts'))
+import mutate  # noqa: E402 (the script, by path)
+
+
+def write_meta(root, module, codes):
+    path = root / 'mutants' / (module.replace('.', '/') + '.py.meta')
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({'exit_code_by_key': codes}))
+
+
+def test_rates_are_killed_over_judged_less_the_listed_equivalents(tmp_path, monkeypatch, capsys):
+    write_meta(tmp_path, 'pkg.description.xacro_sandbox', {   # '.x' inside a module's name
+        'pkg.description.xacro_sandbox.x_f__mutmut_1': 1,     # killed
+        'pkg.description.xacro_sandbox.x_f__mutmut_2': 36,    # a timeout: killed
+        'pkg.description.xacro_sandbox.x_f__mutmut_3': 0,     # survived
+        'pkg.description.xacro_sandbox.x_f__mutmut_4': 0,     # survived, listed equivalent
+        'pkg.description.xacro_sandbox.x_f__mutmut_5': 33,    # no test reaches it: survived
+        'pkg.description.xacro_sandbox.x_f__mutmut_6': None,  # not run
+    })
+    write_meta(tmp_path, 'pkg.kinematics.dh', {f'pkg.kinematics.dh.x_g__mutmut_{k}': 1
+                                               for k in range(1, 10)})
+    listed = tmp_path / 'equivalent.txt'
+    listed.write_text('# a comment\npkg.description.xacro_sandbox.x_f__mutmut_4 || why\n')
+    monkeypatch.setattr(mutate, 'ROOT', str(tmp_path))
+    monkeypatch.setattr(mutate, 'EQUIVALENT', str(listed))
+    assert mutate.equivalents(str(listed)) == {
+        'pkg.description.xacro_sandbox.x_f__mutmut_4': 'why'}
+    by_module = mutate.results(str(tmp_path))
+    assert sorted(by_module) == ['pkg.description.xacro_sandbox', 'pkg.kinematics.dh']
+    counts = mutate.tally(by_module['pkg.description.xacro_sandbox'], mutate.equivalents(
+        str(listed)))
+    assert (counts['killed'], counts['survived'], counts['equivalent'], counts['not run']) == \
+        (2, 2, 1, 1)
+    assert counts['survivors'] == ['pkg.description.xacro_sandbox.x_f__mutmut_3',
+                                   'pkg.description.xacro_sandbox.x_f__mutmut_5']
+    assert mutate.report(90.0, survivors_of='xacro_sandbox') == 1
+    lines = capsys.readouterr().out.splitlines()
+    row = next(line for line in lines if line.startswith('pkg.description.xacro_sandbox'))
+    assert row.split()[1:5] == ['2', '2', '1', '50.0'] and row.endswith('BELOW  (1 not run)')
+    assert 'pkg.kinematics.dh' in next(line for line in lines if '100.0 %' in line)
+    assert '    pkg.description.xacro_sandbox.x_f__mutmut_5' in lines
+    assert lines[-1] == 'mutate: 1 module(s) below 90 %'
+
+
+@pytest.mark.parametrize('target, below', [(50.0, 0), (50.1, 1)])
+def test_the_target_is_a_floor_that_a_module_at_it_meets(tmp_path, monkeypatch, target, below):
+    write_meta(tmp_path, 'pkg.m', {'pkg.m.x_f__mutmut_1': 1, 'pkg.m.x_f__mutmut_2': 0})
+    monkeypatch.setattr(mutate, 'ROOT', str(tmp_path))
+    monkeypatch.setattr(mutate, 'EQUIVALENT', str(tmp_path / 'none.txt'))
+    assert mutate.report(target) == below
