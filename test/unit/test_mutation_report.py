@@ -1,13 +1,15 @@
 """scripts/mutate.py: the per-module kill rates it makes of mutmut's results."""
 
+import importlib.util
 import json
 import os
-import sys
 
 import pytest
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', '..', 'scripts'))
-import mutate  # noqa: E402 (the script, by path)
+SCRIPT = os.path.join(os.path.dirname(__file__), '..', '..', 'scripts', 'mutate.py')
+_spec = importlib.util.spec_from_file_location('mutate_script', SCRIPT)
+mutate = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(mutate)
 
 
 def write_meta(root, module, codes):
