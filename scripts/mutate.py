@@ -35,7 +35,8 @@ import sys
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 EQUIVALENT = os.path.join(ROOT, 'scripts', 'mutate_equivalent.txt')
 KILLED = {1, 3, 36, 37, -24, 24, 152, 255, -11, -9}   # mutmut's stats.status_by_exit_code
-SURVIVED = {0, 5, 33}                                 # passed, or no test reaches it
+SURVIVED = {0}                                        # every test reaching it passed
+UNREACHED = {5, 33}                                   # no test reaches it: not killed either
 
 
 def equivalents(path=None) -> dict:
@@ -64,14 +65,15 @@ def results(root=None) -> dict:
 
 def tally(codes: dict, equivalent: dict) -> dict:
     """Count one module's mutants: killed, survived, equivalent, not run, survivors' names."""
-    counts = {'killed': 0, 'survived': 0, 'equivalent': 0, 'not run': 0, 'survivors': []}
+    counts = {'killed': 0, 'survived': 0, 'unreached': 0, 'equivalent': 0, 'not run': 0,
+              'survivors': []}
     for name, code in sorted(codes.items()):
         if name in equivalent:
             counts['equivalent'] += 1
         elif code in KILLED:
             counts['killed'] += 1
-        elif code in SURVIVED:
-            counts['survived'] += 1
+        elif code in SURVIVED or code in UNREACHED:
+            counts['survived' if code in SURVIVED else 'unreached'] += 1
             counts['survivors'].append(name)
         else:
             counts['not run'] += 1
@@ -85,18 +87,19 @@ def report(target: float, survivors_of=None) -> int:
         print('mutate: no mutmut results under mutants/ (run: scripts/mutate.py run)')
         return 0
     below = 0
-    print(f'{"module":44s} {"killed":>7s} {"surv.":>6s} {"equiv.":>6s} {"rate":>7s}  '
-          f'(target {target:g} %)')
+    print(f'{"module":40s} {"killed":>7s} {"surv.":>6s} {"unre.":>6s} {"equiv.":>6s} '
+          f'{"rate":>7s}  (target {target:g} %; unre.: no test reaches it, counted as not '
+          f'killed)')
     for module in sorted(by_module):
         c = tally(by_module[module], equivalent)
-        judged = c['killed'] + c['survived']
+        judged = c['killed'] + c['survived'] + c['unreached']
         rate = 100.0 * c['killed'] / judged if judged else None
         mark = '' if rate is None or rate >= target else '  BELOW'
         below += bool(mark)
         extra = f'  ({c["not run"]} not run)' if c['not run'] else ''
         shown = '   -  ' if rate is None else f'{rate:6.1f}'
-        print(f'{module:44s} {c["killed"]:7d} {c["survived"]:6d} {c["equivalent"]:6d} '
-              f'{shown} %{mark}{extra}')
+        print(f'{module:40s} {c["killed"]:7d} {c["survived"]:6d} {c["unreached"]:6d} '
+              f'{c["equivalent"]:6d} {shown} %{mark}{extra}')
         if survivors_of and module.endswith(survivors_of):
             for name in c['survivors']:
                 print(f'    {name}')

@@ -11,20 +11,19 @@ import sys
 import time
 
 from dq_fk_ros import tf
-from dq_fk_ros.testing import wait_until
+from dq_fk_ros.testing import wait_for_match, wait_until
 from geometry_msgs.msg import TransformStamped
 import pytest
 from rclpy.duration import Duration
 from rclpy.time import Time
-from ros_harness import own_node, start, unique_node_name
+from ros_harness import own_node, unique_node_name
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.integration
 
 
-def test_the_end_effector_at_fig_4_and_a_late_listener_gets_tf_static(processes):
-    start(processes, 'dq_fk_node')
-    start(processes, 'fake_joint_publisher', 'mode:=zeros', 'rate_hz:=50.0')
+def test_the_end_effector_at_fig_4_and_a_late_listener_gets_tf_static(dq_fk_robot):
+    dq_fk_robot('rl15')   # the plugin's: the node and a joint source (zeros, 50 Hz)
     with own_node(unique_node_name('tf_listener_test')) as node:
         buffer = tf.Buffer()
         listener = tf.TransformListener(buffer, node, spin_thread=True)
@@ -62,6 +61,7 @@ def test_broadcasters_reach_a_listener_and_bytes_that_do_not_read_are_counted(
         try:
             static = tf.StaticTransformBroadcaster(node)
             moving = tf.TransformBroadcaster(node)
+            wait_for_match(moving.pub_tf, listener.tf_thread.subscription)
             a = TransformStamped()
             a.header.frame_id, a.child_frame_id = 'test_map', 'test_odom'
             a.transform.translation.x, a.transform.rotation.w = 2.0, 1.0
@@ -72,7 +72,6 @@ def test_broadcasters_reach_a_listener_and_bytes_that_do_not_read_are_counted(
                 b.header.stamp.sec = 100 + k
                 b.transform.translation.y, b.transform.rotation.w = float(k), 1.0
                 moving.send_transform([b])
-                time.sleep(0.05)
             got = buffer.lookup_transform('test_map', 'test_robot', Time(seconds=101.5),
                                           timeout=Duration(seconds=10))
             assert (got.transform.translation.x, got.transform.translation.y) == \
@@ -90,10 +89,9 @@ def test_broadcasters_reach_a_listener_and_bytes_that_do_not_read_are_counted(
             listener.unregister()
 
 
-def test_dq_fk_tf_echo_frames_and_monitor_beside_the_node(processes, tmp_path):
+def test_dq_fk_tf_echo_frames_and_monitor_beside_the_node(processes, dq_fk_robot, tmp_path):
     from dq_fk_ros.ros.executables import executable
-    start(processes, 'dq_fk_node')
-    start(processes, 'fake_joint_publisher', 'mode:=zeros', 'rate_hz:=50.0')
+    dq_fk_robot('rl15')
     echo = processes.start(executable('dq_fk') + ['tf', 'echo', 'world', 'eeCarry_seg6',
                                                   '--count', '3', '--rate', '5'])
     out, _ = echo.communicate(timeout=60)
@@ -197,6 +195,7 @@ def test_a_peer_repeating_one_stamp_loses_no_message_and_every_refusal_is_counte
         listener = tf.TransformListener(buffer, node, spin_thread=True)
         try:
             moving = tf.TransformBroadcaster(node)
+            wait_for_match(moving.pub_tf, listener.tf_thread.subscription)
             other = TransformStamped()
             other.header.frame_id, other.child_frame_id = 'rep_world', 'rep_other'
             other.header.stamp.sec, other.transform.rotation.w = 5, 1.0

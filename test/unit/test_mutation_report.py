@@ -39,14 +39,14 @@ def test_rates_are_killed_over_judged_less_the_listed_equivalents(tmp_path, monk
     assert sorted(by_module) == ['pkg.description.xacro_sandbox', 'pkg.kinematics.dh']
     counts = mutate.tally(by_module['pkg.description.xacro_sandbox'], mutate.equivalents(
         str(listed)))
-    assert (counts['killed'], counts['survived'], counts['equivalent'], counts['not run']) == \
-        (2, 2, 1, 1)
+    assert (counts['killed'], counts['survived'], counts['unreached'], counts['equivalent'],
+            counts['not run']) == (2, 1, 1, 1, 1)
     assert counts['survivors'] == ['pkg.description.xacro_sandbox.x_f__mutmut_3',
                                    'pkg.description.xacro_sandbox.x_f__mutmut_5']
     assert mutate.report(90.0, survivors_of='xacro_sandbox') == 1
     lines = capsys.readouterr().out.splitlines()
     row = next(line for line in lines if line.startswith('pkg.description.xacro_sandbox'))
-    assert row.split()[1:5] == ['2', '2', '1', '50.0'] and row.endswith('BELOW  (1 not run)')
+    assert row.split()[1:6] == ['2', '1', '1', '1', '50.0'] and row.endswith('BELOW  (1 not run)')
     assert 'pkg.kinematics.dh' in next(line for line in lines if '100.0 %' in line)
     assert '    pkg.description.xacro_sandbox.x_f__mutmut_5' in lines
     assert lines[-1] == 'mutate: 1 module(s) below 90 %'
