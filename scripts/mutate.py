@@ -5,13 +5,17 @@ per module against a target, less the mutants reviewed as equivalent.
 
 mutmut (its ``[mutmut]`` section of setup.cfg names the modules and the unit tests that
 judge them) copies the package to ``mutants/``, makes every mutant of every function there
-and runs, for each, the tests that reach that function (it records which at the start). The
-modules run on their Python paths (``DQ_FK_PURE_PYTHON=1``): with the compiled kernel, the C
-CDR and MCAP code loaded, a mutant of a Python reference that the C code stands in for would
-survive untested.
+and runs, for each, the tests that reach that function (it records which at the start).
 
-    scripts/mutate.py [run] [--jobs 2] [--target 90]   # mutmut run, then the report
-    scripts/mutate.py report [--survivors MODULE]       # the last run's figures again
+The package has two builds of its hot paths: the C extensions and the Python references they
+are held equal to (``DQ_FK_PURE_PYTHON=1``). A mutant in the lines that call the C code is
+never run by the tests of the Python build, and one in a reference never by those of the C
+build. So ``run`` runs mutmut once for each (``--modes``), keeps each build's results in
+``.mutation/<build>/``, and the report counts a mutant killed if either build's tests kill
+it: what mutmut, one build a run, cannot do.
+
+    scripts/mutate.py [run] [--modes compiled pure] [--jobs 2]   # mutmut, then the report
+    scripts/mutate.py report [--target 90] [--survivors MODULE]   # the last figures again
 
 A mutant is killed when a test fails, times out or crashes on it; it survives when every
 test passes, and counts as survived also when no test reaches it (``no tests``). Mutants
@@ -19,21 +23,24 @@ judged equivalent (no caller can tell them from the code) are listed in
 ``scripts/mutate_equivalent.txt``, one a line: ``mutmut's mutant name || why``; they leave
 the count. ``mutmut show NAME`` prints a mutant's change; ``mutmut results`` all survivors.
 
-What mutmut cannot do and the old sampler of this script did: mutate code outside
-functions (a module's constants, such as a bound); those are read back by tests that hold
-the bound to docs/security.md. The exit code is 0 (a report, not a gate); every module under
-the target is marked ``BELOW``.
+Neither judges code outside functions (mutmut does not mutate a module's constants, such as
+a bound: tests hold those to docs/security.md) nor code run in a child process (mutmut
+records which tests reach a function in the test process only: the xacro sandbox's child
+shows as unreached). The exit code is 0 (a report, not a gate); every module under the
+target is marked ``BELOW``.
 """
 
 import argparse
 import glob
 import json
 import os
+import shutil
 import subprocess
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 EQUIVALENT = os.path.join(ROOT, 'scripts', 'mutate_equivalent.txt')
+MODES = {'compiled': {}, 'pure': {'DQ_FK_PURE_PYTHON': '1'}}   # build -> its environment
 KILLED = {1, 3, 36, 37, -24, 24, 152, 255, -11, -9}   # mutmut's stats.status_by_exit_code
 SURVIVED = {0}                                        # every test reaching it passed
 UNREACHED = {5, 33}                                   # no test reaches it: not killed either
@@ -52,15 +59,41 @@ def equivalents(path=None) -> dict:
 
 
 def results(root=None) -> dict:
-    """Return ``{module: {mutant name: exit code or None}}`` from mutmut's ``.meta`` files."""
+    """
+    Return ``{module: {mutant name: exit code or None}}`` over the kept builds' results.
+
+    Each build's ``.meta`` files (mutmut's) are read from ``.mutation/<build>/`` (or, with
+    none kept, from ``mutants/``); a mutant takes the first killing code of any build, else
+    the first that ran it, else None.
+    """
     root = root or ROOT
+    tops = sorted(glob.glob(os.path.join(root, '.mutation', '*'))) or \
+        [os.path.join(root, 'mutants')]
     by_module = {}
+    for top in tops:
+        for meta in glob.glob(os.path.join(top, '**', '*.py.meta'), recursive=True):
+            module = os.path.relpath(meta, top)[:-len('.py.meta')].replace(os.sep, '.')
+            with open(meta, encoding='utf-8') as stream:
+                codes = json.load(stream)['exit_code_by_key']
+            merged = by_module.setdefault(module, {})
+            for name, code in codes.items():
+                old = merged.get(name)
+                if old is None or (old not in KILLED and code in KILLED) or \
+                        (old in UNREACHED and code in SURVIVED):
+                    merged[name] = code if code is not None else old
+    return by_module
+
+
+def keep(mode, root=None) -> None:
+    """Copy mutmut's ``.meta`` results of ``mutants/`` to ``.mutation/<mode>/``."""
+    root = root or ROOT
+    target = os.path.join(root, '.mutation', mode)
+    shutil.rmtree(target, ignore_errors=True)
     top = os.path.join(root, 'mutants')
     for meta in glob.glob(os.path.join(top, '**', '*.py.meta'), recursive=True):
-        module = os.path.relpath(meta, top)[:-len('.py.meta')].replace(os.sep, '.')
-        with open(meta, encoding='utf-8') as stream:
-            by_module[module] = dict(json.load(stream)['exit_code_by_key'])
-    return by_module
+        destination = os.path.join(target, os.path.relpath(meta, top))
+        os.makedirs(os.path.dirname(destination), exist_ok=True)
+        shutil.copy2(meta, destination)
 
 
 def tally(codes: dict, equivalent: dict) -> dict:
@@ -111,19 +144,25 @@ def main(argv=None) -> int:
     """Run mutmut (``run``) and print the report, or the report alone (``report``)."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('action', nargs='?', choices=('run', 'report'), default='run')
+    parser.add_argument('--modes', nargs='+', choices=sorted(MODES), default=sorted(MODES))
     parser.add_argument('--jobs', type=int, default=os.cpu_count() or 2)
     parser.add_argument('--target', type=float, default=90.0)
     parser.add_argument('--survivors', metavar='MODULE', help='list this module\'s survivors')
     args = parser.parse_args(argv)
     if args.action == 'run':
         mutmut = os.path.join(os.path.dirname(sys.executable), 'mutmut')
-        env = dict(os.environ, DQ_FK_PURE_PYTHON='1')
-        rc = subprocess.call([mutmut, 'run', '--max-children', str(args.jobs)], cwd=ROOT,
-                             env=env, stdout=subprocess.DEVNULL)
-        if rc != 0:
-            print(f'mutate: mutmut run exited {rc} (see: mutmut run, in {ROOT})',
-                  file=sys.stderr)
-            return rc
+        for mode in args.modes:
+            shutil.rmtree(os.path.join(ROOT, 'mutants'), ignore_errors=True)  # a fresh start
+            print(f'mutate: mutmut run, {mode} build', flush=True)
+            rc = subprocess.call([mutmut, 'run', '--max-children', str(args.jobs)], cwd=ROOT,
+                                 env=dict({k: v for k, v in os.environ.items()
+                                           if k != 'DQ_FK_PURE_PYTHON'}, **MODES[mode]),
+                                 stdout=subprocess.DEVNULL)
+            if rc != 0:
+                print(f'mutate: mutmut run ({mode}) exited {rc} (see: mutmut run, in {ROOT})',
+                      file=sys.stderr)
+                return rc
+            keep(mode)
     report(args.target, args.survivors)
     return 0
 

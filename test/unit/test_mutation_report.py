@@ -58,3 +58,16 @@ def test_the_target_is_a_floor_that_a_module_at_it_meets(tmp_path, monkeypatch, 
     monkeypatch.setattr(mutate, 'ROOT', str(tmp_path))
     monkeypatch.setattr(mutate, 'EQUIVALENT', str(tmp_path / 'none.txt'))
     assert mutate.report(target) == below
+
+
+def test_a_mutant_killed_by_either_build_is_killed(tmp_path, monkeypatch):
+    """The C build's tests never run a reference's lines, the Python build's never the C's."""
+    names = [f'pkg.m.x_f__mutmut_{k}' for k in range(1, 6)]
+    compiled = {names[0]: 1, names[1]: 0, names[2]: 0, names[3]: 33, names[4]: 33}
+    pure = {names[0]: 0, names[1]: 1, names[2]: 0, names[3]: 0, names[4]: 33}
+    for mode, codes in (('compiled', compiled), ('pure', pure)):
+        write_meta(tmp_path, 'pkg.m', codes)
+        mutate.keep(mode, str(tmp_path))
+    merged = mutate.results(str(tmp_path))['pkg.m']
+    assert [merged[n] for n in names] == [1, 1, 0, 0, 33]
+    assert sorted(os.listdir(tmp_path / '.mutation')) == ['compiled', 'pure']
