@@ -607,3 +607,30 @@ def test_tf_reader_reads_as_rosbags_reads_it(transforms):
     assert reader.read(raw) == expected    # the second time from the layout it keeps
     with pytest.raises(CdrError):
         reader.read(raw[:len(raw) // 2] if transforms else b'\x01\x00')
+
+
+def test_a_batch_is_one_run_whatever_the_bytes_of_its_values():
+    """Values right after their count (no padding between) are not part of the layout."""
+    raws = [joint_state_bytes(['a'], [1.0 + k * 2.0 ** -52], [k * 2.0 ** -40]) for k in range(4)]
+    assert raws[0][36] != raws[1][36]   # position 0's first byte follows its count at 32
+    runs = parse_joint_states(raws)
+    assert len(runs) == 1
+    assert runs[0].positions[:, 0].tolist() == [1.0 + k * 2.0 ** -52 for k in range(4)]
+    assert runs[0].velocities[:, 0].tolist() == [k * 2.0 ** -40 for k in range(4)]
+
+
+def test_a_batch_reads_each_messages_header_not_the_first_ones():
+    good = joint_state_bytes(['a', 'b'], [1.0, 2.0])
+    for at, value in ((0, 7), (1, 0)):   # not plain CDR, or big-endian: the same size
+        broken = bytearray(good)
+        broken[at] = value
+        out = parse_joint_states([good, bytes(broken), good])
+        kinds = [type(r).__name__ for r in out]
+        assert kinds == ['JointStateRun', 'MalformedJointState', 'JointStateRun'], (at, kinds)
+
+
+def test_a_batch_reuses_the_names_of_the_cache_while_their_bytes_are_the_same():
+    cache = JointStateNames()
+    first = parse_joint_states([joint_state_bytes(['a', 'b'], [1.0, 2.0])], cache)
+    again = parse_joint_states([joint_state_bytes(['a', 'b'], [3.0, 4.0])], cache)
+    assert again[0].names is first[0].names == ('a', 'b')

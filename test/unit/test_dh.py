@@ -369,3 +369,39 @@ def test_the_variables_read_as_angles_are_the_revolute_and_cylindrical_thetas():
     assert variables.angular.tolist() == [True, False, True, False]  # b stays a length
     assert variables.theta_index.tolist() == [0, -1, 2, 1, -1]
     assert variables.d_index.tolist() == [-1, 1, 3, -1, -1]
+
+
+def test_the_class_methods_are_the_bound_fast_calls():
+    """``forward_all``/``forward`` are bound to the engine per chain; the methods say the same."""
+    chain, _, _ = random_chain(np.random.default_rng(7), 'standard')
+    q = np.random.default_rng(8).uniform(-1, 1, chain.dof)
+    frames = KinematicChain.forward_all(chain, q)
+    np.testing.assert_array_equal(frames, chain.forward_all(q))
+    out = np.empty_like(frames)
+    assert KinematicChain.forward_all(chain, q, out) is out
+    np.testing.assert_array_equal(out, frames)
+    end = KinematicChain.forward(chain, q)
+    assert isinstance(end, DualQuaternion)
+    fast = chain.forward(q)
+    np.testing.assert_array_equal(np.concatenate([end.real, end.dual]),
+                                  np.concatenate([fast.real, fast.dual]))
+
+
+def test_a_chain_pickles_without_its_generated_code_and_computes_the_same():
+    """A fleet's worker processes get chains by pickle: bound calls made again on load."""
+    import pickle
+    chain, _, _ = random_chain(np.random.default_rng(9), 'modified')
+    chain.frame_poses_code   # made on first use: not pickled
+    state = chain.__getstate__()
+    assert not {'frame_poses_code', 'forward_all', 'forward'} & set(state)
+    copy = pickle.loads(pickle.dumps(chain))
+    q = np.random.default_rng(10).uniform(-1, 1, chain.dof)
+    np.testing.assert_array_equal(copy.forward_all(q), chain.forward_all(q))
+    assert copy.joint_names == chain.joint_names
+
+
+def test_joint_velocities_of_the_wrong_count_are_one_clear_error():
+    chain, _, _ = random_chain(np.random.default_rng(11), 'standard')
+    with pytest.raises(ValueError, match=rf'^expected {chain.dof} joint velocities, got shape '
+                                         rf'\({chain.dof + 1},\)$'):
+        chain.twist(np.zeros(chain.dof), np.zeros(chain.dof + 1))
