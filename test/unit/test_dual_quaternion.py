@@ -274,3 +274,64 @@ def test_pose_xyzw_in_is_the_inverse_frame_times_the_pose():
     assert (got[:, 6] >= 0).all()
     for pose, matrix in zip(got, expected):
         np.testing.assert_allclose(hm.matrix_of_pose(pose[:3], pose[3:]), matrix, atol=1e-12)
+
+
+def test_negation_negates_every_coefficient():
+    h = DualQuaternion.from_pose([0.0, 0.6, 0.0, 0.8], [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal((-h).coeffs, -h.coeffs)
+
+
+def test_the_norm_of_a_dual_number_and_of_zero():
+    """``||h|| = |r| + eps (r . d) / |r|``; zero's norm is zero, not a division by it."""
+    h = DualQuaternion(np.array([2.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
+    assert h.norm() == (2.0, 1.0)
+    assert DualQuaternion(np.zeros(8)).norm() == (0.0, 0.0)
+
+
+def test_is_unit_needs_both_conditions_and_its_tolerance_is_inclusive():
+    assert DualQuaternion.identity().is_unit(tol=0.0)   # exactly 1 and exactly 0
+    assert not DualQuaternion(np.array([1.0 + 1e-6, 0, 0, 0, 0, 0, 0, 0])).is_unit()
+    assert not DualQuaternion(np.array([1.0, 0, 0, 0, 0.5, 0, 0, 0])).is_unit()  # r . d != 0
+    assert DualQuaternion(np.array([1.0 + 1e-10, 0, 0, 0, 0, 0, 0, 0])).is_unit()
+
+
+def test_zero_has_no_inverse_and_says_why():
+    with pytest.raises(ZeroDivisionError, match='^dual quaternion with zero real part has no '
+                                                'inverse$'):
+        DualQuaternion(np.array([0.0, 0, 0, 0, 1.0, 0, 0, 0])).inverse()
+
+
+@pytest.mark.parametrize('dist', [0.5, 2.0])
+def test_a_pure_translation_screws_along_its_direction_however_short(dist):
+    theta, d, axis, moment = DualQuaternion.from_pose([1.0, 0.0, 0.0, 0.0],
+                                                      [dist, 0.0, 0.0]).screw_parameters()
+    assert (theta, d) == (0.0, pytest.approx(dist))
+    np.testing.assert_allclose(axis, [1.0, 0.0, 0.0])
+    np.testing.assert_array_equal(moment, np.zeros(3))
+
+
+def of_xyzw(pose):
+    """The DualQuaternion of a pose x y z qx qy qz qw."""
+    return DualQuaternion.from_pose([pose[6], pose[3], pose[4], pose[5]], pose[:3])
+
+
+def test_a_pose_in_a_frame_for_one_pose_and_for_a_grid_of_poses():
+    """``(7,)`` and ``(a, b, 7)`` arrays as well as ``(n, 7)``: the last axis is the pose."""
+    rng = np.random.default_rng(3)
+
+    def poses(shape):
+        q = rng.normal(size=shape + (4,))
+        return np.concatenate([rng.normal(size=shape + (3,)),
+                               q / np.linalg.norm(q, axis=-1, keepdims=True)], axis=-1)
+    frames, targets = poses((2, 3)), poses((2, 3))
+    grid = pose_xyzw_in(frames, targets)
+    assert grid.shape == (2, 3, 7)
+    for i in range(2):
+        for j in range(3):
+            one = pose_xyzw_in(frames[i, j], targets[i, j])
+            assert one.shape == (7,)
+            np.testing.assert_allclose(grid[i, j], one, atol=1e-12)
+            expected = (of_xyzw(frames[i, j]).inverse() * of_xyzw(targets[i, j])).to_pose_xyzw()
+            if expected[6] < 0:
+                expected[3:] = -expected[3:]
+            np.testing.assert_allclose(one, expected, atol=1e-12)
