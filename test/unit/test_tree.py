@@ -55,3 +55,21 @@ def test_every_component_of_an_unnormalised_quaternion_is_scaled():
     edges = {'a': ('w', (0.5, -1.0, 2.0, 1.0, 2.0, 2.0, 4.0))}  # norm 5
     pose = compose_tree(edges, 'w')['a']
     np.testing.assert_allclose(pose, [0.5, -1.0, 2.0, 0.2, 0.4, 0.4, 0.8], atol=1e-15)
+
+
+def test_positions_whose_sum_overflows_are_refused_as_non_finite_ones_are():
+    """A composed pose adds positions: 1e308 and 1e308 could not give a finite one."""
+    for position in [(1e308, 0.0, 1e308), (1e308, 1e308, 0.0), (0.0, 1e308, 1e308),
+                     (math.nan, 0.0, 0.0), (0.0, 0.0, -math.inf)]:
+        assert coeffs_from_pose(position + (0.0, 0.0, 0.0, 1.0)) is None, position
+    assert coeffs_from_pose((1e307, 1e307, 1e307, 0.0, 0.0, 0.0, 1.0)) is not None
+
+
+def test_a_cycle_or_a_bad_pose_skips_that_child_not_its_siblings():
+    good = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    bad = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)   # no rotation: refused
+    edges = {'bad': ('root', bad), 'ok': ('root', good)}
+    assert set(compose_tree(edges, 'root')) == {'ok'}
+    cycle = {'a': ('root', good), 'root': ('a', good), 'b': ('a', good)}  # a's children: root, b
+    assert set(compose_tree(cycle, 'root')) == {'a', 'b'}
+    assert depths(cycle, 'root') == {'a': 1, 'b': 2}
