@@ -402,6 +402,8 @@ def test_counting_a_rejection_counts_one_by_default():
     merger = JointStateMerger(NAMES, LIMITS)
     merger.count_rejected('malformed_cdr')
     assert merger.counts['rejected'] == merger.counts['rejected_malformed_cdr'] == 1
+    merger.count_rejected('malformed_cdr', 40)   # a batch's malformed messages at once
+    assert merger.counts['rejected'] == merger.counts['rejected_malformed_cdr'] == 41
 
 
 def test_values_exactly_at_the_limits_are_inside_in_batches_too():
@@ -417,7 +419,7 @@ def test_a_rejected_message_has_no_stamp():
 
 def test_sequence_gaps_count_what_one_publisher_lost():
     gaps = SequenceGaps()
-    assert [gaps.note(s) for s in (1, 2)] == [0, 0] and gaps.lost == 0  # not confirmed yet
+    assert [gaps.note(s) for s in (1, 5)] == [0, 0] and gaps.lost == 0  # not confirmed yet
     gaps.single_publisher(True)
     assert [gaps.note(s) for s in (3, 4, 7, 8, 18, None, 19)] == [0, 0, 2, 0, 9, 0, 0]
     assert gaps.lost == 11
