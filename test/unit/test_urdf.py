@@ -2,6 +2,7 @@
 
 import json
 import math
+import re
 import xml.etree.ElementTree as ET
 
 from dq_fk_ros.description import to_urdf
@@ -305,3 +306,33 @@ def test_link_poses_follow_mimic_rows_and_joints_are_frozen():
     joint = urdf_joints(model)[0]
     with pytest.raises(dataclasses.FrozenInstanceError):
         joint.name = 'x'
+
+
+@pytest.mark.parametrize('offset', [(0.3, 0.0, 0.0), (-2.5, 0.0, 0.0), (0.0, 0.7, 0.0),
+                                    (0.0, 0.0, 0.4), (0.0, 0.0, -0.4), (0.2, -0.3, 0.6),
+                                    (1e-3, 0.0, -2.0)])
+def test_a_link_segment_is_a_cylinder_from_the_joint_to_the_next(offset):
+    """The visual of a joint offset: a cylinder of that length whose axis points along it."""
+    from dq_fk_ros.description.to_urdf import _segment
+    from dq_fk_ros.kinematics.dual_quaternion import DualQuaternion
+    t = np.array(offset)
+    visual = ET.fromstring(_segment(DualQuaternion.from_pose([1.0, 0.0, 0.0, 0.0], t)))
+    origin, cylinder = visual.find('origin'), visual.find('geometry/cylinder')
+    np.testing.assert_allclose([float(v) for v in origin.get('xyz').split()], t / 2,
+                               atol=1e-12)
+    roll, pitch, yaw = (float(v) for v in origin.get('rpy').split())
+    rotation = hm.rot_z(yaw) @ hm.rot_y(pitch) @ hm.rot_x(roll)   # URDF's fixed-axis rpy
+    np.testing.assert_allclose(rotation[:3, :3] @ [0.0, 0.0, 1.0], t / np.linalg.norm(t),
+                               atol=1e-12)
+    assert float(cylinder.get('length')) == pytest.approx(np.linalg.norm(t), abs=1e-12)
+    assert visual.find('material').get('name') == 'dq_fk_grey'
+
+
+def test_zeros_are_written_as_0_and_the_material_is_defined_once():
+    text = robot_to_urdf(load_robot_description(shipped_robot_path('rl15')))
+    numbers = re.findall(r'(?<=["\s])-?[0-9.e+-]+(?=["\s])', text)
+    assert numbers and not {'0.0', '-0.0'} & set(numbers) and '0' in numbers
+    robot = ET.fromstring(text)
+    materials = [m for m in robot.findall('material')]
+    assert [(m.get('name'), m.find('color').get('rgba')) for m in materials] == \
+        [('dq_fk_grey', '0.6 0.6 0.65 1')]
