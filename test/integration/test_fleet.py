@@ -537,8 +537,8 @@ def test_a_signal_at_any_moment_exits_quietly_and_a_new_run_resumes(signal_fleet
             continue
         # while importing, SIGTERM may come before the program's handler is set, when the
         # system's default ends the process by the signal (no output: nothing ran yet)
-        allowed = {128 + signum} | ({-signum} if moment == 'importing' and
-                                   signum == signal.SIGTERM else set())
+        early = moment == 'importing' and signum == signal.SIGTERM
+        allowed = {128 + signum} | ({-signum} if early else set())
         assert child.returncode in allowed, (moment, child.returncode, err[-2000:])
         assert left == [], (moment, left)
         assert 'Traceback' not in err and 'Warning' not in err, (moment, err[-2000:])

@@ -311,7 +311,7 @@ def test_a_pure_translation_screws_along_its_direction_however_short(dist):
 
 
 def of_xyzw(pose):
-    """The DualQuaternion of a pose x y z qx qy qz qw."""
+    """Return the DualQuaternion of a pose x y z qx qy qz qw."""
     return DualQuaternion.from_pose([pose[6], pose[3], pose[4], pose[5]], pose[:3])
 
 

@@ -333,6 +333,6 @@ def test_zeros_are_written_as_0_and_the_material_is_defined_once():
     numbers = re.findall(r'(?<=["\s])-?[0-9.e+-]+(?=["\s])', text)
     assert numbers and not {'0.0', '-0.0'} & set(numbers) and '0' in numbers
     robot = ET.fromstring(text)
-    materials = [m for m in robot.findall('material')]
+    materials = robot.findall('material')
     assert [(m.get('name'), m.find('color').get('rgba')) for m in materials] == \
         [('dq_fk_grey', '0.6 0.6 0.65 1')]
