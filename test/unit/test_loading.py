@@ -159,3 +159,27 @@ def test_the_urdf_modules_are_imported_only_for_a_urdf():
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          check=True).stdout.split()
     assert out == ['False', 'True']
+
+
+@pytest.mark.parametrize('suffix', ['', '/.', '/'])
+@pytest.mark.parametrize('name', ['arm.urdf.xacro', 'ARM.URDF.XACRO', 'arm.Xacro'])
+def test_a_link_named_xacro_to_a_urdf_is_refused_as_a_xacro(tmp_path, name, suffix):
+    """The loader goes by the name given: a link called .xacro is run as one, so refused."""
+    plain = tmp_path / 'plain.urdf'
+    plain.write_text('<robot name="r"><link name="a"/></robot>')
+    (tmp_path / name).symlink_to(plain)
+    access = access_to(tmp_path)
+    assert access.check(str(plain)) == os.path.realpath(plain)   # the file itself is allowed
+    with pytest.raises(RobotDescriptionError, match=r'a \.xacro file is a program'):
+        access.check(str(tmp_path / name) + suffix)
+
+
+def test_a_refused_path_is_named_in_at_most_200_characters_and_the_folders_listed(tmp_path):
+    allowed = [str(tmp_path / 'a'), str(tmp_path / 'b')]
+    far = '/nowhere/' + 'x' * 400
+    with pytest.raises(RobotDescriptionError) as caught:
+        access_to(*allowed).check(far)
+    message = str(caught.value)
+    shown = message.split(': not in the folders')[0]
+    assert len(shown) <= 200 and shown.startswith('/nowhere/xxx') and '\n' not in message
+    assert message.endswith(f'(robot_description_dirs: {allowed[0]}, {allowed[1]})')
