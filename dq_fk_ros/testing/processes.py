@@ -64,6 +64,36 @@ class ProcessPool:
         self._procs.append(proc)
         return proc
 
+    def start_program(self, program: str, *params: str, node_name: str | None = None,
+                      namespace: str | None = None, log_level: str = 'warn',
+                      options=(), env=None) -> subprocess.Popen:
+        """
+        Start one of the package's programs (``dq_fk_node``, ``dq_fk_view``, ...).
+
+        :param params: ROS parameters as ``name:=value`` (each one a ``-p``).
+        :param node_name: a name for the program's node (the one named as the program: a
+            program's helper nodes keep theirs); keep names apart where several of one
+            program run on the domain.
+        :param namespace: the node's namespace (its topics and its joint states under it;
+            ``left``, ``/left`` and ``/left/`` are one).
+        :param options: the program's own arguments, before ``--ros-args``.
+        :returns: the process, with ``node_name`` and ``namespace`` set (None, '' if not
+            given).
+        """
+        from dq_fk_ros.ros.executables import executable
+        argv = executable(program) + list(options) + ['--ros-args', '--log-level', log_level]
+        if node_name:
+            argv += ['-r', f'{program}:__node:={node_name}']
+        namespace = '/' + namespace.strip('/') if namespace and namespace.strip('/') else ''
+        if namespace:
+            argv += ['-r', f'__ns:={namespace}']
+        for param in params:
+            argv += ['-p', param]
+        proc = self.start(argv, env=dict(env or {}))
+        proc.node_name = node_name
+        proc.namespace = namespace
+        return proc
+
     def stop(self, proc) -> None:
         """Stop one process (its group): SIGINT, then SIGKILL after ``grace_s``."""
         _signal_group(proc, signal.SIGINT)

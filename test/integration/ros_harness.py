@@ -5,7 +5,6 @@ import itertools
 import os
 import time
 
-from dq_fk_ros.ros.executables import executable
 from dq_fk_ros.ros.node import DqFkNode
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -51,6 +50,8 @@ def start(processes, name, *params, namespace=None, log_level='warn', options=()
     """
     Start one of the package's programs with ``-p`` parameters, reaped by ``processes``.
 
+    The plugin's ``dq_fk_processes.start_program`` with this suite's choices:
+
     ``options`` go before ``--ros-args`` (a program's own command line, dq_fk_foxglove's).
     dq_fk_node, fake_joint_publisher and dq_fk_foxglove run under a unique node name (the process's
     ``node_name``; its private topics are under it: :func:`node_topic`). dq_fk_node sends
@@ -58,21 +59,11 @@ def start(processes, name, *params, namespace=None, log_level='warn', options=()
     set ``publish_frequency``: the tests count and compare updates; test_urdf_node.py
     checks the default (robot_state_publisher's 20 Hz). ``env``: variables set for it alone.
     """
-    argv = executable(name) + list(options) + ['--ros-args', '--log-level', log_level]
-    node_name = None
-    if name in NODE_NAMES:
-        node_name = unique_node_name(NODE_NAMES[name])
-        argv += ['-r', f'{NODE_NAMES[name]}:__node:={node_name}']
-    if namespace:
-        argv += ['-r', f'__ns:={namespace}']
+    node_name = unique_node_name(NODE_NAMES[name]) if name in NODE_NAMES else None
     if name == 'dq_fk_node' and not any(p.startswith('publish_frequency:=') for p in params):
         params = (EVERY_UPDATE,) + params
-    for p in params:
-        argv += ['-p', p]
-    proc = processes.start(argv, env=dict(env or {}))
-    proc.node_name = node_name
-    proc.namespace = (namespace or '').rstrip('/')
-    return proc
+    return processes.start_program(name, *params, node_name=node_name, namespace=namespace,
+                                   log_level=log_level, options=options, env=env)
 
 
 def node_topic(proc, relative):

@@ -11,7 +11,7 @@ import subprocess
 import sys
 import textwrap
 
-from dq_fk_ros.testing import assert_pose_close
+from dq_fk_ros.testing import assert_pose_close, next_message, wait_until
 from dq_fk_ros.testing.robot import RobotError
 import numpy as np
 import pytest
@@ -110,6 +110,27 @@ def test_joints_replayed_from_a_bag(dq_fk_robot, tmp_path):
                                       timeout=Duration(seconds=20))
     pose = robot.buffer.lookup_transform('world', 'eeCarry_seg6', Time(nanoseconds=stamp))
     assert_pose_close(pose, rl15_truth(q), atol_m=1e-9, atol_rad=1e-9)
+
+
+def test_a_program_of_the_package_under_a_name_and_namespace(dq_fk_processes):
+    """``start_program``: the package's programs with ROS parameters, for tests of them."""
+    import rclpy
+    from sensor_msgs.msg import JointState
+    proc = dq_fk_processes.start_program('fake_joint_publisher', 'mode:=fixed',
+                                         'positions:=[0.1, 0.2, 0.3, 0.4, 0.5, 0.6]',
+                                         node_name='arm_source', namespace='/left/')
+    assert (proc.node_name, proc.namespace) == ('arm_source', '/left')
+    msg = next_message(JointState, '/left/joint_states', timeout_s=20)
+    assert list(msg.position) == pytest.approx([0.1, 0.2, 0.3, 0.4, 0.5, 0.6])
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    probe = rclpy.create_node('plugin_graph_probe', context=context)
+    try:
+        assert wait_until(lambda: ('arm_source', '/left') in
+                          probe.get_node_names_and_namespaces(), 10)
+    finally:
+        probe.destroy_node()
+        context.try_shutdown()
 
 
 def test_a_failing_test_of_a_user_leaves_no_process_and_the_plugin_loads_by_itself(
