@@ -219,3 +219,56 @@ def test_the_readme_ur5_resolves_from_this_venv_with_nothing_set():
     folder = resolver.find('example-robot-data')   # the URDFs' name; the index's too
     assert os.path.isfile(os.path.join(folder, 'robots', 'ur_description', 'urdf',
                                        'ur5_robot.urdf'))
+
+
+def _package(folder, name):
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / 'package.xml').write_text(f'<package format="3"><name>{name}</name></package>')
+
+
+def test_the_crawl_goes_six_folders_down_and_no_further(tmp_path):
+    from dq_fk_ros.description import packages
+    assert packages.MAX_SEARCH_DEPTH == 6
+    six = tmp_path.joinpath(*[f'e{k}' for k in range(1, 7)])
+    seven = tmp_path.joinpath(*[f'f{k}' for k in range(1, 8)])
+    _package(six, 'six_down')      # the crawl's last level
+    _package(seven, 'seven_down')  # one past it
+    resolver = PackageResolver(environ={'ROS_PACKAGE_PATH': str(tmp_path)})
+    assert resolver.find('six_down') == str(six)
+    with pytest.raises(PackageNotFound):
+        resolver.find('seven_down')
+    _package(tmp_path / 'outer', 'outer')
+    _package(tmp_path / 'outer' / 'inner', 'inner')   # a package's folders are not crawled
+    resolver = PackageResolver(environ={'ROS_PACKAGE_PATH': str(tmp_path)})
+    assert resolver.find('outer') == str(tmp_path / 'outer')
+    with pytest.raises(PackageNotFound):
+        resolver.find('inner')
+
+
+def test_the_crawl_looks_at_a_bounded_number_of_folders_in_name_order(tmp_path, monkeypatch):
+    from dq_fk_ros.description import packages
+    monkeypatch.setattr(packages, 'MAX_SEARCH_FOLDERS', 5)   # the root and four more
+    for name in 'jihgfedcba':
+        _package(tmp_path / name, f'pkg_{name}')
+    found = [os.path.basename(f) for f in packages._package_folders(str(tmp_path))]
+    assert found == ['a', 'b', 'c', 'd']
+
+
+def test_the_ament_index_and_the_share_folder_are_both_needed(tmp_path):
+    prefix = tmp_path / 'install'
+    index = prefix / 'share' / 'ament_index' / 'resource_index' / 'packages'
+    index.mkdir(parents=True)
+    (index / 'listed_only').write_text('')            # no share/listed_only
+    _package(prefix / 'share' / 'folder_only', 'folder_only')   # not in the index
+    resolver = PackageResolver(environ={'AMENT_PREFIX_PATH': str(prefix)})
+    for name in ('listed_only', 'folder_only'):
+        with pytest.raises(PackageNotFound):
+            resolver.find(name)
+
+
+@pytest.mark.parametrize('name', ['../etc', 'a/b', '', '.hidden', 'x' * 300 + '/'])
+def test_a_name_that_is_no_package_name_is_refused_as_such(tmp_path, name):
+    resolver = PackageResolver(environ={'ROS_PACKAGE_PATH': str(tmp_path)})
+    with pytest.raises(PackageNotFound) as caught:
+        resolver.find(name)
+    assert str(caught.value) == f'package {name[:80]!r}: not a package name'   # 80 at most
