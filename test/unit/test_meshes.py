@@ -138,8 +138,10 @@ def test_a_mesh_is_read_from_the_descriptor_it_was_checked_by(tmp_path):
     fifo = tmp_path / 'pkg' / 'meshes' / 'fifo.stl'
     os.mkfifo(fifo)
     (tmp_path / 'away').symlink_to(tmp_path / 'pkg')
-    for path in (link, fifo, good.parent, tmp_path / 'away' / 'meshes' / 'arm.stl'):
-        with pytest.raises(ValueError):
+    for path, why in ((link, r'cannot be opened \(Too many levels of symbolic links\)'),
+                      (fifo, 'not a regular file'), (good.parent, 'not a regular file'),
+                      (tmp_path / 'away' / 'meshes' / 'arm.stl', 'reached through a link')):
+        with pytest.raises(ValueError, match=f'^{why}$'):   # O_NOFOLLOW, O_NONBLOCK, fstat
             read_mesh_file(str(path))
     flipping = tmp_path / 'pkg' / 'meshes' / 'flip.stl'
     flipping.write_bytes(b'solid flip\nendsolid flip\n')
@@ -223,3 +225,50 @@ def test_a_mesh_reached_through_a_link_that_renames_is_not_served(tmp_path):
     assets.replace(robot(*uris))
     assert assets.fetch('package://arm/meshes/a.stl') is None
     assert assets.fetch('package://arm/parts/c.stl') == b'solid c\nendsolid c\n'
+
+
+def test_a_mesh_is_read_whole_up_to_the_bound_and_never_past_it(tmp_path, monkeypatch):
+    """The bound holds on the bytes read, also for a file that grows after its fstat."""
+    from dq_fk_ros.description import meshes
+    monkeypatch.setattr(meshes, 'MAX_MESH_BYTES', (3 << 20) + 5)   # 3 MiB and 5 bytes
+    exact = tmp_path / 'exact.stl'
+    exact.write_bytes(os.urandom((3 << 20) + 5))
+    assert meshes.read_mesh_file(str(exact)) == exact.read_bytes()   # read in 1 MiB reads
+    over = tmp_path / 'over.stl'
+    over.write_bytes(os.urandom((3 << 20) + 6))
+    with pytest.raises(ValueError, match='^larger than 3 MiB$'):
+        meshes.read_mesh_file(str(over))
+    with pytest.raises(ValueError, match='^larger than 3 MiB$'):
+        meshes.check_mesh_file(str(over))
+    meshes.check_mesh_file(str(exact))   # at the bound: allowed
+    with pytest.raises(ValueError, match='^not a regular file$'):
+        meshes.check_mesh_file(str(tmp_path))
+    with pytest.raises(ValueError, match=r'^cannot be read \(No such file or directory\)$'):
+        meshes.check_mesh_file(str(tmp_path / 'none.stl'))
+    # the bound at a read's end: 3 MiB read in three reads, then one byte more
+    monkeypatch.setattr(meshes, 'MAX_MESH_BYTES', 3 << 20)
+    (tmp_path / 'grown.stl').write_bytes(os.urandom((3 << 20) + 1))
+    real_fstat = os.fstat
+
+    def fstat_before_growth(fd):   # as if the file grew after it was checked
+        info = real_fstat(fd)
+        return os.stat_result(info[:6] + (10,) + info[7:10])
+    monkeypatch.setattr(os, 'fstat', fstat_before_growth)
+    for path in (over, tmp_path / 'grown.stl'):
+        with pytest.raises(ValueError, match='^larger than 3 MiB$'):
+            meshes.read_mesh_file(str(path))
+
+
+def test_a_mesh_descriptor_is_not_inherited_by_child_processes(tmp_path, monkeypatch):
+    import fcntl
+    from dq_fk_ros.description.meshes import read_mesh_file
+    mesh = tmp_path / 'arm.stl'
+    mesh.write_bytes(b'solid arm\nendsolid arm\n')
+    flags, real_read = [], os.read
+
+    def read(fd, n):
+        flags.append(fcntl.fcntl(fd, fcntl.F_GETFD) & fcntl.FD_CLOEXEC)
+        return real_read(fd, n)
+    monkeypatch.setattr(os, 'read', read)
+    assert read_mesh_file(str(mesh)) == mesh.read_bytes()
+    assert flags and all(flags)
