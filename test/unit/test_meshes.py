@@ -258,17 +258,3 @@ def test_a_mesh_is_read_whole_up_to_the_bound_and_never_past_it(tmp_path, monkey
         with pytest.raises(ValueError, match='^larger than 3 MiB$'):
             meshes.read_mesh_file(str(path))
 
-
-def test_a_mesh_descriptor_is_not_inherited_by_child_processes(tmp_path, monkeypatch):
-    import fcntl
-    from dq_fk_ros.description.meshes import read_mesh_file
-    mesh = tmp_path / 'arm.stl'
-    mesh.write_bytes(b'solid arm\nendsolid arm\n')
-    flags, real_read = [], os.read
-
-    def read(fd, n):
-        flags.append(fcntl.fcntl(fd, fcntl.F_GETFD) & fcntl.FD_CLOEXEC)
-        return real_read(fd, n)
-    monkeypatch.setattr(os, 'read', read)
-    assert read_mesh_file(str(mesh)) == mesh.read_bytes()
-    assert flags and all(flags)
