@@ -15,6 +15,7 @@ build. So ``run`` runs mutmut once for each (``--modes``), keeps each build's re
 it: what mutmut, one build a run, cannot do.
 
     scripts/mutate.py [run] [--modes compiled pure] [--jobs 2]   # mutmut, then the report
+    scripts/mutate.py run --only 'dq_fk_ros.ros.conversions*'   # some mutants again
     scripts/mutate.py report [--target 90] [--survivors MODULE]   # the last figures again
 
 A mutant is killed when a test fails, times out or crashes on it; it survives when every
@@ -84,6 +85,16 @@ def results(root=None) -> dict:
     return by_module
 
 
+def restore(mode, root=None) -> None:
+    """Copy ``.mutation/<mode>/``'s kept results back into ``mutants/`` (mutmut goes on)."""
+    root = root or ROOT
+    kept = os.path.join(root, '.mutation', mode)
+    for meta in glob.glob(os.path.join(kept, '**', '*.py.meta'), recursive=True):
+        destination = os.path.join(root, 'mutants', os.path.relpath(meta, kept))
+        os.makedirs(os.path.dirname(destination), exist_ok=True)
+        shutil.copy2(meta, destination)
+
+
 def keep(mode, root=None) -> None:
     """Copy mutmut's ``.meta`` results of ``mutants/`` to ``.mutation/<mode>/``."""
     root = root or ROOT
@@ -145,6 +156,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('action', nargs='?', choices=('run', 'report'), default='run')
     parser.add_argument('--modes', nargs='+', choices=sorted(MODES), default=sorted(MODES))
+    parser.add_argument('--only', nargs='+', metavar='PATTERN', default=[],
+                        help="mutmut's mutant names to run (globs: 'dq_fk_ros.ros.conversions*')")
     parser.add_argument('--jobs', type=int, default=os.cpu_count() or 2)
     parser.add_argument('--target', type=float, default=90.0)
     parser.add_argument('--survivors', metavar='MODULE', help='list this module\'s survivors')
@@ -152,9 +165,13 @@ def main(argv=None) -> int:
     if args.action == 'run':
         mutmut = os.path.join(os.path.dirname(sys.executable), 'mutmut')
         for mode in args.modes:
-            shutil.rmtree(os.path.join(ROOT, 'mutants'), ignore_errors=True)  # a fresh start
+            # a fresh start, or (--only) this build's earlier results carried on
+            shutil.rmtree(os.path.join(ROOT, 'mutants'), ignore_errors=True)
+            if args.only:
+                restore(mode)
             print(f'mutate: mutmut run, {mode} build', flush=True)
-            rc = subprocess.call([mutmut, 'run', '--max-children', str(args.jobs)], cwd=ROOT,
+            rc = subprocess.call([mutmut, 'run', '--max-children', str(args.jobs)] + args.only,
+                                 cwd=ROOT,
                                  env=dict({k: v for k, v in os.environ.items()
                                            if k != 'DQ_FK_PURE_PYTHON'}, **MODES[mode]),
                                  stdout=subprocess.DEVNULL)

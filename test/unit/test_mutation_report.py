@@ -71,3 +71,7 @@ def test_a_mutant_killed_by_either_build_is_killed(tmp_path, monkeypatch):
     merged = mutate.results(str(tmp_path))['pkg.m']
     assert [merged[n] for n in names] == [1, 1, 0, 0, 33]
     assert sorted(os.listdir(tmp_path / '.mutation')) == ['compiled', 'pure']
+    (tmp_path / 'mutants' / 'pkg' / 'm.py.meta').unlink()
+    mutate.restore('compiled', str(tmp_path))   # a later run of some mutants goes on from it
+    restored = json.loads((tmp_path / 'mutants' / 'pkg' / 'm.py.meta').read_text())
+    assert restored['exit_code_by_key'] == compiled
