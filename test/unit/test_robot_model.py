@@ -345,3 +345,37 @@ def test_a_yaml_file_that_is_no_robot_is_not_quoted_for_a_remote_client():
             parse_robot_description(text, 'f.yaml')
         assert 'hunter2' not in caught.value.public and 'root:' not in caught.value.public
         assert caught.value.public.startswith('f.yaml: ')
+
+
+@pytest.mark.parametrize('robot', ['rl15', 'panda', 'ur5e'])
+def test_the_array_forms_are_the_pose_lists_into_given_arrays_and_in_batches(robot):
+    """frame_pose_arrays, transform_pose_array, frame_pose_arrays_batch: frame_poses' values."""
+    model = load_robot_description(shipped_robot_path(robot))
+    qs = np.random.default_rng(5).uniform(-1, 1, (3, model.dof))
+    absolute, relative = (np.array(p) for p in model.frame_poses(qs[0]))
+    got_absolute, got_relative = model.frame_pose_arrays(qs[0])
+    np.testing.assert_allclose(got_absolute, absolute, atol=1e-12)
+    np.testing.assert_allclose(got_relative, relative, atol=1e-12)
+    out = (np.empty_like(got_absolute), np.empty_like(got_relative))
+    returned = model.frame_pose_arrays(qs[0], *out)
+    assert returned[0] is out[0] and returned[1] is out[1]
+    into = np.empty_like(got_relative)
+    assert model.transform_pose_array(qs[0], into) is into
+    np.testing.assert_allclose(into, relative, atol=1e-12)
+    batch_absolute, batch_relative = model.frame_pose_arrays_batch(qs)
+    given = (np.empty((5,) + batch_absolute.shape[1:]), np.empty((5,) + batch_relative.shape[1:]))
+    again = model.frame_pose_arrays_batch(qs, given)   # views of the first rows of ``given``
+    assert np.shares_memory(again[0], given[0]) and np.shares_memory(again[1], given[1])
+    np.testing.assert_array_equal(given[0][:3], batch_absolute)
+    np.testing.assert_array_equal(given[1][:3], batch_relative)
+    for k, q in enumerate(qs):
+        one_absolute, one_relative = (np.array(p) for p in model.frame_poses(q))
+        np.testing.assert_allclose(batch_absolute[k], one_absolute, atol=1e-12)
+        np.testing.assert_allclose(batch_relative[k], one_relative, atol=1e-12)
+
+
+def test_tf_frame_ids_take_the_prefix_and_a_dh_fixed_frame_keeps_its_name():
+    model = load_robot_description(shipped_robot_path('rl15'))
+    assert model.tf_frame_id('eeCarry_seg6') == 'eeCarry_seg6'   # no prefix by default
+    assert model.tf_frame_id('eeCarry_seg6', 'left/') == 'left/eeCarry_seg6'
+    assert model.tf_frame_id(model.fixed_frame, 'left/') == model.fixed_frame
