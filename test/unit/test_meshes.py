@@ -257,4 +257,3 @@ def test_a_mesh_is_read_whole_up_to_the_bound_and_never_past_it(tmp_path, monkey
     for path in (over, tmp_path / 'grown.stl'):
         with pytest.raises(ValueError, match='^larger than 3 MiB$'):
             meshes.read_mesh_file(str(path))
-
