@@ -263,6 +263,13 @@ function setRobotVisible(on) {  // for tests and screenshots: the robot's pixels
 }
 view.setRobotVisible = setRobotVisible;
 
+function drawNow() {  // for tests: draw the scene at once; the picture as a PNG data URL
+  if (!renderer) return null;
+  renderer.render(scene, camera);
+  return renderer.domElement.toDataURL('image/png');
+}
+view.drawNow = drawNow;
+
 function frameTheRobot(count) {
   const points = Object.values(view.frames).map((f) => new THREE.Vector3(...f.position));
   if (points.length === 0) return;

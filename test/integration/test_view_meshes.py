@@ -10,6 +10,7 @@ of the URDF is compared with pinocchio's placement of its link times the visual'
 import math
 import os
 import shutil
+import time
 import urllib.error
 import urllib.request
 import xml.etree.ElementTree as ElementTree
@@ -87,29 +88,34 @@ def show(processes, urdf_path, *view_args, positions=None):
     return model, positions, view, url
 
 
-def read_lines(proc, seconds):
-    """Return the lines ``proc`` printed that no earlier call returned, waiting ``seconds``."""
-    return process_lines(proc).new_lines(seconds)
+def robot_pixels(browser, tmp_path, name, timeout_s=30.0):
+    """
+    Return the canvas drawn with and without the robot: ``(image, mask of its pixels)``.
 
-
-def robot_pixels(browser, tmp_path, name):
-    """Screenshots with and without the robot: ``(image, mask of the robot's pixels)``."""
+    Drawn at once by the page (``dqFkView.drawNow``: no waiting for the browser to show a
+    frame), again until the robot has pixels or ``timeout_s`` (a loaded machine's WebGL
+    may take a while to have every mesh's shaders ready). A screenshot of the page is kept.
+    """
+    import base64
+    import io
     from matplotlib.image import imread
+
+    def picture(visible):
+        browser.execute_script(f'window.dqFkView.setRobotVisible({str(visible).lower()})')
+        url = browser.execute_script('return window.dqFkView.drawNow()')
+        return imread(io.BytesIO(base64.b64decode(url.split(',', 1)[1])))[:, :, :3]
+    deadline = time.monotonic() + timeout_s
+    while True:
+        image, without = picture(True), picture(False)
+        robot = np.abs(image - without).max(axis=2) > 0.05
+        if robot.mean() > 0.01 or time.monotonic() > deadline:
+            break
     browser.execute_script('window.dqFkView.setRobotVisible(true)')
-    wait_for(browser, 'return new Promise((r) => requestAnimationFrame(() => '
-                      'requestAnimationFrame(() => r(true))))')
     shot = tmp_path / f'{name}.png'
     browser.save_screenshot(str(shot))
-    browser.execute_script('window.dqFkView.setRobotVisible(false)')
-    wait_for(browser, 'return new Promise((r) => requestAnimationFrame(() => '
-                      'requestAnimationFrame(() => r(true))))')
-    bare = tmp_path / f'{name}-bare.png'
-    browser.save_screenshot(str(bare))
-    browser.execute_script('window.dqFkView.setRobotVisible(true)')
     if os.environ.get(SCREENSHOT_DIR_ENV):
         shutil.copy(shot, os.path.join(os.environ[SCREENSHOT_DIR_ENV], f'dq_fk_view_{name}.png'))
-    image, without = imread(shot)[:, :, :3], imread(bare)[:, :, :3]
-    return image, np.abs(image - without).max(axis=2) > 0.05
+    return image, robot
 
 
 @pytest.mark.parametrize('name', sorted(VENDORS))
@@ -184,7 +190,10 @@ def test_a_missing_mesh_is_a_grey_box_and_one_log_line(processes, browser, tmp_p
                             'upper_arm_link': 'loaded', 'forearm_link': 'placeholder',
                             'wrist_1_link': 'loaded', 'wrist_2_link': 'loaded',
                             'wrist_3_link': 'loaded'}
-    lines = [line for line in read_lines(view, 2.0) if 'no_such_mesh' in line]
+    reader = process_lines(view)
+    assert reader.until(lambda line: 'no_such_mesh' in line, 30), 'no line about the mesh'
+    reader.new_lines(1.0)   # a second line would come with the first: a window for it
+    lines = [line for line in reader.lines if 'no_such_mesh' in line]
     assert len(lines) == 1 and lines[0].startswith(
         'dq_fk_view: mesh package://example-robot-data/robots/ur_description/meshes/ur5/'
         'visual/no_such_mesh.dae: cannot be read (No such file or directory)')
