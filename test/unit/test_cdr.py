@@ -634,3 +634,40 @@ def test_a_batch_reuses_the_names_of_the_cache_while_their_bytes_are_the_same():
     first = parse_joint_states([joint_state_bytes(['a', 'b'], [1.0, 2.0])], cache)
     again = parse_joint_states([joint_state_bytes(['a', 'b'], [3.0, 4.0])], cache)
     assert again[0].names is first[0].names == ('a', 'b')
+
+
+@pytest.mark.parametrize('starts, lengths', [([-1], [10]), ([0], [-1]), ([0, 40], [20, 20]),
+                                             ([60], [1])])
+def test_a_span_outside_the_buffer_is_refused_in_one_line(starts, lengths):
+    joined = joint_state_bytes(['a'], [1.0])   # 52 bytes
+    assert len(joined) == 52
+    with pytest.raises(ValueError, match='^a message span lies outside the buffer$'):
+        group_joint_state_spans(joined, starts, lengths)
+
+
+def test_at_most_eight_layouts_are_matched_against_the_whole_batch(monkeypatch):
+    """Each further layout is read for its one message: the work stays bounded."""
+    from dq_fk_ros.messages import cdr
+    sizes = []
+    matches = cdr._Layout.matches
+
+    def counting(self, joined, starts, lengths, rows):
+        sizes.append(len(starts))
+        return matches(self, joined, starts, lengths, rows)
+    monkeypatch.setattr(cdr._Layout, 'matches', counting)
+    names = [f'n{k}' for k in range(12)]   # twelve layouts of one size, twice each
+    raws = [joint_state_bytes([name], [float(k)]) for k in range(2) for name in names]
+    assert len({len(r) for r in raws}) == 1
+    runs = parse_joint_states(raws)
+    assert [r.names for r in runs] == [(name,) for name in names] * 2
+    assert sizes == [24 - 2 * k for k in range(8)] + [1] * 8   # 8 of the batch, then one each
+    joined = b''.join(raws)
+    starts, lengths = np.arange(24) * len(raws[0]), np.full(24, len(raws[0]))
+    for call in (lambda: cdr.parse_joint_state_spans(joined, starts, lengths),
+                 lambda: cdr.group_joint_state_spans(joined, starts, lengths)):
+        sizes.clear()
+        call()
+        assert sizes == [24 - 2 * k for k in range(8)] + [1] * 8, call
+    sizes.clear()
+    parse_joint_states(raws, max_layouts=2)
+    assert sizes == [24, 22] + [1] * 20
