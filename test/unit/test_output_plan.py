@@ -115,3 +115,32 @@ def test_the_ur5_twist_frame_is_on_tf(dh_frames):
     plan = OutputPlan(model, dh_frames=dh_frames)
     names = [model.frame_names[k] for k in plan.twist_frames]
     assert names == (['tool0'] if dh_frames is None else ['dh6', 'tool0'])
+
+
+@pytest.mark.parametrize('given_plan', [False, True])
+def test_the_message_objects_below_a_floating_joint_are_the_serialized_poses(given_plan):
+    """FrameMessages.fill (the reference) puts rooted frames in their root, as the bytes do."""
+    from builtin_interfaces.msg import Time
+    model = robot_from_urdf_text(ROBOT, 'carried.urdf').model
+    plan = OutputPlan(model, 'r/', dh_frames=True) if given_plan else None
+    messages = FrameMessages(model, 'r/', plan=plan, dh_frames=True)
+    assert messages.model is model and (messages.plan is plan or not given_plan)
+    stream = FrameStream(POSE, messages.plan)
+    q = np.array([0.4, -0.7, 1.1])
+    absolute, relative = model.frame_poses(q)
+    _, poses = messages.fill(Time(sec=1, nanosec=2), absolute, relative, q)
+    frames = list(messages.plan.pose_frames)
+    array, columns, _ = stream.values(q[None], None, np.array(absolute)[None])
+    serialized = stream.serialize(1, 2, array[0], columns, list(range(len(frames))))
+    assert len(poses) == len(model.frame_names) and len(serialized) == len(frames)
+    roots = {poses[k].header.frame_id for k in frames}
+    assert {'r/base', 'r/tool'} <= roots   # two floating joints: two roots besides the fixed
+    for k, data in zip(frames, serialized):
+        assert poses[k] == deserialize_message(data, PoseStamped), model.frame_names[k]
+
+
+def test_the_dh_frames_choice_reaches_the_plan():
+    model = robot_from_urdf_text(ROBOT, 'carried.urdf').model   # a URDF: none by default
+    assert not FrameMessages(model).plan.dh_frames
+    assert FrameMessages(model, dh_frames=True).plan.dh_frames
+    assert not FrameMessages(model, dh_frames=False).plan.dh_frames
