@@ -16,6 +16,7 @@ it: what mutmut, one build a run, cannot do.
 
     scripts/mutate.py [run] [--modes compiled pure] [--jobs 2]   # mutmut, then the report
     scripts/mutate.py run --only 'dq_fk_ros.ros.conversions*'   # some mutants again
+    scripts/mutate.py run --modes pure --survivors-again       # after adding tests
     scripts/mutate.py report [--target 90] [--survivors MODULE]   # the last figures again
 
 A mutant is killed when a test fails, times out or crashes on it; it survives when every
@@ -83,6 +84,18 @@ def results(root=None) -> dict:
                         (old in UNREACHED and code in SURVIVED):
                     merged[name] = code if code is not None else old
     return by_module
+
+
+def not_killed(mode, root=None) -> list:
+    """Return the names of the mutants ``.mutation/<mode>/`` holds as survived or unreached."""
+    root = root or ROOT
+    names = []
+    kept = os.path.join(root, '.mutation', mode)
+    for meta in glob.glob(os.path.join(kept, '**', '*.py.meta'), recursive=True):
+        with open(meta, encoding='utf-8') as stream:
+            codes = json.load(stream)['exit_code_by_key']
+        names += [name for name, code in codes.items() if code in SURVIVED | UNREACHED]
+    return sorted(names)
 
 
 def restore(mode, root=None) -> None:
@@ -158,6 +171,8 @@ def main(argv=None) -> int:
     parser.add_argument('--modes', nargs='+', choices=sorted(MODES), default=sorted(MODES))
     parser.add_argument('--only', nargs='+', metavar='PATTERN', default=[],
                         help="mutmut's mutant names to run (globs: 'dq_fk_ros.ros.conversions*')")
+    parser.add_argument('--survivors-again', action='store_true',
+                        help="run again what the build's kept results have not killed")
     parser.add_argument('--jobs', type=int, default=os.cpu_count() or 2)
     parser.add_argument('--target', type=float, default=90.0)
     parser.add_argument('--survivors', metavar='MODULE', help='list this module\'s survivors')
@@ -167,10 +182,16 @@ def main(argv=None) -> int:
         for mode in args.modes:
             # a fresh start, or (--only) this build's earlier results carried on
             shutil.rmtree(os.path.join(ROOT, 'mutants'), ignore_errors=True)
-            if args.only:
+            names = list(args.only)
+            if args.survivors_again:
+                names += not_killed(mode)
+                if not names:
+                    continue
+            if names:
                 restore(mode)
-            print(f'mutate: mutmut run, {mode} build', flush=True)
-            rc = subprocess.call([mutmut, 'run', '--max-children', str(args.jobs)] + args.only,
+            print(f'mutate: mutmut run, {mode} build ({len(names) or "all"} mutants)',
+                  flush=True)
+            rc = subprocess.call([mutmut, 'run', '--max-children', str(args.jobs)] + names,
                                  cwd=ROOT,
                                  env=dict({k: v for k, v in os.environ.items()
                                            if k != 'DQ_FK_PURE_PYTHON'}, **MODES[mode]),

@@ -75,3 +75,4 @@ def test_a_mutant_killed_by_either_build_is_killed(tmp_path, monkeypatch):
     mutate.restore('compiled', str(tmp_path))   # a later run of some mutants goes on from it
     restored = json.loads((tmp_path / 'mutants' / 'pkg' / 'm.py.meta').read_text())
     assert restored['exit_code_by_key'] == compiled
+    assert mutate.not_killed('compiled', str(tmp_path)) == names[1:]   # survived, unreached
