@@ -15,6 +15,7 @@ import time
 from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.ros.executables import executable
 from geometry_msgs.msg import PoseStamped
+from proc_table import proc_stat, processes as live
 import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
@@ -173,7 +174,9 @@ def test_a_huge_urdf_and_a_macro_bomb_are_answered_while_the_node_keeps_publishi
     # and Ctrl-C works while a bomb is being expanded
     future = set_parameter_async(listener, client, 'robot_description_file',
                                  str(tmp_path / 'bomb.urdf.xacro'))
-    listener.spin_until(lambda: False, timeout_s=1.0)
+    # the expansion under way: the sandbox's child process (a session of its own)
+    assert listener.spin_until(lambda: live(lambda pid: int(proc_stat(pid)[1]) == node.pid),
+                               timeout_s=10)
     _, output = stop(node)   # its deadline: exited within 10 s of the SIGINT
     assert node.returncode is not None and 'Traceback' not in output, output[-500:]
 
