@@ -520,10 +520,13 @@ def test_a_signal_at_any_moment_exits_quietly_and_a_new_run_resumes(signal_fleet
         try:
             assert wait_until(lambda: reached(child, out) or child.poll() is not None, 60,
                               every_s=0.002), f'{moment}: not reached in 60 s'
-            if signum == signal.SIGINT:
-                os.killpg(child.pid, signum)
-            else:
-                os.kill(child.pid, signum)
+            try:   # (the run may have ended meanwhile)
+                if signum == signal.SIGINT:
+                    os.killpg(child.pid, signum)
+                else:
+                    os.kill(child.pid, signum)
+            except ProcessLookupError:
+                pass
             _, err = child.communicate(timeout=20)   # the deadline: a hang fails here
         finally:
             if child.poll() is None:
@@ -590,7 +593,10 @@ def test_a_signal_while_a_worker_starts_leaves_no_traceback(signal_fleet, tmp_pa
     try:
         assert wait_until(lambda: _spawned_by(child.pid) or child.poll() is not None, 30,
                           every_s=0.002), 'no worker started within 30 s'
-        os.kill(child.pid, signal.SIGTERM)
+        try:
+            os.kill(child.pid, signal.SIGTERM)
+        except ProcessLookupError:   # it ended first: checked below (its exit code)
+            pass
         _, err = child.communicate(timeout=20)   # the deadline: a hang fails here
     finally:
         if child.poll() is None:
