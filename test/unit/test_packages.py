@@ -272,3 +272,68 @@ def test_a_name_that_is_no_package_name_is_refused_as_such(tmp_path, name):
     with pytest.raises(PackageNotFound) as caught:
         resolver.find(name)
     assert str(caught.value) == f'package {name[:80]!r}: not a package name'   # 80 at most
+
+
+def test_where_find_looks_is_said_exactly(tmp_path):
+    resolver = PackageResolver({'b_pkg': str(tmp_path), 'a_pkg': str(tmp_path)},
+                               environ={'AMENT_PREFIX_PATH': f'/opt/one{os.pathsep}/opt/two',
+                                        'ROS_PACKAGE_PATH': '/ws/src'}, python=[])
+    assert resolver.searched() == (f'--package a_pkg, b_pkg; the ament index of '
+                                   f'AMENT_PREFIX_PATH (/opt/one{os.pathsep}/opt/two); '
+                                   f'ROS_PACKAGE_PATH (/ws/src)')
+    bare = PackageResolver(environ={}, python=[])
+    assert bare.searched() == ('the ament index of AMENT_PREFIX_PATH (not set); '
+                               'ROS_PACKAGE_PATH (not set)')
+
+
+@pytest.mark.parametrize('text', ['x' * 200, 'pkg=' + '/nowhere' * 30])
+def test_a_bad_package_option_is_shown_in_80_characters(text):
+    with pytest.raises(ValueError) as caught:
+        parse_package_option(text, what='--pkg')
+    message = str(caught.value)
+    if '=' in text:
+        assert message == f'--pkg pkg={text[4:][:80]}: no such folder'
+    else:
+        assert message.startswith(f'--pkg {text[:80]!r}: give NAME=DIR')
+
+
+def test_a_folder_holding_an_equals_sign_is_a_package_option(tmp_path):
+    folder = tmp_path / 'a=b'
+    folder.mkdir()
+    assert parse_package_option(f'pkg={folder}') == ('pkg', str(folder))
+
+
+def test_a_package_xml_of_the_bound_is_read_and_one_byte_more_is_not(tmp_path):
+    from dq_fk_ros.description.packages import MAX_PACKAGE_XML_BYTES, package_xml_name
+    head, tail = '<package format="3"><name>big</name><!-- ', ' --></package>'
+    for size, expected in ((MAX_PACKAGE_XML_BYTES, 'big'), (MAX_PACKAGE_XML_BYTES + 1, None)):
+        folder = tmp_path / str(size)
+        folder.mkdir()
+        pad = 'x' * (size - len(head) - len(tail))
+        (folder / 'package.xml').write_text(head + pad + tail)
+        assert (folder / 'package.xml').stat().st_size == size
+        assert package_xml_name(str(folder)) == expected, size
+
+
+def test_every_entry_of_the_search_paths_is_searched_and_the_first_find_wins(tmp_path):
+    first, second = tmp_path / 'one', tmp_path / 'two'
+    _package(second / 'arm_description', 'arm_description')
+    _package(first / 'other', 'other_pkg')
+    _package(second / 'other', 'other_pkg')
+    environ = {'ROS_PACKAGE_PATH': f'{first}{os.pathsep}{second}'}
+    resolver = PackageResolver(environ=environ, python=[])
+    assert resolver.find('arm_description') == str(second / 'arm_description')
+    assert resolver.find('other_pkg') == str(first / 'other')   # ROS 1: the first entry's
+    prefix = tmp_path / 'install'
+    index = prefix / 'share' / 'ament_index' / 'resource_index' / 'packages'
+    index.mkdir(parents=True)
+    (index / 'gripper').write_text('')
+    _package(prefix / 'share' / 'gripper', 'gripper')
+    resolver = PackageResolver(environ={'AMENT_PREFIX_PATH': f'/opt/none{os.pathsep}{prefix}'},
+                               python=[])
+    assert resolver.find('gripper') == str(prefix / 'share' / 'gripper')
+
+
+def test_a_package_option_names_its_option_by_default():
+    with pytest.raises(ValueError, match="^--package 'nameonly': give NAME=DIR"):
+        parse_package_option('nameonly')
