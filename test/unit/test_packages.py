@@ -337,3 +337,22 @@ def test_every_entry_of_the_search_paths_is_searched_and_the_first_find_wins(tmp
 def test_a_package_option_names_its_option_by_default():
     with pytest.raises(ValueError, match="^--package 'nameonly': give NAME=DIR"):
         parse_package_option('nameonly')
+
+
+def test_a_package_xml_is_read_only_up_to_its_bound(tmp_path, monkeypatch):
+    """A crawl past a huge package.xml (a sparse 64 MiB file here) reads 1 MiB and a byte."""
+    from dq_fk_ros.description import packages
+    huge = tmp_path / 'huge'
+    huge.mkdir()
+    with open(huge / 'package.xml', 'wb') as stream:
+        stream.truncate(64 << 20)   # sparse: no disk used
+    asked = []
+
+    def reading(path, mode='r', *args, **kwargs):
+        stream = open(path, mode, *args, **kwargs)
+        read = stream.read
+        stream.read = lambda n=-1: asked.append(n) or read(n)
+        return stream
+    monkeypatch.setattr(packages, 'open', reading, raising=False)
+    assert packages.package_xml_name(str(huge)) is None
+    assert asked == [packages.MAX_PACKAGE_XML_BYTES + 1]
