@@ -89,7 +89,10 @@ class RobotHandle:
         topic = f'{self.namespace}/joint_states'
         # (its log to a file: a pipe nobody reads would stop a node that logs much)
         self._node_log = tempfile.TemporaryFile('w+', encoding='utf-8', errors='replace')
+        self._start_listener()
         self.node = pool.start(argv, stdout=self._node_log)
+        if joints_bag is not None or joints_csv is not None:
+            self._wait_for_tf_match()   # a replay sends each row once: none lost before
         if joints_bag is not None:   # (once the node subscribed: nothing sent before)
             self.joints = pool.start(executable('dq_fk_bag') + [
                 'play', os.fspath(joints_bag), '--output-topic', topic,
@@ -105,7 +108,6 @@ class RobotHandle:
         if self._read_joint_lines:
             threading.Thread(target=self._read_said, daemon=True,
                              name='dq_fk test joint source').start()
-        self._start_listener()
 
     def _read_said(self):
         """Hand every line the joint source prints to :meth:`_joint_line` (until it ends)."""
@@ -123,6 +125,23 @@ class RobotHandle:
                                        start_parameter_services=False)
         self.buffer = Buffer()
         self._listener = TransformListener(self.buffer, self._node, spin_thread=True)
+
+    def _wait_for_tf_match(self, timeout_s=30.0):
+        """Wait until the listener's /tf subscription has matched this robot's node."""
+        listener = self._listener
+        sub = listener.tf_thread.subscription if listener.tf_thread else listener.tf_sub
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self.node.poll() is not None:
+                raise RobotError(f'{self.robot}: dq_fk_node ended (exit {self.node.returncode})'
+                                 f': {self.node_log()[-300:]!r}')
+            infos = self._node.get_publishers_info_by_topic('/tf')
+            if any(i.node_namespace == self.namespace for i in infos) and \
+                    sub.get_publisher_count() >= len(infos):
+                return
+            time.sleep(0.01)
+        raise RobotError(f'{self.robot}: its /tf not matched by the listener within '
+                         f'{timeout_s:g} s')
 
     def close(self) -> None:
         """Stop the listener and both processes (the fixture does this at teardown)."""
