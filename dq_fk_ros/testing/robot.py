@@ -130,16 +130,17 @@ class RobotHandle:
         """Wait until the listener's /tf subscription has matched this robot's node."""
         listener = self._listener
         sub = listener.tf_thread.subscription if listener.tf_thread else listener.tf_sub
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
+        from dq_fk_ros.testing.topics import wait_until
+
+        def matched():
             if self.node.poll() is not None:
                 raise RobotError(f'{self.robot}: dq_fk_node ended (exit {self.node.returncode})'
                                  f': {self.node_log()[-300:]!r}')
             infos = self._node.get_publishers_info_by_topic('/tf')
-            if any(i.node_namespace == self.namespace for i in infos) and \
-                    sub.get_publisher_count() >= len(infos):
-                return
-            time.sleep(0.01)
+            return any(i.node_namespace == self.namespace for i in infos) and \
+                sub.get_publisher_count() >= len(infos)
+        if wait_until(matched, timeout_s):
+            return
         raise RobotError(f'{self.robot}: its /tf not matched by the listener within '
                          f'{timeout_s:g} s')
 
