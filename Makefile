@@ -74,7 +74,7 @@ $(STAMPS)/project: setup.py setup.cfg package.xml scripts/rcl_build.py $(wildcar
                   $(STAMPS)/foxglove $(STAMPS)/tf2_msgs $(STAMPS)/web
 	@echo 'setup: installing dq_fk_ros (editable)'
 	@$(STEP) "install dq_fk_ros in editable mode" $(LOGS)/project.log \
-	  $(PIP) --no-deps --no-build-isolation -e .
+	  $(PIP) --no-deps --no-build-isolation --no-use-pep517 -e .
 	@# setup.cfg puts executables where `ros2 run` looks (lib/dq_fk_ros); also put them on
 	@# the venv's PATH
 	@for exe in $(VENV)/lib/dq_fk_ros/*; do ln -sf ../lib/dq_fk_ros/$${exe##*/} $(VENV)/bin/; done
@@ -138,7 +138,7 @@ $(BENCH_VENV)/.stamp: requirements/bench.txt setup.py
 	@$(STEP) "install requirements/bench.txt" $(BENCH_VENV)-logs/bench.log \
 	  $(BENCH_VENV)/bin/python -m pip install --disable-pip-version-check -r requirements/bench.txt
 	@$(STEP) "install dq_fk_ros into $(BENCH_VENV)" $(BENCH_VENV)-logs/project.log \
-	  $(BENCH_VENV)/bin/python -m pip install --disable-pip-version-check --no-deps -e .
+	  $(BENCH_VENV)/bin/python -m pip install --disable-pip-version-check --no-deps --no-build-isolation --no-use-pep517 -e .
 	@touch $@
 
 # bench_calibration.py's peers, each in a venv of its own (pybotics pins numpy < 2)

@@ -25,6 +25,13 @@ RCL_EXTENSIONS = [] if RCL is None else [
     Extension('dq_fk_ros.ros._rcl_publish', ['dq_fk_ros/ros/_rcl_publish.c'],
               include_dirs=RCL[0], library_dirs=[RCL[1]], runtime_library_dirs=[RCL[1]],
               libraries=['rcl', 'rmw', 'rcutils'], extra_compile_args=['-O2'], optional=True)]
+# tf2_msgs (not on PyPI) carried in the wheel of a pip install, built by rosidl from
+# vendor/tf2_msgs in pip's build environment (pyproject.toml); nothing where it is importable
+TF2_MSGS = runpy.run_path(os.path.join(os.path.dirname(os.path.realpath(__file__)), 'scripts',
+                                       'tf2_msgs_build.py'))
+TF2_MSGS_PARTS = {'packages': [], 'package_dir': {}, 'package_data': {}, 'data_files': []}
+if TF2_MSGS['wanted']():
+    TF2_MSGS_PARTS = TF2_MSGS['wheel_parts'](TF2_MSGS['build'](os.path.join('build', 'tf2_msgs')))
 
 # the programs (console scripts); ros2 run finds them in lib/dq_fk_ros (setup.cfg)
 CONSOLE_SCRIPTS = {
@@ -75,14 +82,16 @@ class install_scripts(_install_scripts):
 setup(
     name=package_name,
     version=version,
-    packages=find_packages(exclude=['test', 'test.*']),
+    packages=find_packages(exclude=['test', 'test.*']) + TF2_MSGS_PARTS['packages'],
+    package_dir=TF2_MSGS_PARTS['package_dir'],
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.xml')),
         ('share/' + package_name + '/web', ['web/index.html', 'web/app.js', 'web/package.json',
                                             'web/package-lock.json']),
-    ],
+    ] + TF2_MSGS_PARTS['data_files'],
+    package_data=TF2_MSGS_PARTS['package_data'],
     # the compiled FK kernel: optional (without a C compiler the numpy path runs); -O3
     # vectorises its batch loops; no contraction into fused multiply-adds, so it computes
     # what the reference computes
@@ -106,7 +115,12 @@ setup(
                                     'dq_fk_ros/transforms/tf_cache.h'],
                            extra_compile_args=['-O2', '-ffp-contract=off', '-fno-fast-math'],
                            optional=True)] + RCL_EXTENSIONS,
-    install_requires=['setuptools', 'numpy', 'PyYAML'],
+    # what `pip install dq_fk_ros` needs to run every program (requirements/runtime.txt pins
+    # the versions tested); ROS 2 Jazzy's wheels from PyPI. A ROS 2 install builds with colcon,
+    # which reads package.xml and installs none of these.
+    install_requires=['setuptools', 'numpy', 'PyYAML', 'ros-jazzy-rclpy[fastrtps]',
+                      'ros-jazzy-common-interfaces', 'rosbags>=0.11', 'mcap>=1.2', 'xacro>=2.0',
+                      'aiohttp>=3.9', 'matplotlib>=3.7'],
     # dq_fk_bag process --scheduler: a Dask cluster (pip install 'dq_fk_ros[cluster]')
     # dq_fk_foxglove: the Foxglove SDK's WebSocket server (pip install 'dq_fk_ros[foxglove]')
     # dq_fk calibrate: Levenberg-Marquardt (pip install 'dq_fk_ros[calibrate]')

@@ -1,22 +1,34 @@
 """
 The robots shipped with the package (``config/``) and the package's other shared folders.
 
-:func:`share_folder` finds a folder the package installs under ``share/dq_fk_ros`` (colcon)
-or holds in its source tree (an editable install): ``config`` for the robots, ``web`` for
-dq_fk_view's page.
+:func:`share_folders` finds a folder the package installs under ``share/dq_fk_ros``
+(colcon's ament index, or pip's data folder of the environment it installed into) or holds in
+its source tree (an editable install): ``config`` for the robots, ``web`` for dq_fk_view's
+page.
 """
 
 import os
+import sys
+import sysconfig
 
 
 def share_folders(name: str) -> list[str]:
-    """Return the candidate folders ``name`` (``config``, ``web``) may be in, in order."""
+    """
+    Return the candidate folders ``name`` (``config``, ``web``) may be in, in order.
+
+    The ament index (colcon, a ROS install), then pip's data folder (``pip install``:
+    ``<prefix>/share/dq_fk_ros``, where ``AMENT_PREFIX_PATH`` is not set), then the source tree.
+    """
     candidates = []
     try:
         from ament_index_python.packages import get_package_share_directory
         candidates.append(os.path.join(get_package_share_directory('dq_fk_ros'), name))
-    except Exception:  # not installed through ament (or ament_index missing): source tree
+    except Exception:  # not installed through ament (or ament_index missing)
         pass
+    for prefix in (sysconfig.get_path('data'), sys.prefix):
+        folder = os.path.join(prefix, 'share', 'dq_fk_ros', name)
+        if folder not in candidates:
+            candidates.append(folder)
     source_tree = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     candidates.append(os.path.join(source_tree, name))
     return candidates

@@ -1,12 +1,18 @@
 """FrameMessages: what the node would publish, checked without DDS."""
 
+from types import SimpleNamespace
+
 from builtin_interfaces.msg import Time
 from dq_fk_ros.description.schema import load_robot_description, parse_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path
 from dq_fk_ros.kinematics.dh import homogeneous_from_dq
-from dq_fk_ros.ros.conversions import FrameMessages, ns_to_stamp, stamp_to_ns
+from dq_fk_ros.ros.conversions import (FrameBytes, FrameMessages, joint_state_fields,
+                                       ns_to_stamp, qos_profile, stamp_to_ns)
 import homogeneous as hm
 import numpy as np
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
 
 
 def as_matrix(translation, rotation):
@@ -105,3 +111,54 @@ def test_a_cylindrical_rows_moving_helper_goes_on_tf_under_its_dh_frame():
     messages = FrameMessages(model, 'r/')
     last = messages.tf.transforms[-1]
     assert (last.header.frame_id, last.child_frame_id) == ('r/rrc_link3', 'r/rrc_link3_dh_z0')
+
+
+def test_an_outputs_qos_is_reliable_its_depth_and_latched_as_transient_local():
+    from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+    for latched, durability in ((True, DurabilityPolicy.TRANSIENT_LOCAL),
+                                (False, DurabilityPolicy.VOLATILE)):
+        qos = qos_profile(SimpleNamespace(latched=latched, depth=3))
+        assert (qos.depth, qos.reliability, qos.durability) == \
+            (3, ReliabilityPolicy.RELIABLE, durability)
+
+
+def test_joint_state_fields_are_its_names_positions_velocities_and_stamp_in_ns():
+    msg = JointState(name=['a', 'b'], position=[0.5, 1.5], velocity=[2.0, 3.0])
+    msg.header.stamp = Time(sec=3, nanosec=5)
+    names, positions, velocities, ns = joint_state_fields(msg)
+    assert (list(names), list(positions), list(velocities), ns) == \
+        (['a', 'b'], [0.5, 1.5], [2.0, 3.0], 3_000_000_005)
+
+
+TWO_CYLINDRICAL = (
+    'robot: cc\nconvention: standard\nbase: {frame: b}\nchain:\n'
+    '  - {frame: c1, type: cylindrical, joint: t1, d_joint: d1, theta: 0, d: 0, a: 0.2,'
+    ' alpha: 0.3}\n'
+    '  - {frame: r2, joint: t2, theta: 0, d: 0.1, a: 0.3, alpha: 0}\n'
+    '  - {frame: c3, type: cylindrical, joint: t3, d_joint: d3, theta: 0, d: 0, a: 0.1,'
+    ' alpha: -0.4}\n')
+
+
+def test_two_moving_helpers_are_written_alike_by_every_path():
+    """Two cylindrical rows: two helper frames on /tf, as the message objects have them."""
+    model = parse_robot_description(TWO_CYLINDRICAL)
+    messages = FrameMessages(model, 'p/')
+    raw = FrameBytes(messages)
+    assert raw.sends_tf is True and len(messages.helpers.moving) == 2
+    for q in ([0.3, 0.1, -0.7, 0.5, 0.05], [1, 0, 2, -1, 0]):   # plain ints too
+        absolute, relative = model.frame_pose_arrays(np.asarray(q, dtype=float))
+        tf, _ = messages.fill(Time(sec=4, nanosec=2), absolute.tolist(), relative.tolist(), q)
+        children = [t.child_frame_id for t in tf.transforms]
+        assert children[-2:] == ['p/c1_dh_z0', 'p/c3_dh_z0']
+        for ours in (raw.tf(4, 2, relative, q), raw.tf(4, 2, relative.tolist(), q),
+                     raw.tf_writer()(4, 2, relative, q)):
+            assert deserialize_message(ours, TFMessage) == tf
+
+
+def test_a_robot_with_nothing_moving_sends_no_tf():
+    model = parse_robot_description(
+        'robot: still\nbase: {frame: b}\nchain:\n'
+        '  - {frame: l1, type: fixed, theta: 0.5, d: 0.1, a: 0.2, alpha: 0}\n')
+    assert FrameBytes(FrameMessages(model)).sends_tf is False
+    rl15 = load_robot_description(shipped_robot_path('rl15'))
+    assert FrameBytes(FrameMessages(rl15)).sends_tf is True

@@ -1,6 +1,7 @@
 """Every robot shipped in config/ against numbers from its source."""
 
 import math
+import os
 
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
@@ -127,3 +128,20 @@ def test_panda_zero_pose_flange():
     np.testing.assert_allclose(m[:3, 3], [0.088, 0, 0.926], atol=1e-12)
     np.testing.assert_allclose(m[:3, 2], [0, 0, -1], atol=1e-12)
     np.testing.assert_allclose(model.limits[3], [-3.0718, -0.0698])
+
+
+def test_a_pip_install_finds_its_robots_in_the_environments_data_folder(tmp_path, monkeypatch):
+    """``pip install`` (not editable) puts config/ under ``<prefix>/share/dq_fk_ros``."""
+    import sysconfig
+
+    from dq_fk_ros.description import shipped
+    folder = tmp_path / 'share' / 'dq_fk_ros' / 'config'
+    folder.mkdir(parents=True)
+    (folder / 'only_installed.yaml').write_text('robot: {}\n')
+    monkeypatch.setattr(sysconfig, 'get_path', lambda name: str(tmp_path))
+    monkeypatch.setenv('AMENT_PREFIX_PATH', '')
+    assert shipped.shipped_robot_path('only_installed') == str(folder / 'only_installed.yaml')
+    candidates = shipped.share_folders('web')
+    assert candidates[0] == str(tmp_path / 'share' / 'dq_fk_ros' / 'web')
+    # the source tree (an editable install) stays the last candidate
+    assert candidates[-1].endswith(os.path.join('', 'web')) and 'share' not in candidates[-1]

@@ -1,0 +1,96 @@
+"""
+``tf2_msgs`` built into dq_fk_ros's wheel, where ``pip install`` has no other (PyPI only).
+
+tf2_msgs is not on PyPI, and dq_fk_ros publishes and reads ``tf2_msgs/msg/TFMessage``. A
+``pip install dq_fk_ros`` builds the package in an isolated environment holding the build
+requirements of pyproject.toml (rosidl's generators and ament_cmake from the ROS 2 Jazzy
+wheels); there :func:`build` runs rosidl on ``vendor/tf2_msgs`` (upstream's TFMessage
+definition, as ``scripts/ensure_tf2_msgs.sh`` does for ``make setup``) and setup.py puts what
+it installed into the wheel: the ``tf2_msgs`` Python package, its libraries (``lib/``, where
+the ROS wheels' loader looks) and ``share/tf2_msgs``.
+
+Nothing is built where ``tf2_msgs`` is already importable (a sourced ROS 2, ``make setup``'s
+venv, colcon), where rosidl's generators are not (a plain ``setup.py`` run), or with
+``DQ_FK_TF2_MSGS=skip``. On a ROS 2 install the system's tf2_msgs stays first on the path.
+"""
+
+import glob
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SOURCE = os.path.join(HERE, 'vendor', 'tf2_msgs')
+MARKER = 'built_by_dq_fk_ros'   # also what scripts/ensure_tf2_msgs.sh writes
+
+
+def wanted() -> bool:
+    """Return True where this build should carry tf2_msgs (see the module's docstring)."""
+    if os.environ.get('DQ_FK_TF2_MSGS', '') == 'skip':
+        return False
+    if importlib.util.find_spec('tf2_msgs') is not None:
+        return False
+    return importlib.util.find_spec('rosidl_adapter') is not None and \
+        shutil.which('cmake') is not None
+
+
+def _build_prefix() -> str:
+    """Return the prefix the build requirements were installed into (pip's overlay)."""
+    spec = importlib.util.find_spec('rosidl_adapter')
+    # <prefix>/lib/pythonX.Y/site-packages/rosidl_adapter/__init__.py
+    return os.path.abspath(os.path.join(os.path.dirname(spec.origin), *['..'] * 4))
+
+
+def build(work: str) -> str:
+    """
+    Build and install vendor/tf2_msgs under ``work``; return its install prefix.
+
+    :param work: a scratch folder (kept between pip's calls of setup.py: built once).
+    """
+    work = os.path.abspath(work)
+    prefix = os.path.join(work, 'prefix')
+    if os.path.exists(os.path.join(prefix, 'share', 'tf2_msgs', MARKER)):
+        return prefix
+    shutil.rmtree(work, ignore_errors=True)
+    overlay = _build_prefix()
+    paths = os.pathsep.join(p for p in (overlay, os.environ.get('AMENT_PREFIX_PATH')) if p)
+    env = dict(os.environ, AMENT_PREFIX_PATH=paths, CMAKE_PREFIX_PATH=paths,
+               PATH=os.pathsep.join([os.path.join(overlay, 'bin'), os.environ.get('PATH', '')]),
+               LD_LIBRARY_PATH=os.pathsep.join(
+                   p for p in (os.path.join(overlay, 'lib'), os.environ.get('LD_LIBRARY_PATH'))
+                   if p))
+    tree = os.path.join(work, 'build')
+    generator = ['-G', 'Ninja'] if shutil.which('ninja', path=env['PATH']) else []
+    for command in (['cmake', '-S', SOURCE, '-B', tree, *generator,
+                     f'-DCMAKE_INSTALL_PREFIX={prefix}', f'-DPython3_EXECUTABLE={sys.executable}',
+                     '-DBUILD_TESTING=OFF'],
+                    ['cmake', '--build', tree], ['cmake', '--install', tree]):
+        subprocess.run(command, env=env, check=True, stdout=sys.stderr)
+    with open(os.path.join(prefix, 'share', 'tf2_msgs', MARKER), 'w', encoding='utf-8'):
+        pass
+    return prefix
+
+
+def wheel_parts(prefix: str) -> dict:
+    """
+    Return setup()'s arguments that carry an installed tf2_msgs prefix into the wheel.
+
+    :param prefix: what :func:`build` returned.
+    :return: ``packages``, ``package_dir``, ``package_data`` and ``data_files`` to add.
+    """
+    python = glob.glob(os.path.join(prefix, 'lib', 'python*', 'site-packages', 'tf2_msgs'))[0]
+    here = os.getcwd()
+    rel = os.path.relpath(python, here)
+    data_files = [('lib', sorted(os.path.relpath(p, here) for p in
+                                 glob.glob(os.path.join(prefix, 'lib', '*.so'))))]
+    for folder, _, files in os.walk(os.path.join(prefix, 'share')):
+        if files:
+            data_files.append((os.path.relpath(folder, prefix),
+                               sorted(os.path.relpath(os.path.join(folder, f), here)
+                                      for f in files)))
+    return {'packages': ['tf2_msgs', 'tf2_msgs.msg'],
+            'package_dir': {'tf2_msgs': rel, 'tf2_msgs.msg': os.path.join(rel, 'msg')},
+            'package_data': {'tf2_msgs': ['*.so'], 'tf2_msgs.msg': ['*.py']},
+            'data_files': data_files}
