@@ -671,3 +671,35 @@ def test_at_most_eight_layouts_are_matched_against_the_whole_batch(monkeypatch):
     sizes.clear()
     parse_joint_states(raws, max_layouts=2)
     assert sizes == [24, 22] + [1] * 20
+
+
+def test_a_cached_layout_is_not_reused_for_another_name_count_behind_other_padding():
+    """Padding bytes differ, so the strings are compared one by one: the name count too."""
+    first = joint_state_bytes(['ab'], [1.0, 2.0], [], frame_id='f')
+    count_at = 4 + 8 + 4 + 2 + 2   # header, stamp, frame id's length and 'f\0', padding
+    assert struct.unpack_from('<I', first, count_at) == (1,)
+    other = bytearray(first)
+    other[count_at - 1] = 0x55                    # another serializer's padding
+    struct.pack_into('<I', other, count_at, 2)    # and two names
+    cache = JointStateNames()
+    parse_joint_state(first, cache)
+    try:
+        fresh = parse_joint_state(bytes(other))
+    except CdrError as exc:
+        with pytest.raises(CdrError, match=re.escape(str(exc))):
+            parse_joint_state(bytes(other), cache)
+    else:
+        assert parse_joint_state(bytes(other), cache)[1] == fresh[1]
+
+
+def test_rows_are_the_messages_asked_for_a_view_where_all_of_them_abut():
+    from dq_fk_ros.messages.cdr import _rows
+    joined = np.arange(12, dtype=np.uint8)
+    starts = np.array([0, 4, 8])
+    every = _rows(joined, starts, np.array([0, 1, 2]), 4)
+    np.testing.assert_array_equal(every, joined.reshape(3, 4))
+    assert np.shares_memory(every, joined)        # abutting, to the last byte: no copy
+    some = _rows(joined, starts, np.array([0, 2]), 4)
+    np.testing.assert_array_equal(some, [[0, 1, 2, 3], [8, 9, 10, 11]])
+    apart = _rows(np.arange(14, dtype=np.uint8), np.array([0, 5, 10]), np.array([0, 1, 2]), 4)
+    np.testing.assert_array_equal(apart, [[0, 1, 2, 3], [5, 6, 7, 8], [10, 11, 12, 13]])

@@ -405,3 +405,16 @@ def test_joint_velocities_of_the_wrong_count_are_one_clear_error():
     with pytest.raises(ValueError, match=rf'^expected {chain.dof} joint velocities, got shape '
                                          rf'\({chain.dof + 1},\)$'):
         chain.twist(np.zeros(chain.dof), np.zeros(chain.dof + 1))
+
+
+def test_forward_batch_fills_the_array_given_as_out_and_refuses_one_of_another_shape():
+    rng = np.random.default_rng(21)
+    chain, _, _ = random_chain(rng, 'standard')
+    q = rng.uniform(-3, 3, size=(5, chain.dof))
+    out = np.full((5, 8), np.nan)
+    assert chain.forward_batch(q, out=out) is out
+    np.testing.assert_array_equal(out, chain.forward_batch(q))
+    for wrong in (np.zeros((5, 9)), np.zeros((5, 8), dtype=np.float32), np.zeros((8, 5)).T,
+                  [[0.0] * 8] * 5):
+        with pytest.raises(ValueError, match=r'out must be .*\(N, 8\) array'):
+            chain.forward_batch(q, out=wrong)

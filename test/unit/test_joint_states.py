@@ -658,3 +658,23 @@ def test_damaged_bytes_get_the_same_outcome_on_both_paths(damages):
             assert (a.status, a.reason, str(a.q), str(a.qdot)) == \
                 (b.status, b.reason, str(b.q), str(b.qdot))
     assert fast.counts == slow.counts
+
+
+def test_a_rejections_detail_says_what_was_wrong(merger):
+    from dq_fk_ros.messages.joint_states import REJECT_REASONS
+    merger.merge(NAMES, [0.1, 0.2, 0.3])   # the complete layout, then its short path
+    assert merger.merge(NAMES, [0.0, 0.0], [1.0]).detail == \
+        '3 names, 2 positions, 1 velocities'
+    assert merger.merge(['a', 'b'], [0.0], []).detail == '2 names, 1 positions, 0 velocities'
+    assert merger.merge([], [], []).detail == REJECT_REASONS['empty']
+    assert merger.merge(['a', 'a'], [0.0, 0.0]).detail == REJECT_REASONS['duplicate_name']
+
+
+def test_clear_counts_starts_the_counts_and_unknown_names_afresh_and_keeps_the_state(merger):
+    merger.merge(['a', 'b', 'c', 'gripper'], [0.1, 0.2, 0.3, 5.0])
+    merger.merge([], [], [])
+    merger.clear_counts()
+    assert merger.counts['received'] == 0 and merger.counts['rejected'] == 0
+    assert merger.unknown == set()
+    np.testing.assert_array_equal(merger.merge(['a'], [0.5]).q, [0.5, 0.2, 0.3])
+    assert merger.counts['received'] == 1
