@@ -1,0 +1,104 @@
+"""What ``from-urdf`` chooses and says: the default tip, each link's note, what it skipped."""
+
+from dq_fk_ros.description.from_urdf import (load_urdf_description, longest_chain_tips,
+                                             NODE_OPTIONS, urdf_to_description)
+from dq_fk_ros.description.robot_model import MAX_NAME_CHARS
+from dq_fk_ros.description.urdf_reader import parse_urdf
+from dq_fk_ros.errors import RobotDescriptionError
+import pytest
+
+LIMIT = '<limit lower="-1" upper="1" effort="1" velocity="1"/>'
+
+
+def joint(name, parent, child, kind='revolute', extra=''):
+    limit = LIMIT if kind in ('revolute', 'prismatic') else ''
+    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/>'
+            f'<child link="{child}"/><origin xyz="0.1 0 0.2"/><axis xyz="0 1 0"/>{limit}'
+            f'{extra}</joint>')
+
+
+def urdf(links, joints):
+    return ('<robot name="r">' + ''.join(f'<link name="{n}"/>' for n in links)
+            + ''.join(joints) + '</robot>')
+
+
+def tips(text, base='base'):
+    return longest_chain_tips(parse_urdf(text, 'r.urdf'), base)
+
+
+# two branches of one moving joint each, the URDF listing z_tip before a_tip
+TWO = ['base', 'z_tip', 'a_tip', 'sensor']
+TWO_JOINTS = [joint('jz', 'base', 'z_tip'), joint('ja', 'base', 'a_tip'),
+              joint('js', 'base', 'sensor', 'fixed')]
+
+
+def test_equally_long_chains_all_end_a_tip_in_the_urdfs_order_not_the_alphabets():
+    assert tips(urdf(TWO, TWO_JOINTS)) == ['z_tip', 'a_tip']
+    many = ['m', 'c', 'x', 'b', 'y', 'a']   # one order of 720: not a set's by chance
+    assert tips(urdf(['base'] + many, [joint(f'j{n}', 'base', n) for n in many])) == many
+    # a mimic joint does not make its chain longer
+    mimic = joint('jz2', 'z_tip', 'z2', extra='<mimic joint="jz"/>')
+    assert tips(urdf(TWO + ['z2'], TWO_JOINTS + [mimic])) == ['z_tip', 'a_tip']
+
+
+def test_the_longest_chain_wins_whichever_branch_is_walked_first():
+    for deeper in ('z_tip', 'a_tip'):
+        more = [joint('j2', deeper, 'second'), joint('jf', 'second', 'flange', 'fixed')]
+        text = urdf(TWO + ['second', 'flange'], TWO_JOINTS + more)
+        assert tips(text) == ['second']   # the last moving joint's child, not the flange
+        assert urdf_to_description(text, 'r.urdf').tip == 'second'
+
+
+def test_no_moving_joint_below_the_base_has_no_tip_and_the_base_is_the_tip():
+    text = urdf(['base', 'sensor'], [joint('js', 'base', 'sensor', 'fixed')])
+    assert tips(text) == [None]
+    assert urdf_to_description(text, 'r.urdf').tip == 'base'
+
+
+def test_each_links_note_names_its_joint_its_kind_and_a_mimic():
+    mimic = joint('jz2', 'z_tip', 'z2', extra='<mimic joint="jz"/>')
+    text = urdf_to_description(urdf(TWO + ['z2'], TWO_JOINTS + [mimic]), 'r.urdf').text
+    assert 'URDF link z2: child of jz2 (revolute, mimic) on z_tip' in text
+    assert 'URDF link a_tip: child of ja (revolute) on base' in text
+    assert 'URDF link sensor: child of js (fixed) on base' in text
+
+
+def test_a_skipped_mimic_names_the_joint_it_follows():
+    """A mimic of a joint above the base (not published) is skipped, and says which."""
+    above = joint('jw', 'world', 'base')
+    ghost = joint('jg', 'base', 'g', extra='<mimic joint="jw" multiplier="2" offset="3"/>')
+    conversion = urdf_to_description(urdf(['world'] + TWO + ['g'],
+                                          [above] + TWO_JOINTS + [ghost]), 'r.urdf', 'base')
+    assert [j.name for j in conversion.skipped] == ['jg']
+    assert 'skipped: side branch jg (revolute) -> g: mimics jw, which is not published' \
+        in conversion.text
+
+
+def test_a_joint_name_of_the_longest_length_is_taken_and_one_more_is_refused():
+    for length, taken in ((MAX_NAME_CHARS, True), (MAX_NAME_CHARS + 1, False)):
+        name = 'j' * length
+        text = urdf(['base', 'tip'], [joint(name, 'base', 'tip')])
+        if taken:
+            model = urdf_to_description(text, 'r.urdf').model
+            assert list(model.joint_names) == [name]
+        else:
+            with pytest.raises(RobotDescriptionError, match='joint name .* is not usable'):
+                urdf_to_description(text, 'r.urdf')
+
+
+def test_a_files_conversion_takes_the_base_and_names_the_callers_options(tmp_path):
+    path = tmp_path / 'r.urdf'
+    path.write_text(urdf(['world', 'base'] + TWO[1:],
+                         [joint('jw', 'world', 'base', 'fixed')] + TWO_JOINTS))
+    conversion, text = load_urdf_description(path, base='base', tip='a_tip')
+    assert (conversion.base, conversion.tip) == ('base', 'a_tip') and '<robot' in text
+    with pytest.raises(RobotDescriptionError,
+                       match=f"^{path}: urdf_tip_link 'nowhere' is not a link"):
+        load_urdf_description(path, tip='nowhere', options=NODE_OPTIONS)
+
+
+def test_a_link_of_a_name_tf_cannot_carry_is_skipped_and_said_so():
+    bad = joint('jb', 'base', 'bad name', 'fixed')
+    conversion = urdf_to_description(urdf(TWO + ['bad name'], TWO_JOINTS + [bad]), 'r.urdf')
+    assert [j.name for j in conversion.skipped] == ['jb']
+    assert ': a name this package cannot publish' in conversion.text
