@@ -418,3 +418,55 @@ def test_forward_batch_fills_the_array_given_as_out_and_refuses_one_of_another_s
                   [[0.0] * 8] * 5):
         with pytest.raises(ValueError, match=r'out must be .*\(N, 8\) array'):
             chain.forward_batch(q, out=wrong)
+
+
+def test_a_base_and_tool_given_unnormalized_are_taken_as_the_unit_ones():
+    rng = np.random.default_rng(22)
+    unit, base, tool = random_chain(rng, 'modified')
+    scaled = KinematicChain(unit.joints, 'modified',
+                            base=2.5 * DualQuaternion.from_matrix(base),
+                            tool=0.3 * DualQuaternion.from_matrix(tool))
+    assert np.allclose(scaled.base.coeffs, unit.base.coeffs, atol=1e-15)
+    assert np.allclose(scaled.tool.coeffs, unit.tool.coeffs, atol=1e-15)
+    q = rng.uniform(-2, 2, size=(4, unit.dof))
+    np.testing.assert_allclose(scaled.forward_all_batch(q), unit.forward_all_batch(q),
+                               atol=1e-12)
+    assert (scaled.convention, scaled.dof, scaled.n_frames) == \
+        ('modified', unit.dof, len(unit.joints) + 2)
+    bare = KinematicChain([DHJoint(a=0.3, name='s', limits=(-1.0, 2.0)),
+                           DHJoint(joint_type='fixed'),
+                           DHJoint(joint_type='cylindrical', name='c')],
+                          'standard')
+    assert bare.tool is None and bare.n_frames == 4 and bare.dof == 3
+    assert list(bare.joint_names) == ['s', 'c', 'c_d'] and bare.convention == 'standard'
+    assert np.asarray(bare.limits)[0].tolist() == [-1.0, 2.0]
+    assert [j.joint_type for j in bare.joints] == ['revolute', 'fixed', 'cylindrical']
+    np.testing.assert_array_equal(bare.base.coeffs, [1, 0, 0, 0, 0, 0, 0, 0])
+
+
+def test_forward_all_batch_fills_the_array_given_as_out_and_refuses_one_of_another_shape():
+    rng = np.random.default_rng(23)
+    chain, _, _ = random_chain(rng, 'standard')
+    q = rng.uniform(-3, 3, size=(3, chain.dof))
+    out = np.full((3, chain.n_frames, 8), np.nan)
+    assert chain.forward_all_batch(q, out=out) is out
+    np.testing.assert_array_equal(out, chain.forward_all_batch(q))
+    for wrong in (np.zeros((3, chain.n_frames + 1, 8)), np.zeros((3, chain.n_frames, 7)),
+                  np.zeros((3, chain.n_frames, 8), dtype=np.float32)):
+        with pytest.raises(ValueError, match=rf'out must be .*\(N, {chain.n_frames}, 8\)'):
+            chain.forward_all_batch(q, out=wrong)
+    frozen = np.zeros((3, chain.n_frames, 8))
+    frozen.flags.writeable = False
+    with pytest.raises(ValueError, match='writable'):
+        chain.forward_all_batch(q, out=frozen)
+
+
+def test_homogeneous_from_dq_keeps_the_leading_shape_and_is_a_rigid_transform():
+    rng = np.random.default_rng(24)
+    matrices = np.array([[random_pose(rng) for _ in range(3)] for _ in range(2)])
+    dqs = [[DualQuaternion.from_matrix(m).coeffs.tolist() for m in row] for row in matrices]
+    got = homogeneous_from_dq(dqs)   # nested lists, (2, 3, 8)
+    assert got.shape == (2, 3, 4, 4)
+    np.testing.assert_allclose(got, matrices, atol=1e-12)
+    np.testing.assert_array_equal(got[..., 3, :], np.broadcast_to([0, 0, 0, 1], (2, 3, 4)))
+    np.testing.assert_allclose(homogeneous_from_dq(dqs[0][0]), matrices[0, 0], atol=1e-12)

@@ -102,3 +102,15 @@ def test_a_link_of_a_name_tf_cannot_carry_is_skipped_and_said_so():
     conversion = urdf_to_description(urdf(TWO + ['bad name'], TWO_JOINTS + [bad]), 'r.urdf')
     assert [j.name for j in conversion.skipped] == ['jb']
     assert ': a name this package cannot publish' in conversion.text
+
+
+def test_a_planar_and_a_floating_links_notes_say_how_they_are_published():
+    text = urdf(TWO + ['puck', 'drone'],
+                TWO_JOINTS + [joint('slide', 'base', 'puck', 'planar'),
+                              joint('fly', 'base', 'drone', 'floating')])
+    text = urdf_to_description(text, 'r.urdf').text
+    assert ('URDF link puck: child of slide (planar) on base; fixed at its origin, as '
+            'robot_state_publisher\n') in text
+    assert ('URDF link drone: child of fly (floating) on base; at its origin, not on TF: it '
+            'roots a TF tree\n') in text
+    assert 'URDF link a_tip: child of ja (revolute) on base\n' in text
