@@ -17,6 +17,7 @@ it: what mutmut, one build a run, cannot do.
     scripts/mutate.py [run] [--modes compiled pure] [--jobs 2]   # mutmut, then the report
     scripts/mutate.py run --only 'dq_fk_ros.ros.conversions*'   # some mutants again
     scripts/mutate.py run --modes pure --survivors-again       # after adding tests
+    scripts/mutate.py run --modes pure --continue   # what a build has not run yet; Ctrl-C keeps
     scripts/mutate.py report [--target 90] [--survivors MODULE]   # the last figures again
 
 A mutant is killed when a test fails, times out or crashes on it; it survives when every
@@ -173,6 +174,9 @@ def main(argv=None) -> int:
                         help="mutmut's mutant names to run (globs: 'dq_fk_ros.ros.conversions*')")
     parser.add_argument('--survivors-again', action='store_true',
                         help="run again what the build's kept results have not killed")
+    parser.add_argument('--continue', dest='resume', action='store_true',
+                        help="run only what the build's kept results have not run (mutmut's "
+                             'order: the quickest first); Ctrl-C stops and keeps what ran')
     parser.add_argument('--jobs', type=int, default=os.cpu_count() or 2)
     parser.add_argument('--target', type=float, default=90.0)
     parser.add_argument('--survivors', metavar='MODULE', help='list this module\'s survivors')
@@ -187,15 +191,21 @@ def main(argv=None) -> int:
                 names += not_killed(mode)
                 if not names:
                     continue
-            if names:
-                restore(mode)
-            print(f'mutate: mutmut run, {mode} build ({len(names) or "all"} mutants)',
-                  flush=True)
-            rc = subprocess.call([mutmut, 'run', '--max-children', str(args.jobs)] + names,
-                                 cwd=ROOT,
-                                 env=dict({k: v for k, v in os.environ.items()
-                                           if k != 'DQ_FK_PURE_PYTHON'}, **MODES[mode]),
-                                 stdout=subprocess.DEVNULL)
+            if names or args.resume:
+                restore(mode)   # (without names mutmut runs only the mutants not run yet)
+            print(f'mutate: mutmut run, {mode} build ({len(names) or "all"} mutants'
+                  f'{", those not run yet" if args.resume and not names else ""})', flush=True)
+            try:
+                rc = subprocess.call([mutmut, 'run', '--max-children', str(args.jobs)] + names,
+                                     cwd=ROOT,
+                                     env=dict({k: v for k, v in os.environ.items()
+                                               if k != 'DQ_FK_PURE_PYTHON'}, **MODES[mode]),
+                                     stdout=subprocess.DEVNULL)
+            except KeyboardInterrupt:   # mutmut saved every mutant it finished: keep them
+                keep(mode)
+                print(f'mutate: stopped; the {mode} build\'s results so far are kept',
+                      file=sys.stderr)
+                return 130
             if rc != 0:
                 print(f'mutate: mutmut run ({mode}) exited {rc} (see: mutmut run, in {ROOT})',
                       file=sys.stderr)

@@ -76,3 +76,27 @@ def test_a_mutant_killed_by_either_build_is_killed(tmp_path, monkeypatch):
     restored = json.loads((tmp_path / 'mutants' / 'pkg' / 'm.py.meta').read_text())
     assert restored['exit_code_by_key'] == compiled
     assert mutate.not_killed('compiled', str(tmp_path)) == names[1:]   # survived, unreached
+
+
+def test_continue_runs_mutmut_without_names_on_the_kept_results_and_ctrl_c_keeps_them(
+        tmp_path, monkeypatch):
+    """mutmut runs only the mutants without a result when it is given no names."""
+    name = 'pkg.m.x_f__mutmut_1'
+    write_meta(tmp_path, 'pkg.m', {name: 1, 'pkg.m.x_f__mutmut_2': None})
+    mutate.keep('pure', str(tmp_path))
+    monkeypatch.setattr(mutate, 'ROOT', str(tmp_path))
+    monkeypatch.setattr(mutate, 'report', lambda *args: 0)
+    calls = []
+
+    def mutmut(argv, cwd, env, stdout):
+        calls.append((argv[1:], env.get('DQ_FK_PURE_PYTHON')))
+        meta = tmp_path / 'mutants' / 'pkg' / 'm.py.meta'
+        codes = json.loads(meta.read_text())['exit_code_by_key']   # restored for it
+        assert codes == {name: 1, 'pkg.m.x_f__mutmut_2': None}
+        meta.write_text(json.dumps({'exit_code_by_key': dict(codes, **{
+            'pkg.m.x_f__mutmut_2': 0})}))
+        raise KeyboardInterrupt   # stopped by the user after one more mutant
+    monkeypatch.setattr(mutate.subprocess, 'call', mutmut)
+    assert mutate.main(['run', '--modes', 'pure', '--continue', '--jobs', '1']) == 130
+    assert calls == [(['run', '--max-children', '1'], '1')]
+    assert mutate.results(str(tmp_path))['pkg.m'] == {name: 1, 'pkg.m.x_f__mutmut_2': 0}
