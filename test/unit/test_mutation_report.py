@@ -80,7 +80,7 @@ def test_a_mutant_killed_by_either_build_is_killed(tmp_path, monkeypatch):
 
 def test_continue_runs_mutmut_without_names_on_the_kept_results_and_ctrl_c_keeps_them(
         tmp_path, monkeypatch):
-    """mutmut runs only the mutants without a result when it is given no names."""
+    """Without names, mutmut runs only the mutants without a result."""
     name = 'pkg.m.x_f__mutmut_1'
     write_meta(tmp_path, 'pkg.m', {name: 1, 'pkg.m.x_f__mutmut_2': None})
     mutate.keep('pure', str(tmp_path))
