@@ -13,7 +13,7 @@ import os
 from dq_fk_ros.description.schema import load_robot_description
 from dq_fk_ros.description.shipped import shipped_robot_path, shipped_robots
 from dq_fk_ros.description.xacro_sandbox import ros_package_roots, TIME_LIMIT_S
-from dq_fk_ros.errors import listing, printable_line, RobotDescriptionError
+from dq_fk_ros.errors import printable_line, RobotDescriptionError
 
 URDF_SUFFIXES = ('.urdf', '.xacro')
 # how the tools name the URDF chain's ends in messages (from_urdf.OPTIONS: the URDF modules,
@@ -52,9 +52,7 @@ class LoadedRobot:
         skipped = ', '.join(f'{printable_line(j.name, 80)} -> {printable_line(j.child, 80)}'
                             for j in c.skipped)
         skipped = f'; skipped side branches: {skipped}' if skipped else ''
-        model = self.model
-        optional = (f'; optional side-branch joints: {listing(model.optional_joints, 10)}'
-                    if model.optional_joints and not model.branches else '')
+        model = self.model   # (a conversion's side-branch joints are its other chains')
         if not self.model.dof:
             return (f'converted URDF {self.model.source}: no moving joint below {c.base}: '
                     f'{len(self.model.links)} URDF links, all static (/tf_static only)')
@@ -66,7 +64,7 @@ class LoadedRobot:
                     f'states name its joints{skipped}')
         return (f'converted URDF {model.source}: chain {c.base} -> {c.tip}, '
                 f'{len(model.chain.joints)} DH rows ({model.chain.convention}), '
-                f'{len(model.links)} URDF links{optional}{skipped}')
+                f'{len(model.links)} URDF links{skipped}')
 
 
 def resolve_robot(spec: str | os.PathLike) -> str:

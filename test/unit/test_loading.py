@@ -183,3 +183,55 @@ def test_a_refused_path_is_named_in_at_most_200_characters_and_the_folders_liste
     shown = message.split(': not in the folders')[0]
     assert len(shown) <= 200 and shown.startswith('/nowhere/xxx') and '\n' not in message
     assert message.endswith(f'(robot_description_dirs: {allowed[0]}, {allowed[1]})')
+
+
+def test_a_name_that_says_xacro_is_refused_whatever_file_it_leads_to(tmp_path):
+    """A link named like a xacro to a plain URDF: the name decides how it would be read."""
+    (tmp_path / 'plain.urdf').write_text(URDF)
+    (tmp_path / 'ARM.XACRO').symlink_to(tmp_path / 'plain.urdf')
+    for named in ('ARM.XACRO', 'ARM.XACRO/.', 'ARM.XACRO/./'):
+        with pytest.raises(RobotDescriptionError, match='a .xacro file is a program'):
+            access_to(tmp_path).check(str(tmp_path) + '/' + named)
+    assert access_to(tmp_path).check(str(tmp_path / 'plain.urdf')) == \
+        os.path.realpath(tmp_path / 'plain.urdf')
+
+
+def test_a_refusal_names_the_path_in_200_characters_and_every_allowed_folder(tmp_path):
+    first, second = tmp_path / 'a', tmp_path / 'b'
+    path = str(tmp_path / ('x' * 120) / ('y' * 120) / 'arm.yaml')
+    with pytest.raises(RobotDescriptionError) as caught:
+        access_to(first, second).check(path)
+    assert str(caught.value) == (f'{path[:200]}: not in the folders robot files may be read '
+                                 f'from (robot_description_dirs: {first}, {second})')
+
+
+def test_the_summary_lists_skipped_branches_in_80_characters_a_name():
+    j1, j2, child = 'k' * 100, 'm' * 90, 'bad name ' + 'c' * 90
+    urdf = URDF.replace('</robot>', f'<link name="{child}"/><link name="bad two"/>'
+                        f'<joint name="{j1}" type="fixed"><parent link="l2"/>'
+                        f'<child link="{child}"/></joint><joint name="{j2}" type="fixed">'
+                        '<parent link="l2"/><child link="bad two"/></joint></robot>')
+    summary = robot_from_urdf_text(urdf).summary()
+    assert summary.endswith(f'; skipped side branches: {j1[:80]} -> {child[:80]}, '
+                            f'{j2[:80]} -> bad two')
+
+
+def test_the_summary_of_a_tree_counts_its_chains_rows_and_links_below_the_base():
+    limit = '<limit lower="-1" upper="1" effort="1" velocity="1"/>'
+    joints = ''.join(f'<joint name="j{k}" type="revolute"><parent link="{p}"/><child '
+                     f'link="{c}"/><axis xyz="0 0 1"/>{limit}</joint>'
+                     for k, (p, c) in enumerate([('b', 'z'), ('b', 'a'), ('a', 'a2')]))
+    urdf = ('<robot name="t"><link name="b"/><link name="z"/><link name="a"/><link name="a2"/>'
+            + joints + '</robot>')
+    assert robot_from_urdf_text(urdf, 'param').summary() == (
+        'converted URDF param: 2 DH chains from b (the first to a2), 3 DH rows (standard), '
+        '3 URDF links; each transform published once joint states name its joints')
+
+
+def test_urdf_text_is_converted_from_the_base_to_the_tip_asked_for():
+    robot = robot_from_urdf_text(URDF, 'param', base='l1', tip='l2')
+    assert (robot.conversion.base, robot.conversion.tip) == ('l1', 'l2')
+    assert robot.model.source == 'param' and robot.model.dof == 1
+    from dq_fk_ros.description.from_urdf import NODE_OPTIONS
+    with pytest.raises(RobotDescriptionError, match="^param: urdf_tip_link 'no' is not a link"):
+        robot_from_urdf_text(URDF, 'param', tip='no', options=NODE_OPTIONS)
