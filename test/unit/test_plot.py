@@ -247,3 +247,75 @@ def test_a_urdf_robot_is_drawn_by_its_links_and_helper_frames_only_when_asked():
     for (a, b), (c, d) in zip(sorted(segments, key=lambda s: tuple(s[1])),
                               sorted(want, key=lambda s: tuple(s[1]))):
         np.testing.assert_allclose(np.concatenate([a, b]), np.concatenate([c, d]), atol=1e-12)
+
+
+def wrapped_title(robot_name, names):
+    from dq_fk_ros.description.schema import parse_robot_description
+    rows = ''.join(f'  - {{frame: f{k}, joint: {n}, theta: 0, d: 0.1, a: 0.2, alpha: 0}}\n'
+                   for k, n in enumerate(names))
+    model = parse_robot_description(f'robot: {robot_name}\nbase: {{frame: b}}\nchain:\n' + rows)
+    return draw_robot(model, np.zeros(len(names))).axes[0].get_title().split('\n')
+
+
+def test_a_title_line_takes_a_joint_that_ends_it_at_100_characters_not_one_that_passes():
+    names = [f'joint{k:03d}' for k in range(8)]          # 'joint000=0.0°': 13 characters
+    parts = [f'{n}=0.0°' for n in names]
+    # 'abcdefghij: ' and five parts with their ', ' are 87: the sixth ends the line at 100
+    assert wrapped_title('abcdefghij', names) == [
+        'abcdefghij: ' + ', '.join(parts[:6]), ', '.join(parts[6:])]
+    # one character more in the name: the sixth would end it at 101, so it starts the next
+    assert wrapped_title('abcdefghijk', names) == [
+        'abcdefghijk: ' + ', '.join(parts[:5]), ', '.join(parts[5:])]
+
+
+def test_labels_are_named_for_svg_and_drawn_as_documented():
+    from dq_fk_ros.description.schema import parse_robot_description
+    model = parse_robot_description(
+        'robot: r\nbase: {frame: b}\nchain:\n'
+        '  - {frame: l1, joint: j1, theta: 0, d: 2.0, a: 2.0, alpha: 0}\n'
+        'links:\n  - {frame: close, parent: l1, xyz: [0, 0, 0.001]}\n')
+    fig = draw_robot(model, [0.0], dpi=50)
+    ax = fig.axes[0]
+    assert fig.dpi == 50 and tuple(fig.get_size_inches() * fig.dpi) == (400.0, 350.0)
+    gids = {t.get_gid() for t in ax.texts}
+    assert 'label:l1,close' in gids and all(g.startswith('label:') for g in gids)
+    assert {(colors.to_hex(t.get_color()), t.get_verticalalignment()) for t in ax.texts} == \
+        {('#000000', 'center')}
+    assert ax.title.get_fontsize() == 9.0
+    from dq_fk_ros.description.plot import SEGMENT_COLOUR
+    assert {line.get_solid_capstyle() for line in ax.lines
+            if colors.to_hex(line.get_color()) == colors.to_hex(SEGMENT_COLOUR)} == {'round'}
+    assert ax._draw_grid is False   # matplotlib's own grid off: the fixed frame's is drawn
+
+
+def test_save_robot_plot_draws_with_the_view_and_helpers_asked_for(tmp_path, monkeypatch):
+    from dq_fk_ros.description import plot
+    asked = []
+    real = plot.draw_robot
+    monkeypatch.setattr(plot, 'draw_robot', lambda *a, **k: asked.append((a[2:], k)) or
+                        real(*a, **k))
+    model = load_robot_description(shipped_robot_path('rrc'))
+    plot.save_robot_plot(model, np.zeros(model.dof), tmp_path / 'a.png')
+    plot.save_robot_plot(model, np.zeros(model.dof), tmp_path / 'b.svg', view=(10.0, 20.0),
+                         helpers=True)
+    assert asked == [((plot.DEFAULT_VIEW,), {'helpers': False}),
+                     (((10.0, 20.0),), {'helpers': True})]
+    assert (tmp_path / 'a.png').stat().st_size > 0 and (tmp_path / 'b.svg').stat().st_size > 0
+
+
+def test_a_urdf_robots_links_are_drawn_from_its_links_not_its_dh_rows():
+    """The links drawn are the URDF's (a joint without an offset draws nothing)."""
+    from dq_fk_ros.description.loading import robot_from_urdf_text
+    from dq_fk_ros.description.plot import SEGMENT_COLOUR
+    limit = '<limit lower="-1" upper="1" effort="1" velocity="1"/>'
+    urdf = ('<robot name="u"><link name="b"/><link name="l1"/><link name="l2"/>'
+            '<link name="flange"/><joint name="j1" type="revolute"><parent link="b"/>'
+            f'<child link="l1"/><origin xyz="0 0 0.5"/><axis xyz="0 0 1"/>{limit}</joint>'
+            '<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>'
+            f'<origin xyz="0.4 0 0.3"/><axis xyz="0 1 0"/>{limit}</joint>'
+            '<joint name="f" type="fixed"><parent link="l2"/><child link="flange"/></joint>'
+            '</robot>')
+    model = robot_from_urdf_text(urdf).model
+    drawn = lines_of(draw_robot(model, [0.0, 0.0]).axes[0], SEGMENT_COLOUR)
+    ends = sorted(tuple(np.round(p.T.ravel(), 9)) for p in drawn)
+    assert ends == [(0.0, 0.0, 0.0, 0.0, 0.0, 0.5), (0.0, 0.0, 0.5, 0.4, 0.0, 0.8)]
