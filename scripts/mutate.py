@@ -18,6 +18,7 @@ it: what mutmut, one build a run, cannot do.
     scripts/mutate.py run --only 'dq_fk_ros.ros.conversions*'   # some mutants again
     scripts/mutate.py run --modes pure --survivors-again       # after adding tests
     scripts/mutate.py run --modes pure --continue   # what a build has not run yet; Ctrl-C keeps
+    scripts/mutate.py run --continue --only 'dq_fk_ros.kinematics.dh*'   # of some modules
     scripts/mutate.py report [--target 90] [--survivors MODULE]   # the last figures again
 
 A mutant is killed when a test fails, times out or crashes on it; it survives when every
@@ -34,6 +35,7 @@ target is marked ``BELOW``.
 """
 
 import argparse
+import fnmatch
 import glob
 import json
 import os
@@ -96,6 +98,18 @@ def not_killed(mode, root=None) -> list:
         with open(meta, encoding='utf-8') as stream:
             codes = json.load(stream)['exit_code_by_key']
         names += [name for name, code in codes.items() if code in SURVIVED | UNREACHED]
+    return sorted(names)
+
+
+def not_run(mode, root=None) -> list:
+    """Return the names of the mutants ``.mutation/<mode>/`` holds without a result."""
+    root = root or ROOT
+    names = []
+    kept = os.path.join(root, '.mutation', mode)
+    for meta in glob.glob(os.path.join(kept, '**', '*.py.meta'), recursive=True):
+        with open(meta, encoding='utf-8') as stream:
+            codes = json.load(stream)['exit_code_by_key']
+        names += [name for name, code in codes.items() if code is None]
     return sorted(names)
 
 
@@ -187,6 +201,10 @@ def main(argv=None) -> int:
             # a fresh start, or (--only) this build's earlier results carried on
             shutil.rmtree(os.path.join(ROOT, 'mutants'), ignore_errors=True)
             names = list(args.only)
+            if args.resume and names:   # the named modules' mutants not run yet, alone
+                names = [n for n in not_run(mode) if any(fnmatch.fnmatch(n, p) for p in names)]
+                if not names:
+                    continue
             if args.survivors_again:
                 names += not_killed(mode)
                 if not names:
