@@ -257,3 +257,53 @@ def test_a_mesh_is_read_whole_up_to_the_bound_and_never_past_it(tmp_path, monkey
     for path in (over, tmp_path / 'grown.stl'):
         with pytest.raises(ValueError, match='^larger than 3 MiB$'):
             meshes.read_mesh_file(str(path))
+
+
+def test_a_listed_meshs_size_is_what_a_fetch_returns_and_anything_else_is_zero(arm, monkeypatch):
+    from dq_fk_ros.description import meshes
+    assets = MeshAssets(PackageResolver({'arm': str(arm)}, environ={}))
+    assert assets.size('package://arm/meshes/base.stl') == 0   # no URDF yet: nothing listed
+    assets.replace(robot('package://arm/meshes/base.stl', 'package://arm/meshes/upper.dae'))
+    uri = 'package://arm/meshes/base.stl'
+    assert assets.size(uri) == len(assets.fetch(uri)) == len('solid x\nendsolid x\n')
+    for other in ('package://arm/meshes/secret.stl', 'package://arm/meshes/nowhere.stl',
+                  None, 5, b'package://arm/meshes/base.stl', ['unhashable']):
+        assert assets.size(other) == 0 and assets.fetch(other) is None
+    monkeypatch.setattr(meshes, 'MAX_MESH_BYTES', 4)   # a file grown past the bound
+    assert assets.size(uri) == 4
+    (arm / 'meshes' / 'upper.dae').unlink()            # gone since it was listed
+    assert assets.size('package://arm/meshes/upper.dae') == 0
+
+
+def test_a_refused_meshs_problem_names_it_in_200_characters_and_the_reason(arm):
+    long = 'package://arm/meshes/' + 'd' * 300 + '.stl'
+    (listed,) = mesh_allow_list(robot(long), PackageResolver({'arm': str(arm)}, environ={}))
+    assert listed.path is None
+    assert listed.problem.startswith(f'mesh {long[:200]}: ')
+    assert long[:201] not in listed.problem and len(listed.problem) <= 5 + 200 + 2 + 300
+    (listed,) = mesh_allow_list(robot('meshes/base.stl'), PackageResolver(environ={}))
+    assert listed.problem == ('mesh meshes/base.stl: a relative path: resolved only against '
+                              'the folder of a URDF file given on the command line, never for '
+                              'one from DDS')
+    (listed,) = mesh_allow_list(robot('http://host/a.stl'), PackageResolver(environ={}))
+    assert listed.problem == 'mesh http://host/a.stl: only package:// and file:// meshes are served'
+    (listed,) = mesh_allow_list(robot('package://arm/meshes/notes.txt'),
+                                PackageResolver({'arm': str(arm)}, environ={}))
+    assert listed.problem.endswith('not a mesh this page draws (' +
+                                   ', '.join(meshes_extensions()) + ')')
+
+
+def meshes_extensions():
+    from dq_fk_ros.description.meshes import MESH_EXTENSIONS
+    return MESH_EXTENSIONS
+
+
+def test_a_urdf_of_the_largest_size_names_its_meshes_and_one_character_more_none():
+    from dq_fk_ros.description.meshes import visual_mesh_uris
+    from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES
+    text = robot('package://arm/meshes/base.stl')
+    text = text.replace('</robot>', '<!--' + 'x' * (MAX_URDF_BYTES - len(text) - 7) +
+                        '--></robot>')
+    assert len(text) == MAX_URDF_BYTES
+    assert visual_mesh_uris(text) == ['package://arm/meshes/base.stl']
+    assert visual_mesh_uris(text.replace('<!--', '<!-- ')) == []
