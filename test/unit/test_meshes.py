@@ -286,7 +286,8 @@ def test_a_refused_meshs_problem_names_it_in_200_characters_and_the_reason(arm):
                               'the folder of a URDF file given on the command line, never for '
                               'one from DDS')
     (listed,) = mesh_allow_list(robot('http://host/a.stl'), PackageResolver(environ={}))
-    assert listed.problem == 'mesh http://host/a.stl: only package:// and file:// meshes are served'
+    assert listed.problem == \
+        'mesh http://host/a.stl: only package:// and file:// meshes are served'
     (listed,) = mesh_allow_list(robot('package://arm/meshes/notes.txt'),
                                 PackageResolver({'arm': str(arm)}, environ={}))
     assert listed.problem.endswith('not a mesh this page draws (' +
