@@ -356,3 +356,38 @@ def test_a_package_xml_is_read_only_up_to_its_bound(tmp_path, monkeypatch):
     monkeypatch.setattr(packages, 'open', reading, raising=False)
     assert packages.package_xml_name(str(huge)) is None
     assert asked == [packages.MAX_PACKAGE_XML_BYTES + 1]
+
+
+def test_the_crawl_spends_its_bound_on_folders_and_skips_hidden_linked_and_unreadable_ones(
+        tmp_path, monkeypatch):
+    from dq_fk_ros.description import packages
+    root, outside = tmp_path / 'root', tmp_path / 'outside'
+    for k in range(5):                                  # files cost nothing of the bound
+        (root / 'files').mkdir(parents=True, exist_ok=True)
+        (root / 'files' / f'a{k}').write_text('')
+    _package(root / 'files' / 'zz', 'zz')
+    _package(root / '.hidden' / 'secret', 'secret')     # a dot folder is not crawled
+    _package(outside / 'elsewhere', 'elsewhere')
+    os.symlink(outside, root / 'linked')                # nor a link out of the root
+    _package(root / 'unreadable' / 'pkg', 'behind')
+    _package(root / 'y_after', 'after')
+    real_listdir = os.listdir
+
+    def listdir(folder):
+        if os.path.basename(folder) == 'unreadable':
+            raise PermissionError(13, 'Permission denied', folder)
+        return real_listdir(folder)
+    monkeypatch.setattr(packages.os, 'listdir', listdir)
+    monkeypatch.setattr(packages, 'MAX_SEARCH_FOLDERS', 5)  # root, files, zz, unreadable, y_after
+    found = [os.path.relpath(f, root) for f in packages._package_folders(str(root))]
+    assert found == [os.path.join('files', 'zz'), 'y_after']
+
+
+def test_a_refused_uri_is_named_in_its_first_120_characters(tmp_path):
+    _package(tmp_path / 'arm', 'arm')
+    resolver = PackageResolver({'arm': str(tmp_path / 'arm')}, environ={})
+    for uri, why in (('package://arm/' + '../' * 60 + 'etc/passwd', ': leaves package'),
+                     ('http://' + 'h' * 150 + '/a.stl', ': only package:// and file:// are')):
+        with pytest.raises(ValueError) as caught:
+            resolver.resolve(uri)
+        assert str(caught.value).startswith(uri[:120] + why)
