@@ -268,7 +268,7 @@ def _chain_entry(plan, c, pose, body, frame_pose, taken, convention, published, 
         else:
             row['joint'] = j.name
         row.update(theta=theta, d=d, a=a, alpha=alpha)
-        if j.mimic is None and j.kind != 'continuous' and j.lower is not None:
+        if j.mimic is None and j.lower is not None:   # (a continuous joint has none)
             row['limits'] = [j.lower, j.upper]
         if j.mimic is None and j.velocity is not None and j.velocity > 0:
             row['max_velocity'] = j.velocity

@@ -5,6 +5,7 @@ from dq_fk_ros.description.from_urdf import (load_urdf_description, longest_chai
 from dq_fk_ros.description.robot_model import MAX_NAME_CHARS
 from dq_fk_ros.description.urdf_reader import parse_urdf
 from dq_fk_ros.errors import RobotDescriptionError
+import numpy as np
 import pytest
 
 LIMIT = '<limit lower="-1" upper="1" effort="1" velocity="1"/>'
@@ -114,3 +115,27 @@ def test_a_planar_and_a_floating_links_notes_say_how_they_are_published():
     assert ('URDF link drone: child of fly (floating) on base; at its origin, not on TF: it '
             'roots a TF tree\n') in text
     assert 'URDF link a_tip: child of ja (revolute) on base\n' in text
+
+
+def test_a_link_fixed_before_the_first_moving_joint_moves_with_the_base():
+    text = urdf(['base', 'mount', 'l1'], [joint('jm', 'base', 'mount', 'fixed'),
+                                          joint('j1', 'mount', 'l1')])
+    model = urdf_to_description(text, 'r.urdf').model
+    assert [(link.frame, link.parent) for link in model.links] == [('mount', 'base'),
+                                                                   ('l1', 'dh1')]
+
+
+def test_a_side_chains_dh_frames_take_its_number_when_the_urdf_has_its_tips_names():
+    taken = ['a_tip_dh0', 'a_tip_dh_0', 'a_tip_dq_fk_dh0']
+    text = urdf(TWO + taken, TWO_JOINTS + [joint(f'x{k}', 'base', n, 'fixed')
+                                           for k, n in enumerate(taken)])
+    names = urdf_to_description(text, 'r.urdf').model.frame_names
+    assert {'dh0', 'dh1', 'dq_fk_chain1_dh0', 'dq_fk_chain1_dh1'} <= set(names)
+
+
+def test_a_continuous_joints_limit_element_gives_its_speed_and_no_position_limits():
+    limited = ('<joint name="j1" type="continuous"><parent link="base"/><child link="l1"/>'
+               '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="2.5"/>'
+               '</joint>')
+    model = urdf_to_description(urdf(['base', 'l1'], [limited]), 'r.urdf').model
+    assert np.isinf(model.chain.limits).all() and list(model.max_velocity) == [2.5]
