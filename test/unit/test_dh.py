@@ -470,3 +470,10 @@ def test_homogeneous_from_dq_keeps_the_leading_shape_and_is_a_rigid_transform():
     np.testing.assert_allclose(got, matrices, atol=1e-12)
     np.testing.assert_array_equal(got[..., 3, :], np.broadcast_to([0, 0, 0, 1], (2, 3, 4)))
     np.testing.assert_allclose(homogeneous_from_dq(dqs[0][0]), matrices[0, 0], atol=1e-12)
+
+
+def test_a_twist_of_the_wrong_number_of_joint_velocities_says_how_many_were_expected():
+    chain, _, _ = random_chain(np.random.default_rng(25), 'standard',
+                               types=('revolute',))
+    with pytest.raises(ValueError, match=r'^expected 6 joint velocities, got shape \(5,\)$'):
+        chain.twist(np.zeros(6), np.zeros(5))

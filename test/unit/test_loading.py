@@ -235,3 +235,61 @@ def test_urdf_text_is_converted_from_the_base_to_the_tip_asked_for():
     from dq_fk_ros.description.from_urdf import NODE_OPTIONS
     with pytest.raises(RobotDescriptionError, match="^param: urdf_tip_link 'no' is not a link"):
         robot_from_urdf_text(URDF, 'param', tip='no', options=NODE_OPTIONS)
+
+
+def test_a_name_with_a_robot_files_suffix_is_a_path_not_a_shipped_name():
+    for name in ('nothere.yaml', 'nothere.urdf', 'nothere.urdf.xacro'):
+        with pytest.raises(RobotDescriptionError, match=f'^{name}: no such file$'):
+            load_robot(name)
+
+
+@pytest.mark.parametrize('with_access', [False, True])
+def test_a_urdf_files_base_tip_and_option_names_reach_the_conversion(tmp_path, with_access):
+    from dq_fk_ros.description.from_urdf import NODE_OPTIONS
+    path = tmp_path / 'two.urdf'
+    path.write_text(URDF)
+    access = access_to(tmp_path) if with_access else None
+    robot = load_robot(str(path), base='l1', tip='l2', access=access)
+    assert (robot.conversion.base, robot.conversion.tip, robot.model.dof) == ('l1', 'l2', 1)
+    with pytest.raises(RobotDescriptionError,
+                       match=f"^{path}: urdf_tip_link 'no' is not a link"):
+        load_robot(str(path), tip='no', access=access, options=NODE_OPTIONS)
+
+
+def xacro_arm(folder, body):
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / 'arm.urdf.xacro'
+    path.write_text('<?xml version="1.0"?><robot name="r" xmlns:xacro="http://www.ros.org/'
+                    f'wiki/xacro">{body}{URDF[18:]}')
+    return path
+
+
+def test_a_xacro_named_at_run_time_reads_only_in_the_allowed_folders(tmp_path):
+    """Not in the rest of its package: the folders allowed, not the file's package, bound it."""
+    package = tmp_path / 'pkg'
+    (package / 'urdf').mkdir(parents=True)
+    (package / 'package.xml').write_text('<package><name>pkg</name></package>')
+    (package / 'secret.xacro').write_text('<?xml version="1.0"?><robot xmlns:xacro="http://'
+                                          'www.ros.org/wiki/xacro"/>')
+    path = xacro_arm(package / 'urdf', '<xacro:include filename="../secret.xacro"/>')
+    with pytest.raises(RobotDescriptionError, match='xacro failed: refused, outside the robot'):
+        load_robot(str(path), access=access_to(package / 'urdf', xacro=True))
+    assert load_robot(str(path), access=access_to(package, xacro=True)).model.dof == 2
+
+
+def test_a_xacro_named_at_run_time_finds_the_packages_given_and_stops_when_asked(tmp_path):
+    helper = tmp_path / 'helper'
+    helper.mkdir()
+    (helper / 'length.xacro').write_text('<?xml version="1.0"?><robot xmlns:xacro="http://'
+                                         'www.ros.org/wiki/xacro"><xacro:property name="l" '
+                                         'value="0.5"/></robot>')
+    body = '<xacro:include filename="$(find helper)/length.xacro"/>'
+    path = xacro_arm(tmp_path / 'arm', body)
+    access = access_to(tmp_path, xacro=True)
+    robot = load_robot(str(path), access=access, packages={'helper': str(helper)})
+    assert robot.model.dof == 2
+    with pytest.raises(RobotDescriptionError, match="package 'helper' not found"):
+        load_robot(str(path), access=access)   # no package of that name anywhere
+    stopping = dataclasses.replace(access, should_stop=lambda: True)
+    with pytest.raises(RobotDescriptionError, match='xacro stopped: shutting down'):
+        load_robot(str(path), access=stopping, packages={'helper': str(helper)})
