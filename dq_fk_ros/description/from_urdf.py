@@ -278,8 +278,7 @@ def _chain_entry(plan, c, pose, body, frame_pose, taken, convention, published, 
     if not plan.moving:
         rows.append(({'frame': names[1], 'type': 'fixed', 'theta': 0.0, 'd': 0.0, 'a': 0.0,
                       'alpha': 0.0}, 'no moving joint: a fixed row (every link is static)'))
-    base_offset = np.linalg.solve(frame_pose[parent], frames[0]) if parent in frame_pose \
-        else frames[0]
+    base_offset = np.linalg.solve(frame_pose[parent], frames[0])   # (the base link's: identity)
     return {'parent': parent, 'base': base_offset, 'names': names, 'rows': rows,
             'plan': plan}
 

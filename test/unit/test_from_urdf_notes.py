@@ -139,3 +139,23 @@ def test_a_continuous_joints_limit_element_gives_its_speed_and_no_position_limit
                '</joint>')
     model = urdf_to_description(urdf(['base', 'l1'], [limited]), 'r.urdf').model
     assert np.isinf(model.chain.limits).all() and list(model.max_velocity) == [2.5]
+
+
+def test_each_rows_note_names_its_urdf_joint_and_how_its_axis_meets_the_previous():
+    more = [joint('j2', 'a_tip', 'second'), joint('jm', 'second', 'third',
+                                                  extra='<mimic joint="j2"/>')]
+    text = urdf_to_description(urdf(TWO + ['second', 'third'], TWO_JOINTS + more), 'r.urdf',
+                               tip='third').text
+    notes = [line.split('# ')[1] for line in text.splitlines() if '# URDF joint' in line]
+    assert notes[0] == 'URDF joint ja (revolute): base -> a_tip; axis first'
+    assert notes[1].startswith('URDF joint j2 (revolute): a_tip -> second; axis ')
+    assert notes[1].endswith(' to the previous')
+    assert notes[2].startswith('URDF joint jm (revolute, mimic): second -> third; axis ')
+
+
+def test_a_tree_without_a_moving_joint_is_one_fixed_row_of_zeros():
+    text = urdf(['base', 'sensor'], [joint('js', 'base', 'sensor', 'fixed')])
+    conversion = urdf_to_description(text, 'r.urdf')
+    assert '{frame: dh1, type: fixed, theta: 0.0, d: 0.0, a: 0.0, alpha: 0.0}' in \
+        conversion.text.replace('"', '')
+    assert '# no moving joint: a fixed row (every link is static)' in conversion.text
