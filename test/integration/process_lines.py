@@ -56,6 +56,19 @@ class ProcessLines:
             if line is None or predicate(line):
                 return line
 
+    def first(self, predicate, timeout_s):
+        """
+        Return the first line ever taken that ``predicate`` accepts, waiting for one to come.
+
+        :meth:`until` reads from here on: a line the process printed before the one an
+        earlier wait stopped at (a mesh's problem before the view's address) is among
+        :attr:`lines` already, and only this finds it.
+        """
+        for line in self.lines:
+            if predicate(line):
+                return line
+        return self.until(predicate, timeout_s)
+
     def new_lines(self, seconds):
         """Return the lines not returned by an earlier call, waiting ``seconds`` for more."""
         deadline = time.monotonic() + seconds

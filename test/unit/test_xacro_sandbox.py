@@ -286,3 +286,79 @@ def test_links_are_followed_out_of_the_package_only_if_every_one_keeps_its_name(
     path = write(share, 'robot.urdf.xacro', HEAD + '<xacro:include filename="part.xacro"/>'
                  + '<link name="a"/>' + TAIL)
     assert 'from_the_clone' in read_urdf_text(path, read_roots=[share.parent])
+
+
+def test_xacros_message_is_made_one_printable_line_said_once():
+    """The child's _one_line, run here: xacro's own texts as the sandbox passes them on."""
+    from dq_fk_ros.description.xacro_sandbox import _one_line
+    assert _one_line(ValueError('line one\n\n   line two  \n')) == 'line one line two'
+    assert _one_line(ValueError('')) == 'ValueError'
+    assert _one_line(ValueError("<class 'xacro.XacroException'>: no such macro")) == \
+        'no such macro'
+    assert _one_line(OSError("cannot open x.xacro [Errno 2] No such file: 'x.xacro'")) == \
+        'cannot open x.xacro'
+    assert _one_line(ValueError('[Errno 2] alone')) == '[Errno 2] alone'   # nothing said before
+    assert _one_line(ValueError('bad macro bad macro in arm.xacro')) == 'bad macro in arm.xacro'
+    assert _one_line(ValueError('a a')) == 'a'
+    assert _one_line(ValueError('abab')) == 'abab'   # a repeat without the space between
+    assert _one_line(ValueError('tab\there\x1b[31m')) == 'tab?here?[31m'
+    assert _one_line(ValueError('x' * 5000)) == 'x' * 400
+    long_first = 'y' * 2500 + '\nsecond line'
+    assert _one_line(ValueError(long_first)) == 'y' * 400   # (2000 read: the repeat search)
+
+
+@pytest.fixture
+def patched_xacro(monkeypatch):
+    """Patch xacro in this process as the child does; every change is undone after."""
+    import xacro
+    import xacro.substitution_args as substitution
+    from dq_fk_ros.description.xacro_sandbox import _patch_xacro, REMOVED_SYMBOLS
+    monkeypatch.setattr(xacro, 'safe_eval', xacro.safe_eval)
+    monkeypatch.setattr(substitution, '_eval', substitution._eval)
+    monkeypatch.setattr(substitution, '_eval_find', substitution._eval_find)
+    monkeypatch.setitem(substitution._eval_dict, 'find', substitution._eval_dict['find'])
+    for table in (xacro._global_symbols, xacro._global_symbols['python']):
+        for name in REMOVED_SYMBOLS:
+            if name in table:
+                monkeypatch.setitem(table, name, table[name])
+    allowed = []
+
+    class Resolver:
+        def find(self, name):
+            if name != 'arm':
+                from dq_fk_ros.description.packages import PackageNotFound
+                raise PackageNotFound(f'package {name!r} not found')
+            return '/packages/arm'
+    return _patch_xacro(Resolver(), allowed.append), allowed
+
+
+@pytest.mark.parametrize('name', ESCAPES)
+def test_the_patched_xacro_refuses_each_escape_in_this_process(tmp_path, name, patched_xacro):
+    xacro, _ = patched_xacro
+    marker = tmp_path / 'marker'
+    path = write(tmp_path, 'evil.xacro', escapes(marker)[name])
+    with pytest.raises(Exception):
+        xacro.process_file(str(path))
+    assert not marker.exists()
+
+
+def test_the_patched_xacro_evaluates_ordinary_xacro_and_finds_through_the_resolver(
+        tmp_path, patched_xacro):
+    xacro, allowed = patched_xacro
+    body = ('<xacro:property name="l" value="0.5"/><xacro:arg name="n" default="3"/>'
+            '<link name="a_${l * 2}_$(eval 2 * 3)_$(eval n * 2)_$(find arm)"/>')
+    path = write(tmp_path, 'ok.xacro', HEAD + body + TAIL)
+    names = [e.getAttribute('name') for e in
+             xacro.process_file(str(path)).getElementsByTagName('link')]
+    assert names == ['a_1.0_6_6_/packages/arm']   # an argument (3) by its name in $(eval)
+    assert allowed == ['/packages/arm']   # the folder found may be read
+    path = write(tmp_path, 'lost.xacro', HEAD + '<link name="$(find nowhere)"/>' + TAIL)
+    with pytest.raises(Exception, match="package 'nowhere' not found"):
+        xacro.process_file(str(path))
+    for expression in ('${python.type(1)}', '${python.vars()}', '${vars()}', '${type(1)}'):
+        path = write(tmp_path, 'gone.xacro', link(expression))
+        with pytest.raises(Exception):
+            xacro.process_file(str(path))
+    path = write(tmp_path, 'builtins.xacro', link('${open}'))
+    with pytest.raises(Exception, match='open'):   # no builtins beyond xacro's own list
+        xacro.process_file(str(path))
