@@ -17,7 +17,8 @@ it: what mutmut, one build a run, cannot do.
     scripts/mutate.py [run] [--modes compiled pure] [--jobs 2]   # mutmut, then the report
     scripts/mutate.py run --only 'dq_fk_ros.ros.conversions*'   # some mutants again
     scripts/mutate.py run --modes pure --survivors-again       # after adding tests
-    scripts/mutate.py run --modes pure --continue   # what a build has not run yet; Ctrl-C keeps
+    scripts/mutate.py run --modes pure --continue   # what a build has not run yet; Ctrl-C
+                                                    # or SIGTERM stops it, keeping what ran
     scripts/mutate.py run --continue --only 'dq_fk_ros.kinematics.dh*'   # of some modules
     scripts/mutate.py report [--target 90] [--survivors MODULE]   # the last figures again
 
@@ -40,6 +41,7 @@ import glob
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 
@@ -190,46 +192,63 @@ def main(argv=None) -> int:
                         help="run again what the build's kept results have not killed")
     parser.add_argument('--continue', dest='resume', action='store_true',
                         help="run only what the build's kept results have not run (mutmut's "
-                             'order: the quickest first); Ctrl-C stops and keeps what ran')
+                             'order: the quickest first); Ctrl-C or SIGTERM stops it and keeps '
+                             'what ran')
     parser.add_argument('--jobs', type=int, default=os.cpu_count() or 2)
     parser.add_argument('--target', type=float, default=90.0)
     parser.add_argument('--survivors', metavar='MODULE', help='list this module\'s survivors')
     args = parser.parse_args(argv)
     if args.action == 'run':
-        mutmut = os.path.join(os.path.dirname(sys.executable), 'mutmut')
-        for mode in args.modes:
-            # a fresh start, or (--only) this build's earlier results carried on
-            shutil.rmtree(os.path.join(ROOT, 'mutants'), ignore_errors=True)
-            names = list(args.only)
-            if args.resume and names:   # the named modules' mutants not run yet, alone
-                names = [n for n in not_run(mode) if any(fnmatch.fnmatch(n, p) for p in names)]
-                if not names:
-                    continue
-            if args.survivors_again:
-                names += not_killed(mode)
-                if not names:
-                    continue
-            if names or args.resume:
-                restore(mode)   # (without names mutmut runs only the mutants not run yet)
-            print(f'mutate: mutmut run, {mode} build ({len(names) or "all"} mutants'
-                  f'{", those not run yet" if args.resume and not names else ""})', flush=True)
-            try:
-                rc = subprocess.call([mutmut, 'run', '--max-children', str(args.jobs)] + names,
-                                     cwd=ROOT,
-                                     env=dict({k: v for k, v in os.environ.items()
-                                               if k != 'DQ_FK_PURE_PYTHON'}, **MODES[mode]),
-                                     stdout=subprocess.DEVNULL)
-            except KeyboardInterrupt:   # mutmut saved every mutant it finished: keep them
-                keep(mode)
-                print(f'mutate: stopped; the {mode} build\'s results so far are kept',
-                      file=sys.stderr)
-                return 130
-            if rc != 0:
-                print(f'mutate: mutmut run ({mode}) exited {rc} (see: mutmut run, in {ROOT})',
-                      file=sys.stderr)
-                return rc
-            keep(mode)
+        # Ctrl-C, or a SIGTERM (a run left in the background, where SIGINT is ignored), stops
+        # mutmut and keeps what it finished
+        before = {sig: signal.signal(sig, signal.default_int_handler)
+                  for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            rc = _run(args)
+        finally:
+            for sig, handler in before.items():
+                signal.signal(sig, handler)
+        if rc:
+            return rc
     report(args.target, args.survivors)
+    return 0
+
+
+def _run(args) -> int:
+    """Run mutmut for each build of ``args.modes``; return 0, or the first failure's code."""
+    mutmut = os.path.join(os.path.dirname(sys.executable), 'mutmut')
+    for mode in args.modes:
+        # a fresh start, or (--only) this build's earlier results carried on
+        shutil.rmtree(os.path.join(ROOT, 'mutants'), ignore_errors=True)
+        names = list(args.only)
+        if args.resume and names:   # the named modules' mutants not run yet, alone
+            names = [n for n in not_run(mode) if any(fnmatch.fnmatch(n, p) for p in names)]
+            if not names:
+                continue
+        if args.survivors_again:
+            names += not_killed(mode)
+            if not names:
+                continue
+        if names or args.resume:
+            restore(mode)   # (without names mutmut runs only the mutants not run yet)
+        print(f'mutate: mutmut run, {mode} build ({len(names) or "all"} mutants'
+              f'{", those not run yet" if args.resume and not names else ""})', flush=True)
+        try:
+            rc = subprocess.call([mutmut, 'run', '--max-children', str(args.jobs)] + names,
+                                 cwd=ROOT,
+                                 env=dict({k: v for k, v in os.environ.items()
+                                           if k != 'DQ_FK_PURE_PYTHON'}, **MODES[mode]),
+                                 stdout=subprocess.DEVNULL)
+        except KeyboardInterrupt:   # mutmut saved every mutant it finished: keep them
+            keep(mode)
+            print(f'mutate: stopped; the {mode} build\'s results so far are kept',
+                  file=sys.stderr)
+            return 130
+        if rc != 0:
+            print(f'mutate: mutmut run ({mode}) exited {rc} (see: mutmut run, in {ROOT})',
+                  file=sys.stderr)
+            return rc
+        keep(mode)
     return 0
 
 
