@@ -351,6 +351,15 @@ def test_the_patched_xacro_evaluates_ordinary_xacro_and_finds_through_the_resolv
     names = [e.getAttribute('name') for e in
              xacro.process_file(str(path)).getElementsByTagName('link')]
     assert names == ['a_1.0_6_6_/packages/arm']   # an argument (3) by its name in $(eval)
+    body = ('<xacro:macro name="m" params="w"><link name="m_${w * 2}"/></xacro:macro>'
+            '<xacro:m w="3"/>')
+    path = write(tmp_path, 'macro.xacro', HEAD + body + TAIL)
+    assert [e.getAttribute('name') for e in   # a macro's parameters: xacro's local symbols
+            xacro.process_file(str(path)).getElementsByTagName('link')] == ['m_6']
+    # (xacro 2.1.1 ends $(...) at its first ')': arg('n') cannot be written in $(eval))
+    path = write(tmp_path, 'no_args.xacro', HEAD + '<link name="$(eval 1 + 1)"/>' + TAIL)
+    assert [e.getAttribute('name') for e in
+            xacro.process_file(str(path)).getElementsByTagName('link')] == ['2']
     assert allowed == ['/packages/arm']   # the folder found may be read
     path = write(tmp_path, 'lost.xacro', HEAD + '<link name="$(find nowhere)"/>' + TAIL)
     with pytest.raises(Exception, match="package 'nowhere' not found"):
