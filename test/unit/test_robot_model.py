@@ -379,3 +379,35 @@ def test_tf_frame_ids_take_the_prefix_and_a_dh_fixed_frame_keeps_its_name():
     assert model.tf_frame_id('eeCarry_seg6') == 'eeCarry_seg6'   # no prefix by default
     assert model.tf_frame_id('eeCarry_seg6', 'left/') == 'left/eeCarry_seg6'
     assert model.tf_frame_id(model.fixed_frame, 'left/') == model.fixed_frame
+
+
+def test_a_file_of_the_largest_size_is_read_and_a_bigger_one_refused_after_a_bounded_read(
+        tmp_path, monkeypatch):
+    import tracemalloc
+    from dq_fk_ros.description import schema
+    monkeypatch.setattr(schema, 'MAX_FILE_BYTES', len(GOOD) + 10)
+    exact = tmp_path / 'exact.yaml'
+    exact.write_text(GOOD + '#' * 9 + '\n')          # exactly the bound
+    assert schema.load_robot_description(exact).name == 'demo'
+    big = tmp_path / 'big.yaml'
+    big.write_text(GOOD + '#' * (8 << 20))            # 8 MiB past it
+    tracemalloc.start()
+    try:
+        with pytest.raises(RobotDescriptionError, match=r'big.yaml: larger than 0 KiB'):
+            schema.load_robot_description(big)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 1 << 20   # the bound and a character more were read, not the file
+
+
+def test_what_a_peer_is_told_of_an_unreadable_file_is_one_line_without_its_content(tmp_path):
+    from dq_fk_ros.description.schema import load_robot_description
+    latin = tmp_path / 'latin.yaml'
+    latin.write_bytes(b'robot: caf\xe9\n')
+    with pytest.raises(RobotDescriptionError) as caught:
+        load_robot_description(latin)
+    assert caught.value.public == f'{latin}: not UTF-8 text'
+    with pytest.raises(RobotDescriptionError) as caught:
+        load_robot_description(str(tmp_path / 'nul\0.yaml'))
+    assert caught.value.public == f'{tmp_path}/nul\0.yaml: cannot be read'
