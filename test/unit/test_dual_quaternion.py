@@ -4,7 +4,8 @@ import math
 
 from dq_fk_ros.kinematics.dual_quaternion import (
     canonical, dq_from_pose_array, dq_multiply_array, dq_normalize_array, dq_to_pose_xyzw,
-    DualQuaternion, pose_xyzw_in, quat_from_matrix, quat_wxyz_to_xyzw, quat_xyzw_to_wxyz)
+    DualQuaternion, pose_xyzw_from_coeffs, pose_xyzw_in, quat_from_axis_angle,
+    quat_from_matrix, quat_wxyz_to_xyzw, quat_xyzw_to_wxyz)
 import homogeneous as hm
 import numpy as np
 import pytest
@@ -335,3 +336,39 @@ def test_a_pose_in_a_frame_for_one_pose_and_for_a_grid_of_poses():
             if expected[6] < 0:
                 expected[3:] = -expected[3:]
             np.testing.assert_allclose(one, expected, atol=1e-12)
+
+
+def test_sums_differences_and_scalings_are_coefficient_wise():
+    a = DualQuaternion([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0])
+    b = DualQuaternion([0.5, -1.0, 0.25, 2.0, -3.0, 1.0, 0.0, 4.0])
+    np.testing.assert_array_equal((a + b).coeffs, a.coeffs + b.coeffs)
+    np.testing.assert_array_equal((a - b).coeffs, a.coeffs - b.coeffs)
+    np.testing.assert_array_equal((a * 2).coeffs, 2.0 * a.coeffs)
+    np.testing.assert_array_equal((0.5 * a).coeffs, 0.5 * a.coeffs)
+    np.testing.assert_array_equal((a * np.float64(3.0)).coeffs, 3.0 * a.coeffs)
+
+
+def test_isclose_is_absolute_and_takes_either_sign():
+    big = DualQuaternion([1e6, 0, 0, 0, 0, 0, 0, 0])
+    near = DualQuaternion([1e6 + 1e-3, 0, 0, 0, 0, 0, 0, 0])   # 1e-9 relative, 1e-3 absolute
+    assert not big.isclose(near) and not big.isclose(-near)
+    assert big.isclose(near, atol=1e-2) and big.isclose(-near, atol=1e-2)
+    unit = DualQuaternion.from_rotation([0, 0, 1], 0.3)
+    assert unit.isclose(-unit) and not unit.isclose(DualQuaternion.from_rotation([0, 0, 1], 0.31))
+
+
+def test_only_a_negative_w_is_flipped():
+    """A half turn (w = 0 exactly) keeps its sign: the documented rule is w < 0."""
+    half_turn = np.array([0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.0])
+    np.testing.assert_array_equal(canonical(half_turn), half_turn)
+    np.testing.assert_array_equal(canonical(-half_turn), -half_turn)
+    assert pose_xyzw_from_coeffs(half_turn.tolist())[3:] == (1.0, 0.0, 0.0, 0.0)
+    assert pose_xyzw_from_coeffs((-half_turn).tolist())[3:] == (-1.0, 0.0, 0.0, 0.0)
+
+
+def test_a_rotation_about_no_axis_is_refused():
+    for axis in ([0, 0, 0], [0.0, 0.0, 0.0], [np.nan, 0, 0]):
+        with pytest.raises(ValueError, match='^rotation axis must be a non-zero vector$'):
+            quat_from_axis_angle(axis, 0.5)
+    np.testing.assert_allclose(quat_from_axis_angle([0, 0, 2], math.pi),
+                               [0.0, 0.0, 0.0, 1.0], atol=1e-15)
