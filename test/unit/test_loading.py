@@ -290,6 +290,12 @@ def test_a_xacro_named_at_run_time_finds_the_packages_given_and_stops_when_asked
     assert robot.model.dof == 2
     with pytest.raises(RobotDescriptionError, match="package 'helper' not found"):
         load_robot(str(path), access=access)   # no package of that name anywhere
+    # a file that expands for ever (10**9 links): stopped by the FileAccess's should_stop
+    # at its first question, never by finishing first
+    bomb = ['<xacro:macro name="m0"><link name="x"/></xacro:macro>'] + [
+        f'<xacro:macro name="m{k}">' + f'<xacro:m{k - 1}/>' * 10 + '</xacro:macro>'
+        for k in range(1, 10)]
+    path = xacro_arm(tmp_path / 'bomb', ''.join(bomb) + '<xacro:m9/>')
     stopping = dataclasses.replace(access, should_stop=lambda: True)
     with pytest.raises(RobotDescriptionError, match='xacro stopped: shutting down'):
-        load_robot(str(path), access=stopping, packages={'helper': str(helper)})
+        load_robot(str(path), access=stopping)
