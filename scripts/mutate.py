@@ -16,7 +16,7 @@ it: what mutmut, one build a run, cannot do.
 
     scripts/mutate.py [run] [--modes compiled pure] [--jobs 2]   # mutmut, then the report
     scripts/mutate.py run --only 'dq_fk_ros.ros.conversions*'   # some mutants again
-    scripts/mutate.py run --modes pure --survivors-again       # after adding tests
+    scripts/mutate.py run --modes pure --survivors-again [--only PATTERN]   # after new tests
     scripts/mutate.py run --modes pure --continue   # what a build has not run yet; Ctrl-C
                                                     # or SIGTERM stops it, keeping what ran
     scripts/mutate.py run --continue --only 'dq_fk_ros.kinematics.dh*'   # of some modules
@@ -225,8 +225,9 @@ def _run(args) -> int:
             names = [n for n in not_run(mode) if any(fnmatch.fnmatch(n, p) for p in names)]
             if not names:
                 continue
-        if args.survivors_again:
-            names += not_killed(mode)
+        if args.survivors_again:   # (with --only: the named modules' survivors alone)
+            names = [n for n in not_killed(mode)
+                     if not args.only or any(fnmatch.fnmatch(n, p) for p in args.only)]
             if not names:
                 continue
         if names or args.resume:

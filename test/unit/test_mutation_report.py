@@ -117,3 +117,18 @@ def test_continue_with_patterns_names_only_their_mutants_not_run_yet(tmp_path, m
     mutate.keep('compiled', str(tmp_path))
     assert mutate.main(['run', '--modes', 'compiled', '--continue', '--only', 'pkg.a*']) == 0
     assert calls == []   # nothing of pkg.a left to run: mutmut is not started
+
+
+def test_survivors_again_with_patterns_runs_their_survivors_alone(tmp_path, monkeypatch):
+    write_meta(tmp_path, 'pkg.a', {'pkg.a.x_f__mutmut_1': 0, 'pkg.a.x_f__mutmut_2': 1})
+    write_meta(tmp_path, 'pkg.b', {'pkg.b.x_g__mutmut_1': 0})
+    mutate.keep('pure', str(tmp_path))
+    monkeypatch.setattr(mutate, 'ROOT', str(tmp_path))
+    monkeypatch.setattr(mutate, 'report', lambda *args: 0)
+    calls = []
+    monkeypatch.setattr(mutate.subprocess, 'call', lambda argv, **k: calls.append(argv[4:]) or 0)
+    assert mutate.main(['run', '--modes', 'pure', '--survivors-again', '--only', 'pkg.a*']) == 0
+    assert calls == [['pkg.a.x_f__mutmut_1']]
+    calls.clear()
+    assert mutate.main(['run', '--modes', 'pure', '--survivors-again']) == 0
+    assert calls == [['pkg.a.x_f__mutmut_1', 'pkg.b.x_g__mutmut_1']]
