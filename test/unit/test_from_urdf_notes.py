@@ -159,3 +159,49 @@ def test_a_tree_without_a_moving_joint_is_one_fixed_row_of_zeros():
     assert '{frame: dh1, type: fixed, theta: 0.0, d: 0.0, a: 0.0, alpha: 0.0}' in \
         conversion.text.replace('"', '')
     assert '# no moving joint: a fixed row (every link is static)' in conversion.text
+
+
+def test_the_header_counts_the_other_chains_and_says_how_their_dh_frames_are_named():
+    three = TWO + ['third', 'q']
+    joints = TWO_JOINTS + [joint('jt', 'z_tip', 'third'), joint('jq', 'a_tip', 'q')]
+    text = urdf_to_description(urdf(three, joints), 'r.urdf').text
+    lines = text.splitlines()
+    assert lines[0] == '# Converted by `dq_fk from-urdf` from r.urdf: the chain base -> third ' \
+        'and 1 more chains.'
+    assert 'the DH frames are dh0..dh2 (<tip>_dh0... for the other chains); TF carries the ' \
+        'URDF links under their URDF parents, as robot_state_publisher (publish_dh_frames: ' \
+        'true adds the DH frames).' in lines[1]
+    assert [line.strip() for line in lines if 'frame 0 in' in line] == [
+        '# from base to third; frame 0 in base', '# from base to q; frame 0 in base']
+    single = urdf_to_description(urdf(['base', 'a'], [joint('j', 'base', 'a')]), 'r.urdf')
+    first, second = single.text.splitlines()[:2]
+    assert first == '# Converted by `dq_fk from-urdf` from r.urdf: the chain base -> a.'
+    assert 'dh0..dh1; TF carries' in second and 'other chains' not in second
+    assert single.model.publish_dh_frames is False
+
+
+def test_floating_planar_and_orphan_mimic_joints_are_said_once_five_by_name():
+    floating = [f'f{k}_' + 'x' * 90 for k in range(7)]
+    links = ['base', 'a'] + [f'd{k}' for k in range(7)]
+    joints = [joint('j', 'base', 'a')] + [joint(n, 'base', f'd{k}', 'floating')
+                                          for k, n in enumerate(floating)]
+    (line,) = urdf_to_description(urdf(links, joints), 'r.urdf').warnings
+    assert line.startswith('r.urdf: 7 floating joint(s) not published, as ')
+    listed = line.split('published relative to it: ')[1]
+    assert listed == ', '.join(f'{n[:80]} (base -> d{k}, 0 link(s) below)'
+                               for k, n in enumerate(floating[:5])) + ' and 2 more'
+    for count, more in ((5, ''), (6, ' and 1 more')):
+        (line,) = urdf_to_description(urdf(links[:2 + count], joints[:1 + count]),
+                                      'r.urdf').warnings
+        assert line.endswith(f'{floating[4][:80]} (base -> d4, 0 link(s) below){more}')
+    planar = [f'p{k}_' + 'y' * 90 for k in range(6)]
+    joints = [joint('j', 'base', 'a')] + [joint(n, 'base', f'd{k}', 'planar')
+                                          for k, n in enumerate(planar)]
+    (line,) = urdf_to_description(urdf(links[:8], joints), 'r.urdf').warnings
+    assert line.endswith(': ' + ', '.join(n[:80] for n in planar[:5]) + ' ... (1 more)')
+    orphans = [joint(f'm{k}', 'base', f'd{k}', extra=f'<mimic joint="ghost{k}"/>')
+               for k in range(6)]
+    (line,) = urdf_to_description(urdf(links[:8], [joint('j', 'base', 'a')] + orphans),
+                                  'r.urdf').warnings
+    assert line.startswith('r.urdf: 6 mimic joint(s) of joints the URDF does not have')
+    assert line.endswith('moves them: m0, m1, m2, m3, m4 ... (1 more)')
