@@ -205,3 +205,12 @@ def test_floating_planar_and_orphan_mimic_joints_are_said_once_five_by_name():
                                   'r.urdf').warnings
     assert line.startswith('r.urdf: 6 mimic joint(s) of joints the URDF does not have')
     assert line.endswith('moves them: m0, m1, m2, m3, m4 ... (1 more)')
+
+
+def test_a_floating_joints_parent_and_child_are_named_in_80_characters():
+    parent, child = 'p' * 100, 'c' * 100
+    text = urdf(['base', 'a', parent, child], [joint('j', 'base', 'a'),
+                                               joint('jp', 'base', parent, 'fixed'),
+                                               joint('fly', parent, child, 'floating')])
+    (line,) = urdf_to_description(text, 'r.urdf').warnings
+    assert line.endswith(f': fly ({parent[:80]} -> {child[:80]}, 0 link(s) below)')
