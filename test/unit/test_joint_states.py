@@ -678,3 +678,20 @@ def test_clear_counts_starts_the_counts_and_unknown_names_afresh_and_keeps_the_s
     assert merger.unknown == set()
     np.testing.assert_array_equal(merger.merge(['a'], [0.5]).q, [0.5, 0.2, 0.3])
     assert merger.counts['received'] == 1
+
+
+@pytest.mark.parametrize('policy, bad, reason', [('warn', math.nan, 'non_finite'),
+                                                 ('reject', 5.0, 'out_of_limits')])
+def test_a_rejected_message_still_says_the_unknown_names_it_brought(policy, bad, reason):
+    merger = JointStateMerger(NAMES, LIMITS, policy)
+    r = merger.merge(['a', 'gripper'], [bad, 0.0])
+    assert (r.status, r.reason, r.new_unknown, r.unknown_overflow) == \
+        (REJECTED, reason, ('gripper',), False)
+    r = merger.merge(['x1', 'x2'], [0.0, 0.0])
+    assert (r.reason, r.new_unknown, r.unknown_overflow) == ('no_known_joint', ('x1', 'x2'),
+                                                             False)
+    many = [f'u{k}' for k in range(25)]   # past the list's room: the overflow said once
+    r = merger.merge(['a'] + many, [bad] + [0.0] * 25)
+    assert r.reason == reason and r.unknown_overflow is True
+    assert r.new_unknown == tuple(many[:MAX_UNKNOWN_LISTED - 3])   # 3 names listed before
+    assert len(merger.unknown) == MAX_UNKNOWN_LISTED
