@@ -91,28 +91,31 @@ def results(root=None) -> dict:
     return by_module
 
 
-def not_killed(mode, root=None) -> list:
-    """Return the names of the mutants ``.mutation/<mode>/`` holds as survived or unreached."""
+def _kept_names(mode, codes_wanted, root=None) -> list:
+    """Return the names of the mutants ``.mutation/<mode>/`` holds with one of ``codes_wanted``."""
     root = root or ROOT
     names = []
     kept = os.path.join(root, '.mutation', mode)
     for meta in glob.glob(os.path.join(kept, '**', '*.py.meta'), recursive=True):
         with open(meta, encoding='utf-8') as stream:
             codes = json.load(stream)['exit_code_by_key']
-        names += [name for name, code in codes.items() if code in SURVIVED | UNREACHED]
+        names += [name for name, code in codes.items() if code in codes_wanted]
     return sorted(names)
+
+
+def not_killed(mode, root=None) -> list:
+    """Return the names of the mutants ``.mutation/<mode>/`` holds as survived or unreached."""
+    return _kept_names(mode, SURVIVED | UNREACHED, root)
 
 
 def not_run(mode, root=None) -> list:
     """Return the names of the mutants ``.mutation/<mode>/`` holds without a result."""
-    root = root or ROOT
-    names = []
-    kept = os.path.join(root, '.mutation', mode)
-    for meta in glob.glob(os.path.join(kept, '**', '*.py.meta'), recursive=True):
-        with open(meta, encoding='utf-8') as stream:
-            codes = json.load(stream)['exit_code_by_key']
-        names += [name for name, code in codes.items() if code is None]
-    return sorted(names)
+    return _kept_names(mode, {None}, root)
+
+
+def _matching(names, patterns) -> list:
+    """Return the ``names`` any of ``patterns`` (globs) matches; all of them without any."""
+    return [n for n in names if not patterns or any(fnmatch.fnmatch(n, p) for p in patterns)]
 
 
 def restore(mode, root=None) -> None:
@@ -222,12 +225,11 @@ def _run(args) -> int:
         shutil.rmtree(os.path.join(ROOT, 'mutants'), ignore_errors=True)
         names = list(args.only)
         if args.resume and names:   # the named modules' mutants not run yet, alone
-            names = [n for n in not_run(mode) if any(fnmatch.fnmatch(n, p) for p in names)]
+            names = _matching(not_run(mode), names)
             if not names:
                 continue
         if args.survivors_again:   # (with --only: the named modules' survivors alone)
-            names = [n for n in not_killed(mode)
-                     if not args.only or any(fnmatch.fnmatch(n, p) for p in args.only)]
+            names = _matching(not_killed(mode), args.only)
             if not names:
                 continue
         if names or args.resume:

@@ -102,14 +102,21 @@ def test_continue_runs_mutmut_without_names_on_the_kept_results_and_ctrl_c_keeps
     assert mutate.results(str(tmp_path))['pkg.m'] == {name: 1, 'pkg.m.x_f__mutmut_2': 0}
 
 
-def test_continue_with_patterns_names_only_their_mutants_not_run_yet(tmp_path, monkeypatch):
-    write_meta(tmp_path, 'pkg.a', {'pkg.a.x_f__mutmut_1': 1, 'pkg.a.x_f__mutmut_2': None})
-    write_meta(tmp_path, 'pkg.b', {'pkg.b.x_g__mutmut_1': None})
-    mutate.keep('compiled', str(tmp_path))
+@pytest.fixture
+def mutmut_names(tmp_path, monkeypatch):
+    """Run mutate.py on ``tmp_path``; the list of the mutant names each mutmut run was given."""
     monkeypatch.setattr(mutate, 'ROOT', str(tmp_path))
     monkeypatch.setattr(mutate, 'report', lambda *args: 0)
     calls = []
     monkeypatch.setattr(mutate.subprocess, 'call', lambda argv, **k: calls.append(argv[4:]) or 0)
+    return calls
+
+
+def test_continue_with_patterns_names_only_their_mutants_not_run_yet(tmp_path, mutmut_names):
+    calls = mutmut_names
+    write_meta(tmp_path, 'pkg.a', {'pkg.a.x_f__mutmut_1': 1, 'pkg.a.x_f__mutmut_2': None})
+    write_meta(tmp_path, 'pkg.b', {'pkg.b.x_g__mutmut_1': None})
+    mutate.keep('compiled', str(tmp_path))
     assert mutate.main(['run', '--modes', 'compiled', '--continue', '--only', 'pkg.a*']) == 0
     assert calls == [['pkg.a.x_f__mutmut_2']]
     calls.clear()
@@ -119,14 +126,11 @@ def test_continue_with_patterns_names_only_their_mutants_not_run_yet(tmp_path, m
     assert calls == []   # nothing of pkg.a left to run: mutmut is not started
 
 
-def test_survivors_again_with_patterns_runs_their_survivors_alone(tmp_path, monkeypatch):
+def test_survivors_again_with_patterns_runs_their_survivors_alone(tmp_path, mutmut_names):
+    calls = mutmut_names
     write_meta(tmp_path, 'pkg.a', {'pkg.a.x_f__mutmut_1': 0, 'pkg.a.x_f__mutmut_2': 1})
     write_meta(tmp_path, 'pkg.b', {'pkg.b.x_g__mutmut_1': 0})
     mutate.keep('pure', str(tmp_path))
-    monkeypatch.setattr(mutate, 'ROOT', str(tmp_path))
-    monkeypatch.setattr(mutate, 'report', lambda *args: 0)
-    calls = []
-    monkeypatch.setattr(mutate.subprocess, 'call', lambda argv, **k: calls.append(argv[4:]) or 0)
     assert mutate.main(['run', '--modes', 'pure', '--survivors-again', '--only', 'pkg.a*']) == 0
     assert calls == [['pkg.a.x_f__mutmut_1']]
     calls.clear()
