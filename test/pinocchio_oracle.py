@@ -36,9 +36,14 @@ def configuration(model, values):
     return q
 
 
+_last_data = [None, None]   # (model, its Data): a Data costs more than the FK of 100 links
+
+
 def link_placements(model, q, links):
     """Return ``{link: 4x4}`` of each link's frame in the root, by pinocchio's FK."""
-    data = model.createData()
+    if _last_data[0] is not model:
+        _last_data[:] = [model, model.createData()]
+    data = _last_data[1]
     pin.framesForwardKinematics(model, data, q)
     return {link: data.oMf[model.getFrameId(link, pin.FrameType.BODY)].homogeneous
             for link in links}

@@ -7,6 +7,7 @@ package. Every frame the converted robot publishes under a URDF link name must a
 """
 
 import copy
+import functools
 import glob
 import json
 import math
@@ -52,14 +53,21 @@ VENDOR_ARMS = [
 ]
 
 
+@functools.lru_cache(maxsize=4)
+def _mimics(urdf_text):
+    """Return ``(joint, followed joint, multiplier, offset)`` of each URDF mimic joint."""
+    return tuple((joint.get('name'), mimic.get('joint'), float(mimic.get('multiplier', '1')),
+                  float(mimic.get('offset', '0')))
+                 for joint in ElementTree.fromstring(urdf_text).findall('joint')
+                 for mimic in joint.findall('mimic')[:1])
+
+
 def mimic_values(urdf_text, values):
     """Add the value of every URDF mimic joint whose followed joint has one."""
     full = dict(values)
-    for joint in ElementTree.fromstring(urdf_text).findall('joint'):
-        mimic = joint.find('mimic')
-        if mimic is not None and mimic.get('joint') in values:
-            full[joint.get('name')] = float(mimic.get('multiplier', '1')) * \
-                values[mimic.get('joint')] + float(mimic.get('offset', '0'))
+    for name, followed, multiplier, offset in _mimics(urdf_text):
+        if followed in values:
+            full[name] = multiplier * values[followed] + offset
     return full
 
 
