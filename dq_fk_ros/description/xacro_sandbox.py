@@ -204,12 +204,23 @@ def _confine(roots, time_limit_s, memory):
     import builtins
     import io
     import resource
-    from dq_fk_ros.description.symlinks import follow_keeping_names
     resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
     cpu = int(time_limit_s) + 1
     resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu))
     resource.setrlimit(resource.RLIMIT_FSIZE, (0, 0))
-    real_open = builtins.open
+    confined_open, allow = _confined_open(builtins.open, roots)
+    builtins.open = io.open = confined_open
+    return allow
+
+
+def _confined_open(real_open, roots):
+    """
+    Return ``(open, allow)``: ``open`` reads files under ``roots`` only; ``allow`` adds one.
+
+    The child puts it in place of ``builtins.open``; the tests call it in their own process
+    (test_xacro_sandbox.py), where mutation testing sees it.
+    """
+    from dq_fk_ros.description.symlinks import follow_keeping_names
     roots = [r.rstrip(os.sep) + os.sep for r in roots]
 
     def allow(folder):
@@ -237,8 +248,7 @@ def _confine(roots, time_limit_s, memory):
                                       'the allowed folders (--package, read_roots)', shown)
         return real_open(path, mode, *args, **kwargs)
 
-    builtins.open = io.open = confined_open
-    return allow
+    return confined_open, allow
 
 
 def _patch_xacro(resolver, allow):
@@ -290,28 +300,40 @@ def _patch_xacro(resolver, allow):
     return xacro
 
 
-def _child_main():
-    request = json.loads(sys.stdin.read(1 << 20))
+def _expand(request, confine=_confine):
+    """
+    Return the URDF (bytes) a request asks for; raise :class:`XacroRefused` with one line.
+
+    ``confine(roots, time_limit_s, memory)`` limits the process and returns ``allow`` (the
+    tests, calling this in their own process, give one that limits nothing).
+    """
     try:
         from dq_fk_ros.description.packages import PackageResolver
-        allow = _confine(request['roots'], request['time_limit_s'], request['memory'])
+        allow = confine(request['roots'], request['time_limit_s'], request['memory'])
         resolver = PackageResolver(request['packages'], near=request['path'],
                                    within=request['within'])
         xacro = _patch_xacro(resolver, allow)
         xacro.verbosity = 0  # its warnings would go to stderr, where the error line goes
         text = xacro.process_file(request['path']).toxml()
     except MemoryError:
-        sys.stderr.write(f'xacro ran out of its {request["memory"] >> 20} MiB memory limit\n')
-        return 1
+        raise XacroRefused(f'xacro ran out of its {request["memory"] >> 20} MiB memory '
+                           'limit') from None
     except RecursionError:
-        sys.stderr.write('xacro nested too deeply (macros or expressions)\n')
-        return 1
+        raise XacroRefused('xacro nested too deeply (macros or expressions)') from None
     except Exception as exc:  # xacro raises many kinds; one line for the user
-        sys.stderr.write(_one_line(exc) + '\n')
-        return 1
+        raise XacroRefused(_one_line(exc)) from None
     data = text.encode('utf-8')
     if len(data) > MAX_OUTPUT_BYTES:
-        sys.stderr.write(f'the expanded URDF is larger than {MAX_OUTPUT_BYTES >> 20} MiB\n')
+        raise XacroRefused(f'the expanded URDF is larger than {MAX_OUTPUT_BYTES >> 20} MiB')
+    return data
+
+
+def _child_main():
+    request = json.loads(sys.stdin.read(1 << 20))
+    try:
+        data = _expand(request)
+    except XacroRefused as exc:
+        sys.stderr.write(f'{exc}\n')
         return 1
     sys.stdout.buffer.write(data)
     return 0
