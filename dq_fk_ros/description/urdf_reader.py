@@ -63,6 +63,11 @@ class UrdfTree:
         return {joint.name: joint for joint in self.joints.values()}
 
 
+def _too_large(source):
+    return RobotDescriptionError(f'{source}: larger than {MAX_URDF_BYTES // 1024} KiB; a URDF '
+                                 f'is at most that big')
+
+
 def read_urdf_text(path: str | os.PathLike, read_roots: Sequence[str] | None = None,
                    time_limit_s: float = TIME_LIMIT_S, should_stop: Callable | None = None,
                    packages: Mapping[str, str] | None = None,
@@ -80,8 +85,7 @@ def read_urdf_text(path: str | os.PathLike, read_roots: Sequence[str] | None = N
         raise RobotDescriptionError(f'{path}: no such file' if not os.path.exists(path) else
                                     f'{path}: not a file')
     if os.path.getsize(path) > MAX_URDF_BYTES:
-        raise RobotDescriptionError(f'{path}: larger than {MAX_URDF_BYTES // 1024} KiB; a '
-                                    f'URDF is at most that big')
+        raise _too_large(path)
     if path.endswith('.xacro'):
         try:
             import xacro  # noqa: F401  (the child process imports it; say here if missing)
@@ -97,7 +101,9 @@ def read_urdf_text(path: str | os.PathLike, read_roots: Sequence[str] | None = N
                                         f'{path}: xacro failed') from None
     try:
         with open(path, 'rb') as stream:
-            data = stream.read(MAX_URDF_BYTES + 1)
+            data = stream.read(MAX_URDF_BYTES + 1)   # (it may have grown since)
+        if len(data) > MAX_URDF_BYTES:
+            raise _too_large(path)
         return data.decode('utf-8')
     except UnicodeDecodeError:
         raise RobotDescriptionError(f'{path}: not UTF-8 text') from None
@@ -134,8 +140,7 @@ def parse_xml(text: str) -> ElementTree.Element:
 def parse_urdf(text: str, source: str = '<string>') -> UrdfTree:
     """Parse URDF XML into a :class:`UrdfTree`; any problem is one RobotDescriptionError."""
     if len(text) > MAX_URDF_BYTES:
-        raise RobotDescriptionError(f'{source}: larger than {MAX_URDF_BYTES // 1024} KiB; '
-                                    f'a URDF is at most that big')
+        raise _too_large(source)
     if '<!ENTITY' in text:
         raise RobotDescriptionError(f'{source}: XML entity declarations are not accepted in a '
                                     f'URDF')
@@ -276,13 +281,5 @@ def _numbers(text, size, where):
     return values
 
 
-def tree_joint(tree: UrdfTree, name: str) -> UrdfJointSpec:
-    """Return the joint called ``name`` (a :class:`UrdfJointSpec`)."""
-    joint = tree.by_name.get(name)
-    if joint is None:
-        raise RobotDescriptionError(f'{tree.source}: no joint {name[:70]!r}')
-    return joint
-
-
 __all__ = ['MAX_URDF_ELEMENTS', 'MOVING', 'parse_urdf', 'read_urdf_text', 'tf_name',
-           'tree_joint', 'UrdfJointSpec', 'UrdfTree']
+           'UrdfJointSpec', 'UrdfTree']
