@@ -3,8 +3,10 @@
 import sys
 
 from dq_fk_ros.description import urdf_reader
-from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES, read_urdf_text
+from dq_fk_ros.description.robot_model import MAX_LENGTH_M
+from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES, parse_urdf, read_urdf_text
 from dq_fk_ros.errors import RobotDescriptionError
+import numpy as np
 import pytest
 
 
@@ -84,3 +86,46 @@ def test_the_xacro_expansion_gets_the_time_limit_roots_and_packages_given(
         '<robot name="expanded"/>'
     keywords = {'should_stop': stop, 'packages': {'p': '/p'}, 'within': ['/w']}
     assert calls == [((str(path), ['/a'], 2.5), keywords)]
+
+
+def one_joint(joint_xml):
+    """Return the URDF text of links a, b and one joint between them (``{}``: its body)."""
+    return ('<robot name="r"><link name="a"/><link name="b"/>' + joint_xml.format(
+        '<parent link="a"/><child link="b"/>') + '</robot>')
+
+
+def joint_refusal(joint_xml):
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_urdf(one_joint(joint_xml), 'r.urdf')
+    return str(caught.value)
+
+
+def test_each_malformed_joint_is_said_in_one_line():
+    assert joint_refusal('<joint type="fixed">{}</joint>') == 'r.urdf: a <joint> without a name'
+    assert joint_refusal('<joint name="j">{}</joint>') == (
+        "r.urdf: joint 'j': type ''; allowed: revolute, continuous, prismatic, fixed, "
+        'floating, planar')
+    assert joint_refusal('<joint name="j" type="fixed">{}<origin rpy="a b"/></joint>') == \
+        "r.urdf: joint 'j': origin rpy: 'a b' is not 3 numbers"
+    assert joint_refusal('<joint name="j" type="revolute">{}<axis xyz="1 0"/></joint>') == \
+        "r.urdf: joint 'j': axis xyz: '1 0' is not 3 finite numbers"
+    over = f'{MAX_LENGTH_M * 1.0000001:.9g}'
+    assert joint_refusal(f'<joint name="j" type="fixed">{{}}<origin xyz="{over} 0 0"/></joint>') \
+        == f"r.urdf: joint 'j': origin xyz is beyond {MAX_LENGTH_M:g} m"
+
+
+def test_a_joints_defaults_and_bounds_are_urdfs():
+    tree = parse_urdf(one_joint('<joint name="j" type="fixed">{}<origin rpy="0 0 1"/></joint>'))
+    np.testing.assert_allclose(tree.joints['b'].origin[:3, 3], [0, 0, 0], atol=0)
+    np.testing.assert_allclose(tree.joints['b'].axis, [1, 0, 0], atol=0)   # no <axis>
+    tree = parse_urdf(one_joint('<joint name="j" type="revolute">{}<axis/></joint>'))
+    np.testing.assert_allclose(tree.joints['b'].axis, [1, 0, 0], atol=0)   # <axis> no xyz
+    tree = parse_urdf(one_joint(f'<joint name="j" type="fixed">{{}}<origin '
+                                f'xyz="{MAX_LENGTH_M:.17g} 0 0"/></joint>'))   # at the bound
+    assert tree.joints['b'].origin[0, 3] == MAX_LENGTH_M
+    # a tiny axis is still a direction: more than 1e-12 long
+    tree = parse_urdf(one_joint('<joint name="j" type="revolute">{}<axis xyz="1e-12 1e-12 '
+                                '1e-12"/></joint>'))
+    np.testing.assert_allclose(tree.joints['b'].axis, np.full(3, 1 / np.sqrt(3)), atol=1e-15)
+    assert joint_refusal('<joint name="j" type="revolute">{}<axis xyz="5e-13 0 0"/></joint>') \
+        == "r.urdf: joint 'j': axis xyz is all zeros"
