@@ -84,8 +84,9 @@ def chain_joints(tree: UrdfTree, base: str | None = None, tip: str | None = None
             raise RobotDescriptionError(f'{source}: several root links ({listing(roots)}); '
                                         f'choose one with {base_option}')
         base = roots[0]
-    if tip is None:
-        tip = _default_tip(tree, base, tip_option)
+    if tip is None:  # among equally long chains (two legs, arms, fingers) the first in the
+        # URDF's order; the others become side branches. base itself if nothing moves below
+        tip = longest_chain_tips(tree, base)[0] or base
     joints, at = [], tip
     while at != base:
         if at not in tree.joints:
@@ -126,20 +127,6 @@ def longest_chain_tips(tree: UrdfTree, base: str) -> list[str]:
             stack.append((joint.child, count + counts, joint.child if counts else last))
     order = {link: k for k, link in enumerate(tree.links)}
     return sorted(tips, key=lambda t: order.get(t, -1))
-
-
-def _default_tip(tree, base, tip_option=OPTIONS[1]):
-    """
-    Return the end of the longest chain below ``base``: the first in the URDF's order.
-
-    Among equally long chains (two legs, two arms, fingers) the first wins and the others
-    become side branches; ``base`` itself when no moving joint is below it (a sensor rig).
-    """
-    tip = longest_chain_tips(tree, base)[0]
-    return base if tip is None else tip
-
-
-# -- DH frames on the joint axes -----------------------------------------------------------
 
 
 # -- the robot description ---------------------------------------------------------------
