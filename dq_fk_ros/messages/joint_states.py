@@ -223,7 +223,7 @@ class JointStateMerger:
         if rates is not None and not all(map(math.isfinite, rates)):
             state.counts['velocities_non_finite'] += 1  # dropped: no velocities this time
             rates = None
-        time_jump = state.track_stamp(stamp_ns) if stamp_ns else False
+        time_jump = state.track_stamp(stamp_ns)   # (False without a stamp)
         q, qdot = state.q, state.qdot
         if complete.in_order:  # the message lists the joints in chain order
             q[:n] = values

@@ -1,5 +1,6 @@
 """JointStateMerger: the node's input logic, fed message fields directly (no DDS)."""
 
+from collections import Counter
 import math
 import struct
 
@@ -695,3 +696,47 @@ def test_a_rejected_message_still_says_the_unknown_names_it_brought(policy, bad,
     assert r.reason == reason and r.unknown_overflow is True
     assert r.new_unknown == tuple(many[:MAX_UNKNOWN_LISTED - 3])   # 3 names listed before
     assert len(merger.unknown) == MAX_UNKNOWN_LISTED
+
+
+def test_the_short_path_says_what_the_reference_says_case_by_case():
+    """Each outcome of a repeated complete layout, beside the merger without the short path."""
+    t = 10 * TIME_JUMP_BACK_NS
+    cases = [  # (names, positions, velocities, stamp) after a first message at t
+        (NAMES, [-1.0, 0.0, 2.5], [], t + 1),        # c above; a exactly at its lower limit
+        (NAMES, [1.5, 0.0, 2.0], [], t + 2),         # a above; c exactly at its upper limit
+        (NAMES, [0.5, 0.0, -0.5], [0.1, 0.2, 0.3], t + 3),   # c below
+        (NAMES, [0.5, 0.0, 1.0], [], 0),             # no stamp: never a time jump
+        (NAMES, [0.5, 0.0, 1.0], [], t - 5 * TIME_JUMP_BACK_NS),   # a jump back
+        (('c', 'a', 'b'), [2.5, 0.5, 0.0], [], t + 4),   # another order, c above
+    ]
+    for policy in ('warn', 'clamp', 'reject'):
+        for case in cases:
+            fast = JointStateMerger(NAMES, LIMITS, policy)
+            slow = NoShortPath(NAMES, LIMITS, policy)
+            for merger in (fast, slow):
+                merger.merge(case[0], [0.0, 0.0, 1.0], [], t)   # learns the layout
+            assert fast.state.complete is not None
+            a, b = fast.merge(*case), slow.merge(*case)
+            assert (a.status, a.reason, a.detail, a.out_of_limits, a.time_jump, a.stamp_ns) \
+                == (b.status, b.reason, b.detail, b.out_of_limits, b.time_jump, b.stamp_ns), \
+                (policy, case)
+            assert str(a.q) == str(b.q) and fast.counts == slow.counts, (policy, case)
+    merger = JointStateMerger(NAMES, LIMITS, 'reject')
+    merger.merge(NAMES, [0.0, 0.0, 1.0], [], t)
+    r = merger.merge(NAMES, [-1.0, 0.0, 2.5], [], t + 1)
+    assert r.detail == 'c = 2.5 outside [0, 2]'
+    r = JointStateMerger(NAMES, LIMITS, 'warn')
+    r.merge(NAMES, [0.0, 0.0, 1.0], [], t)
+    assert r.merge(NAMES, [-1.0, 0.0, 2.5], [], t + 1).out_of_limits == ('c',)
+    assert r.merge(NAMES, [0.0, 0.0, 1.0], [], 0).time_jump is False
+    jump = r.merge(NAMES, [0.0, 0.0, 1.0], [], t - 5 * TIME_JUMP_BACK_NS)
+    assert jump.time_jump is True and jump.stamp_ns == t - 5 * TIME_JUMP_BACK_NS
+
+
+def test_counts_and_unknown_names_given_are_the_ones_kept():
+    """The node carries both across a reload: the merger keeps the objects it is given."""
+    counts, unknown = Counter({'publish': 7}), {'old'}
+    merger = JointStateMerger(NAMES, LIMITS, counts=counts, unknown=unknown)
+    merger.merge(('a', 'b', 'c', 'x'), [0.0, 0.0, 1.0, 0.0])
+    assert merger.counts is counts and counts['publish'] == 8
+    assert merger.unknown is unknown and unknown == {'old', 'x'}
