@@ -1,7 +1,8 @@
 """The chain ``dq_fk from-urdf`` cuts from a URDF and the names of its DH frames."""
 
-from dq_fk_ros.description.from_urdf import _check_frame, _dh_frame_names, chain_joints
-from dq_fk_ros.description.robot_model import MAX_NAME_CHARS
+from dq_fk_ros.description.from_urdf import (_check_frame, _dh_frame_names, chain_joints,
+                                             urdf_to_description)
+from dq_fk_ros.description.robot_model import MAX_NAME_CHARS, MAX_ROWS
 from dq_fk_ros.description.urdf_reader import parse_urdf
 from dq_fk_ros.errors import RobotDescriptionError
 import pytest
@@ -57,3 +58,60 @@ def test_a_link_name_of_the_longest_length_is_a_frame():
     _check_frame('l' * MAX_NAME_CHARS, 'r.urdf')
     with pytest.raises(RobotDescriptionError, match='at most'):
         _check_frame('l' * (MAX_NAME_CHARS + 1), 'r.urdf')
+
+
+def test_the_conversion_refuses_in_one_line_naming_its_source():
+    text = '<robot name="r"><link name="a"/></robot>'
+    with pytest.raises(RobotDescriptionError) as caught:
+        urdf_to_description(text, convention='craig')
+    assert str(caught.value) == "convention 'craig'; allowed: standard, modified"
+    with pytest.raises(RobotDescriptionError) as caught:
+        urdf_to_description('<robot name="r"/>')
+    assert str(caught.value).startswith('<string>: ')   # no file: the text's default name
+    assert urdf_to_description(text, 'r.urdf').model.source == 'r.urdf (converted)'
+
+
+def urdf_text(*joints, links=()):
+    """Return URDF text of ``(name, type, parent, child[, mimic])`` joints."""
+    names = list(links) + sorted({end for j in joints for end in j[2:4]} - set(links))
+    return ('<robot name="r">' + ''.join(f'<link name="{k}"/>' for k in names) +
+            ''.join(f'<joint name="{j[0]}" type="{j[1]}"><parent link="{j[2]}"/><child '
+                    f'link="{j[3]}"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" '
+                    f'velocity="1"/>' + (f'<mimic joint="{j[4]}"/>' if len(j) > 4 else '') +
+                    '</joint>' for j in joints) + '</robot>')
+
+
+def test_a_chain_joint_mimicking_a_joint_off_the_chain_is_refused():
+    text = urdf_text(('j1', 'revolute', 'a', 'b'), ('side', 'revolute', 'a', 's'),
+                     ('j2', 'revolute', 'b', 'c', 'side'))
+    with pytest.raises(RobotDescriptionError) as caught:
+        urdf_to_description(text, 'r.urdf', 'a', 'c')
+    assert str(caught.value) == ("r.urdf: joint 'j2' on the chain mimics 'side', which is not "
+                                 "a moving joint of the chain 'a' -> 'c'")
+    text = urdf_text(('j1', 'revolute', 'a', 'b'), ('j2', 'revolute', 'b', 'c', 'j1'))
+    assert urdf_to_description(text, 'r.urdf', 'a', 'c').model.joint_names == ('j1',)
+
+
+def test_side_branches_count_towards_the_rows_bound():
+    branches = [(f's{k}', 'revolute', 'a', f'l{k}') for k in range(MAX_ROWS - 1)]
+    text = urdf_text(('j1', 'revolute', 'a', 'b'), *branches)
+    assert len(urdf_to_description(text, 'r.urdf', 'a', 'b').model.joint_names) == MAX_ROWS
+    text = urdf_text(('j1', 'revolute', 'a', 'b'), *branches, ('one_more', 'revolute', 'a', 'm'))
+    with pytest.raises(RobotDescriptionError) as caught:
+        urdf_to_description(text, 'r.urdf', 'a', 'b')
+    assert str(caught.value) == (f'r.urdf: {MAX_ROWS + 1} moving joints; a robot description '
+                                 f'has at most {MAX_ROWS} rows')
+
+
+@pytest.mark.parametrize('count, more', [(5, ''), (6, ' and 1 more'), (7, ' and 2 more')])
+def test_link_names_with_a_slash_are_said_five_by_name(count, more):
+    long = 'n' * 100
+    slashed = [long] + [f'k{k}' for k in range(count - 1)]
+    parents = ['root'] + ['/' + name for name in slashed]
+    text = urdf_text(*[(f'j{k}', 'fixed', parents[k], parents[k + 1]) for k in range(count)],
+                     ('slide', 'planar', 'root', 'puck'), links=parents)
+    warnings = urdf_to_description(text, 'r.urdf').warnings
+    assert len(warnings) == 2 and 'planar' in warnings[0]   # added to the others
+    shown = ', '.join([('/' + long)[:80]] + ['/' + name for name in slashed[1:5]])
+    assert warnings[-1] == ('r.urdf: link names with a leading slash are published without it, '
+                            f'as tf2 strips it: {shown}{more}')
