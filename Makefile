@@ -57,10 +57,10 @@ $(STAMPS)/foxglove: requirements/foxglove.txt $(STAMPS)/runtime
 
 $(STAMPS)/tf2_msgs: vendor/tf2_msgs/CMakeLists.txt vendor/tf2_msgs/package.xml \
                     vendor/tf2_msgs/msg/TFMessage.msg requirements/tf2_msgs-build.txt \
-                    scripts/ensure_tf2_msgs.sh $(STAMPS)/runtime
+                    scripts/tf2_msgs_build.py $(STAMPS)/runtime
 	@echo 'setup: providing tf2_msgs (building the vendored TFMessage if missing)'
-	@$(STEP) "provide tf2_msgs (scripts/ensure_tf2_msgs.sh)" $(LOGS)/tf2_msgs.log \
-	  scripts/ensure_tf2_msgs.sh $(VENV)
+	@$(STEP) "provide tf2_msgs (scripts/tf2_msgs_build.py)" $(LOGS)/tf2_msgs.log \
+	  $(VENV)/bin/python scripts/tf2_msgs_build.py --into $(VENV)
 	@touch $@
 
 $(STAMPS)/web: web/package.json web/package-lock.json $(STAMPS)/python

@@ -5,25 +5,30 @@ tf2_msgs is not on PyPI, and dq_fk_ros publishes and reads ``tf2_msgs/msg/TFMess
 ``pip install dq_fk_ros`` builds the package in an isolated environment holding the build
 requirements of pyproject.toml (rosidl's generators and ament_cmake from the ROS 2 Jazzy
 wheels); there :func:`build` runs rosidl on ``vendor/tf2_msgs`` (upstream's TFMessage
-definition, as ``scripts/ensure_tf2_msgs.sh`` does for ``make setup``) and setup.py puts what
-it installed into the wheel: the ``tf2_msgs`` Python package, its libraries (``lib/``, where
+definition) and setup.py puts what it installed into the wheel: the ``tf2_msgs`` Python package, its libraries (``lib/``, where
 the ROS wheels' loader looks) and ``share/tf2_msgs``.
 
 Nothing is built where ``tf2_msgs`` is already importable (a sourced ROS 2, ``make setup``'s
 venv, colcon), where rosidl's generators are not (a plain ``setup.py`` run), or with
 ``DQ_FK_TF2_MSGS=skip``. On a ROS 2 install the system's tf2_msgs stays first on the path.
+
+``make setup`` runs it as a program, to install tf2_msgs into its venv the same way::
+
+    VENV/bin/python scripts/tf2_msgs_build.py --into VENV
 """
 
+import argparse
 import glob
 import importlib.util
 import os
 import shutil
 import subprocess
 import sys
+import tempfile
 
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SOURCE = os.path.join(HERE, 'vendor', 'tf2_msgs')
-MARKER = 'built_by_dq_fk_ros'   # also what scripts/ensure_tf2_msgs.sh writes
+MARKER = 'built_by_dq_fk_ros'   # in share/tf2_msgs of every prefix this script built
 
 
 def wanted() -> bool:
@@ -43,16 +48,18 @@ def _build_prefix() -> str:
     return os.path.abspath(os.path.join(os.path.dirname(spec.origin), *['..'] * 4))
 
 
-def build(work: str) -> str:
+def build(work: str, prefix: str | None = None) -> str:
     """
-    Build and install vendor/tf2_msgs under ``work``; return its install prefix.
+    Build and install vendor/tf2_msgs; return its install prefix.
 
     :param work: a scratch folder (kept between pip's calls of setup.py: built once).
+    :param prefix: where to install (default: ``work/prefix``, once).
     """
     work = os.path.abspath(work)
-    prefix = os.path.join(work, 'prefix')
-    if os.path.exists(os.path.join(prefix, 'share', 'tf2_msgs', MARKER)):
-        return prefix
+    if prefix is None:
+        prefix = os.path.join(work, 'prefix')
+        if os.path.exists(os.path.join(prefix, 'share', 'tf2_msgs', MARKER)):
+            return prefix
     shutil.rmtree(work, ignore_errors=True)
     overlay = _build_prefix()
     paths = os.pathsep.join(p for p in (overlay, os.environ.get('AMENT_PREFIX_PATH')) if p)
@@ -94,3 +101,33 @@ def wheel_parts(prefix: str) -> dict:
             'package_dir': {'tf2_msgs': rel, 'tf2_msgs.msg': os.path.join(rel, 'msg')},
             'package_data': {'tf2_msgs': ['*.so'], 'tf2_msgs.msg': ['*.py']},
             'data_files': data_files}
+
+
+def main(argv=None) -> int:
+    """Install tf2_msgs into a venv unless the environment provides it (``make setup``)."""
+    parser = argparse.ArgumentParser(description='Provide tf2_msgs in a Python environment.')
+    parser.add_argument('--into', required=True, metavar='VENV', help='the environment')
+    venv = os.path.abspath(parser.parse_args(argv).into)
+    if not os.path.exists(os.path.join(venv, 'share', 'tf2_msgs', MARKER)) and \
+            importlib.util.find_spec('tf2_msgs') is not None:
+        print('tf2_msgs is provided by the environment; not building the vendored copy')
+        return 0
+    if shutil.which('cmake') is None:
+        print('error: cmake not found (needed to build tf2_msgs)', file=sys.stderr)
+        return 1
+    subprocess.run([sys.executable, '-m', 'pip', 'install', '--disable-pip-version-check',
+                    '-r', os.path.join(HERE, 'requirements', 'tf2_msgs-build.txt')], check=True)
+    importlib.invalidate_caches()
+    work = tempfile.mkdtemp(prefix='tf2_msgs_build_')
+    try:
+        build(work, venv)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    subprocess.run([sys.executable, '-c', 'from tf2_msgs.msg import TFMessage; TFMessage()'],
+                   check=True)
+    print(f'built and installed vendored tf2_msgs into {venv}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -59,6 +59,15 @@ def test_nothing_is_built_where_tf2_msgs_is_importable_or_skipped(tf2_msgs_build
     assert tf2_msgs_build['wanted']() is False
 
 
+def test_make_setup_builds_nothing_into_a_venv_whose_tf2_msgs_it_did_not_build(
+        tf2_msgs_build, tmp_path, capsys):
+    # this venv's tf2_msgs is importable; a venv without our marker: a ROS install's
+    assert tf2_msgs_build['main'](['--into', str(tmp_path)]) == 0
+    assert capsys.readouterr().out == \
+        'tf2_msgs is provided by the environment; not building the vendored copy\n'
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_an_installed_prefix_goes_into_the_wheel_as_package_libraries_and_share(
         tf2_msgs_build, tmp_path, monkeypatch):
     prefix = tmp_path / 'build' / 'tf2_msgs' / 'prefix'
