@@ -4,7 +4,8 @@ import sys
 
 from dq_fk_ros.description import urdf_reader
 from dq_fk_ros.description.robot_model import MAX_LENGTH_M
-from dq_fk_ros.description.urdf_reader import MAX_URDF_BYTES, parse_urdf, read_urdf_text
+from dq_fk_ros.description.urdf_reader import (
+    MAX_URDF_BYTES, MAX_URDF_ELEMENTS, parse_urdf, read_urdf_text)
 from dq_fk_ros.errors import RobotDescriptionError
 import numpy as np
 import pytest
@@ -129,3 +130,65 @@ def test_a_joints_defaults_and_bounds_are_urdfs():
     np.testing.assert_allclose(tree.joints['b'].axis, np.full(3, 1 / np.sqrt(3)), atol=1e-15)
     assert joint_refusal('<joint name="j" type="revolute">{}<axis xyz="5e-13 0 0"/></joint>') \
         == "r.urdf: joint 'j': axis xyz is all zeros"
+
+
+def tree_refusal(text, source='r.urdf'):
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_urdf(text, source) if source is not None else parse_urdf(text)
+    return caught.value
+
+
+def test_each_malformed_urdf_is_said_in_one_line():
+    assert str(tree_refusal('<robot/>', None)) == '<string>: no <link> elements'
+    assert str(tree_refusal('<!DOCTYPE r [<!ENTITY x "y">]><robot/>')) == \
+        'r.urdf: XML entity declarations are not accepted in a URDF'
+    assert str(tree_refusal('<!DOCTYPE r [<!entity x "y">]><robot/>')).startswith(
+        'r.urdf: not valid XML: ')   # (expat's words: no entity in lower case either)
+    error = tree_refusal('<' + 's' * 50 + '/>')
+    assert str(error) == f'r.urdf: the root element is <{"s" * 40}>, not <robot>; is this a URDF?'
+    assert error.public == 'r.urdf: the root element is not <robot>; not a URDF'
+    assert str(tree_refusal('<robot><link/></robot>')) == 'r.urdf: a <link> without a name'
+    long = 'l' * 80
+    assert str(tree_refusal(f'<robot><link name="{long}"/><link name="{long}"/></robot>')) == \
+        f"r.urdf: link '{long[:70]}' is defined twice"
+    joint = '<joint name="{}" type="fixed"><parent link="a"/><child link="{}"/></joint>'
+    links = '<link name="a"/><link name="b"/><link name="c"/>'
+    assert str(tree_refusal('<robot>' + links + joint.format(long, 'b') + joint.format(long, 'c')
+                            + '</robot>')) == f"r.urdf: joint '{long[:70]}' is defined twice"
+    links += f'<link name="{long}"/>'
+    assert str(tree_refusal('<robot>' + links + joint.format(long, long) +
+                            joint.format(long + 'x', long) + '</robot>')) == (
+        f"r.urdf: link '{long[:70]}' is the child of two joints ('{long[:70]}' and "
+        f"'{long[:70]}'); a URDF is a tree")
+
+
+def test_a_urdf_without_a_robot_name_is_robot():
+    assert parse_urdf('<robot><link name="a"/></robot>').name == 'robot'
+    assert parse_urdf('<robot name=""><link name="a"/></robot>').name == 'robot'
+
+
+def test_the_element_bound_holds_at_its_edge_for_links_and_joints():
+    links = ''.join(f'<link name="l{k}"/>' for k in range(MAX_URDF_ELEMENTS))
+    assert len(parse_urdf(f'<robot>{links}</robot>').links) == MAX_URDF_ELEMENTS
+    assert str(tree_refusal(f'<robot>{links}<link name="x"/></robot>')) == \
+        f'r.urdf: {MAX_URDF_ELEMENTS + 1} <link> elements; a URDF has at most {MAX_URDF_ELEMENTS}'
+    joints = ''.join(f'<joint name="j{k}" type="fixed"><parent link="l0"/><child link="l{k}"/>'
+                     '</joint>' for k in range(1, MAX_URDF_ELEMENTS + 2))
+    assert str(tree_refusal(f'<robot>{links}{joints}</robot>')) == \
+        f'r.urdf: {MAX_URDF_ELEMENTS + 1} <joint> elements; a URDF has at most ' \
+        f'{MAX_URDF_ELEMENTS}'
+
+
+def test_each_malformed_limit_and_mimic_is_said_in_one_line():
+    assert joint_refusal('<joint name="j" type="revolute">{}<limit lower="x"/></joint>') == \
+        "r.urdf: joint 'j': limit lower: 'x' is not 1 numbers"
+    assert joint_refusal('<joint name="j" type="revolute">{}<limit upper="x"/></joint>') == \
+        "r.urdf: joint 'j': limit upper: 'x' is not 1 numbers"
+    assert joint_refusal('<joint name="j" type="revolute">{}<limit lower="1" upper="0.5"/>'
+                         '</joint>') == "r.urdf: joint 'j': limit lower 1 is above upper 0.5"
+    assert joint_refusal('<joint name="j" type="revolute">{}<mimic/></joint>') == \
+        "r.urdf: joint 'j': <mimic> without a joint"
+    for field in ('multiplier', 'offset'):
+        assert joint_refusal(f'<joint name="j" type="revolute">{{}}<mimic joint="k" '
+                             f'{field}="nan"/></joint>') == \
+            f"r.urdf: joint 'j': mimic {field}: 'nan' is not 1 finite numbers"
