@@ -1,11 +1,12 @@
 """Reading a URDF or xacro file: its bounds, what is passed to xacro, and each refusal."""
 
 import sys
+import xml.etree.ElementTree as ElementTree
 
 from dq_fk_ros.description import urdf_reader
 from dq_fk_ros.description.robot_model import MAX_LENGTH_M
 from dq_fk_ros.description.urdf_reader import (
-    MAX_URDF_BYTES, MAX_URDF_ELEMENTS, parse_urdf, read_urdf_text)
+    MAX_URDF_BYTES, MAX_URDF_ELEMENTS, parse_urdf, parse_xml, read_urdf_text)
 from dq_fk_ros.errors import RobotDescriptionError
 import numpy as np
 import pytest
@@ -192,3 +193,22 @@ def test_each_malformed_limit_and_mimic_is_said_in_one_line():
         assert joint_refusal(f'<joint name="j" type="revolute">{{}}<mimic joint="k" '
                              f'{field}="nan"/></joint>') == \
             f"r.urdf: joint 'j': mimic {field}: 'nan' is not 1 finite numbers"
+
+
+def test_xml_is_read_with_its_text_and_expat_says_where_it_broke():
+    assert parse_xml('<name> arm_description </name>').text == ' arm_description '
+    with pytest.raises(ElementTree.ParseError) as caught:
+        parse_xml('<robot>')
+    assert str(caught.value) == 'no element found: line 1, column 7'
+    assert caught.value.position == (1, 7)
+    assert str(tree_refusal('<robot>')) == \
+        'r.urdf: not valid XML: no element found: line 1, column 7'
+
+
+def test_a_cycle_below_the_root_names_a_link_of_it():
+    long = 'c' * 80
+    joint = '<joint name="{}" type="fixed"><parent link="{}"/><child link="{}"/></joint>'
+    text = (f'<robot><link name="root"/><link name="{long}"/><link name="d"/>' +
+            joint.format('j1', long, 'd') + joint.format('j2', 'd', long) + '</robot>')
+    assert str(tree_refusal(text)) == \
+        f"r.urdf: the joints form a cycle through link '{long[:70]}'"
