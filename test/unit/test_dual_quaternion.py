@@ -5,7 +5,7 @@ import math
 from dq_fk_ros.kinematics.dual_quaternion import (
     canonical, dq_from_pose_array, dq_multiply_array, dq_normalize_array, dq_to_pose_xyzw,
     DualQuaternion, pose_xyzw_from_coeffs, pose_xyzw_in, quat_from_axis_angle,
-    quat_from_matrix, quat_wxyz_to_xyzw, quat_xyzw_to_wxyz)
+    quat_from_matrix, quat_multiply, quat_to_matrix, quat_wxyz_to_xyzw, quat_xyzw_to_wxyz)
 import homogeneous as hm
 import numpy as np
 import pytest
@@ -372,3 +372,38 @@ def test_a_rotation_about_no_axis_is_refused():
             quat_from_axis_angle(axis, 0.5)
     np.testing.assert_allclose(quat_from_axis_angle([0, 0, 2], math.pi),
                                [0.0, 0.0, 0.0, 1.0], atol=1e-15)
+
+
+def test_whole_numbers_in_give_floats_out():
+    """Integer input (a YAML 0, a list of ints) must not make integer arithmetic."""
+    product = quat_multiply([1, 2, 3, 4], [5, 6, 7, 8])
+    assert product.dtype == np.float64
+    np.testing.assert_array_equal(product, quat_multiply([1.0, 2, 3, 4], [5.0, 6, 7, 8]))
+    for a, b in (([1, 2, 3, 4], [5.0, 6, 7, 8]), ([1.0, 2, 3, 4], [5, 6, 7, 8])):
+        assert quat_multiply(a, b).dtype == np.float64
+    h = DualQuaternion([[1, 0, 0, 0], [0, 1, 2, 3]])   # nested: flattened
+    assert h.coeffs.dtype == np.float64 and h.coeffs.shape == (8,)
+
+
+def test_each_refusal_says_what_it_needs():
+    with pytest.raises(ValueError) as caught:
+        dq_normalize_array([[0, 0, 0, 0, 1, 2, 3, 4]])
+    assert str(caught.value) == 'cannot normalise a dual quaternion whose real part is zero'
+    with pytest.raises(ValueError) as caught:
+        DualQuaternion.from_pose([0, 0, 0, 0], [1, 2, 3])
+    assert str(caught.value) == 'rotation quaternion must be non-zero'
+    with pytest.raises(ValueError) as caught:
+        quat_from_matrix(np.eye(4))
+    assert str(caught.value) == 'rotation matrix must be 3x3, got shape (4, 4)'
+
+
+def test_quat_from_matrix_is_a_unit_quaternion_with_w_not_negative():
+    half = math.sqrt(0.5)
+    for q in ([half, 0, 0, half], [0.1, -0.7, 0.5, 0.5], [0.9, -0.1, 0.3, -0.3]):
+        q = np.array(q) / np.linalg.norm(q)
+        for sign in (1, -1):   # either quaternion of the rotation: the one with w >= 0
+            np.testing.assert_allclose(quat_from_matrix(quat_to_matrix(sign * q)), q,
+                                       atol=1e-12)
+    # a matrix a little off a rotation (scaled, as summed rounding leaves it): still unit
+    q = quat_from_matrix(1.01 * quat_to_matrix([half, half, 0, 0]))
+    np.testing.assert_allclose(np.linalg.norm(q), 1.0, atol=1e-12)
