@@ -260,3 +260,20 @@ def test_expand_refuses_what_xacro_refuses_and_an_output_over_the_bound(
     with pytest.raises(XacroRefused) as refused:
         _expand(request(path), Confine())
     assert str(refused.value) == 'the expanded URDF is larger than 1 MiB'
+
+
+def test_eval_has_xacros_names_and_no_builtins(tmp_path, patched_xacro):
+    """``$(eval)`` knows xacro's names (math, true) but no builtin; it cannot call at all."""
+    xacro, _ = patched_xacro
+    body = '<link name="$(eval round(pi, 2))"/>'   # xacro 2.1.1 cuts the text at ')'
+    path = write(tmp_path, 'call.xacro', HEAD + body + TAIL)
+    with pytest.raises(Exception, match='not a valid expression'):
+        xacro.process_file(str(path))
+    body = '<link name="$(eval pi * 2)"/><link name="$(eval true)"/><link name="$(eval e > 2)"/>'
+    path = write(tmp_path, 'names.xacro', HEAD + body + TAIL)
+    names = [e.getAttribute('name') for e in
+             xacro.process_file(str(path)).getElementsByTagName('link')]
+    assert names == [str(3.141592653589793 * 2), 'True', 'True']
+    path = write(tmp_path, 'open.xacro', HEAD + '<link name="$(eval open)"/>' + TAIL)
+    with pytest.raises(Exception, match="name 'open' is not defined"):
+        xacro.process_file(str(path))
