@@ -411,3 +411,31 @@ def test_what_a_peer_is_told_of_an_unreadable_file_is_one_line_without_its_conte
     with pytest.raises(RobotDescriptionError) as caught:
         load_robot_description(str(tmp_path / 'nul\0.yaml'))
     assert caught.value.public == f'{tmp_path}/nul\0.yaml: cannot be read'
+
+
+def test_end_effector_batch_is_the_end_effectors_column_of_every_frame():
+    """The last chain frame (the chain's own batch) or any other frame (the whole tree)."""
+    qs = [[0.3, 0.1], [-1.0, 0.25], [1, 0]]   # whole numbers too
+    for end_effector in ('tcp', 'link4', 'link2', 'base0'):
+        text = GOOD + f'links:\n  - {{frame: cam, parent: link2, xyz: [0, 10, 0]}}\n' \
+            f'end_effector: {end_effector}\n'
+        model = parse_robot_description(text)
+        want = model.forward_all_batch(np.array(qs, dtype=float))[:, model.end_effector_index]
+        got = model.end_effector_batch(qs)
+        assert got.shape == (3, 8)
+        np.testing.assert_allclose(got, want, atol=1e-12)
+        assert (got[:, 0] >= 0).all()
+
+
+def test_a_pickled_model_leaves_its_engine_behind_and_computes_the_same():
+    import pickle
+    model = parse_robot_description(GOOD)
+    assert 'kinematics' not in model.__getstate__()   # never used: nothing to leave
+    q = np.array([[0.3, 0.1]])
+    before = model.forward_all_batch(q)   # the engine made and cached
+    assert 'kinematics' in model.__dict__
+    state = model.__getstate__()
+    assert 'kinematics' not in state and state['frame_names'] == model.frame_names
+    assert 'kinematics' in model.__dict__   # the model itself keeps it
+    again = pickle.loads(pickle.dumps(model))
+    np.testing.assert_array_equal(again.forward_all_batch(q), before)
