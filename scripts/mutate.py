@@ -36,8 +36,11 @@ target is marked ``BELOW``.
 """
 
 import argparse
+import ast
+import difflib
 import fnmatch
 import glob
+import hashlib
 import json
 import os
 import shutil
@@ -53,16 +56,97 @@ SURVIVED = {0}                                        # every test reaching it p
 UNREACHED = {5, 33}                                   # no test reaches it: not killed either
 
 
-def equivalents(path=None) -> dict:
-    """Return ``{mutant name: why}`` of the reviewed equivalent mutants."""
+def _listed(path=None) -> dict:
+    """Return ``{mutant name: (why, fingerprint or None)}`` of the equivalents file."""
     path = path or EQUIVALENT
     found = {}
     if os.path.exists(path):
         for line in open(path, encoding='utf-8'):
             if line.strip() and not line.startswith('#'):
-                name, _, why = line.partition('||')
-                found[name.strip()] = why.strip()
+                name, _, rest = line.partition('||')
+                why, _, mark = rest.rpartition('|| fp=') if '|| fp=' in rest else (rest, '', '')
+                found[name.strip()] = (why.strip(), mark.strip() or None)
     return found
+
+
+def equivalents(path=None) -> dict:
+    """Return ``{mutant name: why}`` of the reviewed equivalent mutants."""
+    return {name: why for name, (why, _) in _listed(path).items()}
+
+
+def _mutant_sources(module, root=None) -> dict:
+    """Return ``{function name: source}`` of every function in mutants/'s copy of ``module``."""
+    path = os.path.join(root or ROOT, 'mutants', *module.split('.')) + '.py'
+    if not os.path.exists(path):
+        return {}
+    text = open(path, encoding='utf-8').read()
+    lines = text.splitlines()
+    return {node.name: '\n'.join(lines[node.lineno - 1:node.end_lineno])
+            for node in ast.walk(ast.parse(text))
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))}
+
+
+def fingerprint(name, sources) -> str | None:
+    """
+    Return a short hash of what mutant ``name`` changes (its removed and added lines).
+
+    ``sources``: :func:`_mutant_sources` of its module. None: no such mutant there. A change
+    elsewhere in the function keeps it; a mutant of another line (mutmut numbers them anew
+    when the function changes) does not.
+    """
+    function = name.rpartition('.')[2]
+    base = function.split('__mutmut_')[0]
+    mutant, original = sources.get(function), sources.get(base + '__mutmut_orig')
+    if mutant is None or original is None:
+        return None
+    mutant, original = (mutant.replace(function, base, 1),
+                        original.replace(base + '__mutmut_orig', base, 1))
+    lines = [line for line in difflib.unified_diff(original.splitlines(), mutant.splitlines(),
+                                                   lineterm='', n=0)
+             if line[:1] in '+-' and not line.startswith(('+++', '---'))]
+    return hashlib.sha1('\n'.join(line.strip() for line in lines).encode()).hexdigest()[:10]
+
+
+def still_equivalent(path=None, root=None) -> tuple[dict, list]:
+    """
+    Return ``({name: why}, stale)``: the listed equivalents whose mutant is the one reviewed.
+
+    An entry whose fingerprint no longer matches the mutant of that name (the function
+    changed and mutmut numbered its mutants anew) is ``stale``: not counted, to be reviewed
+    again. Without mutants/ (no run here yet) the entries are taken as listed.
+    """
+    listed, kept, stale, sources = _listed(path), {}, [], {}
+    for name, (why, mark) in listed.items():
+        module = name.rpartition('.')[0]
+        if module not in sources:
+            sources[module] = _mutant_sources(module, root)
+        if sources[module] and mark is not None and fingerprint(name, sources[module]) != mark:
+            stale.append(name)
+        else:
+            kept[name] = why
+    return kept, stale
+
+
+def fill_fingerprints(path=None, root=None) -> int:
+    """Write the fingerprint of every entry that has none (from mutants/); return how many."""
+    path = path or EQUIVALENT
+    lines, sources, filled = open(path, encoding='utf-8').read().splitlines(), {}, 0
+    for k, line in enumerate(lines):
+        if not line.strip() or line.startswith('#') or '|| fp=' in line:
+            continue
+        name = line.partition('||')[0].strip()
+        module = name.rpartition('.')[0]
+        if module not in sources:
+            sources[module] = _mutant_sources(module, root)
+        mark = fingerprint(name, sources[module])
+        if mark is None:
+            print(f'mutate: {name}: no such mutant in mutants/ (left as it is)', file=sys.stderr)
+            continue
+        lines[k] = f'{line.rstrip()} || fp={mark}'
+        filled += 1
+    with open(path, 'w', encoding='utf-8') as stream:
+        stream.write('\n'.join(lines) + '\n')
+    return filled
 
 
 def results(root=None) -> dict:
@@ -159,7 +243,7 @@ def tally(codes: dict, equivalent: dict) -> dict:
 
 def report(target: float, survivors_of=None) -> int:
     """Print the rate per module against ``target`` (%); return the number below it."""
-    by_module, equivalent = results(), equivalents()
+    by_module, (equivalent, stale) = results(), still_equivalent()
     if not by_module:
         print('mutate: no mutmut results under mutants/ (run: scripts/mutate.py run)')
         return 0
@@ -180,6 +264,9 @@ def report(target: float, survivors_of=None) -> int:
         if survivors_of and module.endswith(survivors_of):
             for name in c['survivors']:
                 print(f'    {name}')
+    if stale:
+        print(f'mutate: {len(stale)} listed equivalent(s) no longer the mutant reviewed (the '
+              f'function changed; not counted, review again): ' + ', '.join(stale))
     print(f'mutate: {below} module(s) below {target:g} %')
     return below
 
@@ -187,7 +274,8 @@ def report(target: float, survivors_of=None) -> int:
 def main(argv=None) -> int:
     """Run mutmut (``run``) and print the report, or the report alone (``report``)."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('action', nargs='?', choices=('run', 'report'), default='run')
+    parser.add_argument('action', nargs='?', choices=('run', 'report', 'fingerprint'),
+                        default='run')
     parser.add_argument('--modes', nargs='+', choices=sorted(MODES), default=sorted(MODES))
     parser.add_argument('--only', nargs='+', metavar='PATTERN', default=[],
                         help="mutmut's mutant names to run (globs: 'dq_fk_ros.ros.conversions*')")
@@ -201,6 +289,9 @@ def main(argv=None) -> int:
     parser.add_argument('--target', type=float, default=90.0)
     parser.add_argument('--survivors', metavar='MODULE', help='list this module\'s survivors')
     args = parser.parse_args(argv)
+    if args.action == 'fingerprint':   # after reviewing new entries of the equivalents file
+        print(f'mutate: {fill_fingerprints()} fingerprint(s) written')
+        return 0
     if args.action == 'run':
         # Ctrl-C, or a SIGTERM (a run left in the background, where SIGINT is ignored), stops
         # mutmut and keeps what it finished

@@ -740,3 +740,9 @@ def test_counts_and_unknown_names_given_are_the_ones_kept():
     merger.merge(('a', 'b', 'c', 'x'), [0.0, 0.0, 1.0, 0.0])
     assert merger.counts is counts and counts['publish'] == 8
     assert merger.unknown is unknown and unknown == {'old', 'x'}
+
+
+def test_a_message_without_a_stamp_has_stamp_zero():
+    merger = JointStateMerger(NAMES, LIMITS)
+    assert merger.merge(NAMES, [0.0, 0.0, 1.0]).stamp_ns == 0
+    assert merger.merge(NAMES, [0.0, 0.0, 1.0], (), 5).stamp_ns == 5

@@ -136,3 +136,39 @@ def test_survivors_again_with_patterns_runs_their_survivors_alone(tmp_path, mutm
     calls.clear()
     assert mutate.main(['run', '--modes', 'pure', '--survivors-again']) == 0
     assert calls == [['pkg.a.x_f__mutmut_1', 'pkg.b.x_g__mutmut_1']]
+
+
+def write_mutants(root, body):
+    path = root / 'mutants' / 'pkg' / 'm.py'
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(body)
+
+
+ORIGINAL = 'def x_f__mutmut_orig(a):\n    b = 2\n    return a + b\n'
+
+
+def test_an_equivalent_whose_mutant_changed_is_not_counted_and_is_named(
+        tmp_path, monkeypatch, capsys):
+    write_meta(tmp_path, 'pkg.m', {'pkg.m.x_f__mutmut_1': 0, 'pkg.m.x_f__mutmut_2': 1})
+    write_mutants(tmp_path, ORIGINAL + 'def x_f__mutmut_1(a):\n    b = 2\n    return a - b\n'
+                  'def x_f__mutmut_2(a):\n    b = 3\n    return a + b\n')
+    listed = tmp_path / 'equivalent.txt'
+    listed.write_text('pkg.m.x_f__mutmut_1 || why\npkg.m.x_f__mutmut_9 || gone\n')
+    monkeypatch.setattr(mutate, 'ROOT', str(tmp_path))
+    monkeypatch.setattr(mutate, 'EQUIVALENT', str(listed))
+    assert mutate.fill_fingerprints() == 1   # the one whose mutant exists
+    text = listed.read_text()
+    assert text.startswith('pkg.m.x_f__mutmut_1 || why || fp=') and 'mutmut_9 || gone\n' in text
+    assert mutate.equivalents() == {'pkg.m.x_f__mutmut_1': 'why', 'pkg.m.x_f__mutmut_9': 'gone'}
+    assert mutate.still_equivalent()[1] == []
+    # a change elsewhere in the function keeps the fingerprint; another mutation does not
+    write_mutants(tmp_path, ORIGINAL.replace('b = 2', 'b = 2  # two') +
+                  'def x_f__mutmut_1(a):\n    b = 2  # two\n    return a - b\n')
+    assert mutate.still_equivalent()[1] == []
+    write_mutants(tmp_path, ORIGINAL + 'def x_f__mutmut_1(a):\n    b = 5\n    return a + b\n')
+    kept, stale = mutate.still_equivalent()
+    assert stale == ['pkg.m.x_f__mutmut_1'] and list(kept) == ['pkg.m.x_f__mutmut_9']
+    assert mutate.report(90.0) == 1   # the mutant counts as survived again
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-2] == ('mutate: 1 listed equivalent(s) no longer the mutant reviewed (the '
+                         'function changed; not counted, review again): pkg.m.x_f__mutmut_1')
