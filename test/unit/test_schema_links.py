@@ -98,3 +98,15 @@ def test_a_link_of_its_own_joint_without_limits_is_unbounded_and_a_mimic_follows
     assert own.limits == (-np.inf, np.inf) and own.max_velocity == np.inf
     follower = link('{frame: cam, parent: l1, type: prismatic, mimic: {joint: j1}}')
     assert follower.motion == ('prismatic', (0, 0, 1.0), 'j1', 1.0, 0.0)
+
+
+@pytest.mark.parametrize('fields, said', [
+    ('limits: [0]', "field 'limits' must be a list of 2 numbers"),
+    ('max_velocity: 0', "field 'max_velocity' must be a positive speed (per second), got 0"),
+    ('max_velocity: x', "field 'max_velocity' must be a number"),
+])
+def test_a_rows_limits_and_speed_are_said_where_and_what(fields, said):
+    text = ROBOT.replace('alpha: 0}', f'alpha: 0, {fields}}}').replace('links:\n', '')
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description(text, 'r.yaml')
+    assert str(caught.value).startswith("r.yaml: chain[0] (frame 'l1'): " + said)
