@@ -218,7 +218,7 @@ def _confined_open(real_open, roots):
     Return ``(open, allow)``: ``open`` reads files under ``roots`` only; ``allow`` adds one.
 
     The child puts it in place of ``builtins.open``; the tests call it in their own process
-    (test_xacro_sandbox.py), where mutation testing sees it.
+    (test_xacro_child.py), where mutation testing sees it.
     """
     from dq_fk_ros.description.symlinks import follow_keeping_names
     roots = [r.rstrip(os.sep) + os.sep for r in roots]
