@@ -439,3 +439,26 @@ def test_a_pickled_model_leaves_its_engine_behind_and_computes_the_same():
     assert 'kinematics' in model.__dict__   # the model itself keeps it
     again = pickle.loads(pickle.dumps(model))
     np.testing.assert_array_equal(again.forward_all_batch(q), before)
+
+
+def test_a_cylindrical_rows_second_joint_is_a_joint_name_like_any():
+    """Its name is taken: no other row may read it, and a mimic row may follow it."""
+    head = 'robot: r\nbase: {frame: b}\nchain:\n' \
+        '  - {frame: l1, type: cylindrical, joint: spin, d_joint: lift, theta: 0, d: 0, a: 0,' \
+        ' alpha: 0}\n'
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description(head + '  - {frame: l2, joint: lift, theta: 0, d: 0, a: 0, '
+                                'alpha: 0}\n', 'r.yaml')
+    assert str(caught.value) == ("r.yaml: chain[1] (frame 'l2'): joint 'lift' is already read "
+                                 "by chain[0] (frame 'l1'); joint names must be unique")
+    model = parse_robot_description(head + '  - {frame: l2, type: prismatic, theta: 0, d: 0, '
+                                    'a: 0, alpha: 0, mimic: {joint: lift}}\n', 'r.yaml')
+    assert model.joint_names == ('spin', 'lift')
+
+
+def test_a_mimic_in_a_robot_without_joints_says_there_are_none():
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description('robot: r\nbase: {frame: b}\nchain:\n  - {frame: l1, theta: 0, '
+                                'd: 0, a: 0, alpha: 0, mimic: {joint: j9}}\n', 'r.yaml')
+    assert str(caught.value) == ("r.yaml: chain[0] (frame 'l1') mimic: field 'joint' names "
+                                 "'j9', which no row reads; joints: none")
