@@ -311,6 +311,7 @@ def main(argv=None) -> int:
 def _run(args) -> int:
     """Run mutmut for each build of ``args.modes``; return 0, or the first failure's code."""
     mutmut = os.path.join(os.path.dirname(sys.executable), 'mutmut')
+    listed = still_equivalent()[0]   # (checked against mutants/ before it is made anew)
     for mode in args.modes:
         # a fresh start, or (--only) this build's earlier results carried on
         shutil.rmtree(os.path.join(ROOT, 'mutants'), ignore_errors=True)
@@ -319,8 +320,9 @@ def _run(args) -> int:
             names = _matching(not_run(mode), names)
             if not names:
                 continue
-        if args.survivors_again:   # (with --only: the named modules' survivors alone)
-            names = _matching(not_killed(mode), args.only)
+        if args.survivors_again:   # (with --only: the named modules' survivors alone),
+            # less the reviewed equivalents: they survive every run, each after all its tests
+            names = [n for n in _matching(not_killed(mode), args.only) if n not in listed]
             if not names:
                 continue
         if names or args.resume:

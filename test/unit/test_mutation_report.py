@@ -126,7 +126,8 @@ def test_continue_with_patterns_names_only_their_mutants_not_run_yet(tmp_path, m
     assert calls == []   # nothing of pkg.a left to run: mutmut is not started
 
 
-def test_survivors_again_with_patterns_runs_their_survivors_alone(tmp_path, mutmut_names):
+def test_survivors_again_with_patterns_runs_their_survivors_alone(
+        tmp_path, mutmut_names, monkeypatch):
     calls = mutmut_names
     write_meta(tmp_path, 'pkg.a', {'pkg.a.x_f__mutmut_1': 0, 'pkg.a.x_f__mutmut_2': 1})
     write_meta(tmp_path, 'pkg.b', {'pkg.b.x_g__mutmut_1': 0})
@@ -136,6 +137,12 @@ def test_survivors_again_with_patterns_runs_their_survivors_alone(tmp_path, mutm
     calls.clear()
     assert mutate.main(['run', '--modes', 'pure', '--survivors-again']) == 0
     assert calls == [['pkg.a.x_f__mutmut_1', 'pkg.b.x_g__mutmut_1']]
+    calls.clear()   # a reviewed equivalent survives every run: not run again
+    listed = tmp_path / 'equivalent.txt'
+    listed.write_text('pkg.b.x_g__mutmut_1 || why\n')
+    monkeypatch.setattr(mutate, 'EQUIVALENT', str(listed))
+    assert mutate.main(['run', '--modes', 'pure', '--survivors-again']) == 0
+    assert calls == [['pkg.a.x_f__mutmut_1']]
 
 
 def write_mutants(root, body):
