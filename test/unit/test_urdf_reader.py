@@ -51,7 +51,8 @@ def test_a_file_that_grows_after_its_size_was_read_is_read_to_the_bound_only(
             asked.append(size)
             return self.stream.read(size)
     monkeypatch.setattr(urdf_reader, 'open', Recorder, raising=False)
-    assert refusal(path).endswith('KiB; a URDF is at most that big')
+    assert refusal(path) == (f'{path}: larger than {MAX_URDF_BYTES // 1024} KiB; a URDF is '
+                             f'at most that big')
     assert asked == [MAX_URDF_BYTES + 1]
 
 
