@@ -213,13 +213,24 @@ def restore(mode, root=None) -> None:
 
 
 def keep(mode, root=None) -> None:
-    """Copy mutmut's ``.meta`` results of ``mutants/`` to ``.mutation/<mode>/``."""
+    """
+    Copy mutmut's ``.meta`` results of ``mutants/`` to ``.mutation/<mode>/``.
+
+    A ``.meta`` that does not read as JSON (mutmut stopped while writing it) is not copied:
+    the kept one stays, and one line says so (its mutants since then run again).
+    """
     root = root or ROOT
     target = os.path.join(root, '.mutation', mode)
-    shutil.rmtree(target, ignore_errors=True)
     top = os.path.join(root, 'mutants')
     for meta in glob.glob(os.path.join(top, '**', '*.py.meta'), recursive=True):
         destination = os.path.join(target, os.path.relpath(meta, top))
+        try:
+            with open(meta, encoding='utf-8') as stream:
+                json.load(stream)
+        except ValueError:
+            print(f'mutate: {os.path.relpath(meta, root)} was cut off while written; the '
+                  'results kept before stay', file=sys.stderr)
+            continue
         os.makedirs(os.path.dirname(destination), exist_ok=True)
         shutil.copy2(meta, destination)
 

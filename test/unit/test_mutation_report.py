@@ -78,6 +78,21 @@ def test_a_mutant_killed_by_either_build_is_killed(tmp_path, monkeypatch):
     assert mutate.not_killed('compiled', str(tmp_path)) == names[1:]   # survived, unreached
 
 
+def test_a_results_file_cut_off_while_written_leaves_the_kept_one(tmp_path, capsys):
+    """A .meta cut off by a stop (SIGTERM) while mutmut wrote it: the results kept stay."""
+    write_meta(tmp_path, 'pkg.m', {'pkg.m.x_f__mutmut_1': 1, 'pkg.m.x_f__mutmut_2': 0})
+    write_meta(tmp_path, 'pkg.n', {'pkg.n.x_g__mutmut_1': None})
+    mutate.keep('pure', str(tmp_path))
+    meta = tmp_path / 'mutants' / 'pkg' / 'm.py.meta'
+    meta.write_text(meta.read_text()[:-20])   # the tail never written
+    write_meta(tmp_path, 'pkg.n', {'pkg.n.x_g__mutmut_1': 1})
+    mutate.keep('pure', str(tmp_path))
+    kept = mutate.results(str(tmp_path))
+    assert kept['pkg.m'] == {'pkg.m.x_f__mutmut_1': 1, 'pkg.m.x_f__mutmut_2': 0}
+    assert kept['pkg.n'] == {'pkg.n.x_g__mutmut_1': 1}   # the others are kept as usual
+    assert 'mutants/pkg/m.py.meta was cut off while written' in capsys.readouterr().err
+
+
 def test_continue_runs_mutmut_without_names_on_the_kept_results_and_ctrl_c_keeps_them(
         tmp_path, monkeypatch):
     """Without names, mutmut runs only the mutants without a result."""
