@@ -56,9 +56,10 @@ $(STAMPS)/foxglove: requirements/foxglove.txt $(STAMPS)/runtime
 	@touch $@
 
 $(STAMPS)/tf2_msgs: vendor/tf2_msgs/CMakeLists.txt vendor/tf2_msgs/package.xml \
-                    vendor/tf2_msgs/msg/TFMessage.msg requirements/tf2_msgs-build.txt \
+                    $(wildcard vendor/tf2_msgs/*/*.msg vendor/tf2_msgs/*/*.srv \
+                      vendor/tf2_msgs/*/*.action) requirements/tf2_msgs-build.txt \
                     scripts/tf2_msgs_build.py $(STAMPS)/runtime
-	@echo 'setup: providing tf2_msgs (building the vendored TFMessage if missing)'
+	@echo 'setup: providing tf2_msgs (building the vendored copy if missing)'
 	@$(STEP) "provide tf2_msgs (scripts/tf2_msgs_build.py)" $(LOGS)/tf2_msgs.log \
 	  $(VENV)/bin/python scripts/tf2_msgs_build.py --into $(VENV)
 	@touch $@

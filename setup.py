@@ -91,7 +91,9 @@ setup(
         ('share/' + package_name + '/web', ['web/index.html', 'web/app.js', 'web/package.json',
                                             'web/package-lock.json']),
     ] + TF2_MSGS_PARTS['data_files'],
-    package_data=TF2_MSGS_PARTS['package_data'],
+    # the tf2 compat path (dq_fk tf compat-path): folders of re-exports, not packages
+    package_data=dict(TF2_MSGS_PARTS['package_data'],
+                      dq_fk_ros=['compat/README.md', 'compat/*/*/*.py']),
     # the compiled FK kernel: optional (without a C compiler the numpy path runs); -O3
     # vectorises its batch loops; no contraction into fused multiply-adds, so it computes
     # what the reference computes

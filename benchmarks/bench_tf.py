@@ -181,12 +181,13 @@ def bench_hostile_peer():
 def listen(seconds):
     """Run a TransformListener (this script with --listen); print received, CPU, memory."""
     import rclpy
-    from dq_fk_ros.ros.tf_buffer import Buffer, TransformListener
+    from dq_fk_ros.ros.tf_buffer import Buffer
+    from dq_fk_ros.ros.tf_listener import TransformListener
     from rclpy.executors import SingleThreadedExecutor
     rclpy.init()
     node = rclpy.create_node(f'bench_tf_listener_{os.getpid()}')
     buffer = Buffer()
-    listener = TransformListener(buffer, node)
+    listener = TransformListener(buffer, node, input_thread=True)   # the fast path (tf.md)
     # updates received: a new first-transform stamp (one per update; a counter, not a set,
     # so that the count itself takes no memory the figure would show)
     seen = {'count': 0, 'last': None}

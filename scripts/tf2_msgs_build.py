@@ -4,8 +4,9 @@
 tf2_msgs is not on PyPI, and dq_fk_ros publishes and reads ``tf2_msgs/msg/TFMessage``. A
 ``pip install dq_fk_ros`` builds the package in an isolated environment holding the build
 requirements of pyproject.toml (rosidl's generators and ament_cmake from the ROS 2 Jazzy
-wheels); there :func:`build` runs rosidl on ``vendor/tf2_msgs`` (upstream's TFMessage
-definition) and setup.py puts what it installed into the wheel: the ``tf2_msgs`` Python package, its libraries (``lib/``, where
+wheels); there :func:`build` runs rosidl on ``vendor/tf2_msgs`` (upstream's definitions of
+TFMessage, TF2Error, FrameGraph and LookupTransform) and setup.py puts what it installed
+into the wheel: the ``tf2_msgs`` Python package, its libraries (``lib/``, where
 the ROS wheels' loader looks) and ``share/tf2_msgs``.
 
 Nothing is built where ``tf2_msgs`` is already importable (a sourced ROS 2, ``make setup``'s
@@ -97,9 +98,12 @@ def wheel_parts(prefix: str) -> dict:
             data_files.append((os.path.relpath(folder, prefix),
                                sorted(os.path.relpath(os.path.join(folder, f), here)
                                       for f in files)))
-    return {'packages': ['tf2_msgs', 'tf2_msgs.msg'],
-            'package_dir': {'tf2_msgs': rel, 'tf2_msgs.msg': os.path.join(rel, 'msg')},
-            'package_data': {'tf2_msgs': ['*.so'], 'tf2_msgs.msg': ['*.py']},
+    kinds = ('msg', 'srv', 'action')
+    return {'packages': ['tf2_msgs'] + [f'tf2_msgs.{k}' for k in kinds],
+            'package_dir': dict({'tf2_msgs': rel},
+                                **{f'tf2_msgs.{k}': os.path.join(rel, k) for k in kinds}),
+            'package_data': dict({'tf2_msgs': ['*.so']}, **{f'tf2_msgs.{k}': ['*.py']
+                                                           for k in kinds}),
             'data_files': data_files}
 
 
@@ -123,7 +127,9 @@ def main(argv=None) -> int:
         build(work, venv)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    subprocess.run([sys.executable, '-c', 'from tf2_msgs.msg import TFMessage; TFMessage()'],
+    subprocess.run([sys.executable, '-c', 'from tf2_msgs.msg import TFMessage; TFMessage(); '
+                    'from tf2_msgs.action import LookupTransform; LookupTransform.Goal(); '
+                    'from tf2_msgs.srv import FrameGraph; FrameGraph.Request()'],
                    check=True)
     print(f'built and installed vendored tf2_msgs into {venv}')
     return 0

@@ -273,6 +273,9 @@ def cmd_show(args) -> int:
 
 
 def cmd_tf(args) -> int:
+    if args.tf_command == 'compat-path':
+        from dq_fk_ros.cli import compat_path
+        return compat_path.main(sys.stdout, sys.stderr)
     import signal
     from dq_fk_ros.ros import tf_tools  # rclpy's: imported only for this command
     # Ctrl-C ends echo and monitor (exit 0), also as a script's background job, which
@@ -406,6 +409,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument('target', metavar='TARGET', nargs='?')
     q.add_argument('source', metavar='SOURCE', nargs='?')
     q.add_argument('--seconds', type=float, help='stop after this long (default: Ctrl-C)')
+    tf_sub.add_parser('compat-path', help='print the folder that, first on PYTHONPATH, makes '
+                      'import tf2_ros (tf2_py, tf2_geometry_msgs, tf2_sensor_msgs) find this '
+                      'package (docs/tf.md)')
     p.set_defaults(func=cmd_tf)
     p = sub.add_parser('calibrate', help='identify the DH table from measured poses (CSV or '
                        'bag), or plan the configurations to measure (docs/calibration.md)')

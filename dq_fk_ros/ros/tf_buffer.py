@@ -1,19 +1,19 @@
 """
-tf2_ros's Python API over :class:`~dq_fk_ros.transforms.buffer_core.BufferCore`: no tf2 needed.
+tf2_ros's ``Buffer`` over the array core: transforms in, lookups and ``transform`` out.
 
-``Buffer``, ``TransformListener``, ``TransformBroadcaster`` and
-``StaticTransformBroadcaster`` take and give what tf2_ros's do (rclpy ``Time`` and
-``Duration``, ``geometry_msgs/TransformStamped``), so code written for tf2_ros runs after
-its import becomes ``from dq_fk_ros import tf as tf2_ros``. The rules of a lookup are tf2's
-(:mod:`dq_fk_ros.transforms.buffer_core`); times are integer nanoseconds inside.
+``Buffer`` is what tf2_ros's is: tf2_py's ``BufferCore``
+(:class:`~dq_fk_ros.ros.tf_message_core.MessageBufferCore`) and tf2_ros's
+``BufferInterface`` (:mod:`dq_fk_ros.ros.tf_registration`: ``transform``,
+``transform_full``), with lookups that wait (``timeout``), the async forms
+(``lookup_transform_async``, ``wait_for_transform_async`` and their ``_full``: rclpy
+``Future`` s completed when the data arrive, as geometry2's ``tf2_ros_py/tf2_ros/buffer.py``),
+the ``tf2_frames`` service on a ``node`` given, and the whole buffer cleared when the clock
+jumps back by more than a second (a bag played again), as tf2_ros's. Times are rclpy
+``Time``, ``builtin_interfaces/Time`` or int ns; integer ns inside. The rules of a lookup are
+tf2's (:mod:`dq_fk_ros.transforms.buffer_core`).
 
-The listener takes ``/tf`` and ``/tf_static`` as serialized bytes and reads them with the
-package's own CDR reader (:class:`~dq_fk_ros.messages.cdr_tf.TfReader`): no Python message
-object per transform. QoS as tf2_ros's: ``/tf`` depth 100; ``/tf_static`` depth 100,
-reliable, transient local (a listener joining late gets every static transform).
-
-Not here (tf2_ros has them): ``Buffer.transform`` (tf2_geometry_msgs's registrations), the
-``tf2_frames`` service, ``lookup_transform_async`` and ``wait_for_transform_async``.
+What a listener stores comes in through :meth:`Buffer.set_raw` and :meth:`Buffer.append_raw`
+(:mod:`dq_fk_ros.ros.tf_listener`), a slice of transforms under each hold of the lock.
 """
 
 import logging
@@ -22,85 +22,31 @@ import threading
 import time as _time
 from typing import TYPE_CHECKING
 
-from builtin_interfaces.msg import Time as TimeMsg
-from dq_fk_ros.errors import CdrError
-from dq_fk_ros.messages.cdr_tf import TfReader
-from dq_fk_ros.transforms.buffer_core import (BufferCore, COMPILED, DEFAULT_CACHE_TIME_NS,
-                                              MAX_FRAME_ID, MAX_FRAMES, strip_slash)
-from dq_fk_ros.transforms.exceptions import (ConnectivityException, ExtrapolationException,
-                                             InvalidArgumentException, LookupException,
-                                             TimeoutException, TransformException)
+from dq_fk_ros.ros.tf_message_core import (duration_ns, MessageBufferCore, time_ns,
+                                           to_message)
+from dq_fk_ros.ros.tf_registration import BufferInterface
+from dq_fk_ros.transforms.buffer_core import COMPILED, MAX_FRAME_ID, MAX_FRAMES, strip_slash
 from geometry_msgs.msg import TransformStamped
 import numpy as np
-from rclpy.duration import Duration
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.time import Time
-from tf2_msgs.msg import TFMessage
 
 if TYPE_CHECKING:
     from numpy import ndarray
+    from rclpy.task import Future
 
-# tf2_ros's DynamicListenerQoS, StaticListenerQoS and the broadcasters' QoS
-DYNAMIC_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST)
-STATIC_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                        reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
-STATIC_BROADCASTER_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                                    reliability=ReliabilityPolicy.RELIABLE,
-                                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
-LOG_EVERY_S = 10.0    # a listener's refused transforms: one line per this many seconds
 _STAMP, _POSE7 = struct.Struct('<iI'), struct.Struct('<7d')
-AUTHORITY = 'default_authority'   # what tf2_ros's Python listener records
-INPUT_BATCH_S = 0.002   # the listener's /tf thread: messages this close share a wake-up
 SLICE = 256             # transforms of one message stored under one hold of the lock
 MAX_PLANS = 64          # layouts whose frame ids a listener remembers (as its reader's)
+JUMP_BACK_S = 1.0       # tf2_ros's: a clock jumping back further clears the buffer
 
 
-def time_ns(value) -> int:
-    """Return ``value`` (rclpy ``Time``, a ``builtin_interfaces/Time``, or int ns) in ns."""
-    if isinstance(value, Time):
-        return value.nanoseconds
-    if isinstance(value, TimeMsg):
-        return value.sec * 1_000_000_000 + value.nanosec
-    if type(value) is int:
-        return value
-    raise TypeError(f'a time is an rclpy Time, a builtin_interfaces Time or int ns, not '
-                    f'{type(value).__name__}')
-
-
-def duration_ns(value) -> int:
-    """Return ``value`` (rclpy ``Duration`` or int ns) in ns."""
-    if isinstance(value, Duration):
-        return value.nanoseconds
-    if type(value) is int:
-        return value
-    raise TypeError(f'a duration is an rclpy Duration or int ns, not {type(value).__name__}')
-
-
-def to_message(target, source, pose, stamp_ns) -> TransformStamped:
+class Buffer(MessageBufferCore, BufferInterface):
     """
-    Return a ``TransformStamped`` of ``pose`` (x y z qx qy qz qw) at ``stamp_ns``.
-
-    The fields are set on the default message's own parts (about 1.5 us over the empty
-    message's construction; its constructor with keyword arguments costs twice that).
-    """
-    msg = TransformStamped()
-    header, transform = msg.header, msg.transform
-    header.frame_id, msg.child_frame_id = target, source
-    stamp = header.stamp
-    stamp.sec, stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-    t, r = transform.translation, transform.rotation
-    t.x, t.y, t.z = pose[0], pose[1], pose[2]
-    r.x, r.y, r.z, r.w = pose[3], pose[4], pose[5], pose[6]
-    return msg
-
-
-class Buffer:
-    """
-    tf2_ros's ``Buffer``: transforms in, lookups out, by tf2's rules (module doc).
+    tf2_ros's ``Buffer`` (module doc).
 
     :param cache_time: how long each edge keeps its samples (``Duration``; tf2's 10 s).
-    :param node: accepted as tf2_ros's; no ``tf2_frames`` service is made.
+    :param node: where to offer the ``tf2_frames`` service (``tf2_msgs/srv/FrameGraph``:
+        :meth:`all_frames_as_yaml`) and whose clock's jumps back clear the buffer (None: a
+        system clock's, as tf2_ros).
     :param interpolation: ``'slerp'`` (tf2's) or ``'sclerp'`` (screw motion, not tf2's).
     :param max_frames: frame names held at most; transforms naming more are refused.
 
@@ -111,32 +57,60 @@ class Buffer:
     def __init__(self, cache_time=None, node=None, interpolation='slerp',
                  max_frames=MAX_FRAMES, log=None):
         """Start empty."""
-        cache_ns = DEFAULT_CACHE_TIME_NS if cache_time is None else duration_ns(cache_time)
-        self.lock = threading.Lock()
-        self._changed = threading.Condition(self.lock)
-        self.core = BufferCore(cache_ns, interpolation, max_frames,
-                               log or logging.getLogger('dq_fk_ros.tf').warning)
+        MessageBufferCore.__init__(self, cache_time, interpolation, max_frames,
+                                   log or logging.getLogger('dq_fk_ros.tf').warning)
+        BufferInterface.__init__(self)
         self.node = node
+        self._new_data_callbacks = []
+        self._callbacks_lock = threading.RLock()
+        self.srv = None
+        if node is not None:
+            from tf2_msgs.srv import FrameGraph
+            self.srv = node.create_service(FrameGraph, 'tf2_frames', self._frames)
+            self.clock = node.get_clock()
+        else:
+            from rclpy.clock import Clock
+            self.clock = Clock()
+        from rclpy.clock import JumpThreshold
+        from rclpy.duration import Duration
+        self.jump_handle = self.clock.create_jump_callback(
+            JumpThreshold(min_forward=None, min_backward=Duration(seconds=-JUMP_BACK_S),
+                          on_clock_change=True),
+            post_callback=self.time_jump_callback)
+
+    def _frames(self, request, response):
+        response.frame_yaml = self.all_frames_as_yaml()
+        return response
+
+    def time_jump_callback(self, time_jump=None) -> None:
+        """Clear the buffer: the clock jumped back (tf2_ros's, with its log line)."""
+        logging.getLogger('tf2_buffer').warning('Detected jump back in time. Clearing tf '
+                                                'buffer.')
+        self.clear()
 
     # -- in -------------------------------------------------------------------------------
-    def set_transform(self, transform: TransformStamped, authority: str) -> bool:
-        """Store a transform (as tf2_ros's; False: refused, one log line)."""
-        return self._set(transform, authority, False)
+    def set_transform(self, transform: TransformStamped, authority: str) -> None:
+        """Store a transform (tf2's refusals are counted in ``core.refused`` and logged)."""
+        self._store(transform, authority, False)
+        self._call_new_data_callbacks()
 
-    def set_transform_static(self, transform: TransformStamped, authority: str) -> bool:
+    def set_transform_static(self, transform: TransformStamped, authority: str) -> None:
         """Store a static transform, valid at every time."""
-        return self._set(transform, authority, True)
+        self._store(transform, authority, True)
+        self._call_new_data_callbacks()
 
-    def _set(self, transform, authority, static):
-        t, r = transform.transform.translation, transform.transform.rotation
-        stamp = transform.header.stamp
-        with self._changed:
-            done = self.core.set_transform(
-                transform.header.frame_id, transform.child_frame_id,
-                stamp.sec * 1_000_000_000 + stamp.nanosec, (t.x, t.y, t.z, r.x, r.y, r.z, r.w),
-                authority, static)
-            self._changed.notify_all()
-        return done
+    def _call_new_data_callbacks(self) -> None:
+        """Let each waiting future check again (in the storing thread, as tf2_ros)."""
+        if not self._new_data_callbacks:
+            return
+        with self._callbacks_lock:
+            for callback in list(self._new_data_callbacks):
+                callback()
+
+    def _remove_callback(self, callback) -> None:
+        with self._callbacks_lock:
+            if callback in self._new_data_callbacks:
+                self._new_data_callbacks.remove(callback)
 
     def set_raw(self, transforms, authority: str, static: bool = False) -> int:
         """Store ``[(parent, child, stamp_ns, pose)]`` (the listener's); return how many taken."""
@@ -148,6 +122,7 @@ class Buffer:
                                                      static)
                 self._changed.notify_all()
             _time.sleep(0)   # hand over: a lookup waiting on the lock takes it (not fair)
+        self._call_new_data_callbacks()
         return taken
 
     def append_raw(self, raw: bytes, layout, plans: dict, authority: str) -> int:
@@ -187,6 +162,7 @@ class Buffer:
                                                 pose(raw, layout.values[lo + i]), authority)
                 self._changed.notify_all()
             _time.sleep(0)   # hand over: a lookup waiting on the lock takes it (not fair)
+        self._call_new_data_callbacks()
         return taken
 
     def _plan(self, layout):
@@ -207,11 +183,6 @@ class Buffer:
         with self._changed:
             self._changed.wait(timeout_s)
 
-    def clear(self) -> None:
-        """Forget every sample."""
-        with self.lock:
-            self.core.clear()
-
     # -- out ------------------------------------------------------------------------------
     def lookup_transform(self, target_frame: str, source_frame: str, time,
                          timeout=None) -> TransformStamped:
@@ -226,9 +197,7 @@ class Buffer:
         if timeout is not None and duration_ns(timeout) > 0:
             self._wait(lambda: self.core.can_transform(target_frame, source_frame, stamp),
                        timeout)
-        with self.lock:
-            pose, used = self.core.lookup(target_frame, source_frame, stamp)
-        return to_message(target_frame, source_frame, pose, used)
+        return self.lookup_transform_core(target_frame, source_frame, stamp)
 
     def lookup_transform_full(self, target_frame: str, target_time, source_frame: str,
                               source_time, fixed_frame: str, timeout=None) -> TransformStamped:
@@ -236,10 +205,8 @@ class Buffer:
         target_ns, source_ns = time_ns(target_time), time_ns(source_time)
         self._wait(lambda: self.core.can_transform_full(target_frame, target_ns, source_frame,
                                                         source_ns, fixed_frame), timeout)
-        with self.lock:
-            pose, used = self.core.lookup_full(target_frame, target_ns, source_frame,
+        return self.lookup_transform_full_core(target_frame, target_ns, source_frame,
                                                source_ns, fixed_frame)
-        return to_message(target_frame, source_frame, pose, used)
 
     def can_transform(self, target_frame: str, source_frame: str, time, timeout=None,
                       return_debug_tuple: bool = False) -> 'bool | tuple':
@@ -283,16 +250,56 @@ class Buffer:
         with self.lock:
             return lookup_poses(self.core, target_frame, source_frame, stamps_ns)
 
-    def all_frames_as_yaml(self, current_time=None) -> str:
-        """Return tf2's ``allFramesAsYAML``."""
-        with self.lock:
-            return self.core.all_frames_as_yaml(0 if current_time is None
-                                                else time_ns(current_time))
+    # -- async ----------------------------------------------------------------------------
+    async def lookup_transform_async(self, target_frame: str, source_frame: str, time):
+        """Return the transform once it can be given (a coroutine, as tf2_ros's)."""
+        await self.wait_for_transform_async(target_frame, source_frame, time)
+        return self.lookup_transform_core(target_frame, source_frame, time)
 
-    def all_frames_as_string(self) -> str:
-        """Return tf2's ``allFramesAsString``."""
-        with self.lock:
-            return self.core.all_frames_as_string()
+    async def lookup_transform_full_async(self, target_frame: str, target_time,
+                                          source_frame: str, source_time, fixed_frame: str):
+        """Return the transform via ``fixed_frame`` once it can be given (a coroutine)."""
+        await self.wait_for_transform_full_async(target_frame, target_time, source_frame,
+                                                 source_time, fixed_frame)
+        return self.lookup_transform_full_core(target_frame, target_time, source_frame,
+                                               source_time, fixed_frame)
+
+    def wait_for_transform_async(self, target_frame: str, source_frame: str,
+                                 time) -> 'Future':
+        """Return an rclpy ``Future`` done with the transform when it can be given."""
+        return self._future(
+            lambda: self.can_transform_core(target_frame, source_frame, time)[0],
+            lambda: self.lookup_transform_core(target_frame, source_frame, time))
+
+    def wait_for_transform_full_async(self, target_frame: str, target_time,
+                                      source_frame: str, source_time,
+                                      fixed_frame: str) -> 'Future':
+        """Return an rclpy ``Future`` done with the transform via ``fixed_frame``."""
+        args = (target_frame, target_time, source_frame, source_time, fixed_frame)
+        return self._future(lambda: self.can_transform_full_core(*args)[0],
+                            lambda: self.lookup_transform_full_core(*args))
+
+    def _future(self, ready, lookup):
+        """Return a ``Future`` set by the first store after which ``ready()`` (tf2_ros's rule)."""
+        from rclpy.task import Future
+        future = Future()
+        if ready():
+            future.set_result(lookup())
+            return future
+
+        def on_new_data():
+            if future.done():
+                return
+            try:
+                if ready():
+                    future.set_result(lookup())
+            except Exception as error:   # a lookup that raised after all: the future's
+                future.set_exception(error)
+
+        with self._callbacks_lock:
+            self._new_data_callbacks.append(on_new_data)
+        future.add_done_callback(lambda _: self._remove_callback(on_new_data))
+        return future
 
 
 def buffer_from_bag(path, start=None, end=None, interpolation: str = 'slerp') -> Buffer:
@@ -316,148 +323,4 @@ def buffer_from_bag(path, start=None, end=None, interpolation: str = 'slerp') ->
     return buffer
 
 
-class TransformListener:
-    """
-    tf2_ros's ``TransformListener``: ``/tf`` and ``/tf_static`` into a :class:`Buffer`.
-
-    Messages are taken as bytes and read by the package's CDR reader; one that does not read
-    is counted (``unreadable``) and logged at most once per ``LOG_EVERY_S``, as are refused
-    transforms (the buffer's own one-line reasons).
-    """
-
-    def __init__(self, buffer: Buffer, node, *, spin_thread: bool = False, qos=None,
-                 static_qos=None, static_only: bool = False, input_thread: bool = True):
-        """
-        Subscribe on ``node``; with ``spin_thread``, spin it in a thread of its own.
-
-        :param input_thread: take ``/tf`` in a thread of its own (a hidden helper node
-            ``_<node>_tf`` and one wait set, as dq_fk_node takes joint states; every
-            message within ``INPUT_BATCH_S`` of the last is taken in the same wake-up), not
-            through the executor, whose wake-up per message cost more than the transforms;
-            False: a subscription on ``node`` as tf2_ros has it.
-        """
-        from rclpy.callback_groups import ReentrantCallbackGroup
-        self.buffer, self.node = buffer, node
-        self.counts = {'messages': 0, 'transforms': 0, 'refused': 0, 'unreadable': 0}
-        self._reader, self._static_reader = TfReader(), TfReader()
-        self._plans = {}   # layout -> its transforms' ids and offsets (Buffer.append_raw)
-        self._last_log = 0.0
-        self._log_lock = threading.Lock()
-        buffer.core.log = self._log
-        group = ReentrantCallbackGroup()
-        self.tf_sub = self.tf_thread = None
-        if not static_only and input_thread:
-            from dq_fk_ros.ros.raw_input import RawSubscriptionThread
-            self.tf_thread = RawSubscriptionThread(
-                node, TFMessage, '/tf', qos or DYNAMIC_QOS, lambda raw, _: self._on_tf(raw),
-                batch_s=INPUT_BATCH_S, role='tf')
-        elif not static_only:
-            self.tf_sub = node.create_subscription(
-                TFMessage, '/tf', self._on_tf, qos or DYNAMIC_QOS, callback_group=group,
-                raw=True)
-        self.tf_static_sub = node.create_subscription(
-            TFMessage, '/tf_static', self._on_static, static_qos or STATIC_QOS,
-            callback_group=group, raw=True)
-        self.executor, self.dedicated_listener_thread = None, None
-        if spin_thread:
-            from rclpy.executors import SingleThreadedExecutor
-            self.executor = SingleThreadedExecutor(context=node.context)
-
-            def run():
-                self.executor.add_node(node)
-                try:
-                    self.executor.spin()
-                except Exception:   # the context shut down
-                    pass
-                finally:
-                    self.executor.remove_node(node)
-            self.dedicated_listener_thread = threading.Thread(target=run, daemon=True,
-                                                              name='dq_fk tf listener')
-            self.dedicated_listener_thread.start()
-
-    def _log(self, line):
-        """Log a line of the buffer's (already at most one a code every LOG_EVERY_S)."""
-        self.node.get_logger().warning(line)
-
-    def _log_unreadable(self):
-        self.counts['unreadable'] += 1
-        now = _time.monotonic()
-        with self._log_lock:
-            if now - self._last_log < LOG_EVERY_S:
-                return
-            self._last_log = now
-        self.node.get_logger().warning(
-            'a TFMessage that does not read as one (not CDR, truncated, or frame ids that are '
-            f"not UTF-8) ({self.counts['unreadable']} so far)")
-
-    def _on_tf(self, raw):
-        self._take(raw, self._reader, False)
-
-    def _on_static(self, raw):
-        self._take(raw, self._static_reader, True)
-
-    def _take(self, raw, reader, static):
-        self.counts['messages'] += 1
-        try:
-            layout = reader.layout(raw)
-        except (CdrError, ValueError):
-            self._log_unreadable()
-            return
-        if static or COMPILED is None or self.buffer.core.sclerp:
-            self.counts['transforms'] += self.buffer.set_raw(
-                TfReader.unpack(raw, layout), AUTHORITY, static)
-        else:
-            self.counts['transforms'] += self.buffer.append_raw(raw, layout, self._plans,
-                                                                AUTHORITY)
-        self.counts['refused'] = sum(self.buffer.core.refused.values())
-
-    def unregister(self) -> None:
-        """Destroy the subscriptions (tf2_ros's ``unregister``)."""
-        for sub in (self.tf_sub, self.tf_static_sub):
-            if sub is not None:
-                self.node.destroy_subscription(sub)
-        if self.tf_thread is not None:
-            self.tf_thread.close()
-        self.tf_sub = self.tf_static_sub = self.tf_thread = None
-        if self.executor is not None:
-            self.executor.shutdown()
-            self.dedicated_listener_thread.join(timeout=2.0)
-
-    def __del__(self):
-        """Nothing: :meth:`unregister` stops it (a finaliser may run after rclpy shut down)."""
-
-
-class TransformBroadcaster:
-    """tf2_ros's ``TransformBroadcaster``: ``send_transform`` publishes on ``/tf``."""
-
-    def __init__(self, node, qos=None):
-        """Create the ``/tf`` publisher on ``node`` (depth 100, as tf2_ros)."""
-        self.pub_tf = node.create_publisher(TFMessage, '/tf', qos or DYNAMIC_QOS)
-
-    def send_transform(self, transform) -> None:
-        """Publish one ``TransformStamped`` or a list of them."""
-        transforms = transform if isinstance(transform, (list, tuple)) else [transform]
-        self.pub_tf.publish(TFMessage(transforms=list(transforms)))
-
-
-class StaticTransformBroadcaster:
-    """tf2_ros's ``StaticTransformBroadcaster``: every transform sent, latched on /tf_static."""
-
-    def __init__(self, node, qos=None):
-        """Create the latched ``/tf_static`` publisher (reliable, transient local, depth 1)."""
-        self.pub_tf = node.create_publisher(TFMessage, '/tf_static',
-                                            qos or STATIC_BROADCASTER_QOS)
-        self._net = {}   # child frame -> its newest transform
-
-    def send_transform(self, transform) -> None:
-        """Add or replace transforms by child frame; publish all of them (as tf2_ros)."""
-        transforms = transform if isinstance(transform, (list, tuple)) else [transform]
-        for t in transforms:
-            self._net[t.child_frame_id] = t
-        self.pub_tf.publish(TFMessage(transforms=list(self._net.values())))
-
-
-__all__ = ['Buffer', 'buffer_from_bag', 'ConnectivityException', 'ExtrapolationException',
-           'InvalidArgumentException', 'LookupException', 'StaticTransformBroadcaster',
-           'TimeoutException', 'TransformBroadcaster', 'TransformException',
-           'TransformListener']
+__all__ = ['Buffer', 'buffer_from_bag', 'duration_ns', 'time_ns', 'to_message']

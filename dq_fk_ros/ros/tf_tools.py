@@ -88,7 +88,8 @@ class _Ros:
     def __init__(self, name):
         import rclpy
         from rclpy.signals import SignalHandlerOptions
-        from dq_fk_ros.ros.tf_buffer import Buffer, TransformListener
+        from dq_fk_ros.ros.tf_buffer import Buffer
+        from dq_fk_ros.ros.tf_listener import TransformListener
         self.context = rclpy.Context()
         rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node(f'{name}_{os.getpid()}', context=self.context)
@@ -228,7 +229,7 @@ class Monitor:
 def monitor(target: str | None = None, source: str | None = None,
             seconds: float | None = None, out=sys.stdout) -> int:
     """Print :class:`Monitor` reports every second until Ctrl-C or ``seconds``; return 0."""
-    from dq_fk_ros.ros.tf_buffer import DYNAMIC_QOS, STATIC_QOS
+    from dq_fk_ros.ros.tf_listener import DYNAMIC_QOS, STATIC_QOS
     from tf2_msgs.msg import TFMessage
     ros = _Ros('dq_fk_tf_monitor')
     watch = Monitor()

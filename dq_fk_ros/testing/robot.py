@@ -117,7 +117,8 @@ class RobotHandle:
     # -- the listener --------------------------------------------------------------------
     def _start_listener(self):
         import rclpy
-        from dq_fk_ros.ros.tf_buffer import Buffer, TransformListener
+        from dq_fk_ros.ros.tf_buffer import Buffer
+        from dq_fk_ros.ros.tf_listener import TransformListener
         self._context = rclpy.Context()
         rclpy.init(context=self._context)
         self._node = rclpy.create_node(f'dq_fk_test_listener_{os.getpid()}_{next(_counter)}',

@@ -16,7 +16,7 @@ PACKAGE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
 # bottom up: a layer may import its own modules and those of the layers before it; at the
 # bottom the package's errors (one module, dq_fk_ros/errors.py, that every layer imports)
 LAYERS = ('errors', 'kinematics', 'description', 'messages', 'transforms', 'storage', 'bag',
-          'calibration', 'ros', 'viewers', 'cli', 'testing')
+          'calibration', 'ros', 'viewers', 'cli', 'testing', 'compat')
 # modules beside the layers: the package's surfaces, which may import any layer
 SURFACES = ('__init__.py', 'tf.py')
 # what each layer may import from outside the standard library and the package
@@ -42,6 +42,8 @@ THIRD_PARTY = {
     'cli': {'numpy'},
     # the pytest plugin users get: its fixtures start the programs and read TF back
     'testing': {'pytest', 'rclpy', 'geometry_msgs', 'sensor_msgs'},
+    # the tf2 compat path (dq_fk tf compat-path): re-exports of the layers' names only
+    'compat': set(),
 }
 
 

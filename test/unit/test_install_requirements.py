@@ -83,9 +83,12 @@ def test_an_installed_prefix_goes_into_the_wheel_as_package_libraries_and_share(
     monkeypatch.chdir(tmp_path)
     parts = tf2_msgs_build['wheel_parts'](str(prefix))
     where = 'build/tf2_msgs/prefix/lib/python3.11/site-packages/tf2_msgs'
-    assert parts['packages'] == ['tf2_msgs', 'tf2_msgs.msg']
-    assert parts['package_dir'] == {'tf2_msgs': where, 'tf2_msgs.msg': where + '/msg'}
-    assert parts['package_data'] == {'tf2_msgs': ['*.so'], 'tf2_msgs.msg': ['*.py']}
+    kinds = ['msg', 'srv', 'action']   # TFMessage, TF2Error; FrameGraph; LookupTransform
+    assert parts['packages'] == ['tf2_msgs'] + [f'tf2_msgs.{k}' for k in kinds]
+    assert parts['package_dir'] == dict({'tf2_msgs': where},
+                                        **{f'tf2_msgs.{k}': f'{where}/{k}' for k in kinds})
+    assert parts['package_data'] == dict({'tf2_msgs': ['*.so']},
+                                         **{f'tf2_msgs.{k}': ['*.py'] for k in kinds})
     assert sorted(parts['data_files']) == [
         ('lib', ['build/tf2_msgs/prefix/lib/libtf2_msgs__rosidl_generator_c.so']),
         ('share/ament_index/resource_index/packages',
