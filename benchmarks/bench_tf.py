@@ -22,9 +22,18 @@ Prints each figure beside its target (issue "TF without tf2"):
     200 such transforms stored as the listener stores them (``append_raw``) while another
     thread looks up an unrelated frame: the longest a lookup waited (2.8 s before; target
     <= 20 ms, a slice of 256 transforms and Python's 5 ms thread switch).
+(f) tf2_sensor_msgs' ``do_transform_cloud`` of a 300 000-point cloud (x y z rgb intensity,
+    float32): ours (``dq_fk_ros.ros.tf_cloud``) beside geometry2's with common_interfaces'
+    sensor_msgs_py, from checkouts given by ``--geometry2`` and ``--common-interfaces``
+    (target: at least 2x faster; not measured without them).
+(g) with ``--real-tf2 ENV_LINE`` (the last line of ``../shared/tools/build_real_tf2.sh``): the
+    real tf2_ros's ``lookup_transform`` on the tree of (a), measured beside ours through the
+    compat path (target: ours at most 0.2x).
 
 Run with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a private ROS_DOMAIN_ID (``make bench``
-sets both): ``python benchmarks/bench_tf.py [--seconds 60] [--skip-listener]``.
+sets both): ``python benchmarks/bench_tf.py [--seconds 60] [--skip-listener] [--geometry2
+GEOMETRY2 --common-interfaces COMMON_INTERFACES] [--real-tf2 ENV_LINE]`` (bench_tf_peers.py
+says where the peers come from).
 """
 
 import argparse
@@ -296,21 +305,59 @@ def bench_bag(folder):
            'x', '<= 1.5x', ours / bare <= 1.5, group=GROUP)
 
 
+def bench_peers(args):
+    """Print (f) and (g)."""
+    from bench_tf_peers import cloud_ms, lookup_us, real_cloud_ms
+    from dq_fk_ros.cli.compat_path import compat_folders
+    compat = compat_folders()
+    ours = cloud_ms(compat)
+    figure('do_transform_cloud, 300 000 points (x y z rgb intensity), ours', ours, 'ms',
+           group=GROUP)
+    if args.geometry2 and args.common_interfaces:
+        real = real_cloud_ms(args.geometry2, args.common_interfaces, compat)
+        if real is not None and ours is not None:
+            figure("the same cloud, geometry2's tf2_sensor_msgs (sensor_msgs_py)", real, 'ms',
+                   group=GROUP)
+            figure('do_transform_cloud: how much faster than tf2_sensor_msgs', real / ours,
+                   'x', '>= 2x', real / ours >= 2.0, group=GROUP)
+    else:
+        print('- tf2_sensor_msgs: not measured (give --geometry2 and --common-interfaces)')
+    if args.real_tf2:
+        real = lookup_us(args.real_tf2, compat, TREE_FRAMES)
+        mine = lookup_us(None, compat, TREE_FRAMES)
+        if real is not None and mine is not None:
+            figure('the real tf2_ros lookup_transform, the tree of (a)', real, 'us', group=GROUP)
+            figure('the same through the compat path (dq_fk_ros.tf.Buffer)', mine, 'us',
+                   group=GROUP)
+            figure('lookup_transform through the compat path, against the real tf2_ros',
+                   mine / real, 'x', '<= 0.2x', mine / real <= 0.2, group=GROUP)
+    else:
+        print('- the real tf2_ros: not measured (give --real-tf2; 70-78 us in (a))')
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--seconds', type=float, default=60.0,
                         help='the listener run after its cache filled (default 60)')
     parser.add_argument('--skip-listener', action='store_true')
+    parser.add_argument('--geometry2', help='a checkout of ros2/geometry2 (jazzy), for (f)')
+    parser.add_argument('--common-interfaces', help='a checkout of ros2/common_interfaces')
+    parser.add_argument('--real-tf2', metavar='ENV_LINE', help="build_real_tf2.sh's last line")
+    parser.add_argument('--only-peers', action='store_true', help='(f) and (g) alone')
     parser.add_argument('--listen', type=float, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.listen is not None:
         return listen(args.listen)
     print('TF without tf2 (dq_fk_ros.tf)')
+    if args.only_peers:
+        bench_peers(args)
+        return 0
     bench_lookups()
     bench_hostile_peer()
     folder = os.path.join(os.path.dirname(HERE), 'build', 'bench')
     os.makedirs(folder, exist_ok=True)
     bench_bag(folder)
+    bench_peers(args)
     if not args.skip_listener:
         bench_listener(args.seconds)
     return 0

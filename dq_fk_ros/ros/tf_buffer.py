@@ -197,7 +197,9 @@ class Buffer(MessageBufferCore, BufferInterface):
         if timeout is not None and duration_ns(timeout) > 0:
             self._wait(lambda: self.core.can_transform(target_frame, source_frame, stamp),
                        timeout)
-        return self.lookup_transform_core(target_frame, source_frame, stamp)
+        with self.lock:   # lookup_transform_core's, inline: the hot path
+            pose, used = self.core.lookup(target_frame, source_frame, stamp)
+        return to_message(target_frame, source_frame, pose, used)
 
     def lookup_transform_full(self, target_frame: str, target_time, source_frame: str,
                               source_time, fixed_frame: str, timeout=None) -> TransformStamped:

@@ -7,9 +7,10 @@ translated, every other field as it was, the header's frame the transform's targ
 ``TransformStamped``) and its stamp the cloud's. Registered for ``Buffer.transform``, so
 ``buffer.transform(cloud, 'base_link')`` is "the camera's cloud in the base frame".
 
-One copy of the message's bytes, then x, y, z read as float64 through a strided view, moved
-by one matrix product, and written back in their own type: no per-point Python, no
-structured-array round trip (benchmarks/bench_tf.py compares it with tf2_sensor_msgs').
+One copy of the message's bytes, then x, y, z read as float64 rows through a strided view,
+moved by the rotation matrix and the translation in place (no BLAS: a threaded matrix product
+waits on a busy core), and written back in their own type: no per-point Python, no
+structured-array round trip (benchmarks/bench_tf.py (f) compares it with tf2_sensor_msgs').
 """
 
 import array
@@ -64,15 +65,22 @@ def do_transform_cloud(cloud: PointCloud2, transform) -> PointCloud2:
                       is_dense=cloud.is_dense)
     out.data = data
     view = cloud_view(out, dtype)
-    t = transform.translation
-    r = rotation_matrix(transform.rotation)
-    xyz = np.empty(view.shape + (3,))
+    rows = view.shape[0] * view.shape[1]
+    xyz = np.empty((3, rows))   # one contiguous row a coordinate
     for k, name in enumerate('xyz'):
-        xyz[..., k] = view[name]
-    moved = xyz @ r.T
-    moved += (t.x, t.y, t.z)
+        xyz[k] = view[name].reshape(rows)
+    moved, term = np.empty((3, rows)), np.empty(rows)
+    r, t = rotation_matrix(transform.rotation), transform.translation
+    for i, shift in enumerate((t.x, t.y, t.z)):   # moved = R xyz + t, row by row, in place
+        row = moved[i]
+        np.multiply(xyz[0], r[i, 0], out=row)
+        np.multiply(xyz[1], r[i, 1], out=term)
+        row += term
+        np.multiply(xyz[2], r[i, 2], out=term)
+        row += term
+        row += shift
     for k, name in enumerate('xyz'):
-        view[name] = moved[..., k]
+        view[name] = moved[k].reshape(view.shape)
     return out
 
 
