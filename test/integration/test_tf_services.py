@@ -3,13 +3,16 @@
 import threading
 
 from dq_fk_ros import tf
+from dq_fk_ros.testing import wait_until
 from geometry_msgs.msg import PointStamped, TransformStamped
 import pytest
 from rclpy.action import ActionServer
 from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
 from rclpy.time import Time
 from ros_harness import own_node, unique_node_name
+from rosgraph_msgs.msg import Clock
 from tf2_msgs.action import LookupTransform
 from tf2_msgs.msg import TF2Error
 from tf2_msgs.srv import FrameGraph
@@ -126,3 +129,24 @@ def test_a_buffer_given_a_node_serves_tf2_frames(ros_domain_id):
         yaml_text = future.result().frame_yaml
         assert 'odom:' in yaml_text and "parent: 'map'" in yaml_text
         assert 'the_peer' in yaml_text
+
+
+def test_a_buffer_on_a_node_with_sim_time_is_cleared_when_clock_goes_back(ros_domain_id):
+    """A bag played again: /clock jumps back, the buffer forgets (tf2_ros's buffer.py)."""
+    with own_node(unique_node_name('tf_clock_jump_test')) as node:
+        node.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, True)])
+        buffer = tf.Buffer(node=node)
+        clock = node.create_publisher(Clock, '/clock', 10)
+
+        def tick(seconds):
+            msg = Clock()
+            msg.clock.sec = seconds
+            clock.publish(msg)
+        with Spinning(node):
+            assert wait_until(lambda: (tick(100), node.get_clock().now().nanoseconds ==
+                                       100 * 10**9)[1], 20)
+            buffer.set_transform(transform('map', 'odom', 100, 1.0), 'bag')
+            assert buffer.can_transform('map', 'odom', Time(seconds=100))
+            assert wait_until(lambda: (tick(50), not buffer.can_transform(
+                'map', 'odom', Time(seconds=100)))[1], 20)
+        assert node.get_clock().now().nanoseconds == 50 * 10**9
