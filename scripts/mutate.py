@@ -282,11 +282,30 @@ def report(target: float, survivors_of=None) -> int:
     return below
 
 
+def one_run_at_a_time(root=None):
+    """
+    Return the held lock of ``.mutation/run.lock`` (an open file), or None if a run holds it.
+
+    Two runs at once rewrite each other's ``mutants/`` and keep each other's half-made
+    results (a whole build's were lost so). The lock goes with the process.
+    """
+    import fcntl
+    folder = os.path.join(root or ROOT, '.mutation')
+    os.makedirs(folder, exist_ok=True)
+    stream = open(os.path.join(folder, 'run.lock'), 'w')
+    try:
+        fcntl.flock(stream, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        stream.close()
+        return None
+    return stream
+
+
 def main(argv=None) -> int:
     """Run mutmut (``run``) and print the report, or the report alone (``report``)."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('action', nargs='?', choices=('run', 'report', 'fingerprint'),
-                        default='run')
+    # no default: 'mutate.py --survivors X' once started a whole run of both builds
+    parser.add_argument('action', choices=('run', 'report', 'fingerprint'))
     parser.add_argument('--modes', nargs='+', choices=sorted(MODES), default=sorted(MODES))
     parser.add_argument('--only', nargs='+', metavar='PATTERN', default=[],
                         help="mutmut's mutant names to run (globs: 'dq_fk_ros.ros.conversions*')")
@@ -304,6 +323,11 @@ def main(argv=None) -> int:
         print(f'mutate: {fill_fingerprints()} fingerprint(s) written')
         return 0
     if args.action == 'run':
+        lock = one_run_at_a_time()
+        if lock is None:
+            print('mutate: another mutate.py run is going on in this checkout (mutants/ and '
+                  '.mutation/ are shared); wait for it or stop it', file=sys.stderr)
+            return 2
         # Ctrl-C, or a SIGTERM (a run left in the background, where SIGINT is ignored), stops
         # mutmut and keeps what it finished
         before = {sig: signal.signal(sig, signal.default_int_handler)
@@ -313,6 +337,7 @@ def main(argv=None) -> int:
         finally:
             for sig, handler in before.items():
                 signal.signal(sig, handler)
+            lock.close()
         if rc:
             return rc
     report(args.target, args.survivors)

@@ -194,3 +194,21 @@ def test_an_equivalent_whose_mutant_changed_is_not_counted_and_is_named(
     lines = capsys.readouterr().out.splitlines()
     assert lines[-2] == ('mutate: 1 listed equivalent(s) no longer the mutant reviewed (the '
                          'function changed; not counted, review again): pkg.m.x_f__mutmut_1')
+
+
+def test_a_second_run_in_the_same_checkout_is_refused(tmp_path, monkeypatch, capsys):
+    """Two runs at once rewrite each other's mutants/ (a whole build's results were lost so)."""
+    monkeypatch.setattr(mutate, 'ROOT', str(tmp_path))
+    held = mutate.one_run_at_a_time()
+    try:
+        assert mutate.main(['run', '--modes', 'pure', '--continue']) == 2
+        assert 'another mutate.py run is going on' in capsys.readouterr().err
+    finally:
+        held.close()
+    assert mutate.one_run_at_a_time() is not None   # released with its holder
+
+
+def test_the_action_is_named_never_a_run_by_default(capsys):
+    """``mutate.py --survivors X`` (report's option) once started a whole run of both builds."""
+    with pytest.raises(SystemExit):
+        mutate.main(['--survivors', 'schema'])
