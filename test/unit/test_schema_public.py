@@ -42,3 +42,33 @@ def test_a_robot_file_with_a_mistake_says_which_field_in_public(text):
 def test_a_file_that_is_no_robot_file_is_never_quoted(text):
     said = public(text)
     assert GENERIC in said and 'hunter2' not in said
+
+
+ONE_CHAIN = """
+  - parent: world
+    base: {frame: b0}
+    chain:
+      - {frame: l1, joint: j1, theta: 0, d: 0.1, a: 0, alpha: 0}
+"""
+
+
+def chains(value, extra=''):
+    return f'robot: arm\nchains: {value}\n{extra}'
+
+
+@pytest.mark.parametrize('text, said', [
+    (chains('[]'), "f.yaml: chains: expected a non-empty list of {parent, base, chain, tool}, "
+                   'got a list of 0'),
+    (chains('7'), 'f.yaml: chains: expected a non-empty list of {parent, base, chain, tool}, '
+                  'got 7 (int)'),
+    (chains('\n  - 5'), 'f.yaml: chains[0]: expected a mapping with fields parent, base, chain, '
+                        'tool, got 5 (int)'),
+    (chains('[' + ', '.join(['{parent: world}'] * 257) + ']'),
+     'f.yaml: chains: 257 chains; a robot description has at most 256'),
+] + [(chains('\n' + ONE_CHAIN, f'{field}: {{frame: t}}\n'),
+      f"f.yaml: field '{field}' goes inside an entry of 'chains' when the file has 'chains' "
+      '(give either chains, or base and chain)') for field in ('base', 'chain', 'tool')])
+def test_each_mistake_in_chains_says_where_and_what(text, said):
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description(text, 'f.yaml')
+    assert str(caught.value) == said == caught.value.public
