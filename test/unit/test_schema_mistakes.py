@@ -55,7 +55,7 @@ CASES = [
     (row(0, alpha='x'), L1, "'alpha'"),
     (row(0, scale='x'), L1, "'scale'"),
     (row(0, scale=0), L1, "field 'scale' must not be 0 (it multiplies the joint "
-                                  'value)'),
+                          'value)'),
     (row(0, frame=5), 'chain[0]', "field 'frame' must be a tf2 frame id"),
     (row(0, joint=5), L1, "field 'joint' must be a joint name"),
     # a fixed row takes no joint fields
@@ -70,8 +70,8 @@ CASES = [
     (row(1, **CYLINDRICAL, mimic={'joint': 'j1'}), L2,
      "field 'mimic' does not apply to a cylindrical row"),
     (row(1, type='cylindrical'), L2, "missing field 'd_joint' (a cylindrical row "
-                                             "reads two joints: 'joint' for theta, 'd_joint' "
-                                             'for d)'),
+                                     "reads two joints: 'joint' for theta, 'd_joint' "
+                                     'for d)'),
     (row(1, type='cylindrical', d_joint=5), L2, "field 'd_joint' must be a joint name"),
     (row(1, **CYLINDRICAL, d_limits='x'), L2, "'d_limits'"),
     (row(1, **CYLINDRICAL, d_max_velocity='x'), L2, "'d_max_velocity'"),
@@ -92,8 +92,8 @@ CASES = [
     (top(base=5), 'base', 'expected a mapping'),
     (top(base={'xyz': [0, 0, 0]}), 'base', "'frame'"),
     (top(base={'frame': 'b0', 'xyz': [0, 'x', 0]}), 'base', "field 'xyz[1]' must be a number"),
-    (top(base={'frame': 'b0', 'xyz': [0, 1e300, 0]}), 'base', "field 'xyz[1]' is 1e+300 m; "
-                                                             'offsets are at most'),
+    (top(base={'frame': 'b0', 'xyz': [0, 1e300, 0]}), 'base',
+     "field 'xyz[1]' is 1e+300 m; offsets are at most"),
     (top(base={'frame': 'b0', 'rpy': [0, 0]}), 'base', "'rpy'"),
     (top(base={'frame': 'b0', 'quaternion': [0, 0, 1]}), 'base', "'quaternion'"),
     (top(base={'frame': 'b0', 'quaternion': [0, 0, 0, 0]}), 'base',
@@ -119,8 +119,9 @@ CASES = [
 TOP_CASES = [
     (top(robot=''), "field 'robot' must be a non-empty name of printable characters"),
     (top(robot='r' * (MAX_NAME_CHARS + 1)), "field 'robot' must be a non-empty name"),
-    (top(description='bell \x07'), "field 'description' must be text of printable characters "
-                                    "(at most 4096), got 'bell \\x07' (str)"),
+    (top(description='bell \x07'),
+     "field 'description' must be text of printable characters (at most 4096), got "
+     "'bell \\x07' (str)"),
     (top(convention='modern'), "field 'convention' is 'modern'; allowed: standard, modified"),
     (top(fixed_frame=5), "field 'fixed_frame' must be a tf2 frame id"),
     (lambda data: data.pop('base'), "missing field 'base' (required: robot, base, chain; or "
@@ -180,8 +181,8 @@ def test_rows_are_counted_over_every_chain():
 
 def test_a_prismatic_mimic_offset_moves_d_a_revolute_one_theta():
     for kind, moved in (('prismatic', 'd'), ('revolute', 'theta')):
-        data = changed(row(0, type=kind), row(1, type=kind, joint=None,
-                                               mimic={'joint': 'j1', 'offset': 0.5}))
+        data = changed(row(0, type=kind),
+                       row(1, type=kind, joint=None, mimic={'joint': 'j1', 'offset': 0.5}))
         data['units'] = {'angle': 'rad', 'length': 'm'}
         model = parse_robot_description(yaml.safe_dump(data), 'f.yaml')
         row_1 = model.chain.joints[1]

@@ -57,7 +57,7 @@ def chains(value, extra=''):
 
 
 @pytest.mark.parametrize('text, said', [
-    (chains('[]'), "f.yaml: chains: expected a non-empty list of {parent, base, chain, tool}, "
+    (chains('[]'), 'f.yaml: chains: expected a non-empty list of {parent, base, chain, tool}, '
                    'got a list of 0'),
     (chains('7'), 'f.yaml: chains: expected a non-empty list of {parent, base, chain, tool}, '
                   'got 7 (int)'),
