@@ -142,6 +142,19 @@ def test_the_confined_open_reads_under_its_roots_and_what_is_allowed_after(tmp_p
     assert len(real_open.calls) == 4
 
 
+def test_a_folder_allowed_is_that_folder_whatever_its_name_ends_with(tmp_path):
+    """A folder named 'pkg ' (a trailing space) allows 'pkg /...', never its neighbour 'pkg/'."""
+    spaced, plain = tmp_path / 'pkg ', tmp_path / 'pkg'
+    for folder in (spaced, plain):
+        folder.mkdir()
+        write(folder, 'a.xacro', HEAD + TAIL)
+    confined, allow = _confined_open(Opened(), [str(tmp_path / 'elsewhere')])
+    allow(str(spaced))
+    assert confined(str(spaced / 'a.xacro')) == str(spaced / 'a.xacro')
+    with pytest.raises(PermissionError):
+        confined(str(plain / 'a.xacro'))
+
+
 def test_the_confined_open_never_writes_and_opens_only_names(tmp_path):
     real_open = Opened()
     confined, _ = _confined_open(real_open, [str(tmp_path)])
