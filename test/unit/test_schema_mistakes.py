@@ -196,3 +196,44 @@ def test_a_file_that_is_no_mapping_says_so_in_its_own_words():
     assert str(caught.value).startswith('f.yaml: expected a mapping with fields robot, ')
     assert str(caught.value).endswith(', got a list of 2')
     assert 'list of 2' not in caught.value.public
+
+
+def test_a_link_moves_on_tf_only_where_its_tf_parent_is_another_rigid_body():
+    """A fixed row, the base and the tool ride with the body before them; a moving row not."""
+    data = changed(row(1, type='fixed', joint=None))   # l2 fixed to l1; the tool to l2
+    data['links'] = [
+        {'frame': 'cam', 'parent': 'tcp', 'tf_parent': 'l1'},      # l1's body: still
+        {'frame': 'plate', 'parent': 'b0', 'tf_parent': 'world'},  # the base is the world's
+        {'frame': 'mark', 'parent': 'l2', 'tf_parent': 'l1'},      # a fixed row: l1's body
+        {'frame': 'flag', 'parent': 'l1', 'tf_parent': 'b0'},      # l1 turns about j1: moves
+    ]
+    model = parse_robot_description(yaml.safe_dump(data), 'f.yaml')
+    moving = dict(zip(model.frame_names, model.moving))
+    assert [moving[f] for f in ('cam', 'plate', 'mark', 'flag')] == [False, False, False, True]
+
+
+def test_the_files_own_fields_each_say_what_is_wrong():
+    for edit, message in (
+            (top(end_effector=5), "f.yaml: field 'end_effector' must be a tf2 frame id"),
+            (top(end_effector='nowhere'), "f.yaml: field 'end_effector' names 'nowhere', "
+                                          'which is not a frame of the robot; frames: '),
+            (top(publish_dh_frames='yes'), "f.yaml: field 'publish_dh_frames' must be true or "
+                                           "false, got 'yes' (str)"),
+            (top(links=[{'frame': 'cam', 'parent': 'tcp'}, {'frame': 'cam', 'parent': 'b0'}]),
+             "f.yaml: links[1] (frame 'cam'): frame 'cam' is already used by links[0]"),
+            (top(links=[{'frame': 'l_1', 'parent': 'tcp'}], chain=[
+                dict(ROBOT['chain'][0], frame='l.1')]),
+             "f.yaml: frames 'l.1' and 'l_1' would both publish on ~/pose/l_1")):
+        assert said(changed(edit)).startswith(message)
+
+
+def test_yaml_that_does_not_parse_says_where_and_the_source_defaults_to_string():
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description('robot: [unclosed')
+    assert str(caught.value) == ("<string>: not valid YAML at line 1, column 17: expected ',' "
+                                 "or ']', but got '<stream end>'")   # the problem, not context
+    assert caught.value.public == '<string>: not valid YAML at line 1, column 17'
+    with pytest.raises(RobotDescriptionError) as caught:   # a reader's error has no place
+        parse_robot_description('robot: a\x01b', 'f.yaml')
+    assert str(caught.value) == ('f.yaml: not valid YAML: unacceptable character #x0001: '
+                                 'special characters are not allowed')
