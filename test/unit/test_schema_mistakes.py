@@ -237,3 +237,17 @@ def test_yaml_that_does_not_parse_says_where_and_the_source_defaults_to_string()
         parse_robot_description('robot: a\x01b', 'f.yaml')
     assert str(caught.value) == ('f.yaml: not valid YAML: unacceptable character #x0001: '
                                  'special characters are not allowed')
+
+
+def test_a_number_python_refuses_and_a_file_of_no_robot_say_so_in_public_words():
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description('robot: ' + '9' * 5000, 'f.yaml')
+    assert str(caught.value).startswith('f.yaml: not valid YAML: Exceeds the limit (4300 '
+                                        'digits) for integer string conversion')
+    assert caught.value.public == 'f.yaml: not valid YAML'
+    with pytest.raises(RobotDescriptionError) as caught:
+        parse_robot_description('x: 1', 'f.yaml')
+    assert caught.value.public == (
+        'f.yaml: not a robot description (a YAML mapping with the fields robot, base and '
+        'chain (or chains), and no others than robot, description, convention, units, '
+        'fixed_frame, base, chain, tool, chains, links, end_effector, publish_dh_frames)')
