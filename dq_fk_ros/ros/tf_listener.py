@@ -116,11 +116,12 @@ class TransformListener:
         self._take(raw, self._static_reader, True)
 
     def _take(self, raw, reader, static):
-        self.counts['messages'] += 1
+        """Store one message; ``counts['messages']`` goes up last, once it is stored whole."""
         try:
             layout = reader.layout(raw)
         except (CdrError, ValueError):
             self._log_unreadable()
+            self.counts['messages'] += 1
             return
         if static or COMPILED is None or self.buffer.core.sclerp:
             self.counts['transforms'] += self.buffer.set_raw(
@@ -129,6 +130,9 @@ class TransformListener:
             self.counts['transforms'] += self.buffer.append_raw(raw, layout, self._plans,
                                                                 AUTHORITY)
         self.counts['refused'] = sum(self.buffer.core.refused.values())
+        # last: a reader waiting on the count of messages finds their transforms and
+        # refusals counted (a fresh-clone run read the refusals of all but the last message)
+        self.counts['messages'] += 1
 
     def unregister(self) -> None:
         """Destroy the subscriptions (tf2_ros's ``unregister``)."""
