@@ -122,7 +122,14 @@ def test_rl15_frames_reach_foxglove_as_the_node_computed_them(processes, listene
         assert joints['name'][:6] == [f'joint_{k}' for k in range(1, 7)]
         assert len(joints['position']) == 6
         # the end effector's pose as the node published it (same stamp, same values)
-        listener.spin_until(lambda: client.messages.get(pose_topic), timeout_s=30)
+        # until one stamp reached both (the client may get one before the listener: a
+        # loaded fresh-clone run compared before any had, seed 3914703975)
+
+        def one_in_both():
+            stamps = {(p.header.stamp.sec, p.header.stamp.nanosec) for p in list(poses)}
+            return any((got.timestamp.seconds, got.timestamp.nanos) in stamps
+                       for _, got in list(client.messages.get(pose_topic, [])))
+        listener.spin_until(one_in_both, timeout_s=30)
         published = {(p.header.stamp.sec, p.header.stamp.nanosec): p for p in list(poses)}
         matched = 0
         for _, got in client.messages[pose_topic]:
