@@ -131,6 +131,20 @@ def do_transform_polygon_stamped(polygon: PolygonStamped, transform) -> PolygonS
     return res
 
 
+def _screw_pair(transform, axis, moment):
+    """
+    Return ``(R axis, R moment + t x R axis)``: a wrench's or a twist's pair moved.
+
+    ``axis`` is the force (a wrench) or the angular velocity (a twist); ``moment`` the torque
+    or the linear velocity, taken about the source frame's origin, then about the target's.
+    """
+    pose = transform_pose(transform)
+    moved = _rotate(pose[3:], (axis.x, axis.y, axis.z))
+    turned = _rotate(pose[3:], (moment.x, moment.y, moment.z))
+    extra = _cross(pose[:3], moved)
+    return moved, (turned[0] + extra[0], turned[1] + extra[1], turned[2] + extra[2])
+
+
 def do_transform_wrench(wrench: WrenchStamped, transform) -> WrenchStamped:
     """
     Return ``wrench`` in the transform's frame: force ``R f``, torque ``R tau + t x R f``.
@@ -138,15 +152,10 @@ def do_transform_wrench(wrench: WrenchStamped, transform) -> WrenchStamped:
     The C++ ``tf2_geometry_msgs`` rule (``doTransform(Wrench)``): the torque about the new
     frame's origin.
     """
-    pose = transform_pose(transform)
-    f, tau = wrench.wrench.force, wrench.wrench.torque
-    force = _rotate(pose[3:], (f.x, f.y, f.z))
-    torque = _rotate(pose[3:], (tau.x, tau.y, tau.z))
-    extra = _cross(pose[:3], force)
+    force, torque = _screw_pair(transform, wrench.wrench.force, wrench.wrench.torque)
     res = WrenchStamped(header=_header(transform))
     _set_xyz(res.wrench.force, force)
-    _set_xyz(res.wrench.torque, (torque[0] + extra[0], torque[1] + extra[1],
-                                 torque[2] + extra[2]))
+    _set_xyz(res.wrench.torque, torque)
     return res
 
 
@@ -159,15 +168,10 @@ def do_transform_twist(twist: TwistStamped, transform) -> TwistStamped:
     target frame's origin moving with the body, in the target's axes (the rigid-body map,
     the dual of :func:`do_transform_wrench`).
     """
-    pose = transform_pose(transform)
-    v, w = twist.twist.linear, twist.twist.angular
-    angular = _rotate(pose[3:], (w.x, w.y, w.z))
-    linear = _rotate(pose[3:], (v.x, v.y, v.z))
-    extra = _cross(pose[:3], angular)
+    angular, linear = _screw_pair(transform, twist.twist.angular, twist.twist.linear)
     res = TwistStamped(header=_header(transform))
     _set_xyz(res.twist.angular, angular)
-    _set_xyz(res.twist.linear, (linear[0] + extra[0], linear[1] + extra[1],
-                                linear[2] + extra[2]))
+    _set_xyz(res.twist.linear, linear)
     return res
 
 
