@@ -27,7 +27,7 @@ DATATYPES = {PointField.INT8: np.int8, PointField.UINT8: np.uint8,
              PointField.INT32: np.int32, PointField.UINT32: np.uint32,
              PointField.FLOAT32: np.float32, PointField.FLOAT64: np.float64}
 DUMMY_FIELD_PREFIX = 'unnamed_field'
-MAX_FIELDS = 1024   # a cloud naming more fields is refused (each becomes a numpy field)
+MAX_FIELDS = 1024   # values a point at most (fields times counts): each a numpy field
 
 
 def dtype_from_fields(fields, point_step=None, bigendian: bool = False) -> np.dtype:
@@ -52,6 +52,9 @@ def dtype_from_fields(fields, point_step=None, bigendian: bool = False) -> np.dt
         if field.count > MAX_FIELDS:
             raise ValueError(f'PointCloud2 field {i}: count {field.count}, at most '
                              f'{MAX_FIELDS}')
+        if len(names) + field.count > MAX_FIELDS:
+            raise ValueError(f'PointCloud2 field {i}: more than {MAX_FIELDS} values a point '
+                             '(fields times their counts)')
         kind = np.dtype(kind).newbyteorder(order)
         name = field.name or f'{DUMMY_FIELD_PREFIX}_{i}'
         for k in range(field.count):

@@ -114,6 +114,8 @@ def test_create_cloud_takes_tuples_and_structured_arrays():
      'twice'),
     (lambda c: setattr(c, 'width', 2 ** 31), 'row_step 52 is less than width'),
     (lambda c: setattr(c, 'height', 2 ** 31), 'data has'),
+    (lambda c: c.fields.extend(PointField(name=f'f{k}', offset=0, datatype=U8, count=1000)
+                               for k in range(2)), 'more than 1024 values a point'),
 ])
 def test_a_cloud_whose_fields_and_data_disagree_is_refused_in_one_line(change, words):
     cloud = hand_cloud(POINTS)
